@@ -1,0 +1,100 @@
+# vesica — build, test, bench, run.  `make test` and `make run` install any
+# missing Debian package first (as root), then build and run.
+#
+#   make            build build/libvesica.a and build/vesica
+#   make test       every test in tests/ (SAN=1: AddressSanitizer + UBSan)
+#   make bench      the benchmarks in bench/, printing tables
+#   make run        the default problem
+#   make deps       install missing Debian packages (root) or print the command
+#   make clean
+
+CC      ?= gcc
+CXX     ?= g++
+SAN     ?= 0
+OPT     ?= -O2
+ifeq ($(SAN),1)
+BUILD   ?= build-san
+SANFLAGS = -fsanitize=address,undefined -fno-omit-frame-pointer -fno-sanitize-recover=undefined
+else
+BUILD   ?= build
+SANFLAGS =
+endif
+
+DEPS_PKGS = coinor-libipopt-dev libnlopt-dev libmumps-seq-dev libcgal-dev \
+            libhdf5-dev libcmocka-dev liblapacke-dev libopenblas-dev \
+            gnuplot-nox pkg-config libiniparser-dev
+
+PKG_CFLAGS := $(shell pkg-config --cflags ipopt hdf5 2>/dev/null)
+PKG_LIBS   := $(shell pkg-config --libs ipopt hdf5 2>/dev/null)
+
+WARN     = -Wall -Wextra -Wshadow -Wmissing-prototypes -Wstrict-prototypes -Wvla -Werror
+CFLAGS  ?= $(OPT) -g
+CFLAGS  += -std=c11 -D_XOPEN_SOURCE=700 $(WARN) -Iinclude -Isolver $(PKG_CFLAGS) $(SANFLAGS) -MMD -MP
+# CGAL: always -O2 (16x slower at -O0); rounding-math as CGAL requires, and the
+# check disabled so valgrind can run it.
+CXXFLAGS_CGAL = -std=c++17 -O2 -g -frounding-math -DCGAL_DISABLE_ROUNDING_MATH_CHECK \
+                -Wall -Wextra -Werror -Iinclude $(SANFLAGS) -MMD -MP
+LDLIBS   = $(PKG_LIBS) -lnlopt -ldmumps_seq -liniparser -llapacke -lopenblas -lgmp -lstdc++ -lm
+LDFLAGS += $(SANFLAGS)
+
+LIB_C    = $(filter-out solver/cli.c,$(wildcard solver/*.c))
+LIB_OBJ  = $(LIB_C:solver/%.c=$(BUILD)/obj/%.o) $(BUILD)/obj/geom.o
+TESTS    = $(patsubst tests/%.c,$(BUILD)/tests/%,$(wildcard tests/test_*.c))
+BENCHES  = $(patsubst bench/%.c,$(BUILD)/bench/%,$(wildcard bench/bench_*.c))
+
+.PHONY: all deps test bench run clean format
+all: deps-quiet $(BUILD)/libvesica.a $(BUILD)/vesica
+
+$(BUILD)/obj/%.o: solver/%.c | $(BUILD)/obj
+	$(CC) $(CFLAGS) -c $< -o $@
+$(BUILD)/obj/geom.o: solver/geom.cpp | $(BUILD)/obj
+	$(CXX) $(CXXFLAGS_CGAL) -c $< -o $@
+$(BUILD)/libvesica.a: $(LIB_OBJ)
+	ar rcs $@ $^
+$(BUILD)/vesica: $(BUILD)/obj/cli.o $(BUILD)/libvesica.a
+	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
+$(BUILD)/obj/cli.o: solver/cli.c | $(BUILD)/obj
+	$(CC) $(CFLAGS) -c $< -o $@
+$(BUILD)/tests/%: tests/%.c $(BUILD)/libvesica.a | $(BUILD)/tests
+	$(CC) $(CFLAGS) -o $@ $< $(BUILD)/libvesica.a $(LDFLAGS) -lcmocka $(LDLIBS)
+$(BUILD)/bench/%: bench/%.c $(BUILD)/libvesica.a | $(BUILD)/bench
+	$(CC) $(CFLAGS) -o $@ $< $(BUILD)/libvesica.a $(LDFLAGS) $(LDLIBS)
+$(BUILD)/obj $(BUILD)/tests $(BUILD)/bench:
+	mkdir -p $@
+
+# Install what is missing (root), or say what to run. Costs one dpkg-query
+# when everything is there.
+deps:
+	@st=$$(dpkg-query -W -f='$${Package} $${Status}\n' $(DEPS_PKGS) 2>/dev/null); missing=; \
+	for p in $(DEPS_PKGS); do \
+	  printf '%s\n' "$$st" | grep -q "^$$p install ok installed$$" || missing="$$missing $$p"; \
+	done; \
+	[ -z "$$missing" ] && exit 0; \
+	echo "vesica: missing Debian packages:$$missing"; \
+	if [ "$$(id -u)" = 0 ]; then \
+	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends $$missing; \
+	else \
+	  echo "run as root: apt-get update && apt-get install -y --no-install-recommends$$missing"; exit 1; \
+	fi
+deps-quiet: deps
+.PHONY: deps-quiet
+
+test: deps
+	@$(MAKE) --no-print-directory $(BUILD)/libvesica.a $(BUILD)/vesica $(TESTS)
+	@OPENBLAS_NUM_THREADS=1 sh tests/run.sh $(TESTS)
+
+bench: deps
+	@$(MAKE) --no-print-directory $(BUILD)/libvesica.a $(BENCHES)
+	@for b in $(BENCHES); do echo "== $$b"; $$b || exit 1; done
+
+run: deps
+	@$(MAKE) --no-print-directory $(BUILD)/vesica
+	$(BUILD)/vesica check problems/sphere.ini
+
+format:
+	clang-format -i include/ves/*.h solver/*.c solver/*.cpp tests/*.c bench/*.c
+
+clean:
+	rm -rf build build-san
+
+-include $(wildcard $(BUILD)/obj/*.d $(BUILD)/tests/*.d $(BUILD)/bench/*.d)

@@ -1,0 +1,61 @@
+/* vesica — problem files: INI (iniparser) with a fixed, documented set of
+ * sections and keys, each typed, with a default, a range and units.
+ * Unknown sections or keys, wrong types and out-of-range values are errors
+ * with a message naming the file, the key and the reason. */
+#ifndef VES_CONFIG_H
+#define VES_CONFIG_H
+
+#include <stddef.h>
+#include <stdio.h>
+
+#include "ves/status.h"
+
+#define VES_CONFIG_STR 64
+
+/* All parameters of a run. Lengths in R0 = sqrt(A0/4pi), energies in k, times
+ * in t* = t k / (mu R0^3). */
+typedef struct {
+  char source[512];                /* the file it came from */
+  /* [geometry] */
+  double epsilon;                  /* interface width eps / R0 */
+  double box_r, box_z;             /* meridian box [0, box_r] x [-box_z, box_z] */
+  double h_band;                   /* node spacing in the band, in units of eps */
+  double band;                     /* half-width of the refined band, units of eps */
+  double slope;                    /* growth of the spacing away from the band */
+  double h_far;                    /* largest spacing */
+  double gamma;                    /* LME aspect ratio */
+  double support_tol;              /* LME support truncation tol0 */
+  double axis_spacings;            /* width of the regular axis strip (spacings) */
+  int lloyd_iterations;            /* CVT smoothing iterations */
+  int seed;                        /* seed of the node sampling */
+  /* [shape] */
+  char shape_type[VES_CONFIG_STR]; /* sphere | spheroid | discocyte */
+  double radius;                   /* sphere radius */
+  double reduced_volume;           /* spheroid reduced volume v */
+  char orientation[VES_CONFIG_STR];/* spheroid: oblate | prolate */
+  int mode;                        /* radial perturbation 1 + delta P_mode(cos t) */
+  double delta;                    /* perturbation amplitude */
+  /* [material] */
+  double k;                        /* bending stiffness (energy unit: 1) */
+  double mu;                       /* viscosity (unit: 1) */
+  double lambda_ratio;             /* penalty lambda / mu (>= 10) */
+  double c0;                       /* spontaneous curvature C0 R0 */
+} ves_config;
+
+/* Defaults for every key. */
+void ves_config_default(ves_config *cfg);
+
+/* Load `path` over the defaults, then apply the overrides "section.key=value"
+ * (nset of them). On error returns VES_ERR_CONFIG (or VES_ERR_IO for an
+ * unreadable file) and writes one line "FILE: [section] key: reason" to err. */
+ves_status ves_config_load(const char *path, int nset, const char *const *set, ves_config *cfg,
+                           char *err, size_t errlen);
+
+/* Cross-key consistency (epsilon vs box, ...); same error convention. */
+ves_status ves_config_validate(const ves_config *cfg, char *err, size_t errlen);
+
+/* Print every key: section, key, type, default, range, units and meaning
+ * (the table problems/README.md is written from). */
+void ves_config_print_keys(FILE *f);
+
+#endif

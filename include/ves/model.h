@@ -1,0 +1,62 @@
+/* vesica — the discrete Lagrangian phase-field model: energy E, area A and
+ * volume V of DESIGN.md §1 as functions of the nodal positions y, with
+ * gradients and exact sparse Hessians, and the dissipation matrix K(y), all
+ * from one per-point assembly over the local kinematic variables
+ * q_alpha = B_alpha y (DESIGN.md §2).
+ *
+ * y has 2n entries (r_a, z_a) for the real nodes; ghosts carry (-r_a, z_a).
+ * Every integral is 2 pi sum_alpha w_alpha (density at alpha). */
+#ifndef VES_MODEL_H
+#define VES_MODEL_H
+
+#include "ves/geom.h"
+#include "ves/quad.h"
+#include "ves/sparse.h"
+#include "ves/status.h"
+
+/* Physical parameters (units: lengths R0, energy k, time mu R0^3 / k). */
+typedef struct {
+  double eps;    /* interface width eps / R0 */
+  double c0;     /* spontaneous curvature C0 R0 */
+  double k;      /* bending stiffness (1 in reduced units) */
+  double mu;     /* shear viscosity (1 in reduced units) */
+  double lambda; /* penalty viscosity lambda (lambda/mu >= 10) */
+} ves_model_params;
+
+typedef struct ves_model ves_model;
+
+/* Which functionals to evaluate. */
+enum { VES_F_E = 1, VES_F_A = 2, VES_F_V = 4 };
+
+/* Build the model for nodes and quadrature tables (both borrowed: they must
+ * outlive the model) and the phase-field coefficients phi0c[n] (copied into
+ * point values phi0, grad phi0, Hess phi0 at every quadrature point).
+ * Fixed dofs: wall nodes (r and z) and the r of axis nodes. */
+ves_status ves_model_create(const ves_nodes *nodes, const ves_quad *q, const double *phi0c,
+                            const ves_model_params *par, ves_model **out);
+void ves_model_destroy(ves_model **m);
+
+/* The sparse pattern shared by the Hessians and K (owned by the model). */
+const ves_pattern *ves_model_pattern(const ves_model *m);
+
+/* Values (and gradients over all 2n dofs when g* != NULL) of the functionals
+ * selected in `which`; outputs of unselected ones are not touched.
+ * VES_ERR_DOMAIN when det F <= 0 or r <= 0 at some point. */
+ves_status ves_model_eval(ves_model *m, const double *y, int which, double *E, double *A, double *V,
+                          double *gE, double *gA, double *gV);
+
+/* Block values (4 ptr[n] doubles, see ves_pattern) of
+ * cE Hess E + cA Hess A + cV Hess V at y. */
+ves_status ves_model_hessian(ves_model *m, const double *y, double cE, double cA, double cV,
+                             double *blk);
+
+/* Block values of the dissipation matrix K(y): Diss = (1/2) ydot^T K ydot. */
+ves_status ves_model_dissipation(ves_model *m, const double *y, double *blk);
+
+/* Pointwise W (units 1/R0) at every quadrature point, W[nq]. */
+ves_status ves_model_pointwise_W(ves_model *m, const double *y, double *W);
+
+/* Reference nodal positions (y at rest), 2n, for convenience. */
+void ves_model_reference(const ves_model *m, double *y);
+
+#endif

@@ -1,0 +1,75 @@
+/* vesica — quadrature on the Delaunay triangles of the reference nodes, and the
+ * discretization tables: for every quadrature point its neighbour list and the
+ * 6 x m table [p; dp/dR; dp/dZ; d2p/dR2; d2p/dRdZ; d2p/dZ2] of the LME basis. */
+#ifndef VES_QUAD_H
+#define VES_QUAD_H
+
+#include "ves/geom.h"
+#include "ves/lme.h"
+#include "ves/status.h"
+
+#define VES_QUAD_NPT 6 /* points per triangle (degree-4 rule) */
+
+/* Points and weights of the 6-point degree-4 rule on a triangle: bary[3k+j]
+ * is the j-th barycentric coordinate of point k, w[k] its weight; the weights
+ * sum to 1 (multiply by the triangle's area). */
+void ves_quad_rule(double bary[3 * VES_QUAD_NPT], double w[VES_QUAD_NPT]);
+
+/* Quadrature points and their tables (plain data; sizes in the comments). */
+typedef struct {
+  int ntri;             /* triangles of the reference Delaunay triangulation */
+  int *tri;             /* 3 ntri node indices, counter-clockwise */
+  int nq;               /* quadrature points, VES_QUAD_NPT * ntri */
+  double *x;            /* 2 nq reference positions (R, Z), units of R0 */
+  double *w;            /* nq weights of the measure dR dZ (units R0^2); the
+                           axisymmetric factor 2 pi r det F belongs to the model */
+  /* Tables (NULL until ves_quad_tables): CSR over the points. */
+  int *ptr;             /* nq + 1 offsets into nbr, mirror; m_a = ptr[a+1]-ptr[a] */
+  int *nbr;             /* ptr[nq] real node indices */
+  unsigned char *mirror;/* ptr[nq] flags: 1 when the entry is the ghost (-R, Z)
+                           of node nbr[k] (r-coefficient -1, z and phi0 +1) */
+  double *tab;          /* 6 ptr[nq]: point a's table starts at tab + 6 ptr[a],
+                           row-major 6 x m_a, rows p, p_R, p_Z, p_RR, p_RZ, p_ZZ */
+} ves_quad;
+
+/* Statistics of a table build. */
+typedef struct {
+  double m_mean;      /* mean neighbours per point (ghost entries included) */
+  int m_max;          /* largest neighbour count */
+  double iter_mean;   /* mean Newton iterations of the LME dual */
+  int iter_max;       /* largest Newton iteration count */
+  double seconds;     /* wall time of the build */
+} ves_quad_info;
+
+/* Triangulate the real nodes (Delaunay) and place VES_QUAD_NPT points per
+ * triangle. nodes is borrowed; *out is taken by the caller. */
+ves_status ves_quad_create(const ves_nodes *nodes, ves_quad **out);
+
+/* Build the tables for the current points against the current nodes (real +
+ * ghost), with support radii ves_lme_radius(lme, h_a) and beta_a = gamma/h_a^2.
+ * Replaces previous tables. info may be NULL. */
+ves_status ves_quad_tables(ves_quad *q, const ves_nodes *nodes,
+                           const ves_lme_params *lme, ves_quad_info *info);
+
+/* Least-squares (L2) coefficients of a field that is even in R (a ghost
+ * carries its real node's coefficient): c minimizes
+ *   sum_alpha w_alpha (sum_a p_a(X_alpha) c_a - f_alpha)^2,
+ * i.e. solves M c = b, M_ab = sum w p_a p_b, b_a = sum w p_a f, by conjugate
+ * gradients with the Jacobi preconditioner, from the initial guess in c,
+ * until |M c - b| <= rtol |b| or maxit iterations.
+ *   f[nq]   the field at the points (borrowed)
+ *   c[n]    in: initial guess; out: the coefficients
+ *   iters, relres  may be NULL
+ * Returns VES_OK, VES_MAXITER (c holds the last iterate), VES_ERR_ALLOC. */
+ves_status ves_quad_project(const ves_quad *q, int n, const double *f, double *c, double rtol,
+                            int maxit, int *iters, double *relres);
+
+/* Evaluate an even field from coefficients: out[6 nq] rows (value, d/dR,
+ * d/dZ, d2/dR2, d2/dRdZ, d2/dZ2) at every point, point-major: out[6 alpha + j].
+ * nder as in ves_lme_eval (rows beyond are not written). */
+void ves_quad_field(const ves_quad *q, const double *c, int nder, double *out);
+
+/* Free; accepts NULL and sets *q to NULL. */
+void ves_quad_destroy(ves_quad **q);
+
+#endif

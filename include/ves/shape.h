@@ -1,0 +1,73 @@
+/* vesica — initial vesicle shapes: axisymmetric generating curves with an exact
+ * signed distance d(R, Z) (> 0 inside), their sharp area and volume, the
+ * phase-field phi0 = tanh(d / (sqrt2 eps)), and the node sizing field. */
+#ifndef VES_SHAPE_H
+#define VES_SHAPE_H
+
+#include "ves/status.h"
+
+typedef enum {
+  VES_SHAPE_SPHERE = 0,   /* circle of radius `radius` */
+  VES_SHAPE_SPHEROID = 1, /* ellipse with reduced volume v, area 4 pi */
+  VES_SHAPE_DISCOCYTE = 2 /* Evans-Fung biconcave disc, area 4 pi */
+} ves_shape_kind;
+
+/* What the user gives. Lengths in units of R0 = sqrt(A0 / 4 pi). */
+typedef struct {
+  ves_shape_kind kind;
+  double radius;  /* sphere radius (default 1) */
+  double v;       /* spheroid: reduced volume in (0, 1] (default 0.9) */
+  int prolate;    /* spheroid: 1 long axis along Z (prolate), 0 oblate */
+  int mode;       /* perturbation: the curve is scaled radially by
+                     1 + delta P_mode(cos t), t the polar parameter; 0 = none */
+  double delta;   /* perturbation amplitude (|delta| < 0.5) */
+} ves_shape_params;
+
+typedef struct ves_shape ves_shape;
+
+/* Defaults: unit sphere, no perturbation. */
+void ves_shape_params_default(ves_shape_params *par);
+
+/* Build the shape (for spheroids and discocytes: solve for the semi-axes /
+ * scale with area 4 pi). par is copied. */
+ves_status ves_shape_create(const ves_shape_params *par, ves_shape **out);
+void ves_shape_destroy(ves_shape **s);
+
+/* Signed distance to the generating curve, > 0 inside, exact to rounding
+ * (closest point by safeguarded Newton on the curve parameter). */
+double ves_shape_distance(const ves_shape *s, const double X[2]);
+
+/* Sharp area and enclosed volume of the surface of revolution. */
+void ves_shape_sharp(const ves_shape *s, double *area, double *volume);
+
+/* Sharp Helfrich energy (1/2) int (H - C0)^2 dA / k of the surface of
+ * revolution, H = (k1 + k2)/2 (k1 meridional, k2 parallel curvature; 1/R for
+ * a sphere of radius R, so a sphere gives 2 pi (1 - C0 R)^2). */
+double ves_shape_sharp_energy(const ves_shape *s, double c0);
+
+/* Semi-axes (equatorial along R, polar along Z) of the unperturbed curve. */
+void ves_shape_axes(const ves_shape *s, double *a, double *c);
+
+/* phi0(X) = tanh(d(X) / (sqrt2 eps)). */
+double ves_shape_phi0(const ves_shape *s, double eps, const double X[2]);
+
+/* Node sizing: h = h_band for |d| < band*eps, then growing linearly with
+ * `slope` to h_far. d is tabulated on a grid (spacing <= h_band) and
+ * interpolated bilinearly, so an evaluation is O(1). */
+typedef struct {
+  double eps;    /* interface width eps (units R0) */
+  double h_band; /* spacing in the band (default 0.5 eps) */
+  double band;   /* half-width of the band in units of eps (default 4) */
+  double slope;  /* growth rate of h away from the band (default 0.15, < 0.2) */
+  double h_far;  /* largest spacing (default 0.2) */
+} ves_sizing_params;
+
+typedef struct ves_sizing ves_sizing;
+
+ves_status ves_sizing_create(const ves_shape *s, const ves_sizing_params *par,
+                             double LR, double LZ, ves_sizing **out);
+void ves_sizing_destroy(ves_sizing **z);
+/* ves_sizing_fn-compatible: ctx is a ves_sizing *. */
+double ves_sizing_eval(const double X[2], void *ctx);
+
+#endif

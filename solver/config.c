@@ -1,0 +1,253 @@
+/* vesica — problem-file parsing: one table of keys (type, default, range,
+ * documentation) drives defaults, parsing, validation and the key listing. */
+#include "ves/config.h"
+
+#include <errno.h>
+#include <iniparser/iniparser.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+
+typedef enum { KEY_DOUBLE, KEY_INT, KEY_STRING } key_type;
+
+typedef struct {
+  const char *section, *key;
+  key_type type;
+  size_t offset;     /* into ves_config */
+  const char *def;   /* default, as text */
+  double min, max;   /* inclusive range (numbers) */
+  const char *choice;/* strings: allowed values, '|'-separated */
+  const char *doc;   /* units and meaning */
+} key_spec;
+
+#define OFF(f) offsetof(ves_config, f)
+static const key_spec KEYS[] = {
+    {"geometry", "epsilon", KEY_DOUBLE, OFF(epsilon), "0.04", 1e-4, 0.5, NULL,
+     "interface width eps/R0 (paper: 0.01)"},
+    {"geometry", "box_r", KEY_DOUBLE, OFF(box_r), "2.0", 0.1, 100, NULL,
+     "meridian box extent in R (units R0)"},
+    {"geometry", "box_z", KEY_DOUBLE, OFF(box_z), "2.0", 0.1, 100, NULL,
+     "meridian box half-extent in Z (units R0)"},
+    {"geometry", "h_band", KEY_DOUBLE, OFF(h_band), "0.5", 0.05, 2.0, NULL,
+     "node spacing in the band, units of eps (<= 0.5 recommended)"},
+    {"geometry", "band", KEY_DOUBLE, OFF(band), "4.0", 0.0, 20.0, NULL,
+     "half-width of the refined band |d| < band*eps, units of eps"},
+    {"geometry", "slope", KEY_DOUBLE, OFF(slope), "0.15", 0.01, 0.5, NULL,
+     "growth rate of the spacing away from the band (< 0.2 recommended)"},
+    {"geometry", "h_far", KEY_DOUBLE, OFF(h_far), "0.2", 1e-4, 10, NULL,
+     "largest node spacing (units R0)"},
+    {"geometry", "gamma", KEY_DOUBLE, OFF(gamma), "0.8", 0.1, 4.0, NULL,
+     "LME aspect ratio gamma, beta_a = gamma/h_a^2 (0.6-0.8)"},
+    {"geometry", "support_tol", KEY_DOUBLE, OFF(support_tol), "1e-6", 1e-14, 1e-2, NULL,
+     "LME support truncation tol0"},
+    {"geometry", "axis_spacings", KEY_DOUBLE, OFF(axis_spacings), "10", 8, 50, NULL,
+     "width of the regular lattice strip along the axis, in spacings"},
+    {"geometry", "lloyd_iterations", KEY_INT, OFF(lloyd_iterations), "60", 0, 10000, NULL,
+     "Lloyd (CVT) smoothing iterations of the node set"},
+    {"geometry", "seed", KEY_INT, OFF(seed), "1", 0, 2147483647, NULL,
+     "seed of the deterministic node sampling"},
+    {"shape", "type", KEY_STRING, OFF(shape_type), "sphere", 0, 0, "sphere|spheroid|discocyte",
+     "initial shape"},
+    {"shape", "radius", KEY_DOUBLE, OFF(radius), "1.0", 1e-3, 100, NULL,
+     "sphere radius (units R0)"},
+    {"shape", "reduced_volume", KEY_DOUBLE, OFF(reduced_volume), "0.9", 0.3, 1.0, NULL,
+     "spheroid reduced volume v = V / (4 pi R0^3 / 3)"},
+    {"shape", "orientation", KEY_STRING, OFF(orientation), "oblate", 0, 0, "oblate|prolate",
+     "spheroid: oblate (short axis along Z) or prolate (long axis along Z)"},
+    {"shape", "mode", KEY_INT, OFF(mode), "0", 0, 40, NULL,
+     "radial perturbation 1 + delta P_mode(cos t); 0 for none"},
+    {"shape", "delta", KEY_DOUBLE, OFF(delta), "0", -0.49, 0.49, NULL, "perturbation amplitude"},
+    {"material", "k", KEY_DOUBLE, OFF(k), "1", 1e-12, 1e12, NULL,
+     "bending stiffness (the energy unit)"},
+    {"material", "mu", KEY_DOUBLE, OFF(mu), "1", 1e-12, 1e12, NULL, "viscosity (the unit)"},
+    {"material", "lambda_ratio", KEY_DOUBLE, OFF(lambda_ratio), "100", 10, 1e8, NULL,
+     "compressibility penalty lambda/mu (>= 10)"},
+    {"material", "c0", KEY_DOUBLE, OFF(c0), "0", -100, 100, NULL, "spontaneous curvature C0 R0"},
+};
+#define NKEYS ((int)(sizeof KEYS / sizeof KEYS[0]))
+
+static void say(char *err, size_t errlen, const char *fmt, ...) {
+  if (!err || !errlen) return;
+  va_list ap;
+  va_start(ap, fmt);
+  vsnprintf(err, errlen, fmt, ap);
+  va_end(ap);
+}
+
+/* Parse text into the field of spec k; 0 on success, -1 with a reason. */
+static int set_value(ves_config *cfg, const key_spec *k, const char *text, const char **why) {
+  char *end;
+  void *field = (char *)cfg + k->offset;
+  while (*text == ' ' || *text == '\t') text++;
+  if (k->type == KEY_STRING) {
+    size_t len = strlen(text);
+    if (len == 0 || len >= VES_CONFIG_STR) return *why = "empty or too long", -1;
+    const char *c = k->choice;
+    int ok = 0;
+    while (c && *c) { /* one of the '|'-separated choices */
+      size_t l = strcspn(c, "|");
+      if (l == len && !strncasecmp(c, text, l)) ok = 1;
+      c += l + (c[l] == '|');
+    }
+    if (!ok) return *why = "not one of the allowed values", -1;
+    memcpy(field, text, len + 1);
+    return 0;
+  }
+  errno = 0;
+  double v = strtod(text, &end);
+  while (*end == ' ' || *end == '\t') end++;
+  if (end == text || *end || errno || !isfinite(v)) return *why = "not a number", -1;
+  if (k->type == KEY_INT && v != floor(v)) return *why = "not an integer", -1;
+  if (v < k->min || v > k->max) return *why = "out of range", -1;
+  if (k->type == KEY_INT) *(int *)field = (int)v;
+  else *(double *)field = v;
+  return 0;
+}
+
+static const key_spec *find_key(const char *section, const char *key) {
+  for (int i = 0; i < NKEYS; i++)
+    if (!strcasecmp(KEYS[i].section, section) && !strcasecmp(KEYS[i].key, key)) return &KEYS[i];
+  return NULL;
+}
+
+static int known_section(const char *section) {
+  for (int i = 0; i < NKEYS; i++)
+    if (!strcasecmp(KEYS[i].section, section)) return 1;
+  return 0;
+}
+
+void ves_config_default(ves_config *cfg) {
+  memset(cfg, 0, sizeof *cfg);
+  for (int i = 0; i < NKEYS; i++) {
+    const char *why;
+    (void)set_value(cfg, &KEYS[i], KEYS[i].def, &why); /* defaults are valid by construction */
+  }
+}
+
+/* iniparser reports syntax problems through a global callback; keep the
+ * library silent (the caller gets our own message). */
+static int ini_quiet(const char *fmt, ...) {
+  (void)fmt;
+  return 0;
+}
+
+static ves_status range_msg(char *err, size_t errlen, const char *src, const key_spec *k,
+                            const char *val, const char *why) {
+  if (k->type == KEY_STRING)
+    say(err, errlen, "%s: [%s] %s = '%s': %s (allowed: %s)", src, k->section, k->key, val, why,
+        k->choice);
+  else
+    say(err, errlen, "%s: [%s] %s = '%s': %s (allowed: %g to %g)", src, k->section, k->key, val,
+        why, k->min, k->max);
+  return VES_ERR_CONFIG;
+}
+
+ves_status ves_config_load(const char *path, int nset, const char *const *set, ves_config *cfg,
+                           char *err, size_t errlen) {
+  VES_CHECK(cfg && (nset == 0 || set), VES_ERR_ARG);
+  ves_config_default(cfg);
+  if (path) {
+    snprintf(cfg->source, sizeof cfg->source, "%s", path);
+    FILE *f = fopen(path, "r");
+    if (!f) {
+      say(err, errlen, "%s: cannot open: %s", path, strerror(errno));
+      return VES_ERR_IO;
+    }
+    fclose(f);
+    iniparser_set_error_callback(ini_quiet);
+    dictionary *d = iniparser_load(path);
+    if (!d) {
+      say(err, errlen, "%s: not a readable INI file", path);
+      return VES_ERR_CONFIG;
+    }
+    ves_status s = VES_OK;
+    for (int i = 0; i < iniparser_getnsec(d) && s == VES_OK; i++) {
+      const char *sec = iniparser_getsecname(d, i);
+      if (!known_section(sec)) {
+        say(err, errlen, "%s: [%s]: unknown section", path, sec);
+        s = VES_ERR_CONFIG;
+        break;
+      }
+      int nk = iniparser_getsecnkeys(d, sec);
+      const char **keys = nk > 0 ? malloc((size_t)nk * sizeof *keys) : NULL;
+      if (nk > 0 && !keys) {
+        s = VES_ERR_ALLOC;
+        break;
+      }
+      if (nk > 0) iniparser_getseckeys(d, sec, keys);
+      for (int j = 0; j < nk && s == VES_OK; j++) {
+        const char *full = keys[j], *dot = strchr(full, ':');
+        const char *name = dot ? dot + 1 : full;
+        const key_spec *k = find_key(sec, name);
+        const char *val = iniparser_getstring(d, full, NULL);
+        const char *why;
+        if (!k) {
+          say(err, errlen, "%s: [%s] %s: unknown key", path, sec, name);
+          s = VES_ERR_CONFIG;
+        } else if (!val || set_value(cfg, k, val, &why)) {
+          s = range_msg(err, errlen, path, k, val ? val : "", val ? why : "no value");
+        }
+      }
+      free(keys);
+    }
+    iniparser_freedict(d);
+    if (s != VES_OK) return s;
+  }
+  for (int i = 0; i < nset; i++) { /* --set section.key=value */
+    char sec[64], key[64];
+    const char *dot = strchr(set[i], '.'), *eq = strchr(set[i], '=');
+    if (!dot || !eq || dot > eq || dot - set[i] >= 64 || eq - dot - 1 >= 64 || eq == dot + 1) {
+      say(err, errlen, "--set '%s': expected section.key=value", set[i]);
+      return VES_ERR_CONFIG;
+    }
+    memcpy(sec, set[i], (size_t)(dot - set[i]));
+    sec[dot - set[i]] = 0;
+    memcpy(key, dot + 1, (size_t)(eq - dot - 1));
+    key[eq - dot - 1] = 0;
+    const key_spec *k = find_key(sec, key);
+    const char *why;
+    if (!k) {
+      say(err, errlen, "--set: [%s] %s: unknown key", sec, key);
+      return VES_ERR_CONFIG;
+    }
+    if (set_value(cfg, k, eq + 1, &why)) return range_msg(err, errlen, "--set", k, eq + 1, why);
+  }
+  return ves_config_validate(cfg, err, errlen);
+}
+
+ves_status ves_config_validate(const ves_config *cfg, char *err, size_t errlen) {
+  const char *src = cfg->source[0] ? cfg->source : "(defaults)";
+  double size = !strcasecmp(cfg->shape_type, "sphere") ? cfg->radius * (1 + fabs(cfg->delta)) : 1.6;
+  if (cfg->epsilon * 10 > fmin(cfg->box_r, cfg->box_z)) {
+    say(err, errlen, "%s: [geometry] epsilon = %g: too large for the box (needs 10 eps <= %g)", src,
+        cfg->epsilon, fmin(cfg->box_r, cfg->box_z));
+    return VES_ERR_CONFIG;
+  }
+  if (size + 6 * cfg->epsilon > fmin(cfg->box_r, cfg->box_z)) {
+    say(err, errlen, "%s: [geometry] box_r/box_z = %g/%g: the vesicle (size ~%g) and its band do "
+                     "not fit in the box", src, cfg->box_r, cfg->box_z, size);
+    return VES_ERR_CONFIG;
+  }
+  if (cfg->h_far < cfg->h_band * cfg->epsilon) {
+    say(err, errlen, "%s: [geometry] h_far = %g: smaller than the band spacing %g", src, cfg->h_far,
+        cfg->h_band * cfg->epsilon);
+    return VES_ERR_CONFIG;
+  }
+  return VES_OK;
+}
+
+void ves_config_print_keys(FILE *f) {
+  fprintf(f, "| section | key | type | default | allowed | meaning |\n|---|---|---|---|---|---|\n");
+  for (int i = 0; i < NKEYS; i++) {
+    const key_spec *k = &KEYS[i];
+    const char *t = k->type == KEY_DOUBLE ? "real" : k->type == KEY_INT ? "integer" : "text";
+    if (k->type == KEY_STRING)
+      fprintf(f, "| %s | %s | %s | %s | %s | %s |\n", k->section, k->key, t, k->def, k->choice,
+              k->doc);
+    else
+      fprintf(f, "| %s | %s | %s | %s | %g to %g | %s |\n", k->section, k->key, t, k->def, k->min,
+              k->max, k->doc);
+  }
+}

@@ -1,0 +1,340 @@
+/* vesica — 6-point degree-4 quadrature on Delaunay triangles and the LME
+ * discretization tables at the quadrature points (DESIGN.md §2).
+ *
+ * The rule is the symmetric degree-4 rule of Strang–Fix/Dunavant: two orbits of
+ * three points with barycentric coordinates (1-2a, a, a); its four parameters
+ * solve the moment equations of degree <= 4 (recomputed to 40 digits with
+ * mpmath; every monomial of degree <= 4 is integrated to rounding, see
+ * tests/test_quad.c). All points are interior, so the LME dual is never solved
+ * on the hull boundary. */
+#include "ves/quad.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#define QA1 0.4459484909159648863183292538830519883991
+#define QW1 0.2233815896780114656950070084331228043703
+#define QA2 0.09157621350977074345957146340220150785433
+#define QW2 0.1099517436553218676383263249002105289631
+
+void ves_quad_rule(double bary[3 * VES_QUAD_NPT], double w[VES_QUAD_NPT]) {
+  const double a[2] = {QA1, QA2}, wt[2] = {QW1, QW2};
+  for (int o = 0; o < 2; o++)
+    for (int k = 0; k < 3; k++) { /* point k of orbit o: 1-2a at vertex k */
+      double *b = bary + 3 * (3 * o + k);
+      b[0] = b[1] = b[2] = a[o];
+      b[k] = 1.0 - 2.0 * a[o];
+      w[3 * o + k] = wt[o];
+    }
+}
+
+static void tables_free(ves_quad *q) {
+  free(q->ptr);
+  free(q->nbr);
+  free(q->mirror);
+  free(q->tab);
+  q->ptr = q->nbr = NULL;
+  q->mirror = NULL;
+  q->tab = NULL;
+}
+
+void ves_quad_destroy(ves_quad **q) {
+  if (!q || !*q) return;
+  tables_free(*q);
+  free((*q)->tri);
+  free((*q)->x);
+  free((*q)->w);
+  free(*q);
+  *q = NULL;
+}
+
+/* Points X = sum_j bary_j V_j and weights w_k |T| on every triangle T. */
+ves_status ves_quad_create(const ves_nodes *nodes, ves_quad **out) {
+  VES_CHECK(nodes && out && nodes->n >= 3, VES_ERR_ARG);
+  *out = NULL;
+  ves_quad *q = calloc(1, sizeof *q);
+  if (!q) return VES_ERR_ALLOC;
+  ves_status s = ves_geom_delaunay(nodes->n, nodes->x, &q->ntri, &q->tri);
+  if (s != VES_OK) goto fail;
+  q->nq = VES_QUAD_NPT * q->ntri;
+  q->x = malloc(2 * (size_t)q->nq * sizeof *q->x);
+  q->w = malloc((size_t)q->nq * sizeof *q->w);
+  if (!q->x || !q->w) {
+    s = VES_ERR_ALLOC;
+    goto fail;
+  }
+  double bary[3 * VES_QUAD_NPT], wr[VES_QUAD_NPT];
+  ves_quad_rule(bary, wr);
+  for (int t = 0; t < q->ntri; t++) {
+    const double *v0 = nodes->x + 2 * q->tri[3 * t], *v1 = nodes->x + 2 * q->tri[3 * t + 1],
+                 *v2 = nodes->x + 2 * q->tri[3 * t + 2];
+    /* |T| = ((v1 - v0) x (v2 - v0)) / 2, positive for counter-clockwise */
+    double area = 0.5 * ((v1[0] - v0[0]) * (v2[1] - v0[1]) - (v1[1] - v0[1]) * (v2[0] - v0[0]));
+    if (!(area > 0.0)) {
+      s = VES_ERR_GEOM;
+      goto fail;
+    }
+    for (int k = 0; k < VES_QUAD_NPT; k++) {
+      const double *b = bary + 3 * k;
+      double *X = q->x + 2 * (VES_QUAD_NPT * t + k);
+      X[0] = b[0] * v0[0] + b[1] * v1[0] + b[2] * v2[0];
+      X[1] = b[0] * v0[1] + b[1] * v1[1] + b[2] * v2[1];
+      q->w[VES_QUAD_NPT * t + k] = wr[k] * area;
+    }
+  }
+  *out = q;
+  return VES_OK;
+fail:
+  ves_quad_destroy(&q);
+  return s;
+}
+
+static double now_seconds(void) {
+  struct timespec ts;
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return ts.tv_sec + 1e-9 * ts.tv_nsec;
+}
+
+/* Grow *buf to hold at least need elements of size sz (capacity in *cap). */
+static int grow(void **buf, size_t *cap, size_t need, size_t sz) {
+  if (need <= *cap) return 0;
+  size_t c = *cap ? *cap : 1024;
+  while (c < need) c *= 2;
+  void *p = realloc(*buf, c * sz);
+  if (!p) return -1;
+  *buf = p;
+  *cap = c;
+  return 0;
+}
+
+/* For each point: neighbours a (real and ghost) with |X - X_a| <= r_a, then
+ * the LME table at X over exactly those neighbours. */
+ves_status ves_quad_tables(ves_quad *q, const ves_nodes *nodes,
+                           const ves_lme_params *lme, ves_quad_info *info) {
+  VES_CHECK(q && nodes && lme, VES_ERR_ARG);
+  double t0 = now_seconds();
+  tables_free(q);
+  int n = nodes->n, ne = nodes->n + nodes->ng;
+  ves_status s = VES_OK;
+  ves_geom_search *search = NULL;
+  double *xe = malloc(2 * (size_t)ne * sizeof *xe);
+  double *rad = malloc((size_t)ne * sizeof *rad);
+  double *beta_e = malloc((size_t)ne * sizeof *beta_e);
+  int *idx = NULL, *all = NULL;
+  double *xa = NULL, *beta = NULL, *work = NULL;
+  size_t cap_all = 0;
+  q->ptr = malloc(((size_t)q->nq + 1) * sizeof *q->ptr);
+  if (!xe || !rad || !beta_e || !q->ptr) {
+    s = VES_ERR_ALLOC;
+    goto done;
+  }
+  ves_nodes_extended(nodes, xe);
+  for (int a = 0; a < ne; a++) {
+    double h = nodes->h[a < n ? a : nodes->ghost_of[a - n]];
+    rad[a] = ves_lme_radius(lme, h);
+    beta_e[a] = lme->gamma / (h * h);
+  }
+  s = ves_geom_search_create(ne, xe, rad, &search);
+  if (s != VES_OK) goto done;
+
+  /* Pass 1: neighbour lists (extended indices), kept in `all`. */
+  int cap = 256, m_max = 0;
+  idx = malloc((size_t)cap * sizeof *idx);
+  if (!idx) {
+    s = VES_ERR_ALLOC;
+    goto done;
+  }
+  q->ptr[0] = 0;
+  for (int p = 0; p < q->nq; p++) {
+    int cnt;
+    s = ves_geom_search_query(search, q->x + 2 * p, cap, idx, &cnt);
+    if (s != VES_OK) goto done;
+    if (cnt > cap) { /* rare: enlarge and ask again */
+      cap = 2 * cnt;
+      int *tmp = realloc(idx, (size_t)cap * sizeof *idx);
+      if (!tmp) {
+        s = VES_ERR_ALLOC;
+        goto done;
+      }
+      idx = tmp;
+      s = ves_geom_search_query(search, q->x + 2 * p, cap, idx, &cnt);
+      if (s != VES_OK) goto done;
+    }
+    if (grow((void **)&all, &cap_all, (size_t)q->ptr[p] + cnt, sizeof *all)) {
+      s = VES_ERR_ALLOC;
+      goto done;
+    }
+    memcpy(all + q->ptr[p], idx, (size_t)cnt * sizeof *idx);
+    q->ptr[p + 1] = q->ptr[p] + cnt;
+    if (cnt > m_max) m_max = cnt;
+  }
+
+  /* Pass 2: fold ghost indices and evaluate the basis. */
+  size_t nnz = (size_t)q->ptr[q->nq];
+  q->nbr = malloc(nnz * sizeof *q->nbr);
+  q->mirror = malloc(nnz);
+  q->tab = malloc(6 * nnz * sizeof *q->tab);
+  xa = malloc(2 * (size_t)m_max * sizeof *xa);
+  beta = malloc((size_t)m_max * sizeof *beta);
+  work = malloc((size_t)ves_lme_work_size(m_max) * sizeof *work);
+  if (!q->nbr || !q->mirror || !q->tab || !xa || !beta || !work) {
+    s = VES_ERR_ALLOC;
+    goto done;
+  }
+  long iter_sum = 0;
+  int iter_max = 0;
+  double lambda[2] = {0.0, 0.0};
+  for (int p = 0; p < q->nq; p++) {
+    int m = q->ptr[p + 1] - q->ptr[p];
+    const int *nb = all + q->ptr[p];
+    for (int k = 0; k < m; k++) {
+      int a = nb[k];
+      q->nbr[q->ptr[p] + k] = a < n ? a : nodes->ghost_of[a - n];
+      q->mirror[q->ptr[p] + k] = a >= n;
+      xa[2 * k] = xe[2 * a];
+      xa[2 * k + 1] = xe[2 * a + 1];
+      beta[k] = beta_e[a];
+    }
+    if (p % VES_QUAD_NPT == 0) lambda[0] = lambda[1] = 0.0; /* warm start within a triangle */
+    ves_lme_info li;
+    s = ves_lme_eval(lme, q->x + 2 * p, m, xa, beta, lambda, 2, q->tab + 6 * (size_t)q->ptr[p],
+                     work, &li);
+    if (s != VES_OK) goto done;
+    iter_sum += li.iterations;
+    if (li.iterations > iter_max) iter_max = li.iterations;
+  }
+  if (info) {
+    info->m_mean = q->nq ? (double)nnz / q->nq : 0.0;
+    info->m_max = m_max;
+    info->iter_mean = q->nq ? (double)iter_sum / q->nq : 0.0;
+    info->iter_max = iter_max;
+    info->seconds = now_seconds() - t0;
+  }
+done:
+  if (s != VES_OK) tables_free(q);
+  ves_geom_search_destroy(&search);
+  free(xe);
+  free(rad);
+  free(beta_e);
+  free(idx);
+  free(all);
+  free(xa);
+  free(beta);
+  free(work);
+  return s;
+}
+
+/* out[6 alpha + j] = sum_k T_jk c_{nbr_k} (a ghost entry uses its real node's
+ * coefficient: the field is even in R). */
+void ves_quad_field(const ves_quad *q, const double *c, int nder, double *out) {
+  int rows = nder <= 0 ? 1 : nder == 1 ? 3 : 6;
+  for (int p = 0; p < q->nq; p++) {
+    int m = q->ptr[p + 1] - q->ptr[p];
+    const int *nb = q->nbr + q->ptr[p];
+    const double *t = q->tab + 6 * (size_t)q->ptr[p];
+    for (int j = 0; j < rows; j++) {
+      double s = 0.0;
+      for (int k = 0; k < m; k++) s += t[j * m + k] * c[nb[k]];
+      out[6 * (size_t)p + j] = s;
+    }
+  }
+}
+
+/* y = M x = P^T W P x, with P the folded value rows of the tables. */
+static void mass_apply(const ves_quad *q, int n, const double *x, double *y) {
+  for (int a = 0; a < n; a++) y[a] = 0.0;
+  for (int p = 0; p < q->nq; p++) {
+    int m = q->ptr[p + 1] - q->ptr[p];
+    const int *nb = q->nbr + q->ptr[p];
+    const double *t = q->tab + 6 * (size_t)q->ptr[p];
+    double v = 0.0;
+    for (int k = 0; k < m; k++) v += t[k] * x[nb[k]]; /* v = (P x)_alpha */
+    v *= q->w[p];
+    for (int k = 0; k < m; k++) y[nb[k]] += t[k] * v; /* y += P_alpha^T w v */
+  }
+}
+
+ves_status ves_quad_project(const ves_quad *q, int n, const double *f, double *c, double rtol,
+                            int maxit, int *iters, double *relres) {
+  VES_CHECK(q && q->tab && f && c && n > 0 && rtol > 0 && maxit >= 0, VES_ERR_ARG);
+  double *b = calloc((size_t)n, sizeof *b), *r = malloc((size_t)n * sizeof *r);
+  double *z = malloc((size_t)n * sizeof *z), *d = malloc((size_t)n * sizeof *d);
+  double *Ad = malloc((size_t)n * sizeof *Ad), *diag = calloc((size_t)n, sizeof *diag);
+  int *mark = malloc((size_t)n * sizeof *mark);
+  ves_status s = VES_OK;
+  if (!b || !r || !z || !d || !Ad || !diag || !mark) {
+    s = VES_ERR_ALLOC;
+    goto done;
+  }
+  /* b = P^T W f, and diag(M) with the real and ghost entries of one node
+   * summed before squaring: (P_alpha,a)^2 = (p_real + p_ghost)^2 */
+  for (int a = 0; a < n; a++) mark[a] = -1;
+  for (int p = 0; p < q->nq; p++) {
+    int m = q->ptr[p + 1] - q->ptr[p];
+    const int *nb = q->nbr + q->ptr[p];
+    const double *t = q->tab + 6 * (size_t)q->ptr[p];
+    int ghosts = 0;
+    for (int k = 0; k < m; k++) ghosts |= q->mirror[q->ptr[p] + k];
+    for (int k = 0; k < m; k++) {
+      b[nb[k]] += q->w[p] * t[k] * f[p];
+      if (mark[nb[k]] == p) continue; /* pair already counted below */
+      double v = t[k];
+      for (int l = k + 1; ghosts && l < m; l++) /* only points near the axis see ghosts */
+        if (nb[l] == nb[k]) v += t[l];          /* the mirror entry of the same node */
+      mark[nb[k]] = p;
+      diag[nb[k]] += q->w[p] * v * v;
+    }
+  }
+  double bnorm = 0.0;
+  for (int a = 0; a < n; a++) {
+    bnorm += b[a] * b[a];
+    if (!(diag[a] > 0)) { /* a node no point sees: M singular */
+      s = VES_ERR_SINGULAR;
+      goto done;
+    }
+  }
+  bnorm = sqrt(bnorm);
+  mass_apply(q, n, c, Ad);
+  double rz = 0.0, rn = 0.0;
+  for (int a = 0; a < n; a++) {
+    r[a] = b[a] - Ad[a];        /* r = b - M c */
+    z[a] = r[a] / diag[a];      /* z = D^-1 r */
+    d[a] = z[a];
+    rz += r[a] * z[a];
+    rn += r[a] * r[a];
+  }
+  int it = 0;
+  while (sqrt(rn) > rtol * bnorm && it < maxit) {
+    mass_apply(q, n, d, Ad);
+    double dAd = 0.0;
+    for (int a = 0; a < n; a++) dAd += d[a] * Ad[a];
+    double alpha = rz / dAd; /* step along the conjugate direction */
+    double rz_new = 0.0;
+    rn = 0.0;
+    for (int a = 0; a < n; a++) {
+      c[a] += alpha * d[a];
+      r[a] -= alpha * Ad[a];
+      z[a] = r[a] / diag[a];
+      rz_new += r[a] * z[a];
+      rn += r[a] * r[a];
+    }
+    double beta = rz_new / rz; /* Fletcher-Reeves for the preconditioned residual */
+    rz = rz_new;
+    for (int a = 0; a < n; a++) d[a] = z[a] + beta * d[a];
+    it++;
+  }
+  if (iters) *iters = it;
+  if (relres) *relres = bnorm > 0 ? sqrt(rn) / bnorm : 0.0;
+  if (sqrt(rn) > rtol * bnorm) s = VES_MAXITER;
+done:
+  free(b);
+  free(r);
+  free(z);
+  free(d);
+  free(Ad);
+  free(diag);
+  free(mark);
+  return s;
+}

@@ -1,0 +1,225 @@
+/* vesica — tests of the quadrature rule and the discretization tables. */
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <setjmp.h>
+#include <cmocka.h>
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+
+#include "ves/quad.h"
+
+/* Deterministic uniform numbers in [0, 1) (xorshift64*). */
+static double urand(uint64_t *s) {
+  *s ^= *s >> 12;
+  *s ^= *s << 25;
+  *s ^= *s >> 27;
+  return (double)((*s * 2685821657736338717ULL) >> 11) * 0x1.0p-53;
+}
+
+/* Exact integral of x^i y^j over triangle v by Green's theorem,
+ * int_T x^i y^j dA = sum_edges int x^(i+1) y^j / (i+1) dy, each edge integral
+ * (a polynomial of degree <= 6 in the edge parameter) done with 4-point
+ * Gauss-Legendre, exact to degree 7: independent of the rule under test. */
+static double exact_monomial(const double v[6], int i, int j) {
+  static const double gx[4] = {-0.8611363115940526, -0.3399810435848563, 0.3399810435848563,
+                               0.8611363115940526};
+  static const double gw[4] = {0.3478548451374538, 0.6521451548625461, 0.6521451548625461,
+                               0.3478548451374538};
+  double sum = 0.0;
+  for (int e = 0; e < 3; e++) {
+    const double *a = v + 2 * e, *b = v + 2 * ((e + 1) % 3);
+    for (int g = 0; g < 4; g++) {
+      double t = 0.5 * (gx[g] + 1.0);
+      double x = a[0] + t * (b[0] - a[0]), y = a[1] + t * (b[1] - a[1]);
+      sum += 0.5 * gw[g] * pow(x, i + 1) / (i + 1) * pow(y, j) * (b[1] - a[1]);
+    }
+  }
+  return sum;
+}
+
+/* The rule integrates every monomial x^i y^j, i + j <= 4, exactly on
+ * arbitrary triangles. */
+static void test_rule_exact_degree4(void **state) {
+  (void)state;
+  double bary[18], w[6], wsum = 0.0;
+  ves_quad_rule(bary, w);
+  for (int k = 0; k < 6; k++) {
+    wsum += w[k];
+    assert_true(bary[3 * k] > 0 && bary[3 * k + 1] > 0 && bary[3 * k + 2] > 0); /* interior */
+  }
+  /* weights sum to one: 6 terms of O(0.2) in double -> a few ulp */
+  assert_true(fabs(wsum - 1.0) < 4e-16);
+  uint64_t seed = 12345;
+  double worst = 0.0;
+  for (int trial = 0; trial < 200; trial++) {
+    double v[6];
+    for (int c = 0; c < 6; c++) v[c] = 4.0 * urand(&seed) - 2.0;
+    double area = 0.5 * ((v[2] - v[0]) * (v[5] - v[1]) - (v[3] - v[1]) * (v[4] - v[0]));
+    if (fabs(area) < 1e-3) continue; /* skip slivers: the reference sum cancels badly */
+    for (int i = 0; i <= 4; i++)
+      for (int j = 0; i + j <= 4; j++) {
+        double q = 0.0;
+        for (int k = 0; k < 6; k++) {
+          const double *b = bary + 3 * k;
+          double x = b[0] * v[0] + b[1] * v[2] + b[2] * v[4];
+          double y = b[0] * v[1] + b[1] * v[3] + b[2] * v[5];
+          q += w[k] * fabs(area) * pow(x, i) * pow(y, j);
+        }
+        double ex = exact_monomial(v, i, j) * (area > 0 ? 1.0 : -1.0);
+        /* error relative to the integral of |x|^i|y|^j's scale |T| * 2^(i+j):
+         * both sides are sums of O(10) terms of that size */
+        double err = fabs(q - ex) / (fabs(area) * pow(2.0, i + j));
+        if (err > worst) worst = err;
+      }
+  }
+  printf("# degree-4 rule: worst scaled error over 200 triangles %.2e\n", worst);
+  assert_true(worst <= 1e-13);
+}
+
+/* Degree 5 is NOT exact: the test above can fail. */
+static void test_rule_not_degree5(void **state) {
+  (void)state;
+  double bary[18], w[6], v[6] = {0, 0, 1, 0, 0, 1};
+  ves_quad_rule(bary, w);
+  double q = 0.0;
+  for (int k = 0; k < 6; k++) q += w[k] * 0.5 * pow(bary[3 * k + 1], 5);
+  assert_true(fabs(q - exact_monomial(v, 5, 0)) > 1e-6);
+}
+
+/* The weights of a whole triangulation sum to the domain's area. */
+static void test_triangulation_area(void **state) {
+  (void)state;
+  const double LR = 1.5, LZ = 2.0;
+  int nb = 10, ni = 300, n = 4 * nb + ni;
+  ves_nodes nodes = {0};
+  nodes.n = n;
+  nodes.LR = LR;
+  nodes.LZ = LZ;
+  nodes.x = malloc(2 * (size_t)n * sizeof(double));
+  uint64_t seed = 99;
+  int k = 0;
+  for (int e = 0; e < nb; e++) { /* boundary points, corners included */
+    double t = (double)e / nb;
+    double *p = nodes.x + 2 * k;
+    p[0] = t * LR, p[1] = -LZ, p[2] = LR, p[3] = -LZ + 2 * LZ * t;
+    p[4] = LR - t * LR, p[5] = LZ, p[6] = 0.0, p[7] = LZ - 2 * LZ * t;
+    k += 4;
+  }
+  for (; k < n; k++) {
+    nodes.x[2 * k] = (0.01 + 0.98 * urand(&seed)) * LR;
+    nodes.x[2 * k + 1] = (0.98 * urand(&seed) - 0.49) * 2 * LZ;
+  }
+  ves_quad *q = NULL;
+  assert_int_equal(ves_quad_create(&nodes, &q), VES_OK);
+  assert_int_equal(q->nq, 6 * q->ntri);
+  double sum = 0.0, mom = 0.0;
+  for (int p = 0; p < q->nq; p++) {
+    assert_true(q->w[p] > 0.0);
+    sum += q->w[p];
+    mom += q->w[p] * q->x[2 * p] * q->x[2 * p] * q->x[2 * p + 1] * q->x[2 * p + 1];
+  }
+  /* ~4000 positive terms: relative rounding well below 1e-13 */
+  assert_true(fabs(sum - 2 * LR * LZ) <= 1e-13 * 2 * LR * LZ);
+  /* int R^2 Z^2 over the box = LR^3/3 * 2 LZ^3/3: degree 4, exact */
+  double ex = LR * LR * LR / 3.0 * 2.0 * LZ * LZ * LZ / 3.0;
+  assert_true(fabs(mom - ex) <= 1e-12 * ex);
+  ves_quad_destroy(&q);
+  assert_null(q);
+  ves_quad_destroy(NULL);
+  free(nodes.x);
+}
+
+static void test_errors(void **state) {
+  (void)state;
+  ves_quad *q = NULL;
+  assert_int_equal(ves_quad_create(NULL, &q), VES_ERR_ARG);
+  ves_nodes nodes = {0};
+  assert_int_equal(ves_quad_create(&nodes, &q), VES_ERR_ARG);
+  assert_null(q);
+}
+
+/* Sizing for a sphere of radius 1: h_band in |d| < 4 eps, then slope 0.15. */
+static double sphere_h(const double X[2], void *ctx) {
+  double eps = *(double *)ctx, hb = 0.5 * eps;
+  double d = fabs(1.0 - hypot(X[0], X[1])) - 4 * eps;
+  double h = hb + (d > 0 ? 0.15 * d : 0.0);
+  return h < 0.2 ? h : 0.2;
+}
+
+/* Tables on an adapted node set: partition of unity and affine reproduction
+ * with the ghosts folded (r-coefficient -R_a for a ghost), and the exact
+ * integral of R over the box. */
+static void test_tables(void **state) {
+  (void)state;
+  double eps = 0.1;
+  ves_nodes_params np;
+  ves_nodes_params_default(&np);
+  np.LR = 1.5;
+  np.LZ = 1.5;
+  np.h = sphere_h;
+  np.h_ctx = &eps;
+  ves_nodes *nodes = NULL;
+  assert_int_equal(ves_nodes_generate(&np, &nodes), VES_OK);
+  ves_quad *q = NULL;
+  assert_int_equal(ves_quad_create(nodes, &q), VES_OK);
+  ves_lme_params lp;
+  ves_lme_params_default(&lp);
+  ves_quad_info info;
+  assert_int_equal(ves_quad_tables(q, nodes, &lp, &info), VES_OK);
+  printf("# tables: %d nodes, %d ghosts, %d points, m mean %.1f max %d, Newton mean %.2f max %d, "
+         "%.3f s\n",
+         nodes->n, nodes->ng, q->nq, info.m_mean, info.m_max, info.iter_mean, info.iter_max,
+         info.seconds);
+  double worst = 0.0, intR = 0.0;
+  int near_axis_with_ghost = 0;
+  for (int p = 0; p < q->nq; p++) {
+    int m = q->ptr[p + 1] - q->ptr[p];
+    const double *t = q->tab + 6 * (size_t)q->ptr[p];
+    double sum[6] = {0}, rr[6] = {0}, zz[6] = {0};
+    int has_ghost = 0;
+    for (int k = 0; k < m; k++) {
+      int a = q->nbr[q->ptr[p] + k];
+      double sg = q->mirror[q->ptr[p] + k] ? -1.0 : 1.0;
+      has_ghost |= q->mirror[q->ptr[p] + k];
+      for (int d = 0; d < 6; d++) {
+        sum[d] += t[d * m + k];
+        rr[d] += t[d * m + k] * sg * nodes->x[2 * a];
+        zz[d] += t[d * m + k] * nodes->x[2 * a + 1];
+      }
+    }
+    near_axis_with_ghost += has_ghost;
+    const double *X = q->x + 2 * p;
+    double want_s[6] = {1, 0, 0, 0, 0, 0}, want_r[6] = {X[0], 1, 0, 0, 0, 0},
+           want_z[6] = {X[1], 0, 1, 0, 0, 0};
+    for (int d = 0; d < 6; d++) {
+      double e = fmax(fabs(sum[d] - want_s[d]), fmax(fabs(rr[d] - want_r[d]), fabs(zz[d] - want_z[d])));
+      /* second-derivative rows are O(1/h^2) per entry: scale their error by h^2 */
+      double h2 = d >= 3 ? 0.05 * 0.05 : 1.0;
+      if (e * h2 > worst) worst = e * h2;
+    }
+    intR += q->w[p] * rr[0];
+  }
+  printf("# tables: worst reproduction error %.2e, points seeing ghosts %d\n", worst, near_axis_with_ghost);
+  /* LME reproduces affine fields to the Newton tolerance (1e-14 h) times the
+   * conditioning of the table rows: 1e-10 leaves a wide margin */
+  assert_true(worst <= 1e-10);
+  assert_true(near_axis_with_ghost > 0);
+  /* int R dR dZ = LR^2/2 * 2 LZ, exact: affine reproduction + exact rule */
+  double ex = 0.5 * np.LR * np.LR * 2 * np.LZ;
+  assert_true(fabs(intR - ex) <= 1e-11 * ex);
+  ves_quad_destroy(&q);
+  ves_nodes_destroy(&nodes);
+}
+
+int main(void) {
+  setvbuf(stdout, NULL, _IOLBF, 0); /* keep output in order with cmocka's stderr */
+  const struct CMUnitTest tests[] = {
+      cmocka_unit_test(test_rule_exact_degree4), cmocka_unit_test(test_rule_not_degree5),
+      cmocka_unit_test(test_triangulation_area), cmocka_unit_test(test_errors),
+      cmocka_unit_test(test_tables),
+  };
+  return cmocka_run_group_tests_name("quad", tests, NULL, NULL);
+}
