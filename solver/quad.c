@@ -9,7 +9,6 @@
  * on the hull boundary. */
 #include "ves/quad.h"
 
-#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
@@ -240,101 +239,4 @@ void ves_quad_field(const ves_quad *q, const double *c, int nder, double *out) {
       out[6 * (size_t)p + j] = s;
     }
   }
-}
-
-/* y = M x = P^T W P x, with P the folded value rows of the tables. */
-static void mass_apply(const ves_quad *q, int n, const double *x, double *y) {
-  for (int a = 0; a < n; a++) y[a] = 0.0;
-  for (int p = 0; p < q->nq; p++) {
-    int m = q->ptr[p + 1] - q->ptr[p];
-    const int *nb = q->nbr + q->ptr[p];
-    const double *t = q->tab + 6 * (size_t)q->ptr[p];
-    double v = 0.0;
-    for (int k = 0; k < m; k++) v += t[k] * x[nb[k]]; /* v = (P x)_alpha */
-    v *= q->w[p];
-    for (int k = 0; k < m; k++) y[nb[k]] += t[k] * v; /* y += P_alpha^T w v */
-  }
-}
-
-ves_status ves_quad_project(const ves_quad *q, int n, const double *f, double *c, double rtol,
-                            int maxit, int *iters, double *relres) {
-  VES_CHECK(q && q->tab && f && c && n > 0 && rtol > 0 && maxit >= 0, VES_ERR_ARG);
-  double *b = calloc((size_t)n, sizeof *b), *r = malloc((size_t)n * sizeof *r);
-  double *z = malloc((size_t)n * sizeof *z), *d = malloc((size_t)n * sizeof *d);
-  double *Ad = malloc((size_t)n * sizeof *Ad), *diag = calloc((size_t)n, sizeof *diag);
-  int *mark = malloc((size_t)n * sizeof *mark);
-  ves_status s = VES_OK;
-  if (!b || !r || !z || !d || !Ad || !diag || !mark) {
-    s = VES_ERR_ALLOC;
-    goto done;
-  }
-  /* b = P^T W f, and diag(M) with the real and ghost entries of one node
-   * summed before squaring: (P_alpha,a)^2 = (p_real + p_ghost)^2 */
-  for (int a = 0; a < n; a++) mark[a] = -1;
-  for (int p = 0; p < q->nq; p++) {
-    int m = q->ptr[p + 1] - q->ptr[p];
-    const int *nb = q->nbr + q->ptr[p];
-    const double *t = q->tab + 6 * (size_t)q->ptr[p];
-    int ghosts = 0;
-    for (int k = 0; k < m; k++) ghosts |= q->mirror[q->ptr[p] + k];
-    for (int k = 0; k < m; k++) {
-      b[nb[k]] += q->w[p] * t[k] * f[p];
-      if (mark[nb[k]] == p) continue; /* pair already counted below */
-      double v = t[k];
-      for (int l = k + 1; ghosts && l < m; l++) /* only points near the axis see ghosts */
-        if (nb[l] == nb[k]) v += t[l];          /* the mirror entry of the same node */
-      mark[nb[k]] = p;
-      diag[nb[k]] += q->w[p] * v * v;
-    }
-  }
-  double bnorm = 0.0;
-  for (int a = 0; a < n; a++) {
-    bnorm += b[a] * b[a];
-    if (!(diag[a] > 0)) { /* a node no point sees: M singular */
-      s = VES_ERR_SINGULAR;
-      goto done;
-    }
-  }
-  bnorm = sqrt(bnorm);
-  mass_apply(q, n, c, Ad);
-  double rz = 0.0, rn = 0.0;
-  for (int a = 0; a < n; a++) {
-    r[a] = b[a] - Ad[a];        /* r = b - M c */
-    z[a] = r[a] / diag[a];      /* z = D^-1 r */
-    d[a] = z[a];
-    rz += r[a] * z[a];
-    rn += r[a] * r[a];
-  }
-  int it = 0;
-  while (sqrt(rn) > rtol * bnorm && it < maxit) {
-    mass_apply(q, n, d, Ad);
-    double dAd = 0.0;
-    for (int a = 0; a < n; a++) dAd += d[a] * Ad[a];
-    double alpha = rz / dAd; /* step along the conjugate direction */
-    double rz_new = 0.0;
-    rn = 0.0;
-    for (int a = 0; a < n; a++) {
-      c[a] += alpha * d[a];
-      r[a] -= alpha * Ad[a];
-      z[a] = r[a] / diag[a];
-      rz_new += r[a] * z[a];
-      rn += r[a] * r[a];
-    }
-    double beta = rz_new / rz; /* Fletcher-Reeves for the preconditioned residual */
-    rz = rz_new;
-    for (int a = 0; a < n; a++) d[a] = z[a] + beta * d[a];
-    it++;
-  }
-  if (iters) *iters = it;
-  if (relres) *relres = bnorm > 0 ? sqrt(rn) / bnorm : 0.0;
-  if (sqrt(rn) > rtol * bnorm) s = VES_MAXITER;
-done:
-  free(b);
-  free(r);
-  free(z);
-  free(d);
-  free(Ad);
-  free(diag);
-  free(mark);
-  return s;
 }

@@ -1,6 +1,8 @@
 /* vesica — building the initial discrete state from a configuration. */
 #include "ves/setup.h"
 
+#include "ves/sparse.h"
+
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -39,7 +41,8 @@ ves_status ves_setup_create(const ves_config *cfg, ves_phi0_method method, ves_s
   *out = NULL;
   double t0 = now_seconds(), t;
   ves_status st;
-  double *f = NULL;
+  double *f = NULL, *bx = NULL;
+  int *bflag = NULL;
   ves_setup *s = calloc(1, sizeof *s);
   if (!s) return VES_ERR_ALLOC;
 
@@ -56,9 +59,22 @@ ves_status ves_setup_create(const ves_config *cfg, ves_phi0_method method, ves_s
   if ((st = ves_shape_create(&sp, &s->shape)) != VES_OK)
     FAIL(st, "shape: %s", ves_status_str(st));
   ves_shape_sharp(s->shape, &s->area_sharp, &s->volume_sharp);
+  /* the refined band (and its layers) must fit in the box with a spacing to spare */
+  double rmax, zmax, margin = (cfg->band + 1) * cfg->epsilon;
+  ves_shape_extent(s->shape, &rmax, &zmax);
+  if (rmax + margin >= cfg->box_r || zmax + margin >= cfg->box_z)
+    FAIL(VES_ERR_CONFIG,
+         "[geometry] box_r = %g, box_z = %g: the shape (R up to %.3f, |Z| up to %.3f) with its band "
+         "of (band + 1) eps = %.3f does not fit",
+         cfg->box_r, cfg->box_z, rmax, zmax, margin);
 
-  ves_sizing_params zp = {.eps = cfg->epsilon, .h_band = cfg->h_band * cfg->epsilon,
-                          .band = cfg->band, .slope = cfg->slope, .h_far = cfg->h_far};
+  /* band layers: lattice layers up to band*eps; strip and CVT nodes keep half
+   * a layer spacing beyond the last layer */
+  double hb = cfg->h_band * cfg->epsilon, dl = 0.5 * sqrt(3.0) * hb;
+  double halfwidth = cfg->band * cfg->epsilon;
+  double reserve = cfg->band_layers ? (floor(halfwidth / dl + 1e-9) + 0.5) * dl + 0.25 * hb : 0.0;
+  ves_sizing_params zp = {.eps = cfg->epsilon, .h_band = hb, .band = cfg->band, .slope = cfg->slope,
+                          .h_far = cfg->h_far, .reserve = reserve};
   if ((st = ves_sizing_create(s->shape, &zp, cfg->box_r, cfg->box_z, &s->sizing)) != VES_OK)
     FAIL(st, "sizing: %s", ves_status_str(st));
   ves_nodes_params np;
@@ -69,6 +85,15 @@ ves_status ves_setup_create(const ves_config *cfg, ves_phi0_method method, ves_s
   np.lloyd_iter = cfg->lloyd_iterations;
   np.seed = (unsigned)cfg->seed;
   t = now_seconds();
+  if (cfg->band_layers) {
+    if ((st = ves_shape_band_nodes(s->shape, hb, halfwidth, &np.nfixed, &bx, &bflag)) != VES_OK)
+      FAIL(st,
+           "band layers: %s: band*epsilon = %g exceeds a radius of curvature of the shape "
+           "(set a smaller [geometry] band, or band_layers = 0)",
+           ves_status_str(st), halfwidth);
+    np.xfixed = bx, np.fixed_flag = bflag;
+    np.reserved = ves_sizing_reserved, np.reserved_ctx = s->sizing;
+  }
   if ((st = ves_nodes_generate(&np, &s->nodes)) != VES_OK)
     FAIL(st, "node generation: %s", ves_status_str(st));
   s->seconds_nodes = now_seconds() - t;
@@ -92,10 +117,13 @@ ves_status ves_setup_create(const ves_config *cfg, ves_phi0_method method, ves_s
   for (int a = 0; a < n; a++) s->phi0c[a] = ves_shape_phi0(s->shape, cfg->epsilon, s->nodes->x + 2 * a);
   if (method == VES_PHI0_L2) {
     for (int p = 0; p < s->quad->nq; p++) f[p] = ves_shape_phi0(s->shape, cfg->epsilon, s->quad->x + 2 * p);
-    /* 1e-12: the fit error then sits far below the discretization error */
-    st = ves_quad_project(s->quad, n, f, s->phi0c, 1e-12, 20000, &s->cg_iterations, &s->cg_residual);
+    /* sparse Cholesky + at most 3 refinement steps (cg_iterations counts
+     * them); 1e-12: the fit error then sits far below the discretization error */
+    st = ves_sparse_project_l2(s->quad, n, f, s->phi0c, 1e-12, 3, &s->cg_iterations,
+                               &s->cg_residual);
     if (st != VES_OK)
-      FAIL(st < 0 ? st : VES_ERR_NOCONV, "phi0 projection: %s (relative residual %.2e after %d iterations)",
+      FAIL(st < 0 ? st : VES_ERR_NOCONV,
+           "phi0 projection: %s (relative residual %.2e after %d refinement steps)",
            ves_status_str(st), s->cg_residual, s->cg_iterations);
   }
   s->seconds_project = now_seconds() - t;
@@ -106,10 +134,14 @@ ves_status ves_setup_create(const ves_config *cfg, ves_phi0_method method, ves_s
     FAIL(st, "model: %s", ves_status_str(st));
   s->seconds_total = now_seconds() - t0;
   free(f);
+  free(bx);
+  free(bflag);
   *out = s;
   return VES_OK;
 fail:
   free(f);
+  free(bx);
+  free(bflag);
   ves_setup_destroy(&s);
   return st;
 }

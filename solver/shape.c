@@ -12,6 +12,8 @@
  * eps = 0.01 would spoil phi0 by ~1e-3 next to the interface). */
 #include "ves/shape.h"
 
+#include "ves/geom.h"
+
 #include <math.h>
 #include <stdlib.h>
 
@@ -202,6 +204,15 @@ ves_status ves_shape_create(const ves_shape_params *par, ves_shape **out) {
   return VES_OK;
 }
 
+void ves_shape_extent(const ves_shape *s, double *rmax, double *zmax) {
+  double r = 0, z = 0;
+  for (int i = 0; i < VES_SHAPE_NS; i++) {
+    r = fmax(r, s->ps[2 * i]);
+    z = fmax(z, fabs(s->ps[2 * i + 1]));
+  }
+  *rmax = r, *zmax = z;
+}
+
 void ves_shape_axes(const ves_shape *s, double *a, double *c) {
   double P[2], D[2], DD[2];
   curve(s, 0.5 * M_PI, P, D, DD);
@@ -270,6 +281,85 @@ double ves_shape_phi0(const ves_shape *s, double eps, const double X[2]) {
   return tanh(ves_shape_distance(s, X) / (M_SQRT2 * eps));
 }
 
+#define VES_BAND_NS 16384 /* samples per layer for its arclength table */
+
+ves_status ves_shape_band_nodes(const ves_shape *s, double h, double halfwidth, int *n,
+                                double **x, int **flag) {
+  VES_CHECK(s && n && x && flag && h > 0 && halfwidth >= 0, VES_ERR_ARG);
+  *n = 0, *x = NULL, *flag = NULL;
+  const double dl = 0.5 * sqrt(3.0) * h; /* layer spacing of a hex lattice */
+  int J = (int)floor(halfwidth / dl + 1e-9), cap = 0, cnt = 0;
+  double *tt = malloc(VES_BAND_NS * sizeof *tt), *ss = malloc(VES_BAND_NS * sizeof *ss);
+  double *xs = NULL;
+  int *fs = NULL;
+  ves_status st = VES_OK;
+  if (!tt || !ss) {
+    st = VES_ERR_ALLOC;
+    goto done;
+  }
+  for (int j = -J; j <= J && st == VES_OK; j++) {
+    double dj = j * dl, prev[2] = {0, 0}, prevP[2] = {0, 0};
+    /* arclength table of the offset curve Q = P + dj n_in by chords */
+    for (int k = 0; k < VES_BAND_NS; k++) {
+      double t = M_PI * k / (VES_BAND_NS - 1), P[2], D[2], DD[2];
+      curve(s, t, P, D, DD);
+      double sp = hypot(D[0], D[1]), Q[2] = {P[0] + dj * D[1] / sp, P[1] - dj * D[0] / sp};
+      tt[k] = t;
+      ss[k] = 0;
+      if (k > 0) {
+        double c[2] = {Q[0] - prev[0], Q[1] - prev[1]}, e[2] = {P[0] - prevP[0], P[1] - prevP[1]};
+        if (c[0] * e[0] + c[1] * e[1] <= 0) { /* the offset runs backwards: a fold */
+          st = VES_ERR_GEOM;
+          break;
+        }
+        ss[k] = ss[k - 1] + hypot(c[0], c[1]);
+      }
+      prev[0] = Q[0], prev[1] = Q[1], prevP[0] = P[0], prevP[1] = P[1];
+    }
+    if (st != VES_OK) break;
+    double L = ss[VES_BAND_NS - 1];
+    int nj = (int)lround(L / h), odd = (j % 2 != 0);
+    if (nj < 2) continue;
+    double hj = L / nj;
+    int k = 0;
+    for (int i = 0; i <= nj - odd; i++) {
+      double target = (i + 0.5 * odd) * hj;
+      while (k < VES_BAND_NS - 2 && ss[k + 1] < target) k++;
+      double f = (target - ss[k]) / (ss[k + 1] - ss[k]); /* linear in t between samples */
+      double t = tt[k] + f * (tt[k + 1] - tt[k]), P[2], D[2], DD[2];
+      curve(s, t, P, D, DD);
+      double sp = hypot(D[0], D[1]), X[2] = {P[0] + dj * D[1] / sp, P[1] - dj * D[0] / sp};
+      int fl = 0;
+      if (!odd && (i == 0 || i == nj)) X[0] = 0.0, fl = VES_NODE_AXIS; /* the poles */
+      if (X[0] < 0) continue;
+      /* keep only nodes at their layer's distance (not closer to another branch) */
+      if (fabs(fabs(ves_shape_distance(s, X)) - fabs(dj)) > 0.25 * h) continue;
+      if (cnt == cap) {
+        cap = cap ? 2 * cap : 4096;
+        double *nx = realloc(xs, 2 * (size_t)cap * sizeof *nx);
+        int *nf = nx ? realloc(fs, (size_t)cap * sizeof *nf) : NULL;
+        if (nx) xs = nx;
+        if (nf) fs = nf;
+        if (!nx || !nf) {
+          st = VES_ERR_ALLOC;
+          goto done;
+        }
+      }
+      xs[2 * cnt] = X[0], xs[2 * cnt + 1] = X[1], fs[cnt++] = fl;
+    }
+  }
+done:
+  free(tt);
+  free(ss);
+  if (st != VES_OK) {
+    free(xs);
+    free(fs);
+    return st;
+  }
+  *n = cnt, *x = xs, *flag = fs;
+  return VES_OK;
+}
+
 struct ves_sizing {
   ves_sizing_params par;
   double LR, LZ, g; /* box and grid spacing */
@@ -281,7 +371,7 @@ ves_status ves_sizing_create(const ves_shape *s, const ves_sizing_params *par, d
                              double LZ, ves_sizing **out) {
   VES_CHECK(s && par && out && LR > 0 && LZ > 0, VES_ERR_ARG);
   VES_CHECK(par->eps > 0 && par->h_band > 0 && par->band >= 0 && par->slope > 0 &&
-                par->h_far >= par->h_band,
+                par->h_far >= par->h_band && par->reserve >= 0,
             VES_ERR_ARG);
   *out = NULL;
   ves_sizing *z = calloc(1, sizeof *z);
@@ -314,18 +404,28 @@ void ves_sizing_destroy(ves_sizing **z) {
   *z = NULL;
 }
 
-double ves_sizing_eval(const double X[2], void *ctx) {
-  const ves_sizing *z = ctx;
+/* |d(X)| interpolated bilinearly on the grid (extrapolated slightly outside). */
+static double grid_abs_d(const ves_sizing *z, const double X[2]) {
   double u = X[0] / z->g, w = (X[1] + z->LZ) / z->g;
   int i = (int)floor(u), j = (int)floor(w);
   if (i < 0) i = 0;
   if (j < 0) j = 0;
   if (i > z->nr - 2) i = z->nr - 2;
   if (j > z->nz - 2) j = z->nz - 2;
-  double fu = u - i, fw = w - j; /* bilinear weights (extrapolates slightly outside) */
+  double fu = u - i, fw = w - j;
   const double *a = z->ad + (size_t)j * z->nr + i;
-  double d = (1 - fu) * (1 - fw) * a[0] + fu * (1 - fw) * a[1] + (1 - fu) * fw * a[z->nr] +
-             fu * fw * a[z->nr + 1];
+  return (1 - fu) * (1 - fw) * a[0] + fu * (1 - fw) * a[1] + (1 - fu) * fw * a[z->nr] +
+         fu * fw * a[z->nr + 1];
+}
+
+double ves_sizing_eval(const double X[2], void *ctx) {
+  const ves_sizing *z = ctx;
+  double d = grid_abs_d(z, X);
   double h = z->par.h_band + z->par.slope * fmax(0.0, d - z->par.band * z->par.eps);
   return h < z->par.h_far ? h : z->par.h_far;
+}
+
+int ves_sizing_reserved(const double X[2], void *ctx) {
+  const ves_sizing *z = ctx;
+  return z->par.reserve > 0 && grid_abs_d(z, X) < z->par.reserve;
 }

@@ -8,7 +8,9 @@
 
 #include <math.h>
 #include <stdio.h>
+#include <stdlib.h>
 
+#include "ves/geom.h"
 #include "ves/shape.h"
 
 static double urand(uint64_t *s) {
@@ -199,6 +201,50 @@ static void test_sizing(void **state) {
   ves_shape_destroy(&s);
 }
 
+/* Band layers: every node sits at its layer's distance (a multiple of the
+ * layer spacing), the poles carry axis nodes, neighbours along a layer are
+ * ~h apart; a band wider than the curvature radius is refused. */
+static void test_band_nodes(void **state) {
+  (void)state;
+  ves_shape_params p;
+  ves_shape_params_default(&p);
+  p.kind = VES_SHAPE_SPHEROID;
+  p.v = 0.9;
+  ves_shape *s = NULL;
+  assert_int_equal(ves_shape_create(&p, &s), VES_OK);
+  const double h = 0.02, hw = 0.22, dl = 0.5 * sqrt(3.0) * h;
+  int n = 0, *fl = NULL;
+  double *x = NULL;
+  assert_int_equal(ves_shape_band_nodes(s, h, hw, &n, &x, &fl), VES_OK);
+  int axis = 0;
+  double worst = 0.0;
+  for (int a = 0; a < n; a++) {
+    double d = ves_shape_distance(s, x + 2 * a), j = d / dl;
+    /* nodes are evaluated on the exact offset curve (only their position
+     * along it is interpolated), so the distance is the offset to rounding;
+     * 1e-6 leaves room for the closest-point Newton near the poles */
+    double off = fabs(j - round(j)) * dl;
+    if (off > worst) worst = off;
+    assert_true(fabs(d) <= hw + 1e-9);
+    assert_true(x[2 * a] >= 0.0);
+    if (fl[a] & VES_NODE_AXIS) assert_true(x[2 * a] == 0.0), axis++;
+  }
+  printf("# band layers: %d nodes, %d on the axis, worst offset error %.1e\n", n, axis, worst);
+  assert_true(worst < 1e-6);
+  /* even layers j = -12..12 step 2: 13 layers, an axis node at each pole */
+  assert_int_equal(axis, 2 * 13);
+  free(x), free(fl);
+  ves_shape_destroy(&s);
+  /* a sphere of radius 0.1 with a band of half-width 0.2: the inner layers fold */
+  ves_shape_params_default(&p);
+  p.radius = 0.1;
+  assert_int_equal(ves_shape_create(&p, &s), VES_OK);
+  assert_int_equal(ves_shape_band_nodes(s, h, 0.2, &n, &x, &fl), VES_ERR_GEOM);
+  assert_null(x);
+  assert_int_equal(ves_shape_band_nodes(s, -1.0, 0.2, &n, &x, &fl), VES_ERR_ARG);
+  ves_shape_destroy(&s);
+}
+
 static void test_errors(void **state) {
   (void)state;
   ves_shape_params p;
@@ -224,7 +270,7 @@ int main(void) {
       cmocka_unit_test(test_spheroid_axes), cmocka_unit_test(test_distance_exact),
       cmocka_unit_test(test_mode_perturbation), cmocka_unit_test(test_discocyte),
       cmocka_unit_test(test_sphere_energy), cmocka_unit_test(test_sizing),
-      cmocka_unit_test(test_errors),
+      cmocka_unit_test(test_band_nodes), cmocka_unit_test(test_errors),
   };
   return cmocka_run_group_tests_name("shape", tests, NULL, NULL);
 }

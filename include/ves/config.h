@@ -27,6 +27,7 @@ typedef struct {
   double support_tol;              /* LME support truncation tol0 */
   double axis_spacings;            /* width of the regular axis strip (spacings) */
   int lloyd_iterations;            /* CVT smoothing iterations */
+  int band_layers;                 /* 1: interface-aligned layers in the band */
   int seed;                        /* seed of the node sampling */
   /* [shape] */
   char shape_type[VES_CONFIG_STR]; /* sphere | spheroid | discocyte */

@@ -17,8 +17,11 @@ extern "C" {
  * (VES_ERR_GEOM); n < 3 or a non-finite coordinate is VES_ERR_ARG. */
 ves_status ves_geom_delaunay(int n, const double *x, int *ntri, int **tri);
 
-/* Local spacing h_a of every point: the mean length of its Delaunay edges.
- * x[2n] borrowed, h[n] written. Duplicates are VES_ERR_GEOM, n < 2 VES_ERR_ARG. */
+/* Local spacing h_a of every point: the mean length of its Delaunay edges,
+ * then two passes of averaging with its Delaunay neighbours (weight 1 for a,
+ * 1/2 for each neighbour), which removes the node-to-node jitter of the raw
+ * measure where lattices meet (a uniform lattice keeps h_a = h exactly).
+ * x[2n] borrowed, h[n] written. */
 ves_status ves_geom_spacing(int n, const double *x, double *h);
 
 /* Exact search for all nodes a with |X - x_a| <= radius_a (node-wise radii). */
@@ -44,6 +47,9 @@ void ves_geom_search_destroy(ves_geom_search **s);
 /* Target spacing h(X) > 0 at a point of the meridian plane (R >= 0). */
 typedef double (*ves_sizing_fn)(const double X[2], void *ctx);
 
+/* A region predicate: nonzero inside. */
+typedef int (*ves_region_fn)(const double X[2], void *ctx);
+
 /* Parameters of an adapted node set. */
 typedef struct {
   double LR, LZ;        /* the box [0, LR] x [-LZ, LZ] (units of R0) */
@@ -53,13 +59,22 @@ typedef struct {
                            in local spacings (>= 8; default 10) */
   int lloyd_iter;       /* Lloyd (CVT) iterations (default 60) */
   unsigned seed;        /* seed of the deterministic initial sampling */
+  int nfixed;           /* caller-supplied fixed nodes, e.g. the interface-aligned
+                           band layers of ves_shape_band_nodes (default 0) */
+  const double *xfixed; /* 2 nfixed positions (R >= 0, inside the box), copied */
+  const int *fixed_flag;/* nfixed VES_NODE_* flags (AXIS for R = 0), copied; BAND
+                           is added */
+  ves_region_fn reserved; /* where only the caller's nodes may lie: strip and
+                           CVT nodes keep out (NULL: nowhere) */
+  void *reserved_ctx;   /* passed to reserved, borrowed */
 } ves_nodes_params;
 
 /* Node flags. */
 enum {
   VES_NODE_AXIS = 1,     /* R = 0: r stays 0, z free */
   VES_NODE_WALL = 2,     /* on R = LR or |Z| = LZ: fixed (no-slip wall) */
-  VES_NODE_LATTICE = 4   /* part of the regular axis strip */
+  VES_NODE_LATTICE = 4,  /* part of the regular axis strip */
+  VES_NODE_BAND = 8      /* a caller-supplied fixed node (interface band layers) */
 };
 
 /* An adapted node set with its ghosts. Real nodes are 0..n-1 (R >= 0); the
@@ -69,7 +84,7 @@ typedef struct {
   double LR, LZ; /* the box (units of R0) */
   int n;         /* number of real nodes */
   double *x;     /* 2n reference positions (R, Z), units of R0 */
-  double *h;     /* n local spacings h_a: mean Delaunay edge length, measured
+  double *h;     /* n local spacings h_a (ves_geom_spacing), measured
                     on the set of real and ghost nodes (units of R0) */
   int *flag;     /* n VES_NODE_* bits */
   int ng;        /* number of ghosts */

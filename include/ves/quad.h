@@ -51,18 +51,8 @@ ves_status ves_quad_create(const ves_nodes *nodes, ves_quad **out);
 ves_status ves_quad_tables(ves_quad *q, const ves_nodes *nodes,
                            const ves_lme_params *lme, ves_quad_info *info);
 
-/* Least-squares (L2) coefficients of a field that is even in R (a ghost
- * carries its real node's coefficient): c minimizes
- *   sum_alpha w_alpha (sum_a p_a(X_alpha) c_a - f_alpha)^2,
- * i.e. solves M c = b, M_ab = sum w p_a p_b, b_a = sum w p_a f, by conjugate
- * gradients with the Jacobi preconditioner, from the initial guess in c,
- * until |M c - b| <= rtol |b| or maxit iterations.
- *   f[nq]   the field at the points (borrowed)
- *   c[n]    in: initial guess; out: the coefficients
- *   iters, relres  may be NULL
- * Returns VES_OK, VES_MAXITER (c holds the last iterate), VES_ERR_ALLOC. */
-ves_status ves_quad_project(const ves_quad *q, int n, const double *f, double *c, double rtol,
-                            int maxit, int *iters, double *relres);
+/* The least-squares (L2) projection of a field onto these tables is
+ * ves_sparse_project_l2 (sparse.h): it needs the direct solver. */
 
 /* Evaluate an even field from coefficients: out[6 nq] rows (value, d/dR,
  * d/dZ, d2/dR2, d2/dRdZ, d2/dZ2) at every point, point-major: out[6 alpha + j].

@@ -45,11 +45,27 @@ void ves_shape_sharp(const ves_shape *s, double *area, double *volume);
  * a sphere of radius R, so a sphere gives 2 pi (1 - C0 R)^2). */
 double ves_shape_sharp_energy(const ves_shape *s, double c0);
 
+/* Largest R and |Z| on the generating curve (from its samples). */
+void ves_shape_extent(const ves_shape *s, double *rmax, double *zmax);
+
 /* Semi-axes (equatorial along R, polar along Z) of the unperturbed curve. */
 void ves_shape_axes(const ves_shape *s, double *a, double *c);
 
 /* phi0(X) = tanh(d(X) / (sqrt2 eps)). */
 double ves_shape_phi0(const ves_shape *s, double eps, const double X[2]);
+
+/* Interface-aligned band nodes: layers at signed distance d_j = j (sqrt3/2) h,
+ * |d_j| <= halfwidth, each the offset curve P(t) + d_j n_in(t) with nodes at
+ * equal arclength h_j ~ h from the north pole, odd layers shifted by h_j / 2:
+ * a hexagonal lattice bent along the interface, and at each pole an axis node
+ * (even layers) or a mirrored pair at +-h_j/2 (odd layers), i.e. regular
+ * through the axis. Nodes whose exact distance is not their layer's (offset
+ * layers of two branches overlapping, as in a thin discocyte centre) are
+ * dropped. *x (2 *n) and *flag (*n, VES_NODE_AXIS on R = 0) are taken by the
+ * caller. VES_ERR_GEOM when a layer folds (halfwidth beyond a curvature
+ * radius). */
+ves_status ves_shape_band_nodes(const ves_shape *s, double h, double halfwidth, int *n,
+                                double **x, int **flag);
 
 /* Node sizing: h = h_band for |d| < band*eps, then growing linearly with
  * `slope` to h_far. d is tabulated on a grid (spacing <= h_band) and
@@ -60,6 +76,7 @@ typedef struct {
   double band;   /* half-width of the band in units of eps (default 4) */
   double slope;  /* growth rate of h away from the band (default 0.15, < 0.2) */
   double h_far;  /* largest spacing (default 0.2) */
+  double reserve;/* ves_sizing_reserved is true where |d| < reserve (0: never) */
 } ves_sizing_params;
 
 typedef struct ves_sizing ves_sizing;
@@ -69,5 +86,8 @@ ves_status ves_sizing_create(const ves_shape *s, const ves_sizing_params *par,
 void ves_sizing_destroy(ves_sizing **z);
 /* ves_sizing_fn-compatible: ctx is a ves_sizing *. */
 double ves_sizing_eval(const double X[2], void *ctx);
+/* ves_region_fn-compatible: 1 where |d(X)| < reserve (the band layers' own
+ * region, kept free of strip and CVT nodes), else 0. ctx is a ves_sizing *. */
+int ves_sizing_reserved(const double X[2], void *ctx);
 
 #endif

@@ -1,0 +1,110 @@
+/* vesica — tests of problem-file parsing: defaults, overrides, and every
+ * error path with a message naming the file, the key and the reason. */
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <setjmp.h>
+#include <cmocka.h>
+
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "ves/config.h"
+
+/* Write text to a fresh temporary file; returns its path in buf. */
+static void write_tmp(char *buf, size_t len, const char *text) {
+  snprintf(buf, len, "/tmp/vesica_cfg_XXXXXX");
+  int fd = mkstemp(buf);
+  assert_true(fd >= 0);
+  FILE *f = fdopen(fd, "w");
+  assert_non_null(f);
+  fputs(text, f);
+  fclose(f);
+}
+
+static void test_defaults_and_overrides(void **state) {
+  (void)state;
+  char path[64], err[512] = "";
+  write_tmp(path, sizeof path,
+            "; comment\n[geometry]\nepsilon = 0.02\n\n[shape]\ntype = spheroid\n"
+            "reduced_volume = 0.9\norientation = prolate\n[material]\nc0 = 1.5\n");
+  ves_config c;
+  const char *set[] = {"material.c0=2.5", "geometry.h_band=0.4"};
+  assert_int_equal(ves_config_load(path, 2, set, &c, err, sizeof err), VES_OK);
+  assert_true(c.epsilon == 0.02 && c.reduced_volume == 0.9 && c.c0 == 2.5 && c.h_band == 0.4);
+  assert_string_equal(c.shape_type, "spheroid");
+  assert_string_equal(c.orientation, "prolate");
+  assert_true(c.gamma == 0.6 && c.band_layers == 1); /* defaults untouched */
+  unlink(path);
+}
+
+/* Each bad input: the status and a fragment the message must contain. */
+static void expect_error(const char *text, int nset, const char *const *set, ves_status want,
+                         const char *fragment) {
+  char path[64], err[512] = "";
+  ves_config c;
+  if (text) write_tmp(path, sizeof path, text);
+  else snprintf(path, sizeof path, "/nonexistent/vesica.ini");
+  ves_status st = ves_config_load(path, nset, set, &c, err, sizeof err);
+  if (st != want || !strstr(err, fragment))
+    fail_msg("input [%s]: status %d (want %d), message '%s' (want '%s')", text ? text : path, st,
+             want, err, fragment);
+  if (text) {
+    /* the message names the file, or --set for an override */
+    assert_non_null(strstr(err, nset ? "--set" : path));
+    unlink(path);
+  }
+}
+
+static void test_errors(void **state) {
+  (void)state;
+  expect_error(NULL, 0, NULL, VES_ERR_IO, "cannot open");
+  expect_error("[geometry]\nepsilon = abc\n", 0, NULL, VES_ERR_CONFIG, "epsilon");
+  expect_error("[geometry]\nepsilon = abc\n", 0, NULL, VES_ERR_CONFIG, "not a number");
+  expect_error("[geometry]\nepsilon = 0.9\n", 0, NULL, VES_ERR_CONFIG, "out of range");
+  expect_error("[geometry]\nepsilon = 0.04 0.05\n", 0, NULL, VES_ERR_CONFIG, "not a number");
+  expect_error("[geometry]\nepsilom = 0.04\n", 0, NULL, VES_ERR_CONFIG, "unknown key");
+  expect_error("[geometri]\nepsilon = 0.04\n", 0, NULL, VES_ERR_CONFIG, "unknown section");
+  expect_error("[shape]\ntype = cube\n", 0, NULL, VES_ERR_CONFIG, "allowed: sphere|spheroid|discocyte");
+  expect_error("[shape]\nmode = 2.5\n", 0, NULL, VES_ERR_CONFIG, "not an integer");
+  expect_error("[shape]\nreduced_volume = 1.2\n", 0, NULL, VES_ERR_CONFIG, "reduced_volume");
+  expect_error("[material]\nlambda_ratio = 5\n", 0, NULL, VES_ERR_CONFIG, "lambda_ratio");
+  expect_error("[geometry]\nbox_r = 0.5\n", 0, NULL, VES_ERR_CONFIG, "do not fit");
+  expect_error("[geometry]\nh_far = 0.001\n", 0, NULL, VES_ERR_CONFIG, "h_far");
+  expect_error("[geometry]\nepsilon =\n", 0, NULL, VES_ERR_CONFIG, "epsilon");
+  const char *s1[] = {"geometry.epsilon"};
+  expect_error("", 1, s1, VES_ERR_CONFIG, "section.key=value");
+  const char *s2[] = {"geometry.nope=1"};
+  expect_error("", 1, s2, VES_ERR_CONFIG, "unknown key");
+  const char *s3[] = {"geometry.epsilon=-1"};
+  expect_error("", 1, s3, VES_ERR_CONFIG, "out of range");
+  const char *s4[] = {"=3"};
+  expect_error("", 1, s4, VES_ERR_CONFIG, "section.key=value");
+  ves_config c;
+  assert_int_equal(ves_config_load(NULL, 1, NULL, &c, NULL, 0), VES_ERR_ARG);
+}
+
+static void test_key_listing(void **state) {
+  (void)state;
+  char *buf = NULL;
+  size_t len = 0;
+  FILE *f = open_memstream(&buf, &len);
+  assert_non_null(f);
+  ves_config_print_keys(f);
+  fclose(f);
+  assert_non_null(strstr(buf, "| geometry | epsilon |"));
+  assert_non_null(strstr(buf, "| material | c0 |"));
+  free(buf);
+}
+
+int main(void) {
+  setvbuf(stdout, NULL, _IOLBF, 0); /* keep output in order with cmocka's stderr */
+  const struct CMUnitTest tests[] = {
+      cmocka_unit_test(test_defaults_and_overrides),
+      cmocka_unit_test(test_errors),
+      cmocka_unit_test(test_key_listing),
+  };
+  return cmocka_run_group_tests_name("config", tests, NULL, NULL);
+}

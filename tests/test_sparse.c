@@ -1,0 +1,545 @@
+/* vesica — tests of the sparse module: the node-level pattern, the MUMPS
+ * LDL^T solver (against dense LAPACK), and the L2 projection onto the LME
+ * space. */
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <setjmp.h>
+#include <cmocka.h>
+
+#include <lapacke.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "ves/sparse.h"
+
+#define U 0x1.0p-52 /* double unit roundoff (2u, machine epsilon) */
+
+/* Deterministic uniform numbers in [0, 1) (xorshift64*). */
+static double urand(uint64_t *s) {
+  *s ^= *s >> 12;
+  *s ^= *s << 25;
+  *s ^= *s >> 27;
+  return (double)((*s * 2685821657736338717ULL) >> 11) * 0x1.0p-53;
+}
+
+static double norm2(int n, const double *x) {
+  double s = 0.0;
+  for (int i = 0; i < n; i++) s += x[i] * x[i];
+  return sqrt(s);
+}
+
+/* Lower triplets of the dense symmetric A[n*n] (entries with |A_ij| > 0, j <= i).
+ * Returns the count; arrays sized n(n+1)/2 by the caller. */
+static int dense_to_lower(int n, const double *A, int *ir, int *jc, double *v) {
+  int nnz = 0;
+  for (int i = 0; i < n; i++)
+    for (int j = 0; j <= i; j++)
+      if (A[i * n + j] != 0.0) ir[nnz] = i, jc[nnz] = j, v[nnz++] = A[i * n + j];
+  return nnz;
+}
+
+/* A sparse SPD matrix, Gershgorin-bounded: symmetric random off-diagonal
+ * entries in [-1, 1] on ~ 40% of the pairs, diagonal = row sum of |offdiag| +
+ * 1 + U[0, 1]. Eigenvalues lie in [min(d_i - R_i), max(d_i + R_i)] with
+ * R_i the off-diagonal row sum: returns that bound on cond_2(A). */
+static double make_spd(int n, double *A, uint64_t *seed) {
+  memset(A, 0, (size_t)n * n * sizeof *A);
+  for (int i = 0; i < n; i++)
+    for (int j = 0; j < i; j++)
+      if (urand(seed) < 0.4) A[i * n + j] = A[j * n + i] = 2.0 * urand(seed) - 1.0;
+  double lo = INFINITY, hi = 0.0;
+  for (int i = 0; i < n; i++) {
+    double R = 0.0;
+    for (int j = 0; j < n; j++)
+      if (j != i) R += fabs(A[i * n + j]);
+    A[i * n + i] = R + 1.0 + urand(seed);
+    lo = fmin(lo, A[i * n + i] - R);
+    hi = fmax(hi, A[i * n + i] + R);
+  }
+  return hi / lo;
+}
+
+/* ---- ves_ldl ---- */
+
+/* SPD: MUMPS Cholesky against LAPACK dpotrf/dpotrs, with one entry split
+ * into two triplets (MUMPS sums duplicates). */
+static void test_ldl_spd_vs_lapack(void **state) {
+  (void)state;
+  enum { N = 12 };
+  uint64_t seed = 2024;
+  double A[N * N], L[N * N], x[N], xl[N];
+  double cond = make_spd(N, A, &seed);
+  int ir[N * (N + 1) / 2 + 1], jc[N * (N + 1) / 2 + 1];
+  double v[N * (N + 1) / 2 + 1];
+  int nnz = dense_to_lower(N, A, ir, jc, v);
+  /* split the diagonal entry (3, 3) in two halves */
+  for (int k = 0; k < nnz; k++)
+    if (ir[k] == 3 && jc[k] == 3) {
+      v[k] *= 0.5;
+      ir[nnz] = 3, jc[nnz] = 3, v[nnz] = v[k];
+      nnz++;
+      break;
+    }
+  for (int i = 0; i < N; i++) xl[i] = x[i] = sin(1.0 + i);
+  ves_ldl *f = NULL;
+  assert_int_equal(ves_ldl_create(N, nnz, ir, jc, 1, &f), VES_OK);
+  assert_int_equal(ves_ldl_size(f), N);
+  assert_int_equal(ves_ldl_factor(f, v), VES_OK);
+  assert_int_equal(ves_ldl_solve(f, x), VES_OK);
+  ves_ldl_info info;
+  ves_ldl_get_info(f, &info);
+  assert_int_equal(info.infog1, 0);
+  assert_int_equal(info.neg_pivots, 0);
+  assert_true(info.factor_entries >= N);
+  memcpy(L, A, sizeof A);
+  assert_int_equal(LAPACKE_dpotrf(LAPACK_ROW_MAJOR, 'L', N, L, N), 0);
+  assert_int_equal(LAPACKE_dpotrs(LAPACK_ROW_MAJOR, 'L', N, 1, L, N, xl, 1), 0);
+  double d[N];
+  for (int i = 0; i < N; i++) d[i] = x[i] - xl[i];
+  double err = norm2(N, d) / norm2(N, xl);
+  printf("# spd: cond bound %.2f, |x_mumps - x_lapack|/|x| = %.2e\n", cond, err);
+  /* both are backward stable: each solution is within ~ n u cond of the
+   * exact one (forward error bound of Cholesky), so they differ by at most
+   * twice that; cond is the Gershgorin bound computed above */
+  assert_true(err <= 2.0 * N * U * cond);
+  ves_ldl_destroy(&f);
+  assert_null(f);
+}
+
+/* KKT-like [K a; a^T 0], K SPD: inertia (N, 1, 0), so one negative pivot;
+ * the solution against LAPACK's dsysv (Bunch-Kaufman). */
+static void test_ldl_kkt(void **state) {
+  (void)state;
+  enum { NK = 8, N = NK + 1 };
+  uint64_t seed = 7;
+  double K[NK * NK], A[N * N] = {0}, b[N], x[N], xl[N];
+  make_spd(NK, K, &seed);
+  for (int i = 0; i < NK; i++) {
+    for (int j = 0; j < NK; j++) A[i * N + j] = K[i * NK + j];
+    A[NK * N + i] = A[i * N + NK] = 1.0 + 0.1 * i; /* the constraint gradient a */
+  }
+  int ir[N * N], jc[N * N];
+  double v[N * N];
+  int nnz = dense_to_lower(N, A, ir, jc, v);
+  for (int i = 0; i < N; i++) b[i] = x[i] = xl[i] = cos(0.5 * i);
+  ves_ldl *f = NULL;
+  assert_int_equal(ves_ldl_create(N, nnz, ir, jc, 0, &f), VES_OK);
+  assert_int_equal(ves_ldl_factor(f, v), VES_OK);
+  assert_int_equal(ves_ldl_solve(f, x), VES_OK);
+  ves_ldl_info info;
+  ves_ldl_get_info(f, &info);
+  assert_int_equal(info.neg_pivots, 1); /* Sylvester: one negative eigenvalue */
+  double Ad[N * N];
+  lapack_int ipiv[N];
+  memcpy(Ad, A, sizeof A);
+  assert_int_equal(LAPACKE_dsysv(LAPACK_ROW_MAJOR, 'L', N, 1, Ad, N, ipiv, xl, 1), 0);
+  double d[N], r[N];
+  for (int i = 0; i < N; i++) {
+    d[i] = x[i] - xl[i];
+    r[i] = -b[i];
+    for (int j = 0; j < N; j++) r[i] += A[i * N + j] * x[j];
+  }
+  double err = norm2(N, d) / norm2(N, xl), res = norm2(N, r) / norm2(N, b);
+  printf("# kkt: |x - x_lapack|/|x| = %.2e, |Ax - b|/|b| = %.2e\n", err, res);
+  /* O(1) entries, N = 9, and a KKT matrix of moderate conditioning (K's
+   * Gershgorin bound is ~ 10, a has norm ~ 3): backward-stable residual ~ N u,
+   * forward error ~ N u cond with cond << 1e3 */
+  assert_true(res <= 1e-14);
+  assert_true(err <= 1e-12);
+  ves_ldl_destroy(&f);
+}
+
+/* New values on the same pattern: the second factorization must not see the
+ * first (A2 = 3 A1 + diag shift changes the solution non-trivially). */
+static void test_ldl_refactor(void **state) {
+  (void)state;
+  enum { N = 10 };
+  uint64_t seed = 99;
+  double A[N * N], x[N], b[N];
+  make_spd(N, A, &seed);
+  int ir[N * N], jc[N * N];
+  double v[N * N], v2[N * N];
+  int nnz = dense_to_lower(N, A, ir, jc, v);
+  ves_ldl *f = NULL;
+  assert_int_equal(ves_ldl_create(N, nnz, ir, jc, 1, &f), VES_OK);
+  for (int rep = 0; rep < 3; rep++) {
+    double scale = 1.0 + rep, shift = 0.5 * rep;
+    for (int k = 0; k < nnz; k++) v2[k] = scale * v[k] + (ir[k] == jc[k] ? shift : 0.0);
+    assert_int_equal(ves_ldl_factor(f, v2), VES_OK);
+    for (int i = 0; i < N; i++) b[i] = x[i] = 1.0 / (1.0 + i);
+    assert_int_equal(ves_ldl_solve(f, x), VES_OK);
+    double r[N];
+    for (int i = 0; i < N; i++) {
+      r[i] = -b[i];
+      for (int j = 0; j < N; j++) r[i] += (scale * A[i * N + j] + (i == j ? shift : 0.0)) * x[j];
+    }
+    /* backward stable, well conditioned (Gershgorin bound < 10): ~ N u */
+    assert_true(norm2(N, r) <= 1e-14 * norm2(N, b));
+    /* a second solve with the same factors gives the same answer */
+    double y[N];
+    memcpy(y, b, sizeof y);
+    assert_int_equal(ves_ldl_solve(f, y), VES_OK);
+    assert_memory_equal(x, y, sizeof y);
+  }
+  ves_ldl_destroy(&f);
+}
+
+/* Singular matrices are VES_ERR_SINGULAR with the MUMPS code kept; a failed
+ * factorization leaves the analysis usable; solve without factors is refused. */
+static void test_ldl_singular(void **state) {
+  (void)state;
+  /* [1 1; 1 1] (+ a regular third row): a zero pivot after one step */
+  int ir[4] = {0, 1, 1, 2}, jc[4] = {0, 0, 1, 2};
+  double sing[4] = {1, 1, 1, 1}, good[4] = {2, 1, 2, 1}, x[3] = {1, 1, 1};
+  for (int spd = 1; spd >= 0; spd--) {
+    ves_ldl *f = NULL;
+    assert_int_equal(ves_ldl_create(3, 4, ir, jc, spd, &f), VES_OK);
+    assert_int_equal(ves_ldl_solve(f, x), VES_ERR_ARG); /* not factored yet */
+    assert_int_equal(ves_ldl_factor(f, sing), VES_ERR_SINGULAR);
+    ves_ldl_info info;
+    ves_ldl_get_info(f, &info);
+    printf("# singular (spd = %d): INFOG(1) = %d, INFOG(2) = %d\n", spd, info.infog1, info.infog2);
+    assert_true(info.infog1 == -10 || info.infog1 == -6);
+    assert_int_equal(ves_ldl_solve(f, x), VES_ERR_ARG); /* the failed factors are not used */
+    assert_int_equal(ves_ldl_factor(f, good), VES_OK);
+    ves_ldl_get_info(f, &info);
+    assert_int_equal(info.infog1, 0);
+    assert_int_equal(ves_ldl_solve(f, x), VES_OK);
+    /* [2 1; 1 2] x = 1 -> 1/3; 1 x = 1 -> 1 */
+    assert_true(fabs(x[0] - 1.0 / 3) < 1e-15 && fabs(x[1] - 1.0 / 3) < 1e-15 && fabs(x[2] - 1) < 1e-15);
+    x[0] = x[1] = x[2] = 1.0;
+    ves_ldl_destroy(&f);
+  }
+  /* spd requested but indefinite: [1 2; 2 1] has eigenvalues 3, -1 */
+  int ir2[3] = {0, 1, 1}, jc2[3] = {0, 0, 1};
+  double indef[3] = {1, 2, 1};
+  ves_ldl *f = NULL;
+  assert_int_equal(ves_ldl_create(2, 3, ir2, jc2, 1, &f), VES_OK);
+  ves_status s = ves_ldl_factor(f, indef);
+  ves_ldl_info info;
+  ves_ldl_get_info(f, &info);
+  printf("# indefinite as spd: %s, INFOG(1) = %d, INFOG(12) = %d\n", ves_status_str(s), info.infog1,
+         info.neg_pivots);
+  assert_int_equal(s, VES_ERR_SINGULAR);
+  ves_ldl_destroy(&f);
+  /* the same matrix as symmetric indefinite: fine, one negative pivot */
+  assert_int_equal(ves_ldl_create(2, 3, ir2, jc2, 0, &f), VES_OK);
+  assert_int_equal(ves_ldl_factor(f, indef), VES_OK);
+  ves_ldl_get_info(f, &info);
+  assert_int_equal(info.neg_pivots, 1);
+  ves_ldl_destroy(&f);
+}
+
+static void test_ldl_errors(void **state) {
+  (void)state;
+  int ir[2] = {0, 1}, jc[2] = {0, 0}, up[2] = {0, 0};
+  double v[2] = {1, 0};
+  ves_ldl *f = (ves_ldl *)&f; /* a non-NULL value that must be overwritten */
+  assert_int_equal(ves_ldl_create(0, 2, ir, jc, 1, &f), VES_ERR_ARG);
+  assert_null(f);
+  assert_int_equal(ves_ldl_create(2, 0, ir, jc, 1, &f), VES_ERR_ARG);
+  assert_int_equal(ves_ldl_create(2, 2, NULL, jc, 1, &f), VES_ERR_ARG);
+  assert_int_equal(ves_ldl_create(2, 2, ir, NULL, 1, &f), VES_ERR_ARG);
+  assert_int_equal(ves_ldl_create(2, 2, ir, jc, 1, NULL), VES_ERR_ARG);
+  assert_int_equal(ves_ldl_create(2, 2, up, ir, 1, &f), VES_ERR_ARG); /* (0, 1): upper */
+  int out_of_range[2] = {0, 2};
+  assert_int_equal(ves_ldl_create(2, 2, out_of_range, jc, 1, &f), VES_ERR_ARG);
+  int negative[2] = {0, -1};
+  assert_int_equal(ves_ldl_create(2, 2, ir, negative, 1, &f), VES_ERR_ARG);
+  assert_null(f);
+  assert_int_equal(ves_ldl_factor(NULL, v), VES_ERR_ARG);
+  assert_int_equal(ves_ldl_solve(NULL, v), VES_ERR_ARG);
+  assert_int_equal(ves_ldl_create(2, 2, ir, jc, 1, &f), VES_OK);
+  assert_int_equal(ves_ldl_factor(f, NULL), VES_ERR_ARG);
+  assert_int_equal(ves_ldl_solve(f, NULL), VES_ERR_ARG);
+  assert_int_equal(ves_ldl_size(NULL), 0);
+  ves_ldl_destroy(&f);
+  assert_null(f);
+  ves_ldl_destroy(&f);
+  ves_ldl_destroy(NULL);
+}
+
+/* ---- the pattern ---- */
+
+/* Sizing for a sphere of radius 1: h_band in |d| < 4 eps, then slope 0.15
+ * (the node set of tests/test_quad.c's test_tables). */
+static double sphere_h(const double X[2], void *ctx) {
+  double eps = *(double *)ctx, hb = 0.5 * eps;
+  double d = fabs(1.0 - hypot(X[0], X[1])) - 4 * eps;
+  double h = hb + (d > 0 ? 0.15 * d : 0.0);
+  return h < 0.2 ? h : 0.2;
+}
+
+typedef struct {
+  ves_nodes *nodes;
+  ves_quad *q;
+} fixture;
+
+/* The adapted node set (sphere band at eps = 0.1, 1.5 x 1.5 box) with tables. */
+static int setup_tables(void **state) {
+  static double eps = 0.1;
+  fixture *fx = calloc(1, sizeof *fx);
+  if (!fx) return -1;
+  ves_nodes_params np;
+  ves_nodes_params_default(&np);
+  np.LR = 1.5;
+  np.LZ = 1.5;
+  np.h = sphere_h;
+  np.h_ctx = &eps;
+  ves_lme_params lp;
+  ves_lme_params_default(&lp);
+  if (ves_nodes_generate(&np, &fx->nodes) != VES_OK || ves_quad_create(fx->nodes, &fx->q) != VES_OK ||
+      ves_quad_tables(fx->q, fx->nodes, &lp, NULL) != VES_OK)
+    return -1;
+  printf("# node set: %d nodes, %d ghosts, %d points\n", fx->nodes->n, fx->nodes->ng, fx->q->nq);
+  *state = fx;
+  return 0;
+}
+
+static int teardown_tables(void **state) {
+  fixture *fx = *state;
+  if (fx) {
+    ves_quad_destroy(&fx->q);
+    ves_nodes_destroy(&fx->nodes);
+    free(fx);
+  }
+  return 0;
+}
+
+/* The pattern is exactly the set of pairs b <= a that share a point
+ * (brute force over a dense n x n map); dof numbering, triplets, extract and
+ * symv against a dense matrix over the free dofs. */
+static void test_pattern(void **state) {
+  const fixture *fx = *state;
+  const ves_quad *q = fx->q;
+  int n = fx->nodes->n;
+  unsigned char *fixed = calloc(2 * (size_t)n, 1), *coupled = calloc((size_t)n * n, 1);
+  assert_non_null(fixed);
+  assert_non_null(coupled);
+  for (int a = 0; a < n; a++) {
+    if (fx->nodes->flag[a] & VES_NODE_WALL) fixed[2 * a] = fixed[2 * a + 1] = 1;
+    if (fx->nodes->flag[a] & VES_NODE_AXIS) fixed[2 * a] = 1;
+  }
+  for (int al = 0; al < q->nq; al++)
+    for (int k = q->ptr[al]; k < q->ptr[al + 1]; k++)
+      for (int l = q->ptr[al]; l < q->ptr[al + 1]; l++)
+        if (q->nbr[l] <= q->nbr[k]) coupled[(size_t)q->nbr[k] * n + q->nbr[l]] = 1;
+  ves_pattern *p = NULL;
+  assert_int_equal(ves_pattern_create(q, n, fixed, &p), VES_OK);
+  long count = 0;
+  for (int a = 0; a < n; a++)
+    for (int b = 0; b < n; b++) {
+      long t = ves_pattern_find(p, a, b);
+      if (b <= a && coupled[(size_t)a * n + b]) assert_true(t >= 0 && p->col[t] == b), count++;
+      else assert_true(t < 0);
+    }
+  assert_int_equal(count, p->ptr[n]);
+  for (int a = 0; a < n; a++)
+    for (int t = p->ptr[a] + 1; t < p->ptr[a + 1]; t++) assert_true(p->col[t] > p->col[t - 1]);
+  int nfree = 0;
+  for (int i = 0; i < 2 * n; i++) {
+    if (fixed[i]) assert_int_equal(p->dof[i], -1);
+    else assert_int_equal(p->dof[i], nfree++);
+  }
+  assert_int_equal(p->nfree, nfree);
+  /* random block values -> triplets -> symv, against the dense free matrix */
+  uint64_t seed = 5;
+  double *blk = malloc(4 * (size_t)p->ptr[n] * sizeof *blk), *v = malloc((size_t)p->nnz * sizeof *v);
+  double *x = malloc((size_t)nfree * sizeof *x), *y = malloc((size_t)nfree * sizeof *y);
+  double *yd = calloc((size_t)nfree, sizeof *yd);
+  assert_true(blk && v && x && y && yd);
+  for (long t = 0; t < 4L * p->ptr[n]; t++) blk[t] = 2.0 * urand(&seed) - 1.0;
+  for (int i = 0; i < nfree; i++) x[i] = urand(&seed);
+  ves_pattern_extract(p, blk, v);
+  ves_pattern_symv(p, v, x, y);
+  long lower = 0;
+  for (int a = 0; a < n; a++)
+    for (int t = p->ptr[a]; t < p->ptr[a + 1]; t++) {
+      int b = p->col[t];
+      for (int i = 0; i < 2; i++)
+        for (int j = 0; j < 2; j++) {
+          int di = p->dof[2 * a + i], dj = p->dof[2 * b + j];
+          if (di < 0 || dj < 0) continue;
+          double val = blk[4L * t + 2 * i + j];
+          if (a == b && j > i) continue; /* the diagonal block is symmetric: its lower half */
+          lower++;
+          yd[di] += val * x[dj];
+          if (di != dj) yd[dj] += val * x[di];
+        }
+    }
+  assert_int_equal(lower, p->nnz);
+  for (int k = 0; k < p->nnz; k++) assert_true(p->irow[k] >= p->jcol[k] && p->irow[k] < nfree);
+  double worst = 0.0;
+  /* same terms summed in a different order: a few hundred terms of O(1) */
+  for (int i = 0; i < nfree; i++) worst = fmax(worst, fabs(y[i] - yd[i]));
+  assert_true(worst <= 1e-12);
+  ves_pattern_destroy(&p);
+  assert_null(p);
+  ves_pattern_destroy(NULL);
+  assert_int_equal(ves_pattern_create(NULL, n, fixed, &p), VES_ERR_ARG);
+  assert_int_equal(ves_pattern_create(q, 0, fixed, &p), VES_ERR_ARG);
+  assert_int_equal(ves_pattern_create(q, n, NULL, &p), VES_ERR_ARG);
+  free(fixed);
+  free(coupled);
+  free(blk);
+  free(v);
+  free(x);
+  free(y);
+  free(yd);
+}
+
+/* ---- the projection ---- */
+
+/* A hand-made table set with ghost entries: the projection equals the dense
+ * normal-equation solution with the folded P (ghost values added to their
+ * node's column), computed with LAPACK dposv. */
+static void test_project_folding(void **state) {
+  (void)state;
+  enum { NQ = 7, N = 4, M = 4 };
+  /* every point sees M = 4 entries; point 2 sees node 1 twice (real and
+   * ghost), point 5 sees node 0 twice */
+  int nbr[NQ * M] = {0, 1, 2, 3, 0, 1, 2, 3, 1, 1, 2, 3, 0, 1, 3, 2,
+                     2, 3, 0, 1, 0, 0, 1, 3, 3, 2, 1, 0};
+  unsigned char mirror[NQ * M] = {0};
+  mirror[9] = mirror[21] = 1;
+  int ptr[NQ + 1];
+  double tab[6 * NQ * M], w[NQ], f[NQ];
+  uint64_t seed = 31;
+  for (int al = 0; al <= NQ; al++) ptr[al] = M * al;
+  for (int i = 0; i < 6 * NQ * M; i++) tab[i] = 0.05 + urand(&seed);
+  for (int al = 0; al < NQ; al++) w[al] = 0.5 + urand(&seed), f[al] = sin(3.0 * al);
+  ves_quad q = {.nq = NQ, .w = w, .ptr = ptr, .nbr = nbr, .mirror = mirror, .tab = tab};
+  double P[NQ * N] = {0}, Md[N * N] = {0}, b[N] = {0}, c[N];
+  for (int al = 0; al < NQ; al++)
+    for (int k = 0; k < M; k++) P[al * N + nbr[M * al + k]] += tab[6 * M * al + k]; /* value row */
+  for (int a = 0; a < N; a++) {
+    for (int al = 0; al < NQ; al++) b[a] += w[al] * P[al * N + a] * f[al];
+    for (int bb = 0; bb < N; bb++)
+      for (int al = 0; al < NQ; al++) Md[a * N + bb] += w[al] * P[al * N + a] * P[al * N + bb];
+  }
+  double anorm = LAPACKE_dlange(LAPACK_ROW_MAJOR, '1', N, N, Md, N), rcond;
+  assert_int_equal(LAPACKE_dposv(LAPACK_ROW_MAJOR, 'L', N, 1, Md, N, b, 1), 0);
+  assert_int_equal(LAPACKE_dpocon(LAPACK_ROW_MAJOR, 'L', N, Md, N, anorm, &rcond), 0);
+  int refine = -1;
+  double relres = -1;
+  assert_int_equal(ves_sparse_project_l2(&q, N, f, c, 1e-14, 3, &refine, &relres), VES_OK);
+  double worst = 0.0;
+  for (int a = 0; a < N; a++) worst = fmax(worst, fabs(c[a] - b[a]) / fmax(1.0, fabs(b[a])));
+  printf("# folding: cond_1(M) ~ %.1e, max |c - c_dense| = %.2e, relres %.2e after %d refinements\n",
+         1.0 / rcond, worst, relres, refine);
+  /* both solutions are within ~ N u cond(M) of the exact one (cond from
+   * LAPACK's dpocon estimate; a factor 10 for the estimate's slack) */
+  assert_true(worst <= 10.0 * N * U / rcond);
+  assert_true(relres <= 1e-14);
+  /* a node no point sees: singular */
+  assert_int_equal(ves_sparse_project_l2(&q, N + 1, f, c, 1e-12, 3, NULL, NULL), VES_ERR_SINGULAR);
+  /* argument errors */
+  assert_int_equal(ves_sparse_project_l2(NULL, N, f, c, 1e-12, 3, NULL, NULL), VES_ERR_ARG);
+  assert_int_equal(ves_sparse_project_l2(&q, 0, f, c, 1e-12, 3, NULL, NULL), VES_ERR_ARG);
+  assert_int_equal(ves_sparse_project_l2(&q, N, NULL, c, 1e-12, 3, NULL, NULL), VES_ERR_ARG);
+  assert_int_equal(ves_sparse_project_l2(&q, N, f, NULL, 1e-12, 3, NULL, NULL), VES_ERR_ARG);
+  assert_int_equal(ves_sparse_project_l2(&q, N, f, c, -1.0, 3, NULL, NULL), VES_ERR_ARG);
+  assert_int_equal(ves_sparse_project_l2(&q, N, f, c, 1e-12, -1, NULL, NULL), VES_ERR_ARG);
+  /* rtol = 0 cannot be met: VES_MAXITER, c still the best iterate */
+  assert_int_equal(ves_sparse_project_l2(&q, N, f, c, 0.0, 2, &refine, &relres), VES_MAXITER);
+  assert_true(refine <= 2 && relres <= 1e-14);
+}
+
+/* An even affine field f = 1 + 0.3 Z: LME reproduces it exactly (ghosts carry
+ * the real node's Z), so the least-squares coefficients are the nodal values. */
+static void test_project_affine(void **state) {
+  const fixture *fx = *state;
+  const ves_quad *q = fx->q;
+  int n = fx->nodes->n;
+  double *f = malloc((size_t)q->nq * sizeof *f), *c = malloc((size_t)n * sizeof *c);
+  assert_true(f && c);
+  for (int al = 0; al < q->nq; al++) f[al] = 1.0 + 0.3 * q->x[2 * al + 1];
+  int refine;
+  double relres;
+  assert_int_equal(ves_sparse_project_l2(q, n, f, c, 1e-12, 3, &refine, &relres), VES_OK);
+  double worst = 0.0;
+  for (int a = 0; a < n; a++) worst = fmax(worst, fabs(c[a] - (1.0 + 0.3 * fx->nodes->x[2 * a + 1])));
+  printf("# affine: max |c_a - f(X_a)| = %.2e, relres %.2e, %d refinements\n", worst, relres, refine);
+  /* reproduction holds to ~1e-13 (Newton tolerance of the LME dual, see
+   * test_quad's test_tables), amplified by cond(M) of the fit; 1e-10 as the
+   * brief asks: observed values are a few 1e-12 */
+  assert_true(worst <= 1e-10);
+  free(f);
+  free(c);
+}
+
+/* A smooth non-polynomial even field: the refined residual is at rounding
+ * level, the normal equations hold when re-evaluated independently through
+ * ves_quad_field (P^T W (P c - f) = 0), and c minimizes the weighted error. */
+static void test_project_smooth(void **state) {
+  const fixture *fx = *state;
+  const ves_quad *q = fx->q;
+  int n = fx->nodes->n;
+  double *f = malloc((size_t)q->nq * sizeof *f), *c = malloc((size_t)n * sizeof *c);
+  double *out = malloc(6 * (size_t)q->nq * sizeof *out), *g = calloc((size_t)n, sizeof *g);
+  double *bb = calloc((size_t)n, sizeof *bb), *c2 = malloc((size_t)n * sizeof *c2);
+  assert_true(f && c && out && g && bb && c2);
+  for (int al = 0; al < q->nq; al++) {
+    double R = q->x[2 * al], Z = q->x[2 * al + 1];
+    f[al] = tanh((1.0 - hypot(R, Z)) / (sqrt(2.0) * 0.1)) + 0.2 * cos(R * R + 2.0 * Z);
+  }
+  int refine;
+  double relres;
+  assert_int_equal(ves_sparse_project_l2(q, n, f, c, 1e-12, 3, &refine, &relres), VES_OK);
+  printf("# smooth: relres %.2e after %d refinements\n", relres, refine);
+  assert_true(relres <= 1e-12);
+  /* g = P^T W (P c - f), b = P^T W f, through the tables directly */
+  ves_quad_field(q, c, 0, out);
+  double err2 = 0.0;
+  for (int al = 0; al < q->nq; al++) {
+    double e = out[6 * (size_t)al] - f[al];
+    err2 += q->w[al] * e * e;
+    for (int k = q->ptr[al]; k < q->ptr[al + 1]; k++) {
+      double p = q->tab[6 * (size_t)q->ptr[al] + (k - q->ptr[al])];
+      g[q->nbr[k]] += q->w[al] * p * e;
+      bb[q->nbr[k]] += q->w[al] * p * f[al];
+    }
+  }
+  double gn = norm2(n, g) / norm2(n, bb);
+  printf("# smooth: |P^T W (Pc - f)| / |P^T W f| = %.2e, weighted L2 error %.3e\n", gn, sqrt(err2));
+  /* the same residual summed in another order (per point instead of per
+   * matrix entry): cancellation of terms of size |b| ~ 1 leaves ~ 1e-14 */
+  assert_true(gn <= 1e-12);
+  /* any perturbation increases the weighted squared error */
+  uint64_t seed = 77;
+  for (int trial = 0; trial < 3; trial++) {
+    for (int a = 0; a < n; a++) c2[a] = c[a] + 1e-3 * (2.0 * urand(&seed) - 1.0);
+    ves_quad_field(q, c2, 0, out);
+    double e2 = 0.0;
+    for (int al = 0; al < q->nq; al++) {
+      double e = out[6 * (size_t)al] - f[al];
+      e2 += q->w[al] * e * e;
+    }
+    assert_true(e2 > err2);
+  }
+  free(f);
+  free(c);
+  free(out);
+  free(g);
+  free(bb);
+  free(c2);
+}
+
+int main(void) {
+  setvbuf(stdout, NULL, _IOLBF, 0); /* keep output in order with cmocka's stderr */
+  const struct CMUnitTest tests[] = {
+      cmocka_unit_test(test_ldl_spd_vs_lapack),
+      cmocka_unit_test(test_ldl_kkt),
+      cmocka_unit_test(test_ldl_refactor),
+      cmocka_unit_test(test_ldl_singular),
+      cmocka_unit_test(test_ldl_errors),
+      cmocka_unit_test(test_project_folding),
+      cmocka_unit_test_setup_teardown(test_pattern, setup_tables, teardown_tables),
+      cmocka_unit_test_setup_teardown(test_project_affine, setup_tables, teardown_tables),
+      cmocka_unit_test_setup_teardown(test_project_smooth, setup_tables, teardown_tables),
+  };
+  return cmocka_run_group_tests_name("sparse", tests, NULL, NULL);
+}
