@@ -51,8 +51,11 @@ static const key_spec KEYS[] = {
      "Lloyd (CVT) smoothing iterations of the node set"},
     {"geometry", "seed", KEY_INT, OFF(seed), "1", 0, 2147483647, NULL,
      "seed of the deterministic node sampling"},
-    {"shape", "type", KEY_STRING, OFF(shape_type), "sphere", 0, 0, "sphere|spheroid|discocyte",
-     "initial shape"},
+    {"shape", "type", KEY_STRING, OFF(shape_type), "sphere", 0, 0,
+     "sphere|spheroid|discocyte|curve", "initial shape"},
+    {"shape", "points", KEY_STRING, OFF(points), "none", 0, 0, NULL,
+     "curve: file of points 'R Z' from the north to the south pole (relative to the problem "
+     "file's folder), scaled to area 4 pi"},
     {"shape", "radius", KEY_DOUBLE, OFF(radius), "1.0", 1e-3, 100, NULL,
      "sphere radius (units R0)"},
     {"shape", "reduced_volume", KEY_DOUBLE, OFF(reduced_volume), "0.9", 0.3, 1.0, NULL,
@@ -88,7 +91,7 @@ static int set_value(ves_config *cfg, const key_spec *k, const char *text, const
     size_t len = strlen(text);
     if (len == 0 || len >= VES_CONFIG_STR) return *why = "empty or too long", -1;
     const char *c = k->choice;
-    int ok = 0;
+    int ok = c == NULL; /* free text when no choices are listed */
     while (c && *c) { /* one of the '|'-separated choices */
       size_t l = strcspn(c, "|");
       if (l == len && !strncasecmp(c, text, l)) ok = 1;
@@ -223,6 +226,10 @@ ves_status ves_config_load(const char *path, int nset, const char *const *set, v
 ves_status ves_config_validate(const ves_config *cfg, char *err, size_t errlen) {
   const char *src = cfg->source[0] ? cfg->source : "(defaults)";
   double size = !strcasecmp(cfg->shape_type, "sphere") ? cfg->radius * (1 + fabs(cfg->delta)) : 1.6;
+  if (!strcasecmp(cfg->shape_type, "curve") && !strcmp(cfg->points, "none")) {
+    say(err, errlen, "%s: [shape] points: a curve needs a points file", src);
+    return VES_ERR_CONFIG;
+  }
   if (cfg->epsilon * 10 > fmin(cfg->box_r, cfg->box_z)) {
     say(err, errlen, "%s: [geometry] epsilon = %g: too large for the box (needs 10 eps <= %g)", src,
         cfg->epsilon, fmin(cfg->box_r, cfg->box_z));
@@ -247,10 +254,67 @@ void ves_config_print_keys(FILE *f) {
     const key_spec *k = &KEYS[i];
     const char *t = k->type == KEY_DOUBLE ? "real" : k->type == KEY_INT ? "integer" : "text";
     if (k->type == KEY_STRING)
-      fprintf(f, "| %s | %s | %s | %s | %s | %s |\n", k->section, k->key, t, k->def, k->choice,
-              k->doc);
+      fprintf(f, "| %s | %s | %s | %s | %s | %s |\n", k->section, k->key, t, k->def,
+              k->choice ? k->choice : "text", k->doc);
     else
       fprintf(f, "| %s | %s | %s | %s | %g to %g | %s |\n", k->section, k->key, t, k->def, k->min,
               k->max, k->doc);
   }
+}
+
+ves_status ves_config_read_points(const ves_config *cfg, int *n, double **pts, char *err,
+                                  size_t errlen) {
+  VES_CHECK(cfg && n && pts, VES_ERR_ARG);
+  *n = 0, *pts = NULL;
+  char path[2 * VES_CONFIG_STR + 8];
+  const char *slash = strrchr(cfg->source, '/');
+  if (cfg->points[0] != '/' && slash) /* relative to the problem file's folder */
+    snprintf(path, sizeof path, "%.*s/%s", (int)(slash - cfg->source), cfg->source, cfg->points);
+  else
+    snprintf(path, sizeof path, "%s", cfg->points);
+  FILE *f = fopen(path, "r");
+  if (!f) {
+    say(err, errlen, "%s: [shape] points = %s: cannot open %s: %s", cfg->source, cfg->points, path,
+        strerror(errno));
+    return VES_ERR_IO;
+  }
+  int cap = 0, cnt = 0, line = 0;
+  double *p = NULL;
+  char buf[512];
+  ves_status st = VES_OK;
+  while (fgets(buf, sizeof buf, f)) {
+    line++;
+    char *s = buf;
+    while (*s == ' ' || *s == '\t') s++;
+    if (*s == '#' || *s == '\n' || *s == 0) continue;
+    double R, Z;
+    char extra;
+    if (sscanf(s, "%lf %lf %c", &R, &Z, &extra) != 2 || !isfinite(R) || !isfinite(Z) || R < 0) {
+      say(err, errlen, "%s: line %d: expected two numbers 'R Z' with R >= 0", path, line);
+      st = VES_ERR_CONFIG;
+      break;
+    }
+    if (cnt == cap) {
+      cap = cap ? 2 * cap : 256;
+      double *q = realloc(p, 2 * (size_t)cap * sizeof *q);
+      if (!q) {
+        st = VES_ERR_ALLOC;
+        break;
+      }
+      p = q;
+    }
+    p[2 * cnt] = R, p[2 * cnt + 1] = Z;
+    cnt++;
+  }
+  fclose(f);
+  if (st == VES_OK && (cnt < 4 || p[0] != 0.0 || p[2 * cnt - 2] != 0.0)) {
+    say(err, errlen, "%s: %d points: need at least 4, the first and the last with R = 0", path, cnt);
+    st = VES_ERR_CONFIG;
+  }
+  if (st != VES_OK) {
+    free(p);
+    return st;
+  }
+  *n = cnt, *pts = p;
+  return VES_OK;
 }

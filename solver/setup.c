@@ -41,7 +41,7 @@ ves_status ves_setup_create(const ves_config *cfg, ves_phi0_method method, ves_s
   *out = NULL;
   double t0 = now_seconds(), t;
   ves_status st;
-  double *f = NULL, *bx = NULL;
+  double *f = NULL, *bx = NULL, *cpts = NULL;
   int *bflag = NULL;
   ves_setup *s = calloc(1, sizeof *s);
   if (!s) return VES_ERR_ALLOC;
@@ -50,14 +50,21 @@ ves_status ves_setup_create(const ves_config *cfg, ves_phi0_method method, ves_s
   ves_shape_params_default(&sp);
   if (!strcasecmp(cfg->shape_type, "sphere")) sp.kind = VES_SHAPE_SPHERE;
   else if (!strcasecmp(cfg->shape_type, "spheroid")) sp.kind = VES_SHAPE_SPHEROID;
+  else if (!strcasecmp(cfg->shape_type, "curve")) sp.kind = VES_SHAPE_CURVE;
   else sp.kind = VES_SHAPE_DISCOCYTE;
+  if (sp.kind == VES_SHAPE_CURVE) {
+    if ((st = ves_config_read_points(cfg, &sp.npts, &cpts, err, errlen)) != VES_OK) goto fail;
+    sp.pts = cpts;
+  }
   sp.radius = cfg->radius;
   sp.v = cfg->reduced_volume;
   sp.prolate = !strcasecmp(cfg->orientation, "prolate");
   sp.mode = cfg->mode;
   sp.delta = cfg->delta;
-  if ((st = ves_shape_create(&sp, &s->shape)) != VES_OK)
-    FAIL(st, "shape: %s", ves_status_str(st));
+  st = ves_shape_create(&sp, &s->shape);
+  free(cpts);
+  cpts = NULL;
+  if (st != VES_OK) FAIL(st, "shape: %s", ves_status_str(st));
   ves_shape_sharp(s->shape, &s->area_sharp, &s->volume_sharp);
   /* the refined band (and its layers) must fit in the box with a spacing to spare */
   double rmax, zmax, margin = (cfg->band + 1) * cfg->epsilon;
@@ -139,6 +146,7 @@ ves_status ves_setup_create(const ves_config *cfg, ves_phi0_method method, ves_s
   *out = s;
   return VES_OK;
 fail:
+  free(cpts);
   free(f);
   free(bx);
   free(bflag);

@@ -32,6 +32,11 @@ struct ves_shape {
   double scale;         /* discocyte: factor to area 4 pi */
   double ts[VES_SHAPE_NS], ps[2 * VES_SHAPE_NS]; /* samples t_i, P(t_i) */
   double ds_max;        /* largest distance between consecutive samples */
+  /* curve: periodic cubic spline through the points and their mirror image */
+  int ns;               /* knots of the closed loop, 2 (npts - 1) */
+  double *u;            /* ns + 1 chord-length parameters, u[ns] = U */
+  double *kp;           /* 2 (ns + 1) knot coordinates (R, Z), last = first */
+  double *m2;           /* 2 ns second derivatives d2/du2 at the knots */
 };
 
 void ves_shape_params_default(ves_shape_params *par) {
@@ -73,6 +78,26 @@ static void base_curve(const ves_shape *s, double t, double P[2], double D[2], d
     D[0] = s->a * ct, D[1] = -s->c * st;
     DD[0] = -P[0], DD[1] = -P[1];
     break;
+  case VES_SHAPE_CURVE: {
+    /* u = t U / (2 pi): the half loop t in [0, pi] runs pole to pole */
+    double U = s->u[s->ns], du = U / (2 * M_PI), uu = t * du;
+    int lo = 0, hi = s->ns - 1;
+    while (lo < hi) { /* last knot with u_k <= uu */
+      int mid = (lo + hi + 1) / 2;
+      if (s->u[mid] <= uu) lo = mid; else hi = mid - 1;
+    }
+    int k = lo;
+    double h = s->u[k + 1] - s->u[k], a = (s->u[k + 1] - uu) / h, b = 1 - a;
+    for (int i = 0; i < 2; i++) {
+      double y0 = s->kp[2 * k + i], y1 = s->kp[2 * k + 2 + i];
+      double M0 = s->m2[2 * k + i], M1 = s->m2[2 * ((k + 1) % s->ns) + i];
+      /* cubic spline on [u_k, u_k+1] and its u-derivatives, times du/dt */
+      P[i] = a * y0 + b * y1 + ((a * a * a - a) * M0 + (b * b * b - b) * M1) * h * h / 6;
+      D[i] = ((y1 - y0) / h + (-(3 * a * a - 1) * M0 + (3 * b * b - 1) * M1) * h / 6) * du;
+      DD[i] = (a * M0 + b * M1) * du * du;
+    }
+    break;
+  }
   case VES_SHAPE_DISCOCYTE: {
     /* R = (D/2) sin t, Z = (1/2) cos t (C0 + C2 sin^2 t + C4 sin^4 t), scaled */
     double s2 = st * st, q = EF_C0 + EF_C2 * s2 + EF_C4 * s2 * s2;
@@ -154,23 +179,105 @@ static double spheroid_v(double rho) {
 }
 
 void ves_shape_destroy(ves_shape **s) {
-  if (!s) return;
+  if (!s || !*s) return;
+  free((*s)->u);
+  free((*s)->kp);
+  free((*s)->m2);
   free(*s);
   *s = NULL;
+}
+
+/* Periodic cubic spline through the loop (points, then their mirror image
+ * back up): second derivatives from the cyclic tridiagonal system
+ * h_{k-1} M_{k-1} + 2 (h_{k-1} + h_k) M_k + h_k M_{k+1}
+ *   = 6 [(y_{k+1} - y_k)/h_k - (y_k - y_{k-1})/h_{k-1}],
+ * solved by Sherman-Morrison around the Thomas algorithm. */
+static ves_status curve_setup(ves_shape *s, int np, const double *pts) {
+  int n = 2 * (np - 1);
+  s->ns = n;
+  s->u = malloc(((size_t)n + 1) * sizeof *s->u);
+  s->kp = malloc(2 * ((size_t)n + 1) * sizeof *s->kp);
+  s->m2 = malloc(2 * (size_t)n * sizeof *s->m2);
+  double *w = malloc(6 * (size_t)n * sizeof *w);
+  if (!s->u || !s->kp || !s->m2 || !w) {
+    free(w);
+    return VES_ERR_ALLOC;
+  }
+  for (int k = 0; k < np; k++) s->kp[2 * k] = pts[2 * k], s->kp[2 * k + 1] = pts[2 * k + 1];
+  for (int k = 1; k < np - 1; k++) { /* mirror image, south to north */
+    s->kp[2 * (np - 1 + k)] = -pts[2 * (np - 1 - k)];
+    s->kp[2 * (np - 1 + k) + 1] = pts[2 * (np - 1 - k) + 1];
+  }
+  s->kp[2 * n] = s->kp[0], s->kp[2 * n + 1] = s->kp[1];
+  s->u[0] = 0;
+  for (int k = 0; k < n; k++) {
+    double l = hypot(s->kp[2 * k + 2] - s->kp[2 * k], s->kp[2 * k + 3] - s->kp[2 * k + 1]);
+    if (!(l > 0)) {
+      free(w);
+      return VES_ERR_ARG; /* repeated point */
+    }
+    s->u[k + 1] = s->u[k] + l;
+  }
+  double *dg = w, *lo = w + n, *up = w + 2 * n, *r = w + 3 * n, *z = w + 4 * n, *q = w + 5 * n;
+  for (int i = 0; i < 2; i++) {
+    for (int k = 0; k < n; k++) {
+      double hm = s->u[k] - (k ? s->u[k - 1] : s->u[n - 1] - s->u[n]), hp = s->u[k + 1] - s->u[k];
+      int km = (k + n - 1) % n;
+      dg[k] = 2 * (hm + hp), lo[k] = hm, up[k] = hp;
+      r[k] = 6 * ((s->kp[2 * (k + 1) + i] - s->kp[2 * k + i]) / hp -
+                  (s->kp[2 * k + i] - s->kp[2 * km + i]) / hm);
+    }
+    /* A = T' + u v^T with the corners tl = A[0][n-1] = lo[0] and
+     * bl = A[n-1][0] = up[n-1]: gam = -dg[0], u = (gam, 0.., bl),
+     * v = (1, 0.., tl/gam), T' tridiagonal with dg[0] - gam and
+     * dg[n-1] - tl bl / gam on the diagonal ends */
+    double gam = -dg[0], tl = lo[0], bl = up[n - 1];
+    for (int k = 0; k < n; k++) q[k] = 0;
+    q[0] = gam, q[n - 1] = bl;
+    double *d2 = z; /* Thomas: T' y = r and T' q' = u, c' kept in d2 */
+    for (int pass = 0; pass < 2; pass++) {
+      double *rhs = pass ? q : r;
+      /* Thomas on the tridiagonal part with the modified ends */
+      double cp_prev = 0, dp_prev = 0;
+      for (int k = 0; k < n; k++) {
+        double b = dg[k] - (k == 0 ? gam : 0) - (k == n - 1 ? tl * bl / gam : 0);
+        double a = k ? lo[k] : 0, c = k < n - 1 ? up[k] : 0;
+        double den = b - a * cp_prev;
+        cp_prev = c / den;
+        dp_prev = (rhs[k] - a * dp_prev) / den;
+        d2[k] = cp_prev, rhs[k] = dp_prev; /* store c' in d2, d' in rhs */
+      }
+      for (int k = n - 2; k >= 0; k--) rhs[k] -= d2[k] * rhs[k + 1];
+    }
+    /* x = y - (v.y / (1 + v.q')) q' */
+    double vy = r[0] + tl / gam * r[n - 1], vz = q[0] + tl / gam * q[n - 1];
+    for (int k = 0; k < n; k++) s->m2[2 * k + i] = r[k] - vy / (1 + vz) * q[k];
+  }
+  free(w);
+  return VES_OK;
 }
 
 ves_status ves_shape_create(const ves_shape_params *par, ves_shape **out) {
   VES_CHECK(par && out, VES_ERR_ARG);
   *out = NULL;
   VES_CHECK(par->kind == VES_SHAPE_SPHERE || par->kind == VES_SHAPE_SPHEROID ||
-                par->kind == VES_SHAPE_DISCOCYTE,
+                par->kind == VES_SHAPE_DISCOCYTE || par->kind == VES_SHAPE_CURVE,
             VES_ERR_ARG);
+  if (par->kind == VES_SHAPE_CURVE) { /* pole to pole, R >= 0 */
+    VES_CHECK(par->npts >= 4 && par->pts, VES_ERR_ARG);
+    VES_CHECK(par->pts[0] == 0.0 && par->pts[2 * par->npts - 2] == 0.0, VES_ERR_ARG);
+    VES_CHECK(par->pts[1] > par->pts[2 * par->npts - 1], VES_ERR_ARG);
+    for (int k = 0; k < par->npts; k++)
+      VES_CHECK(par->pts[2 * k] >= 0 && isfinite(par->pts[2 * k]) && isfinite(par->pts[2 * k + 1]),
+                VES_ERR_ARG);
+  }
   VES_CHECK(par->kind != VES_SHAPE_SPHERE || par->radius > 0, VES_ERR_ARG);
   VES_CHECK(par->kind != VES_SHAPE_SPHEROID || (par->v > 0.2 && par->v <= 1.0), VES_ERR_ARG);
   VES_CHECK(par->mode >= 0 && par->mode <= 40 && fabs(par->delta) < 0.5, VES_ERR_ARG);
   ves_shape *s = calloc(1, sizeof *s);
   if (!s) return VES_ERR_ALLOC;
   s->par = *par;
+  s->par.pts = NULL; /* copied into the spline knots, not kept */
   s->scale = 1.0;
   if (par->kind == VES_SHAPE_SPHEROID) {
     /* bisection on the aspect ratio: v(rho) increases on (0,1), decreases on (1,inf) */
@@ -185,6 +292,20 @@ ves_status ves_shape_create(const ves_shape_params *par, ves_shape **out) {
     sharp_integrals(s, &A, &V);
     double k = sqrt(4 * M_PI / A); /* scale to area 4 pi */
     s->a = k, s->c = k * rho;
+  } else if (par->kind == VES_SHAPE_CURVE) {
+    ves_status st = curve_setup(s, par->npts, par->pts);
+    if (st == VES_OK) { /* scale to area 4 pi */
+      double A, V;
+      sharp_integrals(s, &A, &V);
+      double k = sqrt(4 * M_PI / A);
+      for (int i = 0; i < 2 * (s->ns + 1); i++) s->kp[i] *= k;
+      for (int i = 0; i < 2 * s->ns; i++) s->m2[i] /= k;
+      for (int i = 0; i <= s->ns; i++) s->u[i] *= k;
+    }
+    if (st != VES_OK) {
+      ves_shape_destroy(&s);
+      return st;
+    }
   } else if (par->kind == VES_SHAPE_DISCOCYTE) {
     double A, V;
     sharp_integrals(s, &A, &V);

@@ -444,7 +444,8 @@ ves_status ves_sparse_project_l2(const ves_quad *q, int n, const double *f, doub
   }
   /* b = P^T W f */
   for (int al = 0; al < q->nq; al++)
-    for (int e = fo.fptr[al]; e < fo.fptr[al + 1]; e++) b[fo.fnbr[e]] += q->w[al] * fo.fval[e] * f[al];
+    for (int e = fo.fptr[al]; e < fo.fptr[al + 1]; e++)
+      b[fo.fnbr[e]] += q->w[al] * fo.fval[e] * f[al];
   folded_free(&fo); /* no longer needed: free it before the factorization */
   double bnorm = 0.0;
   for (int a = 0; a < n; a++) bnorm += b[a] * b[a];

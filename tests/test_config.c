@@ -74,6 +74,7 @@ static void test_errors(void **state) {
   expect_error("[geometry]\nbox_r = 0.5\n", 0, NULL, VES_ERR_CONFIG, "do not fit");
   expect_error("[geometry]\nh_far = 0.001\n", 0, NULL, VES_ERR_CONFIG, "h_far");
   expect_error("[geometry]\nepsilon =\n", 0, NULL, VES_ERR_CONFIG, "epsilon");
+  expect_error("[shape]\ntype = curve\n", 0, NULL, VES_ERR_CONFIG, "needs a points file");
   const char *s1[] = {"geometry.epsilon"};
   expect_error("", 1, s1, VES_ERR_CONFIG, "section.key=value");
   const char *s2[] = {"geometry.nope=1"};
@@ -84,6 +85,38 @@ static void test_errors(void **state) {
   expect_error("", 1, s4, VES_ERR_CONFIG, "section.key=value");
   ves_config c;
   assert_int_equal(ves_config_load(NULL, 1, NULL, &c, NULL, 0), VES_ERR_ARG);
+}
+
+/* Points files: read relative to the problem file's folder; bad lines and
+ * curves not starting and ending on the axis are refused. */
+static void test_points_file(void **state) {
+  (void)state;
+  char pts[64], err[512] = "";
+  write_tmp(pts, sizeof pts, "# a square-ish curve\n0 1\n0.7 0.7\n1 0\n0.7 -0.7\n0 -1\n");
+  ves_config c;
+  ves_config_default(&c);
+  snprintf(c.source, sizeof c.source, "/tmp/problem.ini");
+  snprintf(c.points, sizeof c.points, "%s", pts + 5); /* relative to /tmp */
+  int n = 0;
+  double *p = NULL;
+  assert_int_equal(ves_config_read_points(&c, &n, &p, err, sizeof err), VES_OK);
+  assert_int_equal(n, 5);
+  assert_true(p[2] == 0.7 && p[9] == -1.0);
+  free(p);
+  unlink(pts);
+  write_tmp(pts, sizeof pts, "0 1\n0.7 x\n");
+  snprintf(c.points, sizeof c.points, "%s", pts);
+  assert_int_equal(ves_config_read_points(&c, &n, &p, err, sizeof err), VES_ERR_CONFIG);
+  assert_non_null(strstr(err, "line 2"));
+  unlink(pts);
+  write_tmp(pts, sizeof pts, "0.1 1\n0.7 0.7\n1 0\n0 -1\n");
+  snprintf(c.points, sizeof c.points, "%s", pts);
+  assert_int_equal(ves_config_read_points(&c, &n, &p, err, sizeof err), VES_ERR_CONFIG);
+  assert_non_null(strstr(err, "R = 0"));
+  unlink(pts);
+  snprintf(c.points, sizeof c.points, "/nonexistent/points.txt");
+  assert_int_equal(ves_config_read_points(&c, &n, &p, err, sizeof err), VES_ERR_IO);
+  assert_null(p);
 }
 
 static void test_key_listing(void **state) {
@@ -104,6 +137,7 @@ int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_defaults_and_overrides),
       cmocka_unit_test(test_errors),
+      cmocka_unit_test(test_points_file),
       cmocka_unit_test(test_key_listing),
   };
   return cmocka_run_group_tests_name("config", tests, NULL, NULL);

@@ -245,6 +245,59 @@ static void test_band_nodes(void **state) {
   ves_shape_destroy(&s);
 }
 
+/* A curve through 201 points of the v = 0.9 oblate spheroid reproduces the
+ * spheroid: the spline interpolates to O(ds^4), ds ~ 0.016. */
+static void test_curve_points(void **state) {
+  (void)state;
+  enum { NP = 201 };
+  double pts[2 * NP], a = 1.182922828, c = 0.643175783;
+  for (int k = 0; k < NP; k++) {
+    double t = M_PI * k / (NP - 1);
+    pts[2 * k] = k == 0 || k == NP - 1 ? 0.0 : a * sin(t);
+    pts[2 * k + 1] = c * cos(t);
+  }
+  ves_shape_params p;
+  ves_shape_params_default(&p);
+  p.kind = VES_SHAPE_CURVE;
+  p.npts = NP;
+  p.pts = pts;
+  ves_shape *s = NULL;
+  assert_int_equal(ves_shape_create(&p, &s), VES_OK);
+  double A, V, E;
+  ves_shape_sharp(s, &A, &V);
+  E = ves_shape_sharp_energy(s, 0.0);
+  printf("# curve from points: A/4pi-1 = %.1e v = %.9f E* = %.7f (spheroid 7.8817755)\n",
+         A / (4 * M_PI) - 1, V / (4 * M_PI / 3), E);
+  assert_true(fabs(A / (4 * M_PI) - 1) < 1e-12);   /* normalized */
+  assert_true(fabs(V / (4 * M_PI / 3) - 0.9) < 1e-7); /* O(ds^4) ~ 6e-8 */
+  assert_true(fabs(E - 7.8817755) < 1e-4);          /* curvature: O(ds^2) ~ 3e-4 x small const */
+  /* distances agree with the analytic spheroid's */
+  ves_shape_params q;
+  ves_shape_params_default(&q);
+  q.kind = VES_SHAPE_SPHEROID;
+  q.v = 0.9;
+  ves_shape *e = NULL;
+  assert_int_equal(ves_shape_create(&q, &e), VES_OK);
+  double worst = 0;
+  for (int k = 0; k < 200; k++) {
+    double X[2] = {1.8 * k / 199.0, 1.2 * sin(0.37 * k)};
+    worst = fmax(worst, fabs(ves_shape_distance(s, X) - ves_shape_distance(e, X)));
+  }
+  printf("# curve vs spheroid: worst distance difference %.1e\n", worst);
+  assert_true(worst < 1e-7);
+  ves_shape_destroy(&e);
+  ves_shape_destroy(&s);
+  /* invalid: first point off the axis; too few points; NULL */
+  pts[0] = 0.1;
+  assert_int_equal(ves_shape_create(&p, &s), VES_ERR_ARG);
+  pts[0] = 0.0;
+  p.npts = 3;
+  assert_int_equal(ves_shape_create(&p, &s), VES_ERR_ARG);
+  p.npts = NP;
+  p.pts = NULL;
+  assert_int_equal(ves_shape_create(&p, &s), VES_ERR_ARG);
+}
+
 static void test_errors(void **state) {
   (void)state;
   ves_shape_params p;
@@ -270,7 +323,8 @@ int main(void) {
       cmocka_unit_test(test_spheroid_axes), cmocka_unit_test(test_distance_exact),
       cmocka_unit_test(test_mode_perturbation), cmocka_unit_test(test_discocyte),
       cmocka_unit_test(test_sphere_energy), cmocka_unit_test(test_sizing),
-      cmocka_unit_test(test_band_nodes), cmocka_unit_test(test_errors),
+      cmocka_unit_test(test_band_nodes), cmocka_unit_test(test_curve_points),
+      cmocka_unit_test(test_errors),
   };
   return cmocka_run_group_tests_name("shape", tests, NULL, NULL);
 }

@@ -10,7 +10,7 @@
 
 #include "ves/status.h"
 
-#define VES_CONFIG_STR 64
+#define VES_CONFIG_STR 256
 
 /* All parameters of a run. Lengths in R0 = sqrt(A0/4pi), energies in k, times
  * in t* = t k / (mu R0^3). */
@@ -30,7 +30,8 @@ typedef struct {
   int band_layers;                 /* 1: interface-aligned layers in the band */
   int seed;                        /* seed of the node sampling */
   /* [shape] */
-  char shape_type[VES_CONFIG_STR]; /* sphere | spheroid | discocyte */
+  char shape_type[VES_CONFIG_STR]; /* sphere | spheroid | discocyte | curve */
+  char points[VES_CONFIG_STR];     /* curve: points file, relative to the problem file's folder */
   double radius;                   /* sphere radius */
   double reduced_volume;           /* spheroid reduced volume v */
   char orientation[VES_CONFIG_STR];/* spheroid: oblate | prolate */
@@ -54,6 +55,12 @@ ves_status ves_config_load(const char *path, int nset, const char *const *set, v
 
 /* Cross-key consistency (epsilon vs box, ...); same error convention. */
 ves_status ves_config_validate(const ves_config *cfg, char *err, size_t errlen);
+
+/* Read a points file (lines "R Z", '#' comments) for a curve shape; a
+ * relative path is taken relative to the folder of cfg->source. *pts (2 *n)
+ * taken by the caller. Errors as ves_config_load. */
+ves_status ves_config_read_points(const ves_config *cfg, int *n, double **pts, char *err,
+                                  size_t errlen);
 
 /* Print every key: section, key, type, default, range, units and meaning
  * (the table problems/README.md is written from). */

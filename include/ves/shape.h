@@ -9,7 +9,10 @@
 typedef enum {
   VES_SHAPE_SPHERE = 0,   /* circle of radius `radius` */
   VES_SHAPE_SPHEROID = 1, /* ellipse with reduced volume v, area 4 pi */
-  VES_SHAPE_DISCOCYTE = 2 /* Evans-Fung biconcave disc, area 4 pi */
+  VES_SHAPE_DISCOCYTE = 2, /* Evans-Fung biconcave disc, area 4 pi */
+  VES_SHAPE_CURVE = 3      /* points (R, Z) from the north pole to the south pole,
+                              periodic cubic spline (with the mirror image) by
+                              chord length, scaled to area 4 pi */
 } ves_shape_kind;
 
 /* What the user gives. Lengths in units of R0 = sqrt(A0 / 4 pi). */
@@ -21,6 +24,8 @@ typedef struct {
   int mode;       /* perturbation: the curve is scaled radially by
                      1 + delta P_mode(cos t), t the polar parameter; 0 = none */
   double delta;   /* perturbation amplitude (|delta| < 0.5) */
+  int npts;       /* curve: number of points (>= 4), first and last on the axis */
+  const double *pts; /* curve: 2 npts coordinates (R >= 0, Z), copied */
 } ves_shape_params;
 
 typedef struct ves_shape ves_shape;

@@ -1,0 +1,56 @@
+/* vesica — the solvers of one step problem, behind one small table
+ * {name, create, solve, destroy} (DESIGN.md §3):
+ *   ipopt   Ipopt 3.11 (MUMPS inside), exact sparse Hessian of the Lagrangian
+ *   nlopt   NLopt 2.7 augmented Lagrangian around a gradient-based optimizer
+ *   newton  Lagrange-Newton on the KKT system, MUMPS, optional frozen Hessian,
+ *           line search on a merit function
+ *   euler   explicit forward Euler on K ydot = -grad E + sum sigma grad c,
+ *           grad c^T ydot = 0 (not an NLP solve: the paper's comparison) */
+#ifndef VES_BACKEND_H
+#define VES_BACKEND_H
+
+#include "ves/status.h"
+#include "ves/step.h"
+
+/* Options common to all backends (each documents which it honours). */
+typedef struct {
+  double tol;          /* optimality / KKT residual tolerance (relative; default 1e-9) */
+  double ctol;         /* constraint violation tolerance, relative to A0, V (default 1e-10) */
+  int max_iter;        /* iteration limit per step (default 100) */
+  int freeze_hessian;  /* newton: 1 = assemble the Hessian once per step (paper) */
+  int verbose;         /* 0 quiet; > 0 lets the solver print (ipopt print_level) */
+} ves_backend_options;
+
+/* Statistics of one solve, the same for every backend. */
+typedef struct {
+  int iterations;      /* outer iterations (Newton steps, Ipopt iterations, ...) */
+  int f_evals;         /* objective evaluations */
+  int g_evals;         /* gradient evaluations */
+  int h_evals;         /* Hessian assemblies */
+  double violation;    /* final max |c_i| / target_i */
+  double seconds;      /* wall time */
+  int solver_status;   /* the backend's own code (Ipopt ApplicationReturnStatus, nlopt_result) */
+} ves_backend_stats;
+
+typedef struct {
+  const char *name;
+  /* state for a step problem s (borrowed); *state taken by the caller */
+  ves_status (*create)(const ves_backend_options *opt, ves_step *s, void **state);
+  /* x: in, the start (usually x0); out, the solution. lambda[ncon]: in, the
+   * previous multipliers (warm start); out, the new ones (for Ipopt the
+   * Lagrangian is f + lambda^T c). Returns VES_OK when converged, VES_MAXITER
+   * when the limit was hit, VES_ERR_DOMAIN / VES_ERR_NOCONV / VES_ERR_SOLVER
+   * on failure (the integrator then halves dt). */
+  ves_status (*solve)(void *state, ves_step *s, double *x, double *lambda, ves_backend_stats *st);
+  void (*destroy)(void **state);
+} ves_backend_type;
+
+void ves_backend_options_default(ves_backend_options *opt);
+
+/* The table entry for a name ("ipopt", "nlopt", "newton", "euler"), or NULL. */
+const ves_backend_type *ves_backend_find(const char *name);
+
+extern const ves_backend_type ves_backend_ipopt, ves_backend_nlopt, ves_backend_newton,
+    ves_backend_euler;
+
+#endif

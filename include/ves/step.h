@@ -1,0 +1,70 @@
+/* vesica — one time step as a generic constrained nonlinear program
+ * (DESIGN.md §3, paper Eq. 11): given y^n and dt,
+ *
+ *   minimize   f(x) = (1/2)(y - y^n)^T K(y^n) (y - y^n) + dt E(y)
+ *   subject to c_A(x) = A(y) - A0 = 0            (when the area is held)
+ *              c_V(x) = V(y) - V_target = 0      (when the volume is held)
+ *
+ * over the free degrees of freedom x of y (fixed ones keep their y^n values).
+ * Every backend consumes exactly this object; it knows nothing of them. */
+#ifndef VES_STEP_H
+#define VES_STEP_H
+
+#include "ves/model.h"
+#include "ves/status.h"
+
+/* What one step solves for. */
+typedef struct {
+  double dt;         /* time step (t* units) */
+  int hold_area;     /* 1: constraint A(y) = A0 */
+  double A0;         /* target area (units R0^2) */
+  int hold_volume;   /* 1: constraint V(y) = V_target */
+  double V_target;   /* target volume at t_{n+1} (units R0^3) */
+} ves_step_params;
+
+typedef struct ves_step ves_step;
+
+/* Create for a model (borrowed: it must outlive the step). Workspaces are
+ * allocated here, never in the evaluations. */
+ves_status ves_step_create(ves_model *m, ves_step **out);
+void ves_step_destroy(ves_step **s);
+
+/* Start a step from y^n (2n full positions, copied): assembles K(y^n) and
+ * stores the targets. */
+ves_status ves_step_set(ves_step *s, const double *yn, const ves_step_params *par);
+
+int ves_step_nvar(const ves_step *s);  /* free dofs */
+int ves_step_ncon(const ves_step *s);  /* 0, 1 or 2: area first, then volume */
+
+/* x0 = the free dofs of y^n. */
+void ves_step_x0(const ves_step *s, double *x);
+/* y (2n) from free dofs x, fixed dofs from y^n. */
+void ves_step_expand(const ves_step *s, const double *x, double *y);
+
+/* Evaluations at x (nvar). VES_ERR_DOMAIN when y leaves the admissible set
+ * (det F <= 0 or r <= 0 at a point): backends must treat it as "cut the step". */
+ves_status ves_step_eval_f(ves_step *s, const double *x, double *f);
+ves_status ves_step_eval_grad(ves_step *s, const double *x, double *g);   /* g[nvar] */
+ves_status ves_step_eval_c(ves_step *s, const double *x, double *c);      /* c[ncon] */
+ves_status ves_step_eval_jac(ves_step *s, const double *x, double *J);    /* J[ncon*nvar], row-major */
+
+/* Hessian of the Lagrangian sigma_f (K + dt Hess E) + sum_i lambda_i Hess c_i
+ * in a fixed sparsity: hess_nnz entries, lower triangle (row >= col), structure
+ * from ves_step_hess_structure (0-based) and values from ves_step_eval_hess in
+ * the same order. lambda may be NULL when ncon = 0. */
+int ves_step_hess_nnz(const ves_step *s);
+void ves_step_hess_structure(const ves_step *s, int *irow, int *jcol);
+ves_status ves_step_eval_hess(ves_step *s, const double *x, double sigma_f, const double *lambda,
+                              double *val);
+
+/* The dissipation matrix K(y^n) over the free dofs, in the same structure
+ * (for the explicit Euler backend and preconditioning). */
+const double *ves_step_K(const ves_step *s);
+/* dt E(y) alone and its gradient (the Euler backend's force). */
+ves_status ves_step_eval_energy_grad(ves_step *s, const double *x, double *E, double *gE);
+
+/* The model, y^n and parameters of the current step. */
+ves_model *ves_step_model(ves_step *s);
+const ves_step_params *ves_step_get_params(const ves_step *s);
+
+#endif
