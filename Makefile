@@ -29,13 +29,13 @@ PKG_LIBS   := $(shell pkg-config --libs ipopt hdf5 2>/dev/null)
 
 WARN     = -Wall -Wextra -Wshadow -Wmissing-prototypes -Wstrict-prototypes -Wvla -Werror
 CFLAGS  ?= $(OPT) -g
-CFLAGS  += -std=c11 -D_XOPEN_SOURCE=700 $(WARN) -Iinclude -Isolver $(PKG_CFLAGS) $(SANFLAGS) -MMD -MP
+CFLAGS  += -std=c11 -fopenmp -D_XOPEN_SOURCE=700 $(WARN) -Iinclude -Isolver $(PKG_CFLAGS) $(SANFLAGS) -MMD -MP
 # CGAL: always -O2 (16x slower at -O0); rounding-math as CGAL requires, and the
 # check disabled so valgrind can run it.
 CXXFLAGS_CGAL = -std=c++17 -O2 -g -frounding-math -DCGAL_DISABLE_ROUNDING_MATH_CHECK \
                 -Wall -Wextra -Werror -Iinclude $(SANFLAGS) -MMD -MP
 LDLIBS   = $(PKG_LIBS) -lnlopt -ldmumps_seq -liniparser -llapacke -lopenblas -lgmp -lstdc++ -lm
-LDFLAGS += $(SANFLAGS)
+LDFLAGS += $(SANFLAGS) -fopenmp
 
 LIB_C    = $(filter-out solver/cli.c,$(wildcard solver/*.c))
 LIB_OBJ  = $(LIB_C:solver/%.c=$(BUILD)/obj/%.o) $(BUILD)/obj/geom.o
@@ -84,8 +84,9 @@ test: deps
 	@OPENBLAS_NUM_THREADS=1 sh tests/run.sh $(TESTS)
 
 bench: deps
-	@$(MAKE) --no-print-directory $(BUILD)/libvesica.a $(BENCHES)
+	@$(MAKE) --no-print-directory $(BUILD)/libvesica.a $(BUILD)/vesica $(BENCHES)
 	@for b in $(BENCHES); do echo "== $$b"; $$b || exit 1; done
+	@echo "== bench/sphere_convergence.sh"; sh bench/sphere_convergence.sh $(BUILD)/vesica
 
 run: deps
 	@$(MAKE) --no-print-directory $(BUILD)/vesica

@@ -7,7 +7,12 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include <time.h>
+#include <unistd.h>
+
+#include "ves/backend.h"
 #include "ves/config.h"
+#include "ves/integrate.h"
 #include "ves/setup.h"
 
 #define VES_VERSION "0.1.0"
@@ -19,6 +24,9 @@ static void usage(FILE *f) {
           "commands:\n"
           "  check CONFIG.ini [--set section.key=value]... [--phi0 l2|sampled]\n"
           "                     build the initial state and print its derived quantities\n"
+          "  run CONFIG.ini [--backend ipopt|nlopt|newton|euler] [--set section.key=value]...\n"
+          "                [--series FILE.tsv] [--quiet]\n"
+          "                     integrate in time; a progress line on stderr\n"
           "  keys               print every problem-file key with its default and range\n"
           "  --version          print the version\n"
           "  --help             this text (also: vesica COMMAND --help)\n");
@@ -102,7 +110,7 @@ static int cmd_check(int argc, char **argv) {
   printf("neighbours_max = %d\n", s->qinfo.m_max);
   printf("lme_newton_mean = %.2f\n", s->qinfo.iter_mean);
   printf("phi0_coefficients = %s\n", method == VES_PHI0_L2 ? "l2" : "sampled");
-  printf("projection_iterations = %d\n", s->cg_iterations);
+  printf("projection_refinements = %d\nprojection_residual = %.2e\n", s->proj_refinements, s->proj_residual);
   printf("energy = %.9f\n", E / cfg.k);
   printf("energy_sharp = %.9f\n", ves_shape_sharp_energy(s->shape, cfg.c0));
   printf("area = %.12f\n", A);
@@ -122,6 +130,140 @@ static int cmd_check(int argc, char **argv) {
   return 0;
 }
 
+static void usage_run(FILE *f) {
+  fprintf(f,
+          "usage: vesica run CONFIG.ini [--backend ipopt|nlopt|newton|euler]\n"
+          "                 [--set section.key=value]... [--series FILE.tsv] [--quiet]\n"
+          "Builds the initial state as 'check' does and integrates to [time] t_end with the\n"
+          "chosen backend (default [solver] backend). One progress line on stderr (step, t*,\n"
+          "dt*, E*, iterations, ETA), updated in place on a terminal; --quiet: none.\n"
+          "--series writes one tab-separated line per accepted step: step t dt E A/A0-1\n"
+          "V/Vtarget-1 lambda_A lambda_V iterations f_evals g_evals h_evals seconds retries.\n"
+          "Exit 0 at t_end, 2 on bad input, 3 when a step fails down to dt_min (the last\n"
+          "good state is the last line of the series).\n");
+}
+
+static double wall(void) {
+  struct timespec ts;
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return ts.tv_sec + 1e-9 * ts.tv_nsec;
+}
+
+static int cmd_run(int argc, char **argv) {
+  const char *path = NULL, *set[MAX_SET], *backend = NULL, *series = NULL;
+  int nset = 0, quiet = 0;
+  for (int i = 0; i < argc; i++) {
+    if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
+      usage_run(stdout);
+      return 0;
+    } else if (!strcmp(argv[i], "--set") && i + 1 < argc && nset < MAX_SET) {
+      set[nset++] = argv[++i];
+    } else if (!strcmp(argv[i], "--backend") && i + 1 < argc) {
+      backend = argv[++i];
+    } else if (!strcmp(argv[i], "--series") && i + 1 < argc) {
+      series = argv[++i];
+    } else if (!strcmp(argv[i], "--quiet")) {
+      quiet = 1;
+    } else if (argv[i][0] == '-') {
+      fprintf(stderr, "vesica run: unknown or incomplete option '%s' (see vesica run --help)\n",
+              argv[i]);
+      return 2;
+    } else if (!path) {
+      path = argv[i];
+    } else {
+      fprintf(stderr, "vesica run: more than one configuration file ('%s')\n", argv[i]);
+      return 2;
+    }
+  }
+  if (!path) {
+    usage_run(stderr);
+    return 2;
+  }
+  ves_config cfg;
+  char err[1024] = "";
+  if (ves_config_load(path, nset, set, &cfg, err, sizeof err) != VES_OK) {
+    fprintf(stderr, "vesica: %s\n", err);
+    return 2;
+  }
+  const ves_backend_type *bk = ves_backend_find(backend ? backend : cfg.backend);
+  if (!bk) {
+    fprintf(stderr, "vesica run: --backend '%s': not one of ipopt, nlopt, newton, euler\n",
+            backend ? backend : cfg.backend);
+    return 2;
+  }
+  FILE *out = NULL;
+  if (series && !(out = fopen(series, "w"))) {
+    fprintf(stderr, "vesica run: --series %s: cannot open for writing\n", series);
+    return 2;
+  }
+  ves_setup *s = NULL;
+  ves_status st = ves_setup_create(&cfg, VES_PHI0_L2, &s, err, sizeof err);
+  if (st != VES_OK) {
+    fprintf(stderr, "vesica: %s: %s\n", path, err);
+    if (out) fclose(out), remove(series);
+    return st == VES_ERR_CONFIG || st == VES_ERR_ARG ? 2 : 3;
+  }
+  ves_backend_options bo;
+  ves_backend_options_default(&bo);
+  bo.tol = cfg.tol, bo.ctol = cfg.ctol, bo.max_iter = cfg.max_iter;
+  bo.freeze_hessian = cfg.freeze_hessian;
+  ves_integrate_params ip;
+  ves_integrate_params_default(&ip);
+  ip.t_end = cfg.t_end, ip.dt_initial = cfg.dt_initial, ip.dt_max = cfg.dt_max;
+  ip.dt_min = cfg.dt_min, ip.adaptive = cfg.adaptive, ip.dE_target = cfg.dE_target;
+  ip.growth_max = cfg.growth_max, ip.iter_target = cfg.iter_target;
+  ip.hold_area = cfg.area, ip.hold_volume = cfg.volume;
+  ip.volume_rate = cfg.volume_rate, ip.volume_final = cfg.volume_final;
+  ip.c0_time = cfg.c0_time, ip.c0_after = cfg.c0_after;
+  ves_sim *sim = NULL;
+  if ((st = ves_sim_create(s->model, bk, &bo, &ip, &sim)) != VES_OK) {
+    fprintf(stderr, "vesica: %s: cannot start the time loop: %s\n", path, ves_status_str(st));
+    ves_setup_destroy(&s);
+    if (out) fclose(out);
+    return st == VES_ERR_ARG ? 2 : 3;
+  }
+  double E0, A0, V0, t0 = wall();
+  ves_sim_initial(sim, &E0, &A0, &V0);
+  if (out)
+    fprintf(out, "# vesica %s run %s backend %s nodes %d E0 %.12g A0 %.12g V0 %.12g\n"
+                 "# step\tt\tdt\tE\tA/A0-1\tV/Vt-1\tlambda_A\tlambda_V\titer\tf\tg\th\t"
+                 "seconds\tretries\n",
+            VES_VERSION, path, bk->name, s->nodes->n, E0, A0, V0);
+  int tty = isatty(2), code = 0;
+  ves_step_report rep;
+  long iters = 0;
+  while ((st = ves_sim_step(sim, &rep)) == VES_OK) {
+    iters += rep.stats.iterations;
+    if (out) {
+      fprintf(out, "%ld\t%.9g\t%.6g\t%.12g\t%.3e\t%.3e\t%.9g\t%.9g\t%d\t%d\t%d\t%d\t%.3f\t%d\n",
+              rep.step, rep.t, rep.dt, rep.E, rep.A / A0 - 1, rep.V / rep.V_target - 1,
+              rep.lambda[0], rep.lambda[1], rep.stats.iterations, rep.stats.f_evals,
+              rep.stats.g_evals, rep.stats.h_evals, rep.stats.seconds, rep.retries);
+      fflush(out); /* a killed run keeps every completed step */
+    }
+    if (!quiet && (tty || rep.step % 10 == 0)) {
+      double el = wall() - t0, eta = rep.t > 0 ? el * (cfg.t_end - rep.t) / rep.t : 0;
+      fprintf(stderr, "%sstep %ld  t* %.4g/%.4g  dt* %.3g  E* %.6f  iter %d  ETA %.0f s%s",
+              tty ? "\r" : "", rep.step, rep.t, cfg.t_end, rep.dt, rep.E, rep.stats.iterations,
+              eta, tty ? "   " : "\n");
+    }
+  }
+  if (tty && !quiet) fputc('\n', stderr);
+  if (st < 0) {
+    fprintf(stderr, "vesica: %s: no acceptable step at t* = %.6g down to dt* = %g (%s); the last "
+                    "good state is the last step written\n",
+            path, ves_sim_time(sim), cfg.dt_min, ves_status_str(st));
+    code = 3;
+  } else if (!quiet) {
+    fprintf(stderr, "vesica: t* = %.6g reached, %ld iterations in all, %.1f s\n", ves_sim_time(sim),
+            iters, wall() - t0);
+  }
+  if (out) fclose(out);
+  ves_sim_destroy(&sim);
+  ves_setup_destroy(&s);
+  return code;
+}
+
 int main(int argc, char **argv) {
   if (argc < 2) {
     usage(stderr);
@@ -136,6 +278,7 @@ int main(int argc, char **argv) {
     return 0;
   }
   if (!strcmp(argv[1], "check")) return cmd_check(argc - 2, argv + 2);
+  if (!strcmp(argv[1], "run")) return cmd_run(argc - 2, argv + 2);
   if (!strcmp(argv[1], "keys")) {
     ves_config_print_keys(stdout);
     return 0;

@@ -71,6 +71,43 @@ static const key_spec KEYS[] = {
     {"material", "lambda_ratio", KEY_DOUBLE, OFF(lambda_ratio), "100", 10, 1e8, NULL,
      "compressibility penalty lambda/mu (>= 10)"},
     {"material", "c0", KEY_DOUBLE, OFF(c0), "0", -100, 100, NULL, "spontaneous curvature C0 R0"},
+    {"time", "t_end", KEY_DOUBLE, OFF(t_end), "1.0", 1e-12, 1e12, NULL, "final time (t*)"},
+    {"time", "dt_initial", KEY_DOUBLE, OFF(dt_initial), "1e-4", 1e-14, 1e6, NULL,
+     "first time step (t*)"},
+    {"time", "dt_max", KEY_DOUBLE, OFF(dt_max), "0.1", 1e-14, 1e6, NULL, "largest time step (t*)"},
+    {"time", "dt_min", KEY_DOUBLE, OFF(dt_min), "1e-10", 1e-16, 1e6, NULL,
+     "smallest step when halving a rejected one; below it the run stops (t*)"},
+    {"time", "adaptive", KEY_INT, OFF(adaptive), "1", 0, 1, NULL,
+     "1: adapt dt to keep |dE*| per step near dE_target; 0: constant dt"},
+    {"time", "dE_target", KEY_DOUBLE, OFF(dE_target), "0.02", 1e-12, 1e6, NULL,
+     "target energy decrement per step (units k)"},
+    {"time", "growth_max", KEY_DOUBLE, OFF(growth_max), "2", 1, 100, NULL,
+     "largest factor between consecutive steps"},
+    {"time", "iter_target", KEY_INT, OFF(iter_target), "8", 1, 10000, NULL,
+     "above this many solver iterations dt is not grown"},
+    {"constraints", "area", KEY_INT, OFF(area), "1", 0, 1, NULL, "1: hold the area at A0"},
+    {"constraints", "volume", KEY_INT, OFF(volume), "1", 0, 1, NULL,
+     "1: hold the volume at its target (V0, or the protocol's ramp)"},
+    {"protocol", "volume_rate", KEY_DOUBLE, OFF(volume_rate), "0", -1e6, 1e6, NULL,
+     "volume ramp dV/dt / V0 (1/t*; < 0 deflates; 0: none)"},
+    {"protocol", "volume_final", KEY_DOUBLE, OFF(volume_final), "1", 0.05, 20, NULL,
+     "V/V0 at which the ramp stops and the volume is held"},
+    {"protocol", "c0_time", KEY_DOUBLE, OFF(c0_time), "-1", -1, 1e12, NULL,
+     "time of a step change of C0 (t*; -1: none)"},
+    {"protocol", "c0_after", KEY_DOUBLE, OFF(c0_after), "0", -100, 100, NULL,
+     "C0 R0 from c0_time on"},
+    {"solver", "backend", KEY_STRING, OFF(backend), "newton", 0, 0, "ipopt|nlopt|newton|euler",
+     "step solver (euler: explicit, the paper's comparison)"},
+    {"solver", "tol", KEY_DOUBLE, OFF(tol), "1e-9", 1e-16, 1e-2, NULL,
+     "optimality tolerance of the step solve (relative)"},
+    {"solver", "ctol", KEY_DOUBLE, OFF(ctol), "1e-10", 1e-16, 1e-2, NULL,
+     "constraint tolerance, relative to A0 and V"},
+    {"solver", "max_iter", KEY_INT, OFF(max_iter), "100", 1, 100000, NULL,
+     "iterations per step"},
+    {"solver", "freeze_hessian", KEY_INT, OFF(freeze_hessian), "1", 0, 1, NULL,
+     "newton: assemble the Hessian once per step (paper)"},
+    {"output", "snapshot_every", KEY_INT, OFF(snapshot_every), "10", 1, 1000000, NULL,
+     "accepted steps between snapshots of nodes and phi"},
 };
 #define NKEYS ((int)(sizeof KEYS / sizeof KEYS[0]))
 
@@ -225,9 +262,13 @@ ves_status ves_config_load(const char *path, int nset, const char *const *set, v
 
 ves_status ves_config_validate(const ves_config *cfg, char *err, size_t errlen) {
   const char *src = cfg->source[0] ? cfg->source : "(defaults)";
-  double size = !strcasecmp(cfg->shape_type, "sphere") ? cfg->radius * (1 + fabs(cfg->delta)) : 1.6;
   if (!strcasecmp(cfg->shape_type, "curve") && !strcmp(cfg->points, "none")) {
     say(err, errlen, "%s: [shape] points: a curve needs a points file", src);
+    return VES_ERR_CONFIG;
+  }
+  if (cfg->dt_initial > cfg->dt_max || cfg->dt_min > cfg->dt_initial) {
+    say(err, errlen, "%s: [time] dt_initial = %g: must lie in [dt_min, dt_max] = [%g, %g]", src,
+        cfg->dt_initial, cfg->dt_min, cfg->dt_max);
     return VES_ERR_CONFIG;
   }
   if (cfg->epsilon * 10 > fmin(cfg->box_r, cfg->box_z)) {
@@ -235,9 +276,14 @@ ves_status ves_config_validate(const ves_config *cfg, char *err, size_t errlen) 
         cfg->epsilon, fmin(cfg->box_r, cfg->box_z));
     return VES_ERR_CONFIG;
   }
-  if (size + 6 * cfg->epsilon > fmin(cfg->box_r, cfg->box_z)) {
-    say(err, errlen, "%s: [geometry] box_r/box_z = %g/%g: the vesicle (size ~%g) and its band do "
-                     "not fit in the box", src, cfg->box_r, cfg->box_z, size);
+  /* spheres: the radius is known here; every shape is checked exactly
+   * against the box (with its band) when the setup builds it */
+  double size = cfg->radius * (1 + fabs(cfg->delta));
+  if (!strcasecmp(cfg->shape_type, "sphere") &&
+      size + (cfg->band + 1) * cfg->epsilon >= fmin(cfg->box_r, cfg->box_z)) {
+    say(err, errlen, "%s: [geometry] box_r/box_z = %g/%g: the sphere (radius %g) and its band of "
+                     "(band + 1) eps = %g do not fit in the box", src, cfg->box_r, cfg->box_z, size,
+        (cfg->band + 1) * cfg->epsilon);
     return VES_ERR_CONFIG;
   }
   if (cfg->h_far < cfg->h_band * cfg->epsilon) {
@@ -248,17 +294,27 @@ ves_status ves_config_validate(const ves_config *cfg, char *err, size_t errlen) 
   return VES_OK;
 }
 
+/* Print text with '|' escaped for a Markdown table cell. */
+static void cell(FILE *f, const char *t) {
+  fputs("| ", f);
+  for (; *t; t++) {
+    if (*t == '|') fputc('\\', f);
+    fputc(*t, f);
+  }
+  fputc(' ', f);
+}
+
 void ves_config_print_keys(FILE *f) {
   fprintf(f, "| section | key | type | default | allowed | meaning |\n|---|---|---|---|---|---|\n");
   for (int i = 0; i < NKEYS; i++) {
     const key_spec *k = &KEYS[i];
-    const char *t = k->type == KEY_DOUBLE ? "real" : k->type == KEY_INT ? "integer" : "text";
-    if (k->type == KEY_STRING)
-      fprintf(f, "| %s | %s | %s | %s | %s | %s |\n", k->section, k->key, t, k->def,
-              k->choice ? k->choice : "text", k->doc);
-    else
-      fprintf(f, "| %s | %s | %s | %s | %g to %g | %s |\n", k->section, k->key, t, k->def, k->min,
-              k->max, k->doc);
+    char range[96];
+    if (k->type == KEY_STRING) snprintf(range, sizeof range, "%s", k->choice ? k->choice : "text");
+    else snprintf(range, sizeof range, "%.10g to %.10g", k->min, k->max);
+    cell(f, k->section), cell(f, k->key);
+    cell(f, k->type == KEY_DOUBLE ? "real" : k->type == KEY_INT ? "integer" : "text");
+    cell(f, k->def), cell(f, range), cell(f, k->doc);
+    fputs("|\n", f);
   }
 }
 

@@ -9,13 +9,33 @@
  * +1 for z (even). r-dofs feed q through the table rows (p, p_R, p_Z, p_RR,
  * p_RZ, p_ZZ) -> (r, F_rR, F_rZ, G_rRR, G_rRZ, G_rZZ); z-dofs through
  * (p_R, p_Z, p_RR, p_RZ, p_ZZ) -> (F_zR, F_zZ, G_zRR, G_zRZ, G_zZZ).
- * The velocity variables of K use the first rows only. */
+ * The velocity variables of K use the first rows only.
+ *
+ * Assembly of the Hessians and K, per triangle: its 6 points share nearly
+ * all their nodes, so the products c B^T H B of all 6 are summed into one
+ * local lower block matrix over the union of their node lists (row by row,
+ * CHUNK columns at a time in registers) and each block is added to the
+ * pattern once, not once per point (~6x fewer scattered updates). Triangles
+ * are visited along a Morton curve so the pattern rows they touch stay in
+ * cache. Threads (OpenMP, the count fixed at create from
+ * omp_get_max_threads(), i.e. OMP_NUM_THREADS or all cores): the nodes are
+ * split into slabs in Z of equal work, each thread writes only the rows of
+ * its slab and visits the triangles whose unions meet it (those straddling
+ * two slabs are computed by both, ~a few %). Every block and gradient entry
+ * thus receives its contributions in the same order for any thread count:
+ * results are bitwise the same for 1, 2, ... threads. E, A, V are summed in
+ * point order and their gradients in point order, exactly as the earlier
+ * per-point code did; the Hessian and K differ from a per-point assembly
+ * by rounding only (sums regrouped per triangle). */
 #include "ves/model.h"
 
 #include <assert.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 
 #include "model_impl.h"
 
@@ -27,15 +47,56 @@ typedef struct {
   int nl;           /* size of the local variable vector */
 } local_map;
 
-static const local_map MAP_Q = {6,
-                                5,
-                                {0, 1, 2, 5, 6, 7},
-                                {0, 1, 2, 3, 4, 5},
-                                {3, 4, 8, 9, 10},
-                                {1, 2, 3, 4, 5},
+static const local_map MAP_Q = {6, 5, {0, 1, 2, 5, 6, 7}, {0, 1, 2, 3, 4, 5},
+                                {3, 4, 8, 9, 10},       {1, 2, 3, 4, 5},
                                 VES_NQ};
-static const local_map MAP_QD = {3,      2,      {0, 1, 2}, {0, 1, 2},
-                                 {3, 4}, {1, 2}, VES_NQD};
+static const local_map MAP_QD = {3, 2, {0, 1, 2}, {0, 1, 2}, {3, 4}, {1, 2}, VES_NQD};
+
+#define NPT VES_QUAD_NPT /* points per triangle: the unit of assembly */
+#define NB 11            /* largest nr + nz (MAP_Q) */
+#define NC (2 * NB)      /* largest number of column-product rows, 2 (nr + nz) */
+#define CHUNK 8          /* columns per register block of the pair kernel */
+
+/* Vectorization: the inner loops run over the nodes of a point or a union.
+ * OMP_SIMD asks for it where the cost model would not (trip counts unknown);
+ * CLONES adds an AVX2 version picked at run time (GCC, x86-64). Neither
+ * changes results: the same operations per element in the same order, and
+ * no fused multiply-add under -std=c11 (-ffp-contract=off). */
+#ifdef _OPENMP
+#define OMP_SIMD _Pragma("omp simd")
+#else
+#define OMP_SIMD
+#endif
+#if defined(__GNUC__) && defined(__x86_64__)
+#define CLONES __attribute__((target_clones("avx2", "default")))
+#else
+#define CLONES
+#endif
+
+/* Per-thread workspace (allocated at create; cap = NPT mmax bounds the
+ * union of a triangle's node lists). */
+typedef struct {
+  int *un;            /* NPT x mmax: folded node lists of a triangle's points */
+  double *Tr, *Tz;    /* NPT x 6 mmax: folded tables */
+  int *stamp;         /* n: fold_point's duplicate marks, -1 when free */
+  int *slot;          /* n: position of a node in a point's list, then in the union */
+  int *U, *Utmp;      /* cap: the triangle's union node list (ascending), merge buffer */
+  unsigned char *has; /* NPT x cap: point p sees union node i */
+  double *R;          /* NPT x cap x NB: (b_r, b_z) of union node i at point p */
+  double *C;          /* NPT x NC x ldc: column products c H b(j) of point p over
+                         the union (A, B, C, D rows of scatter_hess_ref), zero
+                         where p does not see node j; 64-byte aligned */
+  double *h;          /* 4 x ldc: one row of the triangle's block matrix */
+  double *tmp;        /* mmax: one row of a point's column products */
+  int *pos;           /* mmax: union position of a point's nodes */
+} model_ws;
+
+/* One folded point of a triangle (pointers into the table or the workspace). */
+typedef struct {
+  int mu;                /* unique real nodes */
+  const double *Tr, *Tz; /* folded tables, 6 x mu */
+  const int *un;         /* its nodes, ascending */
+} folded;
 
 struct ves_model {
   const ves_nodes *nodes; /* borrowed */
@@ -46,19 +107,80 @@ struct ves_model {
   unsigned char *fixed;   /* 2n fixed-dof flags */
   ves_pattern *pat;       /* block pattern */
   double *yref;           /* 2n reference positions */
-  /* workspace (sized for the largest point) */
-  int mmax;
-  int *un;         /* unique real nodes of a point */
-  double *Tr, *Tz; /* folded tables, 6 x mu each */
-  int *slot;       /* n: slot of a node in un (valid when stamp matches) */
-  int *stamp;      /* n */
-  double *Av;      /* per-node products with the local Hessian, 22 mu */
+  int mmax;               /* largest neighbour count of a point */
+  int cap;                /* NPT mmax: capacity of a triangle's union */
+  int ldc;                /* capacity of a row of model_ws.C: cap rounded up to
+                             CHUNK (a triangle uses its union rounded up) */
+  /* Threads: the nodes are split into nthr slabs in Z of about equal
+   * assembly work; slab k owns the rows (nodes) in it, and every triangle
+   * whose union meets slab k is visited by the thread of slab k, which writes
+   * only owned rows. Every block (and gradient entry) thus receives its
+   * contributions in triangle order whatever the thread count. */
+  int nthr;           /* slabs = threads (omp_get_max_threads() at create) */
+  int *owner;         /* n: slab of a node */
+  int *tlo, *thi;     /* ntri: slab range of a triangle's union */
+  int *torder;        /* ntri: the order of assembly, along a Morton curve of
+                         the centroids, so that consecutive triangles share
+                         most nodes and their pattern rows stay in cache */
+  model_ws *ws;       /* nthr workspaces */
+  double *ev;         /* 3 nq: per-point w e of E, A, V (summed in point order) */
 };
+
+static int omp_threads(void) {
+#ifdef _OPENMP
+  return omp_get_max_threads();
+#else
+  return 1;
+#endif
+}
+
+static int omp_tid(void) {
+#ifdef _OPENMP
+  return omp_get_thread_num();
+#else
+  return 0;
+#endif
+}
+
+static int omp_nteam(void) {
+#ifdef _OPENMP
+  return omp_get_num_threads();
+#else
+  return 1;
+#endif
+}
 
 const ves_pattern *ves_model_pattern(const ves_model *m) { return m->pat; }
 
 void ves_model_reference(const ves_model *m, double *y) {
   memcpy(y, m->yref, 2 * (size_t)m->nodes->n * sizeof *y);
+}
+
+static void ws_free(model_ws *w) {
+  free(w->un), free(w->Tr), free(w->Tz), free(w->stamp), free(w->slot);
+  free(w->U), free(w->Utmp), free(w->has), free(w->R), free(w->C), free(w->h);
+  free(w->tmp), free(w->pos);
+}
+
+static ves_status ws_alloc(model_ws *w, int n, int mmax, int cap, int ldc) {
+  w->un = malloc((size_t)NPT * mmax * sizeof *w->un);
+  w->Tr = malloc((size_t)NPT * 6 * mmax * sizeof *w->Tr);
+  w->Tz = malloc((size_t)NPT * 6 * mmax * sizeof *w->Tz);
+  w->stamp = malloc((size_t)n * sizeof *w->stamp);
+  w->slot = malloc((size_t)n * sizeof *w->slot);
+  w->U = malloc((size_t)cap * sizeof *w->U);
+  w->Utmp = malloc((size_t)cap * sizeof *w->Utmp);
+  w->has = malloc((size_t)NPT * cap);
+  w->R = malloc((size_t)NPT * cap * NB * sizeof *w->R);
+  w->C = aligned_alloc(64, (size_t)NPT * NC * ldc * sizeof *w->C); /* ldc: CHUNK multiple */
+  w->h = aligned_alloc(64, 4 * (size_t)ldc * sizeof *w->h);
+  w->tmp = malloc((size_t)mmax * sizeof *w->tmp);
+  w->pos = malloc((size_t)mmax * sizeof *w->pos);
+  if (!w->un || !w->Tr || !w->Tz || !w->stamp || !w->slot || !w->U || !w->Utmp || !w->has ||
+      !w->R || !w->C || !w->h || !w->tmp || !w->pos)
+    return VES_ERR_ALLOC;
+  for (int a = 0; a < n; a++) w->stamp[a] = -1;
+  return VES_OK;
 }
 
 void ves_model_destroy(ves_model **m) {
@@ -69,23 +191,221 @@ void ves_model_destroy(ves_model **m) {
   free(p->fixed);
   ves_pattern_destroy(&p->pat);
   free(p->yref);
-  free(p->un);
-  free(p->Tr);
-  free(p->Tz);
-  free(p->slot);
-  free(p->stamp);
-  free(p->Av);
+  free(p->owner);
+  free(p->tlo);
+  free(p->thi);
+  free(p->torder);
+  if (p->ws)
+    for (int k = 0; k < p->nthr; k++) ws_free(p->ws + k);
+  free(p->ws);
+  free(p->ev);
   free(p);
   *m = NULL;
 }
 
-ves_status ves_model_create(const ves_nodes *nodes, const ves_quad *q,
-                            const double *phi0c, const ves_model_params *par,
-                            ves_model **out) {
+/* Fold point al's table onto its unique real nodes: *Tr (6 x mu, ghost
+ * columns added with sign -1) and *Tz (ghost columns added with +1), node
+ * list *un, ascending, into slot p (0..NPT-1) of the workspace. Points that
+ * see no ghost and list their nodes in ascending order (the tables do) use
+ * the table in place. Returns mu. */
+static int fold_point(const ves_quad *q, int mmax, model_ws *w, int al, int p, folded *f) {
+  int m0 = q->ptr[al + 1] - q->ptr[al];
+  const int *nb = q->nbr + q->ptr[al];
+  const unsigned char *mir = q->mirror + q->ptr[al];
+  const double *t = q->tab + 6 * (size_t)q->ptr[al];
+  int ghosts = 0, sorted = 1;
+  for (int k = 0; k < m0; k++) ghosts |= mir[k];
+  for (int k = 1; k < m0; k++) sorted &= nb[k] > nb[k - 1];
+  if (!ghosts && sorted) {
+    f->Tr = f->Tz = t, f->un = nb, f->mu = m0;
+    return m0;
+  }
+  int *un = w->un + (size_t)p * mmax;
+  double *Tr = w->Tr + (size_t)p * 6 * mmax, *Tz = w->Tz + (size_t)p * 6 * mmax;
+  /* first pass: unique nodes, sorted ascending (the assembly relies on it) */
+  int mu = 0;
+  for (int k = 0; k < m0; k++) {
+    int a = nb[k];
+    if (w->stamp[a] != al)
+      w->stamp[a] = al, un[mu++] = a;
+  }
+  for (int i = 1; i < mu; i++) { /* insertion sort: mu ~ 100 */
+    int v = un[i], j = i - 1;
+    while (j >= 0 && un[j] > v) un[j + 1] = un[j], j--;
+    un[j + 1] = v;
+  }
+  for (int u = 0; u < mu; u++) w->slot[un[u]] = u;
+  for (int j = 0; j < 6; j++)
+    for (int u = 0; u < mu; u++) Tr[j * mu + u] = Tz[j * mu + u] = 0.0;
+  for (int k = 0; k < m0; k++) {
+    int u = w->slot[nb[k]];
+    double sg = mir[k] ? -1.0 : 1.0;
+    for (int j = 0; j < 6; j++) {
+      Tr[j * mu + u] += sg * t[j * m0 + k];
+      Tz[j * mu + u] += t[j * m0 + k];
+    }
+  }
+  /* release the stamps: they must not survive into the next call, where the
+   * same point index would find them set and skip its nodes */
+  for (int u = 0; u < mu; u++) w->stamp[un[u]] = -1;
+  f->Tr = Tr, f->Tz = Tz, f->un = un, f->mu = mu;
+  return mu;
+}
+
+/* out = a union b (both ascending, without repeats); returns its length. */
+static int merge_sorted(const int *a, int na, const int *b, int nb, int *out) {
+  int i = 0, j = 0, k = 0;
+  while (i < na && j < nb) {
+    int x = a[i] <= b[j] ? a[i] : b[j];
+    i += a[i] == x, j += b[j] == x;
+    out[k++] = x;
+  }
+  while (i < na) out[k++] = a[i++];
+  while (j < nb) out[k++] = b[j++];
+  return k;
+}
+
+/* Fold the NPT points of triangle t into f[] and build the union of their
+ * node lists (ascending) in *U, with slot[U[i]] = i. Returns its size. */
+static int triangle_union(const ves_model *m, model_ws *w, int t, folded f[NPT], const int **U) {
+  for (int p = 0; p < NPT; p++) fold_point(m->q, m->mmax, w, NPT * t + p, p, f + p);
+  int *cur = w->U, *nxt = w->Utmp, nu = f[0].mu;
+  memcpy(cur, f[0].un, (size_t)nu * sizeof *cur);
+  for (int p = 1; p < NPT; p++) {
+    int *tmp;
+    nu = merge_sorted(cur, nu, f[p].un, f[p].mu, nxt);
+    tmp = cur, cur = nxt, nxt = tmp;
+  }
+  for (int i = 0; i < nu; i++) w->slot[cur[i]] = i;
+  *U = cur;
+  return nu;
+}
+
+/* Morton (Z-order) key of a point of the unit square: the bits of
+ * 16-bit coordinates interleaved. */
+static unsigned long morton_key(double x, double z) {
+  unsigned long key = 0, ix = (unsigned long)(x * 65535.0), iz = (unsigned long)(z * 65535.0);
+  for (int b = 0; b < 16; b++) key |= ((ix >> b) & 1UL) << (2 * b) | ((iz >> b) & 1UL) << (2 * b + 1);
+  return key;
+}
+
+typedef struct {
+  unsigned long key;
+  int t;
+} key_index;
+
+static int cmp_key(const void *a, const void *b) {
+  const key_index *x = a, *y = b;
+  if (x->key != y->key)
+    return x->key < y->key ? -1 : 1;
+  return (x->t > y->t) - (x->t < y->t);
+}
+
+/* m->torder: the triangles sorted by the Morton key of their centroids in
+ * the bounding box of the nodes. */
+static ves_status order_triangles(ves_model *m) {
+  const ves_quad *q = m->q;
+  const double *x = m->nodes->x;
+  const int n = m->nodes->n;
+  double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
+  key_index *ki = malloc((size_t)q->ntri * sizeof *ki);
+  m->torder = malloc((size_t)q->ntri * sizeof *m->torder);
+  if (!ki || !m->torder) {
+    free(ki);
+    return VES_ERR_ALLOC;
+  }
+  for (int a = 0; a < n; a++)
+    for (int d = 0; d < 2; d++) lo[d] = fmin(lo[d], x[2 * a + d]), hi[d] = fmax(hi[d], x[2 * a + d]);
+  for (int t = 0; t < q->ntri; t++) {
+    double c[2];
+    for (int d = 0; d < 2; d++) {
+      c[d] = (x[2 * q->tri[3 * t] + d] + x[2 * q->tri[3 * t + 1] + d] + x[2 * q->tri[3 * t + 2] + d]) / 3;
+      c[d] = hi[d] > lo[d] ? (c[d] - lo[d]) / (hi[d] - lo[d]) : 0.0;
+      c[d] = fmin(fmax(c[d], 0.0), 1.0);
+    }
+    ki[t].key = morton_key(c[0], c[1]), ki[t].t = t;
+  }
+  qsort(ki, (size_t)q->ntri, sizeof *ki, cmp_key);
+  for (int t = 0; t < q->ntri; t++) m->torder[t] = ki[t].t;
+  free(ki);
+  return VES_OK;
+}
+
+/* Slab of a node at height z: the number of thresholds at or below z. */
+static int slab_of(const double *zcut, int nthr, double z) {
+  int k = 0;
+  while (k < nthr - 1 && zcut[k] <= z) k++;
+  return k;
+}
+
+typedef struct {
+  double z, w;
+} zw_pair;
+
+static int cmp_z(const void *a, const void *b) {
+  double za = ((const zw_pair *)a)->z, zb = ((const zw_pair *)b)->z;
+  return (za > zb) - (za < zb);
+}
+
+/* Split the nodes into m->nthr slabs in Z of about equal assembly work (a
+ * node's work: over the triangles whose union holds it at position i, i + 1
+ * pairs per point that sees it) and give every triangle the slab range of
+ * its union. One serial pass over the triangles (setup cost). */
+static ves_status make_slabs(ves_model *m) {
+  const ves_quad *q = m->q;
+  const int n = m->nodes->n, ntri = q->ntri, T = m->nthr;
+  model_ws *w = m->ws;
+  double *work = calloc((size_t)n, sizeof *work), *zlo = NULL, *zhi = NULL, zcut[64];
+  zw_pair *zs = NULL;
+  ves_status s = VES_ERR_ALLOC;
+  m->owner = malloc((size_t)n * sizeof *m->owner);
+  m->tlo = malloc((size_t)ntri * sizeof *m->tlo);
+  m->thi = malloc((size_t)ntri * sizeof *m->thi);
+  zlo = malloc((size_t)ntri * sizeof *zlo);
+  zhi = malloc((size_t)ntri * sizeof *zhi);
+  zs = malloc((size_t)n * sizeof *zs);
+  if (!work || !m->owner || !m->tlo || !m->thi || !zlo || !zhi || !zs)
+    goto done;
+  for (int t = 0; t < ntri; t++) {
+    folded f[NPT];
+    const int *U;
+    int nu = triangle_union(m, w, t, f, &U);
+    zlo[t] = INFINITY, zhi[t] = -INFINITY;
+    for (int i = 0; i < nu; i++) {
+      double z = m->nodes->x[2 * U[i] + 1];
+      zlo[t] = fmin(zlo[t], z), zhi[t] = fmax(zhi[t], z);
+    }
+    for (int p = 0; p < NPT; p++)
+      for (int u = 0; u < f[p].mu; u++) work[f[p].un[u]] += w->slot[f[p].un[u]] + 1;
+  }
+  double total = 0;
+  for (int a = 0; a < n; a++) {
+    zs[a].z = m->nodes->x[2 * a + 1], zs[a].w = work[a];
+    total += work[a];
+  }
+  qsort(zs, (size_t)n, sizeof *zs, cmp_z);
+  for (int k = 0; k < T - 1; k++) { /* zcut[k]: the lowest z of slab k + 1 */
+    double acc = 0, target = total * (k + 1) / T;
+    int a = 0;
+    while (a < n && acc < target) acc += zs[a++].w;
+    zcut[k] = a < n ? zs[a].z : INFINITY;
+  }
+  for (int a = 0; a < n; a++) m->owner[a] = slab_of(zcut, T, m->nodes->x[2 * a + 1]);
+  for (int t = 0; t < ntri; t++)
+    m->tlo[t] = slab_of(zcut, T, zlo[t]), m->thi[t] = slab_of(zcut, T, zhi[t]);
+  s = VES_OK;
+done:
+  free(work), free(zlo), free(zhi), free(zs);
+  return s;
+}
+
+ves_status ves_model_create(const ves_nodes *nodes, const ves_quad *q, const double *phi0c,
+                            const ves_model_params *par, ves_model **out) {
   VES_CHECK(out, VES_ERR_ARG);
   *out = NULL; /* on every error path */
   VES_CHECK(nodes && q && q->tab && phi0c && par, VES_ERR_ARG);
   VES_CHECK(par->eps > 0 && par->k > 0 && par->mu >= 0, VES_ERR_ARG);
+  VES_CHECK(q->nq == NPT * q->ntri, VES_ERR_ARG);
   int n = nodes->n;
   ves_status s = VES_ERR_ALLOC;
   ves_model *m = calloc(1, sizeof *m);
@@ -93,30 +413,32 @@ ves_status ves_model_create(const ves_nodes *nodes, const ves_quad *q,
   if (!m)
     return VES_ERR_ALLOC;
   m->nodes = nodes, m->q = q, m->par = *par;
-  m->lp.eps = par->eps, m->lp.C0 = par->c0, m->lp.mu = par->mu,
-  m->lp.lambda = par->lambda;
+  m->lp.eps = par->eps, m->lp.C0 = par->c0, m->lp.mu = par->mu, m->lp.lambda = par->lambda;
   m->mmax = 0;
   for (int al = 0; al < q->nq; al++)
     if (q->ptr[al + 1] - q->ptr[al] > m->mmax)
       m->mmax = q->ptr[al + 1] - q->ptr[al];
+  m->cap = NPT * m->mmax;
+  m->ldc = (m->cap + CHUNK - 1) / CHUNK * CHUNK;
+  m->nthr = omp_threads();
+  if (m->nthr > 64) /* zcut[] in make_slabs; beyond 2 cores untested anyway */
+    m->nthr = 64;
+  if (m->nthr < 1)
+    m->nthr = 1;
   m->pt = malloc((size_t)q->nq * sizeof *m->pt);
   m->fixed = malloc(2 * (size_t)n);
   m->yref = malloc(2 * (size_t)n * sizeof *m->yref);
-  m->un = malloc((size_t)m->mmax * sizeof *m->un);
-  m->Tr = malloc(6 * (size_t)m->mmax * sizeof *m->Tr);
-  m->Tz = malloc(6 * (size_t)m->mmax * sizeof *m->Tz);
-  m->slot = malloc((size_t)n * sizeof *m->slot);
-  m->stamp = malloc((size_t)n * sizeof *m->stamp);
-  m->Av = malloc(22 * (size_t)m->mmax * sizeof *m->Av);
+  m->ws = calloc((size_t)m->nthr, sizeof *m->ws);
+  m->ev = malloc(3 * (size_t)q->nq * sizeof *m->ev);
   fld = malloc(6 * (size_t)q->nq * sizeof *fld);
-  if (!m->pt || !m->fixed || !m->yref || !m->un || !m->Tr || !m->Tz ||
-      !m->slot || !m->stamp || !m->Av || !fld)
+  if (!m->pt || !m->fixed || !m->yref || !m->ws || !m->ev || !fld)
     goto fail;
+  for (int k = 0; k < m->nthr; k++)
+    if ((s = ws_alloc(m->ws + k, n, m->mmax, m->cap, m->ldc)) != VES_OK)
+      goto fail;
   for (int a = 0; a < n; a++) {
-    m->stamp[a] = -1;
-    m->fixed[2 * a] =
-        (nodes->flag[a] & (VES_NODE_WALL | VES_NODE_AXIS)) != 0; /* r */
-    m->fixed[2 * a + 1] = (nodes->flag[a] & VES_NODE_WALL) != 0; /* z */
+    m->fixed[2 * a] = (nodes->flag[a] & (VES_NODE_WALL | VES_NODE_AXIS)) != 0; /* r */
+    m->fixed[2 * a + 1] = (nodes->flag[a] & VES_NODE_WALL) != 0;              /* z */
   }
   memcpy(m->yref, nodes->x, 2 * (size_t)n * sizeof *m->yref);
   ves_quad_field(q, phi0c, 2, fld);
@@ -124,9 +446,10 @@ ves_status ves_model_create(const ves_nodes *nodes, const ves_quad *q,
     const double *f = fld + 6 * (size_t)al;
     m->pt[al].phi0 = f[0];
     m->pt[al].dphi0[0] = f[1], m->pt[al].dphi0[1] = f[2];
-    m->pt[al].ddphi0[0] = f[3], m->pt[al].ddphi0[1] = f[4],
-    m->pt[al].ddphi0[2] = f[5];
+    m->pt[al].ddphi0[0] = f[3], m->pt[al].ddphi0[1] = f[4], m->pt[al].ddphi0[2] = f[5];
   }
+  if ((s = make_slabs(m)) != VES_OK || (s = order_triangles(m)) != VES_OK)
+    goto fail;
   s = ves_pattern_create(q, n, m->fixed, &m->pat);
   if (s != VES_OK)
     goto fail;
@@ -139,269 +462,370 @@ fail:
   return s;
 }
 
-/* Fold point al's table onto its unique real nodes: *Tr (6 x mu, ghost
- * columns added with sign -1) and *Tz (ghost columns added with +1), node
- * list *un, ascending. Points that see no ghost and list their nodes in
- * ascending order (the tables do) use the table in place. Returns mu. */
-static int fold_point(ves_model *m, int al, const double **Tr,
-                      const double **Tz, const int **un) {
-  const ves_quad *q = m->q;
-  int m0 = q->ptr[al + 1] - q->ptr[al];
-  const int *nb = q->nbr + q->ptr[al];
-  const unsigned char *mir = q->mirror + q->ptr[al];
-  const double *t = q->tab + 6 * (size_t)q->ptr[al];
-  int ghosts = 0, sorted = 1;
-  for (int k = 0; k < m0; k++)
-    ghosts |= mir[k];
-  for (int k = 1; k < m0; k++)
-    sorted &= nb[k] > nb[k - 1];
-  if (!ghosts && sorted) {
-    *Tr = *Tz = t, *un = nb;
-    return m0;
-  }
-  /* first pass: unique nodes, sorted ascending (scatter_hess relies on it) */
-  int mu = 0;
-  for (int k = 0; k < m0; k++) {
-    int a = nb[k];
-    if (m->stamp[a] != al)
-      m->stamp[a] = al, m->un[mu++] = a;
-  }
-  for (int i = 1; i < mu; i++) { /* insertion sort: mu ~ 70 */
-    int v = m->un[i], j = i - 1;
-    while (j >= 0 && m->un[j] > v)
-      m->un[j + 1] = m->un[j], j--;
-    m->un[j + 1] = v;
-  }
-  for (int u = 0; u < mu; u++)
-    m->slot[m->un[u]] = u;
-  for (int j = 0; j < 6; j++)
-    for (int u = 0; u < mu; u++)
-      m->Tr[j * mu + u] = m->Tz[j * mu + u] = 0.0;
-  for (int k = 0; k < m0; k++) {
-    int u = m->slot[nb[k]];
-    double sg = mir[k] ? -1.0 : 1.0;
-    for (int j = 0; j < 6; j++) {
-      m->Tr[j * mu + u] += sg * t[j * m0 + k];
-      m->Tz[j * mu + u] += t[j * m0 + k];
-    }
-  }
-  /* release the stamps: they must not survive into the next call, where the
-   * same point index would find them set and skip its nodes */
-  for (int u = 0; u < mu; u++)
-    m->stamp[m->un[u]] = -1;
-  *Tr = m->Tr, *Tz = m->Tz, *un = m->un;
-  return mu;
-}
-
 /* q = B y at the point (the 11 local kinematic variables). */
-static void kinematics(int mu, const double *Tr, const double *Tz,
-                       const int *un, const double *y, double q[VES_NQ]) {
-  for (int i = 0; i < VES_NQ; i++)
-    q[i] = 0.0;
+static void kinematics(const folded *f, const double *y, double q[VES_NQ]) {
+  const int mu = f->mu;
+  const double *Tr = f->Tr, *Tz = f->Tz;
+  const int *un = f->un;
+  for (int i = 0; i < VES_NQ; i++) q[i] = 0.0;
   for (int j = 0; j < 6; j++) {
     double s = 0.0;
-    for (int u = 0; u < mu; u++)
-      s += Tr[j * mu + u] * y[2 * un[u]];
+    for (int u = 0; u < mu; u++) s += Tr[j * mu + u] * y[2 * un[u]];
     q[MAP_Q.qr[j]] = s;
   }
   for (int j = 0; j < 5; j++) {
     const double *row = Tz + MAP_Q.rz[j] * mu;
     double s = 0.0;
-    for (int u = 0; u < mu; u++)
-      s += row[u] * y[2 * un[u] + 1];
+    for (int u = 0; u < mu; u++) s += row[u] * y[2 * un[u] + 1];
     q[MAP_Q.qz[j]] = s;
   }
 }
 
-/* g += c B^T ge (ge over the local variables of map mp). */
-static void scatter_grad(const local_map *mp, int mu, const double *Tr,
-                         const double *Tz, const int *un, double c,
+/* g += c B^T ge (ge over the local variables of map mp) on the entries of the
+ * nodes of slab k (all nodes when k < 0). */
+static void scatter_grad(const local_map *mp, const folded *f, const int *owner, int k, double c,
                          const double *ge, double *g) {
+  const int mu = f->mu;
   for (int u = 0; u < mu; u++) {
+    if (k >= 0 && owner[f->un[u]] != k)
+      continue;
     double sr = 0.0, sz = 0.0;
-    for (int j = 0; j < mp->nr; j++)
-      sr += ge[mp->qr[j]] * Tr[mp->rr[j] * mu + u];
-    for (int j = 0; j < mp->nz; j++)
-      sz += ge[mp->qz[j]] * Tz[mp->rz[j] * mu + u];
-    g[2 * un[u]] += c * sr;
-    g[2 * un[u] + 1] += c * sz;
+    for (int j = 0; j < mp->nr; j++) sr += ge[mp->qr[j]] * f->Tr[mp->rr[j] * mu + u];
+    for (int j = 0; j < mp->nz; j++) sz += ge[mp->qz[j]] * f->Tz[mp->rz[j] * mu + u];
+    g[2 * f->un[u]] += c * sr;
+    g[2 * f->un[u] + 1] += c * sz;
   }
 }
 
-/* blk += c B^T H B on the lower block pattern (H over the local variables of
- * map mp, row-major nl x nl). For each column node v: A_v = H_rr b_r(v),
- * B_v = H_rz b_z(v), C_v = H_zr b_r(v), D_v = H_zz b_z(v); then block
- * (u, v) = [b_r(u).A_v, b_r(u).B_v; b_z(u).C_v, b_z(u).D_v]. */
-static void scatter_hess(ves_model *m, const local_map *mp, int mu,
-                         const double *Tr, const double *Tz, const int *un,
-                         double c, const double *H, double *blk) {
-  const ves_pattern *pat = m->pat;
-  int nr = mp->nr, nz = mp->nz, nl = mp->nl, stride = 2 * (nr + nz);
+/* The column products of one point over the triangle's union (slot[] maps a
+ * node to its union position): for each of its nodes v at union position j,
+ *   A_v = c H_rr b_r(v), B_v = c H_rz b_z(v), C_v = c H_zr b_r(v), D_v = c H_zz b_z(v)
+ * into rows 0..nr-1, nr..2nr-1, 2nr..2nr+nz-1, 2nr+nz.. of C (row stride
+ * ldc), and b(v) = (b_r, b_z) into R[NB j ..]; has[j] = 1. C must be zero at
+ * the other positions (the pair kernel multiplies through them). Each row is
+ * formed over the point's nodes (contiguous table rows, vectorized), then
+ * placed at the union positions. */
+CLONES
+static void column_products(const local_map *mp, const folded *f, const int *slot, double c,
+                            const double *H, int ldc, double *C, double *R, unsigned char *has,
+                            double *tmp, int *pos) {
+  const int nr = mp->nr, nz = mp->nz, nl = mp->nl, mu = f->mu;
   for (int v = 0; v < mu; v++) {
-    double br[6], bz[5], *o = m->Av + (size_t)stride * v;
-    for (int j = 0; j < nr; j++)
-      br[j] = Tr[mp->rr[j] * mu + v];
-    for (int j = 0; j < nz; j++)
-      bz[j] = Tz[mp->rz[j] * mu + v];
-    for (int i = 0; i < nr; i++) { /* A_v and B_v */
-      double sa = 0.0, sb = 0.0;
-      for (int j = 0; j < nr; j++)
-        sa += H[mp->qr[i] * nl + mp->qr[j]] * br[j];
-      for (int j = 0; j < nz; j++)
-        sb += H[mp->qr[i] * nl + mp->qz[j]] * bz[j];
-      o[i] = c * sa, o[nr + i] = c * sb;
-    }
-    for (int i = 0; i < nz; i++) { /* C_v and D_v */
-      double sc = 0.0, sd = 0.0;
-      for (int j = 0; j < nr; j++)
-        sc += H[mp->qz[i] * nl + mp->qr[j]] * br[j];
-      for (int j = 0; j < nz; j++)
-        sd += H[mp->qz[i] * nl + mp->qz[j]] * bz[j];
-      o[2 * nr + i] = c * sc, o[2 * nr + nz + i] = c * sd;
-    }
+    const int j = pos[v] = slot[f->un[v]];
+    double *rw = R + (size_t)NB * j;
+    for (int k = 0; k < nr; k++) rw[k] = f->Tr[mp->rr[k] * mu + v];
+    for (int k = 0; k < nz; k++) rw[nr + k] = f->Tz[mp->rz[k] * mu + v];
+    has[j] = 1;
   }
-  /* un is ascending, so the lower blocks of row u are v = 0..u, and their
-   * positions are found by one forward walk along the (ascending) pattern
-   * row of a: every (a, b) pair of the point is in the pattern */
-  for (int u = 0; u < mu; u++) {
-    int a = un[u], t = pat->ptr[a];
-    double br[6], bz[5];
-    for (int j = 0; j < nr; j++)
-      br[j] = Tr[mp->rr[j] * mu + u];
-    for (int j = 0; j < nz; j++)
-      bz[j] = Tz[mp->rz[j] * mu + u];
-    for (int v = 0; v <= u; v++) {
-      int b = un[v];
-      while (pat->col[t] < b)
-        t++; /* position of block (a, b) */
-      assert(t < pat->ptr[a + 1] && pat->col[t] == b);
-      const double *o = m->Av + (size_t)stride * v;
-      double h00 = 0, h01 = 0, h10 = 0, h11 = 0;
-      for (int j = 0; j < nr; j++)
-        h00 += br[j] * o[j], h01 += br[j] * o[nr + j];
-      for (int j = 0; j < nz; j++)
-        h10 += bz[j] * o[2 * nr + j], h11 += bz[j] * o[2 * nr + nz + j];
-      double *dst = blk + 4 * (size_t)t;
-      dst[0] += h00, dst[1] += h01, dst[2] += h10, dst[3] += h11;
+  for (int r = 0; r < 2 * (nr + nz); r++) {
+    /* output row r: q row qo of H against the r-inputs (A, C) or z-inputs (B, D) */
+    const int side = r < nr ? 0 : r < 2 * nr ? 1 : r < 2 * nr + nz ? 0 : 1;
+    const int qo = r < 2 * nr ? mp->qr[r % nr] : mp->qz[(r - 2 * nr) % nz];
+    const int nk = side ? nz : nr;
+    for (int v = 0; v < mu; v++) tmp[v] = 0.0;
+    for (int k = 0; k < nk; k++) {
+      const double hk = H[qo * nl + (side ? mp->qz[k] : mp->qr[k])];
+      const double *T = side ? f->Tz + mp->rz[k] * mu : f->Tr + mp->rr[k] * mu;
+      OMP_SIMD
+      for (int v = 0; v < mu; v++) tmp[v] += hk * T[v];
     }
+    double *Cr = C + (size_t)r * ldc;
+    for (int v = 0; v < mu; v++) Cr[pos[v]] = c * tmp[v];
   }
 }
 
-ves_status ves_model_eval(ves_model *m, const double *y, int which, double *E,
-                          double *A, double *V, double *gE, double *gA,
-                          double *gV) {
+/* Row i of the triangle's lower block matrix, sum over its points p of
+ * c_p B_p^T H_p B_p: for the columns j = 0..i (and up to the next multiple
+ * of CHUNK, unused), out[0, 1, 2, 3][j] (row stride ldc) =
+ *   sum_p b_r(i).A_j, b_r(i).B_j, b_z(i).C_j, b_z(i).D_j  (points seeing i),
+ * CHUNK columns at a time in registers. C rows are CHUNK-aligned (64 bytes).
+ * GCC and Clang get an explicit register tile (vector extensions; the AVX2
+ * clone is picked at run time, and gives the same bits as the baseline:
+ * the same products and sums per element, in the same order, no fused
+ * multiply-add under -std=c11); other compilers the plain loop. */
+#if defined(__GNUC__) && defined(__x86_64__)
+typedef double vec4 __attribute__((vector_size(32), may_alias));
+#endif
+CLONES
+static void row_sums(int nr, int nz, const unsigned char *has, const double *R, const double *C,
+                     int cap, int ldc, int i, double *out) {
+  for (int j0 = 0; j0 <= i; j0 += CHUNK) {
+#if defined(__GNUC__) && defined(__x86_64__)
+    vec4 a0 = {0}, a1 = {0}, b0 = {0}, b1 = {0}, c0 = {0}, c1 = {0}, d0 = {0}, d1 = {0};
+    for (int p = 0; p < NPT; p++) {
+      if (!has[(size_t)p * cap + i])
+        continue;
+      const double *rw = R + ((size_t)p * cap + i) * NB;
+      const double *Cp = C + (size_t)p * NC * ldc + j0;
+      for (int k = 0; k < nr; k++) {
+        const vec4 *x = (const vec4 *)(Cp + (size_t)k * ldc),
+                   *z = (const vec4 *)(Cp + (size_t)(nr + k) * ldc);
+        const double s = rw[k];
+        a0 += s * x[0], a1 += s * x[1], b0 += s * z[0], b1 += s * z[1];
+      }
+      for (int k = 0; k < nz; k++) {
+        const vec4 *x = (const vec4 *)(Cp + (size_t)(2 * nr + k) * ldc),
+                   *z = (const vec4 *)(Cp + (size_t)(2 * nr + nz + k) * ldc);
+        const double s = rw[nr + k];
+        c0 += s * x[0], c1 += s * x[1], d0 += s * z[0], d1 += s * z[1];
+      }
+    }
+    vec4 *o = (vec4 *)(out + j0);
+    o[0] = a0, o[1] = a1;
+    o = (vec4 *)(out + ldc + j0), o[0] = b0, o[1] = b1;
+    o = (vec4 *)(out + 2 * (size_t)ldc + j0), o[0] = c0, o[1] = c1;
+    o = (vec4 *)(out + 3 * (size_t)ldc + j0), o[0] = d0, o[1] = d1;
+#else
+    double h[4][CHUNK] = {{0}};
+    for (int p = 0; p < NPT; p++) {
+      if (!has[(size_t)p * cap + i])
+        continue;
+      const double *rw = R + ((size_t)p * cap + i) * NB;
+      const double *Cp = C + (size_t)p * NC * ldc + j0;
+      for (int k = 0; k < nr; k++) {
+        const double s = rw[k], *x = Cp + (size_t)k * ldc, *z = Cp + (size_t)(nr + k) * ldc;
+        for (int c = 0; c < CHUNK; c++) h[0][c] += s * x[c], h[1][c] += s * z[c];
+      }
+      for (int k = 0; k < nz; k++) {
+        const double s = rw[nr + k], *x = Cp + (size_t)(2 * nr + k) * ldc,
+                     *z = Cp + (size_t)(2 * nr + nz + k) * ldc;
+        for (int c = 0; c < CHUNK; c++) h[2][c] += s * x[c], h[3][c] += s * z[c];
+      }
+    }
+    for (int r = 0; r < 4; r++)
+      for (int c = 0; c < CHUNK; c++) out[(size_t)r * ldc + j0 + c] = h[r][c];
+#endif
+  }
+}
+
+/* Add row i of the triangle's block matrix (row_sums) to the pattern: block
+ * (U[i], U[j]), j <= i, by one forward walk along the pattern row of U[i]
+ * (ascending, as U is). Pairs of the union that share no point are not in
+ * the pattern; their sums are exactly zero (C is zero where a point does not
+ * see the node) and are skipped. */
+static void row_blocks(const local_map *mp, const ves_pattern *pat, const model_ws *w,
+                       const int *U, int i, int cap, int ldc, double *blk) {
+  const int a = U[i];
+  const double *h = w->h;
+  row_sums(mp->nr, mp->nz, w->has, w->R, w->C, cap, ldc, i, w->h);
+  int lo = pat->ptr[a], hi = pat->ptr[a + 1] - 1;
+  while (lo < hi) { /* first column >= U[0] in row a */
+    int mid = (lo + hi) / 2;
+    if (pat->col[mid] < U[0])
+      lo = mid + 1;
+    else
+      hi = mid;
+  }
+  for (int j = 0, t = lo; j <= i; j++) {
+    const int b = U[j];
+    while (pat->col[t] < b) t++; /* the diagonal (a, a) ends the walk */
+    if (pat->col[t] != b) {
+      assert(h[j] == 0 && h[ldc + j] == 0 && h[2 * ldc + j] == 0 && h[3 * ldc + j] == 0);
+      continue;
+    }
+    double *dst = blk + 4 * (size_t)t;
+    dst[0] += h[j], dst[1] += h[ldc + j], dst[2] += h[2 * ldc + j], dst[3] += h[3 * ldc + j];
+  }
+}
+
+/* What a triangle pass assembles. */
+typedef enum { ASM_HESS, ASM_DISS } asm_kind;
+
+/* Triangle t's contribution to the rows of slab k: local matrices of its
+ * points (fac[3] = f_E cE, f_A cA, f_V cV for ASM_HESS), column products,
+ * then the owned rows of the triangle's block matrix into blk. */
+static ves_status triangle_blocks(const ves_model *m, model_ws *w, asm_kind kind,
+                                  const double fac[3], int t, int k, const double *y,
+                                  double *blk) {
+  const local_map *mp = kind == ASM_HESS ? &MAP_Q : &MAP_QD;
+  const int cap = m->cap;
+  folded f[NPT];
+  const int *U;
+  const int nu = triangle_union(m, w, t, f, &U);
+  /* C's row stride for this triangle: the union rounded up to CHUNK columns */
+  const int ldc = (nu + CHUNK - 1) / CHUNK * CHUNK, nrow = 2 * (mp->nr + mp->nz);
+  for (int p = 0; p < NPT; p++) {
+    memset(w->C + (size_t)p * NC * ldc, 0, (size_t)nrow * ldc * sizeof *w->C);
+    memset(w->has + (size_t)p * cap, 0, (size_t)nu);
+  }
+  for (int p = 0; p < NPT; p++) {
+    const int al = NPT * t + p;
+    double q[VES_NQ], e, H[VES_NQ * VES_NQ], Hs[VES_NQ * VES_NQ] = {0}, c;
+    kinematics(f + p, y, q);
+    if (kind == ASM_HESS) {
+      if (fac[0] != 0) {
+        VES_CALL(ves_model_local_energy(&m->lp, &m->pt[al], q, &e, NULL, H));
+        for (int i = 0; i < VES_NQ * VES_NQ; i++) Hs[i] += fac[0] * H[i];
+      }
+      if (fac[1] != 0) {
+        VES_CALL(ves_model_local_area(&m->lp, &m->pt[al], q, &e, NULL, H));
+        for (int i = 0; i < VES_NQ * VES_NQ; i++) Hs[i] += fac[1] * H[i];
+      }
+      if (fac[2] != 0) {
+        VES_CALL(ves_model_local_volume(&m->lp, &m->pt[al], q, &e, NULL, H));
+        for (int i = 0; i < VES_NQ * VES_NQ; i++) Hs[i] += fac[2] * H[i];
+      }
+      c = m->q->w[al];
+    } else {
+      VES_CALL(ves_model_local_dissip(&m->lp, q, Hs));
+      c = 2 * M_PI * m->q->w[al];
+    }
+    column_products(mp, f + p, w->slot, c, Hs, ldc, w->C + (size_t)p * NC * ldc,
+                    w->R + (size_t)p * cap * NB, w->has + (size_t)p * cap, w->tmp, w->pos);
+  }
+  for (int i = 0; i < nu; i++)
+    if (m->owner[U[i]] == k)
+      row_blocks(mp, m->pat, w, U, i, cap, ldc, blk);
+  return VES_OK;
+}
+
+/* blk = sum over the triangles of their block matrices (kind, fac as in
+ * triangle_blocks), the slabs shared out over the threads. */
+static ves_status assemble(ves_model *m, asm_kind kind, const double fac[3], const double *y,
+                           double *blk) {
+  const ves_pattern *pat = m->pat;
+  ves_status st[64];
+  memset(blk, 0, 4 * (size_t)pat->ptr[pat->n] * sizeof *blk);
+  for (int k = 0; k < m->nthr; k++) st[k] = VES_OK;
+#pragma omp parallel num_threads(m->nthr)
+  {
+    const int tid = omp_tid(), nt = omp_nteam();
+    model_ws *w = m->ws + tid;
+    for (int k = tid; k < m->nthr; k += nt)
+      for (int it = 0; it < m->q->ntri && st[k] == VES_OK; it++) {
+        const int t = m->torder[it];
+        if (m->tlo[t] <= k && k <= m->thi[t])
+          st[k] = triangle_blocks(m, w, kind, fac, t, k, y, blk);
+      }
+  }
+  for (int k = 0; k < m->nthr; k++)
+    if (st[k] != VES_OK)
+      return st[k];
+  return VES_OK;
+}
+
+/* The values and gradients of triangle t's points for slab k: w e of the
+ * selected functionals into m->ev (by the triangle's first slab only), and
+ * the gradient entries of the slab's nodes. */
+static ves_status triangle_eval(ves_model *m, model_ws *w, int which, int t, int k,
+                                const double *y, double *const g[3]) {
+  const double fac[3] = {2 * M_PI * 3 * m->par.k / (16 * M_SQRT2 * m->par.eps),
+                         2 * M_PI * 3 / (2 * M_SQRT2), 2 * M_PI};
+  static ves_model_local_fn *const fn[3] = {ves_model_local_energy, ves_model_local_area,
+                                            ves_model_local_volume};
+  for (int p = 0; p < NPT; p++) {
+    const int al = NPT * t + p;
+    folded f;
+    double q[VES_NQ], e, ge[VES_NQ], wa = m->q->w[al];
+    fold_point(m->q, m->mmax, w, al, 0, &f);
+    kinematics(&f, y, q);
+    for (int i = 0; i < 3; i++) {
+      if (!(which & (1 << i)))
+        continue;
+      VES_CALL(fn[i](&m->lp, &m->pt[al], q, &e, g[i] ? ge : NULL, NULL));
+      if (k == m->tlo[t])
+        m->ev[3 * (size_t)al + i] = wa * e;
+      if (g[i])
+        scatter_grad(&MAP_Q, &f, m->owner, k, fac[i] * wa, ge, g[i]);
+    }
+  }
+  return VES_OK;
+}
+
+ves_status ves_model_eval(ves_model *m, const double *y, int which, double *E, double *A, double *V,
+                          double *gE, double *gA, double *gV) {
   VES_CHECK(m && y, VES_ERR_ARG);
   int n = m->nodes->n;
   const double fE = 2 * M_PI * 3 * m->par.k / (16 * M_SQRT2 * m->par.eps),
                fA = 2 * M_PI * 3 / (2 * M_SQRT2), fV = 2 * M_PI;
-  /* The totals are accumulated in extended precision: the sums run over
-   * ~1e4..1e6 points, and the optimizers (line searches, finite-difference
-   * checks) compare values that differ by far less than the double rounding
-   * of such a sum (~1e-16 sqrt(nq) relative); each point's contribution
-   * stays in double. */
-  long double sE = 0, sA = 0, sV = 0;
-  if ((which & VES_F_E) && gE)
-    memset(gE, 0, 2 * (size_t)n * sizeof *gE);
-  if ((which & VES_F_A) && gA)
-    memset(gA, 0, 2 * (size_t)n * sizeof *gA);
-  if ((which & VES_F_V) && gV)
-    memset(gV, 0, 2 * (size_t)n * sizeof *gV);
-  for (int al = 0; al < m->q->nq; al++) {
-    const double *Tr, *Tz;
-    const int *un;
-    int mu = fold_point(m, al, &Tr, &Tz, &un);
-    double q[VES_NQ], e, ge[VES_NQ], w = m->q->w[al];
-    kinematics(mu, Tr, Tz, un, y, q);
-    if (which & VES_F_E) {
-      VES_CALL(ves_model_local_energy(&m->lp, &m->pt[al], q, &e, gE ? ge : NULL,
-                                      NULL));
-      sE += w * e;
-      if (gE)
-        scatter_grad(&MAP_Q, mu, Tr, Tz, un, fE * w, ge, gE);
-    }
-    if (which & VES_F_A) {
-      VES_CALL(ves_model_local_area(&m->lp, &m->pt[al], q, &e, gA ? ge : NULL,
-                                    NULL));
-      sA += w * e;
-      if (gA)
-        scatter_grad(&MAP_Q, mu, Tr, Tz, un, fA * w, ge, gA);
-    }
-    if (which & VES_F_V) {
-      VES_CALL(ves_model_local_volume(&m->lp, &m->pt[al], q, &e, gV ? ge : NULL,
-                                      NULL));
-      sV += w * e;
-      if (gV)
-        scatter_grad(&MAP_Q, mu, Tr, Tz, un, fV * w, ge, gV);
-    }
+  double *const g[3] = {(which & VES_F_E) ? gE : NULL, (which & VES_F_A) ? gA : NULL,
+                        (which & VES_F_V) ? gV : NULL};
+  ves_status st[64];
+  which &= VES_F_E | VES_F_A | VES_F_V;
+  for (int i = 0; i < 3; i++)
+    if (g[i])
+      memset(g[i], 0, 2 * (size_t)n * sizeof *g[i]);
+  for (int k = 0; k < m->nthr; k++) st[k] = VES_OK;
+#pragma omp parallel num_threads(m->nthr)
+  {
+    const int tid = omp_tid(), nt = omp_nteam();
+    model_ws *w = m->ws + tid;
+    for (int k = tid; k < m->nthr; k += nt)
+      for (int t = 0; t < m->q->ntri && st[k] == VES_OK; t++) /* point order: the */
+        if (m->tlo[t] <= k && k <= m->thi[t]) /* gradient sums as before, bit for bit */
+          st[k] = triangle_eval(m, w, which, t, k, y, g);
   }
+  for (int k = 0; k < m->nthr; k++)
+    if (st[k] != VES_OK)
+      return st[k];
+  /* The totals are accumulated in extended precision, in point order: the
+   * sums run over ~1e4..1e6 points, and the optimizers (line searches,
+   * finite-difference checks) compare values that differ by far less than
+   * the double rounding of such a sum (~1e-16 sqrt(nq) relative); each
+   * point's contribution stays in double. */
+  long double s[3] = {0, 0, 0};
+  for (int al = 0; al < m->q->nq; al++)
+    for (int i = 0; i < 3; i++)
+      if (which & (1 << i))
+        s[i] += m->ev[3 * (size_t)al + i];
   if ((which & VES_F_E) && E)
-    *E = (double)(fE * sE);
+    *E = (double)(fE * s[0]);
   if ((which & VES_F_A) && A)
-    *A = (double)(fA * sA);
+    *A = (double)(fA * s[1]);
   if ((which & VES_F_V) && V)
-    *V = (double)(fV * sV);
+    *V = (double)(fV * s[2]);
   return VES_OK;
 }
 
-ves_status ves_model_hessian(ves_model *m, const double *y, double cE,
-                             double cA, double cV, double *blk) {
+ves_status ves_model_hessian(ves_model *m, const double *y, double cE, double cA, double cV,
+                             double *blk) {
   VES_CHECK(m && y && blk, VES_ERR_ARG);
-  const ves_pattern *pat = m->pat;
-  const double fE = 2 * M_PI * 3 * m->par.k / (16 * M_SQRT2 * m->par.eps) * cE,
-               fA = 2 * M_PI * 3 / (2 * M_SQRT2) * cA, fV = 2 * M_PI * cV;
-  memset(blk, 0, 4 * (size_t)pat->ptr[pat->n] * sizeof *blk);
-  for (int al = 0; al < m->q->nq; al++) {
-    const double *Tr, *Tz;
-    const int *un;
-    int mu = fold_point(m, al, &Tr, &Tz, &un);
-    double q[VES_NQ], e, H[VES_NQ * VES_NQ], Hs[VES_NQ * VES_NQ] = {0};
-    kinematics(mu, Tr, Tz, un, y, q);
-    if (fE != 0) {
-      VES_CALL(ves_model_local_energy(&m->lp, &m->pt[al], q, &e, NULL, H));
-      for (int i = 0; i < VES_NQ * VES_NQ; i++)
-        Hs[i] += fE * H[i];
-    }
-    if (fA != 0) {
-      VES_CALL(ves_model_local_area(&m->lp, &m->pt[al], q, &e, NULL, H));
-      for (int i = 0; i < VES_NQ * VES_NQ; i++)
-        Hs[i] += fA * H[i];
-    }
-    if (fV != 0) {
-      VES_CALL(ves_model_local_volume(&m->lp, &m->pt[al], q, &e, NULL, H));
-      for (int i = 0; i < VES_NQ * VES_NQ; i++)
-        Hs[i] += fV * H[i];
-    }
-    scatter_hess(m, &MAP_Q, mu, Tr, Tz, un, m->q->w[al], Hs, blk);
-  }
-  return VES_OK;
+  const double fac[3] = {2 * M_PI * 3 * m->par.k / (16 * M_SQRT2 * m->par.eps) * cE,
+                         2 * M_PI * 3 / (2 * M_SQRT2) * cA, 2 * M_PI * cV};
+  return assemble(m, ASM_HESS, fac, y, blk);
 }
 
 ves_status ves_model_dissipation(ves_model *m, const double *y, double *blk) {
   VES_CHECK(m && y && blk, VES_ERR_ARG);
-  const ves_pattern *pat = m->pat;
-  memset(blk, 0, 4 * (size_t)pat->ptr[pat->n] * sizeof *blk);
-  for (int al = 0; al < m->q->nq; al++) {
-    const double *Tr, *Tz;
-    const int *un;
-    int mu = fold_point(m, al, &Tr, &Tz, &un);
-    double q[VES_NQ], D[VES_NQD * VES_NQD];
-    kinematics(mu, Tr, Tz, un, y, q);
-    VES_CALL(ves_model_local_dissip(&m->lp, q, D));
-    scatter_hess(m, &MAP_QD, mu, Tr, Tz, un, 2 * M_PI * m->q->w[al], D, blk);
-  }
-  return VES_OK;
+  const double fac[3] = {0, 0, 0};
+  return assemble(m, ASM_DISS, fac, y, blk);
 }
 
 ves_status ves_model_pointwise_W(ves_model *m, const double *y, double *W) {
   VES_CHECK(m && y && W, VES_ERR_ARG);
-  for (int al = 0; al < m->q->nq; al++) {
-    const double *Tr, *Tz;
-    const int *un;
-    int mu = fold_point(m, al, &Tr, &Tz, &un);
-    double q[VES_NQ], e;
-    kinematics(mu, Tr, Tz, un, y, q);
-    VES_CALL(ves_model_local_energy_ex(&m->lp, &m->pt[al], q, &e, NULL, NULL,
-                                       W + al, NULL));
+  ves_status st[64];
+  for (int k = 0; k < m->nthr; k++) st[k] = VES_OK;
+#pragma omp parallel num_threads(m->nthr)
+  {
+    const int tid = omp_tid(), nt = omp_nteam();
+    model_ws *w = m->ws + tid;
+    for (int k = tid; k < m->nthr; k += nt)
+      for (int t = 0; t < m->q->ntri && st[k] == VES_OK; t++) {
+        if (m->tlo[t] != k) /* each triangle once */
+          continue;
+        for (int p = 0; p < NPT && st[k] == VES_OK; p++) {
+          const int al = NPT * t + p;
+          folded f;
+          double q[VES_NQ], e;
+          fold_point(m->q, m->mmax, w, al, 0, &f);
+          kinematics(&f, y, q);
+          st[k] = ves_model_local_energy_ex(&m->lp, &m->pt[al], q, &e, NULL, NULL, W + al, NULL);
+        }
+      }
   }
+  for (int k = 0; k < m->nthr; k++)
+    if (st[k] != VES_OK)
+      return st[k];
   return VES_OK;
 }
+
+ves_status ves_model_set_c0(ves_model *m, double c0) {
+  VES_CHECK(m && isfinite(c0), VES_ERR_ARG);
+  m->par.c0 = c0;
+  m->lp.C0 = c0;
+  return VES_OK;
+}
+
+double ves_model_get_c0(const ves_model *m) { return m->par.c0; }
+
+double ves_model_get_k(const ves_model *m) { return m->par.k; }

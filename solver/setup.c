@@ -124,14 +124,14 @@ ves_status ves_setup_create(const ves_config *cfg, ves_phi0_method method, ves_s
   for (int a = 0; a < n; a++) s->phi0c[a] = ves_shape_phi0(s->shape, cfg->epsilon, s->nodes->x + 2 * a);
   if (method == VES_PHI0_L2) {
     for (int p = 0; p < s->quad->nq; p++) f[p] = ves_shape_phi0(s->shape, cfg->epsilon, s->quad->x + 2 * p);
-    /* sparse Cholesky + at most 3 refinement steps (cg_iterations counts
+    /* sparse Cholesky + at most 3 refinement steps (proj_refinements counts
      * them); 1e-12: the fit error then sits far below the discretization error */
-    st = ves_sparse_project_l2(s->quad, n, f, s->phi0c, 1e-12, 3, &s->cg_iterations,
-                               &s->cg_residual);
+    st = ves_sparse_project_l2(s->quad, n, f, s->phi0c, 1e-12, 3, &s->proj_refinements,
+                               &s->proj_residual);
     if (st != VES_OK)
       FAIL(st < 0 ? st : VES_ERR_NOCONV,
            "phi0 projection: %s (relative residual %.2e after %d refinement steps)",
-           ves_status_str(st), s->cg_residual, s->cg_iterations);
+           ves_status_str(st), s->proj_residual, s->proj_refinements);
   }
   s->seconds_project = now_seconds() - t;
 

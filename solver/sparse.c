@@ -485,3 +485,44 @@ done:
   ves_ldl_destroy(&ldl);
   return s;
 }
+
+/* Counting sort of the triplets and their mirror images into rows; the
+ * triplets of one row arrive with ascending columns only per source, so each
+ * row is sorted at the end (rows hold a few hundred entries). */
+ves_status ves_pattern_csr(const ves_pattern *p, const double *v, int **ptr, int **col,
+                           double **val) {
+  VES_CHECK(p && v && ptr && col && val, VES_ERR_ARG);
+  *ptr = NULL, *col = NULL, *val = NULL;
+  int nf = p->nfree;
+  int *rp = calloc((size_t)nf + 1, sizeof *rp), *fill = malloc(((size_t)nf + 1) * sizeof *fill);
+  long nnz = 0;
+  for (int k = 0; k < p->nnz; k++) {
+    rp[p->irow[k] + 1]++;
+    if (p->irow[k] != p->jcol[k]) rp[p->jcol[k] + 1]++;
+  }
+  for (int i = 0; i < nf; i++) rp[i + 1] += rp[i];
+  nnz = rp[nf];
+  int *c = malloc((size_t)(nnz ? nnz : 1) * sizeof *c);
+  double *x = malloc((size_t)(nnz ? nnz : 1) * sizeof *x);
+  if (!rp || !fill || !c || !x) {
+    free(rp), free(fill), free(c), free(x);
+    return VES_ERR_ALLOC;
+  }
+  memcpy(fill, rp, ((size_t)nf + 1) * sizeof *fill);
+  for (int k = 0; k < p->nnz; k++) {
+    int i = p->irow[k], j = p->jcol[k];
+    c[fill[i]] = j, x[fill[i]++] = v[k];
+    if (i != j) c[fill[j]] = i, x[fill[j]++] = v[k]; /* the upper mirror */
+  }
+  for (int i = 0; i < nf; i++) /* insertion sort of row i by column */
+    for (int a = rp[i] + 1; a < rp[i + 1]; a++) {
+      int cj = c[a];
+      double xv = x[a];
+      int b = a - 1;
+      while (b >= rp[i] && c[b] > cj) c[b + 1] = c[b], x[b + 1] = x[b], b--;
+      c[b + 1] = cj, x[b + 1] = xv;
+    }
+  free(fill);
+  *ptr = rp, *col = c, *val = x;
+  return VES_OK;
+}

@@ -75,6 +75,10 @@ static void test_errors(void **state) {
   expect_error("[geometry]\nh_far = 0.001\n", 0, NULL, VES_ERR_CONFIG, "h_far");
   expect_error("[geometry]\nepsilon =\n", 0, NULL, VES_ERR_CONFIG, "epsilon");
   expect_error("[shape]\ntype = curve\n", 0, NULL, VES_ERR_CONFIG, "needs a points file");
+  expect_error("[time]\ndt_initial = 1\ndt_max = 0.1\n", 0, NULL, VES_ERR_CONFIG, "dt_initial");
+  expect_error("[solver]\nbackend = cg\n", 0, NULL, VES_ERR_CONFIG, "ipopt|nlopt|newton|euler");
+  expect_error("[constraints]\narea = 2\n", 0, NULL, VES_ERR_CONFIG, "out of range");
+  expect_error("[geometry]\nepsilon = 0.3\n", 0, NULL, VES_ERR_CONFIG, "too large for the box");
   const char *s1[] = {"geometry.epsilon"};
   expect_error("", 1, s1, VES_ERR_CONFIG, "section.key=value");
   const char *s2[] = {"geometry.nope=1"};

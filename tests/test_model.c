@@ -12,6 +12,9 @@
 
 #include <lapacke.h>
 #include <math.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -846,6 +849,136 @@ static void test_locality(void **state) {
   problem_destroy(&P);
 }
 
+/* The per-triangle, threaded assembly of model.c against a straightforward
+ * one written here: for every point, every ordered pair (k, l) of its
+ * UNFOLDED table entries with nbr[k] >= nbr[l] adds the 2x2 block
+ * [b_r(k).H b_r(l), b_r(k).H b_z(l); b_z(k).H b_r(l), b_z(k).H b_z(l)] at
+ * (nbr[k], nbr[l]), where b_r(k) = (-1 for a ghost, else 1) x (p, p_R, p_Z,
+ * p_RR, p_RZ, p_ZZ)(k) on (r, F_rR, F_rZ, G_rRR, G_rRZ, G_rZZ) and b_z(k) =
+ * (p_R, .., p_ZZ)(k) on (F_zR, F_zZ, G_zRR, G_zRZ, G_zZZ), and H the local
+ * Hessian with its prefactors and weight (2 pi w D for K, on the first five
+ * q). fld[6 nq]: phi0 and its derivatives at the points. */
+static void reference_assembly(const problem *P, const ves_model_local_par *lp, const double *fld,
+                               int diss, const double c[3], double *ref) {
+  const ves_quad *q = P->s->quad;
+  const int qr[6] = {VES_Q_R, VES_Q_FRR, VES_Q_FRZ, VES_Q_GRRR, VES_Q_GRRZ, VES_Q_GRZZ};
+  const int qz[5] = {VES_Q_FZR, VES_Q_FZZ, VES_Q_GZRR, VES_Q_GZRZ, VES_Q_GZZZ};
+  const int nr = diss ? 3 : 6, nz = diss ? 2 : 5, nl = diss ? VES_NQD : VES_NQ;
+  const double fac[3] = {2 * M_PI * 3 * P->cfg.k / (16 * M_SQRT2 * P->cfg.epsilon) * c[0],
+                         2 * M_PI * 3 / (2 * M_SQRT2) * c[1], 2 * M_PI * c[2]};
+  ves_model_local_fn *fn[3] = {ves_model_local_energy, ves_model_local_area,
+                               ves_model_local_volume};
+  int mmax = 0;
+  for (int al = 0; al < q->nq; al++)
+    mmax = q->ptr[al + 1] - q->ptr[al] > mmax ? q->ptr[al + 1] - q->ptr[al] : mmax;
+  double *Hr = xmalloc(VES_NQ * (size_t)mmax), *Hz = xmalloc(VES_NQ * (size_t)mmax);
+  memset(ref, 0, blk_len(P) * sizeof *ref);
+  for (int al = 0; al < q->nq; al++) {
+    const int m = q->ptr[al + 1] - q->ptr[al];
+    const int *nb = q->nbr + q->ptr[al];
+    const unsigned char *mir = q->mirror + q->ptr[al];
+    const double *t = q->tab + 6 * (size_t)q->ptr[al], *f = fld + 6 * (size_t)al;
+    double qq[VES_NQ], H[VES_NQ * VES_NQ] = {0}, Hl[VES_NQ * VES_NQ], e;
+    point_q(q, P->y, al, qq);
+    if (diss) {
+      assert_int_equal(ves_model_local_dissip(lp, qq, Hl), VES_OK);
+      for (int i = 0; i < nl * nl; i++) H[i] = 2 * M_PI * q->w[al] * Hl[i];
+    } else {
+      const ves_model_point pt = {f[0], {f[1], f[2]}, {f[3], f[4], f[5]}};
+      for (int w = 0; w < 3; w++) {
+        assert_int_equal(fn[w](lp, &pt, qq, &e, NULL, Hl), VES_OK);
+        for (int i = 0; i < nl * nl; i++) H[i] += fac[w] * q->w[al] * Hl[i];
+      }
+    }
+    for (int l = 0; l < m; l++) { /* H b_r(l), H b_z(l) */
+      const double sg = mir[l] ? -1.0 : 1.0;
+      for (int i = 0; i < nl; i++) {
+        double sr = 0, sz = 0;
+        for (int j = 0; j < nr; j++) sr += H[i * nl + qr[j]] * sg * t[j * m + l];
+        for (int j = 0; j < nz; j++) sz += H[i * nl + qz[j]] * t[(j + 1) * m + l];
+        Hr[(size_t)VES_NQ * l + i] = sr, Hz[(size_t)VES_NQ * l + i] = sz;
+      }
+    }
+    for (int k = 0; k < m; k++) {
+      const double sg = mir[k] ? -1.0 : 1.0;
+      for (int l = 0; l < m; l++) {
+        if (nb[k] < nb[l])
+          continue;
+        const long pos = ves_pattern_find(P->pat, nb[k], nb[l]);
+        assert_true(pos >= 0);
+        const double *hr = Hr + (size_t)VES_NQ * l, *hz = Hz + (size_t)VES_NQ * l;
+        double h[4] = {0, 0, 0, 0};
+        for (int j = 0; j < nr; j++)
+          h[0] += sg * t[j * m + k] * hr[qr[j]], h[1] += sg * t[j * m + k] * hz[qr[j]];
+        for (int j = 0; j < nz; j++)
+          h[2] += t[(j + 1) * m + k] * hr[qz[j]], h[3] += t[(j + 1) * m + k] * hz[qz[j]];
+        for (int i = 0; i < 4; i++) ref[4 * pos + i] += h[i];
+      }
+    }
+  }
+  free(Hr), free(Hz);
+}
+
+/* The Hessian (a mix of E, A, V) and K from models built for 1 and for 2
+ * threads against reference_assembly: both are sums of the same products in
+ * different association orders, so they agree to rounding; 1e-12 of max |H|
+ * bounds it with a wide margin (sums of ~1e3 terms of either sign, each
+ * rounded at 1e-16 relative; measured: see the printout). The two thread
+ * counts agree bitwise (every block, every gradient entry receives its
+ * triangle contributions in the same order whatever the thread count), as do
+ * E, A, V. */
+static void test_assembly_reference(void **state) {
+  (void)state;
+  problem *P = P1;
+  const ves_model_params par = {.eps = P->cfg.epsilon, .c0 = P->cfg.c0, .k = P->cfg.k,
+                                .mu = P->cfg.mu, .lambda = P->cfg.lambda_ratio * P->cfg.mu};
+  const ves_model_local_par lp = {.eps = par.eps, .C0 = par.c0, .mu = par.mu,
+                                  .lambda = par.lambda};
+  const size_t len = blk_len(P), n2 = 2 * (size_t)P->n;
+  double *fld = xmalloc(6 * (size_t)P->s->quad->nq), *ref = xmalloc(len);
+  double *blk[2] = {xmalloc(len), xmalloc(len)}, *g[2] = {xmalloc(3 * n2), xmalloc(3 * n2)};
+  double val[2][3];
+  ves_quad_field(P->s->quad, P->s->phi0c, 2, fld);
+#ifdef _OPENMP
+  const int nthr0 = omp_get_max_threads();
+#endif
+  for (int diss = 0; diss < 2; diss++) {
+    reference_assembly(P, &lp, fld, diss, COMBO[3], ref);
+    double rmax = 0;
+    for (size_t t = 0; t < len; t++) rmax = fmax(rmax, fabs(ref[t]));
+    for (int nt = 1; nt <= 2; nt++) {
+#ifdef _OPENMP
+      omp_set_num_threads(nt);
+#endif
+      ves_model *m = NULL;
+      assert_int_equal(ves_model_create(P->s->nodes, P->s->quad, P->s->phi0c, &par, &m), VES_OK);
+      double *b = blk[nt - 1], *gg = g[nt - 1];
+      if (diss)
+        assert_int_equal(ves_model_dissipation(m, P->y, b), VES_OK);
+      else
+        assert_int_equal(ves_model_hessian(m, P->y, COMBO[3][0], COMBO[3][1], COMBO[3][2], b),
+                         VES_OK);
+      assert_int_equal(ves_model_eval(m, P->y, 7, val[nt - 1], val[nt - 1] + 1, val[nt - 1] + 2,
+                                      gg, gg + n2, gg + 2 * n2),
+                       VES_OK);
+      ves_model_destroy(&m);
+      double dmax = 0;
+      for (size_t t = 0; t < len; t++) dmax = fmax(dmax, fabs(b[t] - ref[t]));
+      printf("# %s, %d thread(s): |model - reference|_max = %.1e of max |%s| = %.3e\n",
+             diss ? "K" : "Hessian 0.7E+3A-2V", nt, dmax / rmax, diss ? "K" : "H", rmax);
+      assert_true(rmax > 0);
+      assert_true(dmax <= 1e-12 * rmax);
+    }
+    assert_memory_equal(blk[0], blk[1], len * sizeof *ref);
+    assert_memory_equal(g[0], g[1], 3 * n2 * sizeof *ref);
+    assert_memory_equal(val[0], val[1], sizeof val[0]);
+  }
+#ifdef _OPENMP
+  omp_set_num_threads(nthr0);
+#endif
+  free(fld), free(ref), free(blk[0]), free(blk[1]), free(g[0]), free(g[1]);
+}
+
 /* Error paths: an inverted element (det F <= 0 at some point) and a point
  * pushed through the axis (r <= 0) give VES_ERR_DOMAIN from eval, hessian
  * and dissipation; NULL arguments and bad parameters give VES_ERR_ARG. */
@@ -936,6 +1069,7 @@ int main(void) {
       cmocka_unit_test(test_dissipation),
       cmocka_unit_test(test_translation_invariance),
       cmocka_unit_test(test_locality),
+      cmocka_unit_test(test_assembly_reference),
       cmocka_unit_test(test_errors),
   };
   return cmocka_run_group_tests(tests, group_setup, group_teardown);

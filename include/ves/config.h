@@ -42,6 +42,26 @@ typedef struct {
   double mu;                       /* viscosity (unit: 1) */
   double lambda_ratio;             /* penalty lambda / mu (>= 10) */
   double c0;                       /* spontaneous curvature C0 R0 */
+  /* [time] (t* units) */
+  double t_end, dt_initial, dt_max, dt_min; /* end, first, largest, smallest step */
+  int adaptive;                    /* 1: dt from the energy decrement */
+  double dE_target;                /* target |dE*| per step */
+  double growth_max;               /* largest dt growth factor per step */
+  int iter_target;                 /* no dt growth above this many iterations */
+  /* [constraints] */
+  int area, volume;                /* 1: hold A = A0, V = V_target */
+  /* [protocol] */
+  double volume_rate;              /* dV/dt / V0 (1/t*), < 0 deflates */
+  double volume_final;             /* V/V0 where the ramp stops */
+  double c0_time;                  /* time of a step change of C0 (< 0: none) */
+  double c0_after;                 /* C0 R0 after it */
+  /* [solver] */
+  char backend[VES_CONFIG_STR];    /* ipopt | nlopt | newton | euler */
+  double tol, ctol;                /* optimality and constraint tolerances */
+  int max_iter;                    /* iterations per step */
+  int freeze_hessian;              /* newton: Hessian once per step */
+  /* [output] */
+  int snapshot_every;              /* accepted steps between snapshots */
 } ves_config;
 
 /* Defaults for every key. */

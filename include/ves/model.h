@@ -31,7 +31,11 @@ enum { VES_F_E = 1, VES_F_A = 2, VES_F_V = 4 };
 /* Build the model for nodes and quadrature tables (both borrowed: they must
  * outlive the model) and the phase-field coefficients phi0c[n] (copied into
  * point values phi0, grad phi0, Hess phi0 at every quadrature point).
- * Fixed dofs: wall nodes (r and z) and the r of axis nodes. */
+ * Fixed dofs: wall nodes (r and z) and the r of axis nodes.
+ * The evaluations below run on omp_get_max_threads() threads as of create
+ * (OMP_NUM_THREADS, default all cores) with workspace per thread; their
+ * results are bitwise the same for any thread count. One model must not be
+ * evaluated from two threads at once. */
 ves_status ves_model_create(const ves_nodes *nodes, const ves_quad *q, const double *phi0c,
                             const ves_model_params *par, ves_model **out);
 void ves_model_destroy(ves_model **m);
@@ -55,6 +59,12 @@ ves_status ves_model_dissipation(ves_model *m, const double *y, double *blk);
 
 /* Pointwise W (units 1/R0) at every quadrature point, W[nq]. */
 ves_status ves_model_pointwise_W(ves_model *m, const double *y, double *W);
+
+/* Spontaneous curvature C0 R0 in force (protocols change it in time), and
+ * the bending stiffness k. */
+ves_status ves_model_set_c0(ves_model *m, double c0);
+double ves_model_get_c0(const ves_model *m);
+double ves_model_get_k(const ves_model *m);
 
 /* Reference nodal positions (y at rest), 2n, for convenience. */
 void ves_model_reference(const ves_model *m, double *y);

@@ -42,6 +42,12 @@ void ves_pattern_extract(const ves_pattern *p, const double *blk, double *v);
 /* y = A x over the free dofs, A symmetric given by its lower triplets v. */
 void ves_pattern_symv(const ves_pattern *p, const double *v, const double *x, double *y);
 
+/* The full symmetric matrix given by its lower triplets v, in compressed rows
+ * over the free dofs (both triangles, columns ascending in each row):
+ * *ptr (nfree + 1), *col and *val (ptr[nfree]) are taken by the caller. */
+ves_status ves_pattern_csr(const ves_pattern *p, const double *v, int **ptr, int **col,
+                           double **val);
+
 /* ---- Sparse symmetric direct solver (MUMPS, sequential) ----
  *
  * A = L D L^T of a symmetric n x n matrix given by its lower-triangle

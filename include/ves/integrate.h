@@ -1,0 +1,68 @@
+/* vesica — the time loop of the variational integrator (DESIGN.md §3): one
+ * accepted step at a time, adaptive dt, rejected steps retried with dt/2,
+ * protocols (spontaneous curvature steps, volume ramps). The driver (the
+ * program) owns the loop, the output and the stopping decisions. */
+#ifndef VES_INTEGRATE_H
+#define VES_INTEGRATE_H
+
+#include "ves/backend.h"
+#include "ves/model.h"
+#include "ves/status.h"
+#include "ves/step.h"
+
+/* Time stepping and protocol parameters (times in t* = t k / (mu R0^3)). */
+typedef struct {
+  double t_end;        /* final time */
+  double dt_initial;   /* first step */
+  double dt_max;       /* largest step */
+  double dt_min;       /* floor for halving a rejected step; below it the run stops */
+  int adaptive;        /* 1: dt from the energy decrement, 0: constant dt */
+  double dE_target;    /* adaptive: target |E*(n+1) - E*(n)| per step (units k) */
+  double growth_max;   /* adaptive: largest factor between consecutive steps (> 1) */
+  int iter_target;     /* adaptive: above this many backend iterations dt is not grown */
+  int hold_area;       /* 1: A(y) = A0 at every step */
+  int hold_volume;     /* 1: V(y) = V_target(t) at every step */
+  double volume_rate;  /* protocol: dV/dt / V0 (1/t*; < 0 deflates; 0 = none) */
+  double volume_final; /* protocol: V / V0 at which the ramp stops and V is held */
+  double c0_time;      /* protocol: time of a step change of C0 (< 0: none) */
+  double c0_after;     /* protocol: C0 R0 from c0_time on */
+  int check_energy;    /* 1: reject a VTI step whose energy rises while the targets are fixed */
+} ves_integrate_params;
+
+/* What one accepted step did. */
+typedef struct {
+  long step;               /* index of the accepted step (1, 2, ...) */
+  double t, dt;            /* time reached and the step taken */
+  double E, A, V;          /* E* (units k), area and volume after the step */
+  double lambda[2];        /* multipliers of the area and volume constraints */
+  double c0;               /* C0 R0 in force */
+  double V_target;         /* volume target of the step */
+  int retries;             /* halvings before acceptance */
+  ves_backend_stats stats; /* the backend's statistics of the accepted solve */
+  ves_status solve_status; /* the accepted solve's status */
+} ves_step_report;
+
+typedef struct ves_sim ves_sim;
+
+/* Defaults (documented in the implementation). */
+void ves_integrate_params_default(ves_integrate_params *p);
+
+/* A simulation from the model's reference state: model borrowed (must
+ * outlive the simulation), backend type borrowed (static), options copied. */
+ves_status ves_sim_create(ves_model *model, const ves_backend_type *backend,
+                          const ves_backend_options *bopt, const ves_integrate_params *ip,
+                          ves_sim **out);
+void ves_sim_destroy(ves_sim **s);
+
+/* Take one accepted step (retrying with dt/2 on failure or energy rise).
+ * VES_OK: a step was taken (rep filled); VES_MAXITER: t_end already reached,
+ * nothing done; < 0: no acceptable step down to dt_min — the state is the
+ * last accepted one and rep describes the last attempt. */
+ves_status ves_sim_step(ves_sim *s, ves_step_report *rep);
+
+double ves_sim_time(const ves_sim *s);
+double ves_sim_dt(const ves_sim *s);            /* the next step's dt */
+const double *ves_sim_y(const ves_sim *s);      /* current positions, 2n */
+void ves_sim_initial(const ves_sim *s, double *E, double *A, double *V); /* at t = 0 */
+
+#endif

@@ -1,0 +1,202 @@
+/* vesica — the variational time integrator: y^{n+1} = argmin of
+ * (1/2)(y - y^n)^T K(y^n)(y - y^n) + dt E(y) subject to the constraints,
+ * one step at a time (paper Sec. 3.2, Eq. 11).
+ *
+ * Acceptance: the backend converged (VES_OK), and for the variational
+ * backends E(y^{n+1}) <= E(y^n) (+ rounding) whenever y^n was feasible for
+ * the step, i.e. no protocol changed C0 or the volume target during it (then
+ * the minimizer beats y^n itself: dt E(y^{n+1}) <= f(y^{n+1}) <= f(y^n) =
+ * dt E(y^n)). A rejected step is retried with dt/2 down to dt_min.
+ *
+ * Adaptivity (paper Sec. 4, Fig. 4): dt_next = dt * clamp(dE_target / |dE|,
+ * 1/2, growth_max), not grown when the backend needed more than iter_target
+ * iterations, capped by dt_max and by the next protocol event. */
+#include "ves/integrate.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+struct ves_sim {
+  ves_model *model;                 /* borrowed */
+  const ves_backend_type *backend;  /* borrowed (static table entry) */
+  ves_backend_options bopt;         /* copied */
+  ves_integrate_params ip;          /* copied */
+  ves_step *step;                   /* the step problem */
+  void *bstate;                     /* the backend's state */
+  int n, nvar;                      /* nodes, free dofs */
+  double *y;                        /* 2n current positions */
+  double *ynew;                     /* 2n trial positions */
+  double *x;                        /* nvar trial free dofs */
+  double t, dt;                     /* time, next step */
+  long nstep;                       /* accepted steps */
+  double E, A, V;                   /* at y */
+  double E0, A0, V0;                /* at t = 0 */
+  double lambda[2];                 /* multipliers of the last accepted step */
+  double c0;                        /* C0 in force */
+};
+
+void ves_integrate_params_default(ves_integrate_params *p) {
+  p->t_end = 1.0;
+  p->dt_initial = 1e-4;
+  p->dt_max = 1e-1;
+  p->dt_min = 1e-10;
+  p->adaptive = 1;
+  p->dE_target = 0.02;
+  p->growth_max = 2.0;
+  p->iter_target = 8;
+  p->hold_area = 1;
+  p->hold_volume = 1;
+  p->volume_rate = 0.0;
+  p->volume_final = 1.0;
+  p->c0_time = -1.0;
+  p->c0_after = 0.0;
+  p->check_energy = 1;
+}
+
+void ves_sim_destroy(ves_sim **s) {
+  if (!s || !*s) return;
+  ves_sim *p = *s;
+  if (p->backend && p->bstate) p->backend->destroy(&p->bstate);
+  ves_step_destroy(&p->step);
+  free(p->y);
+  free(p->ynew);
+  free(p->x);
+  free(p);
+  *s = NULL;
+}
+
+ves_status ves_sim_create(ves_model *model, const ves_backend_type *backend,
+                          const ves_backend_options *bopt, const ves_integrate_params *ip,
+                          ves_sim **out) {
+  VES_CHECK(model && backend && bopt && ip && out, VES_ERR_ARG);
+  *out = NULL;
+  VES_CHECK(ip->t_end > 0 && ip->dt_initial > 0 && ip->dt_max >= ip->dt_initial &&
+                ip->dt_min > 0 && ip->dt_min <= ip->dt_initial && ip->growth_max >= 1 &&
+                ip->dE_target > 0 && ip->volume_final > 0,
+            VES_ERR_ARG);
+  ves_status st = VES_ERR_ALLOC;
+  ves_sim *s = calloc(1, sizeof *s);
+  if (!s) return VES_ERR_ALLOC;
+  s->model = model, s->backend = backend, s->bopt = *bopt, s->ip = *ip;
+  s->n = ves_model_pattern(model)->n;
+  s->y = malloc(2 * (size_t)s->n * sizeof *s->y);
+  s->ynew = malloc(2 * (size_t)s->n * sizeof *s->ynew);
+  if (!s->y || !s->ynew) goto fail;
+  ves_model_reference(model, s->y);
+  if ((st = ves_step_create(model, &s->step)) != VES_OK) goto fail;
+  s->nvar = ves_step_nvar(s->step);
+  s->x = malloc((size_t)s->nvar * sizeof *s->x);
+  if (!s->x) {
+    st = VES_ERR_ALLOC;
+    goto fail;
+  }
+  s->c0 = ves_model_get_c0(model);
+  if ((st = ves_model_eval(model, s->y, VES_F_E | VES_F_A | VES_F_V, &s->E, &s->A, &s->V, NULL,
+                           NULL, NULL)) != VES_OK)
+    goto fail;
+  s->E0 = s->E, s->A0 = s->A, s->V0 = s->V;
+  s->dt = ip->dt_initial;
+  /* the backend's state needs a set step problem: set it once at t = 0 */
+  ves_step_params sp = {.dt = s->dt, .hold_area = ip->hold_area, .A0 = s->A0,
+                        .hold_volume = ip->hold_volume, .V_target = s->V0};
+  if ((st = ves_step_set(s->step, s->y, &sp)) != VES_OK) goto fail;
+  if ((st = backend->create(&s->bopt, s->step, &s->bstate)) != VES_OK) goto fail;
+  *out = s;
+  return VES_OK;
+fail:
+  ves_sim_destroy(&s);
+  return st;
+}
+
+/* Volume target at time t: V0 (1 + rate t), stopped at V0 * final. */
+static double volume_target(const ves_sim *s, double t) {
+  double r = 1.0 + s->ip.volume_rate * t;
+  if (s->ip.volume_rate < 0) r = fmax(r, s->ip.volume_final);
+  if (s->ip.volume_rate > 0) r = fmin(r, s->ip.volume_final);
+  return s->V0 * r;
+}
+
+ves_status ves_sim_step(ves_sim *s, ves_step_report *rep) {
+  VES_CHECK(s && rep, VES_ERR_ARG);
+  memset(rep, 0, sizeof *rep);
+  const double tiny = 1e-12 * (1.0 + fabs(s->t));
+  if (s->t >= s->ip.t_end - tiny) return VES_MAXITER;
+  /* protocol: C0 switches when its time is reached (the step ends on it) */
+  if (s->ip.c0_time >= 0 && s->t >= s->ip.c0_time - tiny && s->c0 != s->ip.c0_after) {
+    s->c0 = s->ip.c0_after;
+    VES_CALL(ves_model_set_c0(s->model, s->c0));
+    VES_CALL(ves_model_eval(s->model, s->y, VES_F_E, &s->E, NULL, NULL, NULL, NULL, NULL));
+  }
+  double dt = fmin(s->dt, s->ip.t_end - s->t);
+  if (s->ip.c0_time > s->t + tiny) dt = fmin(dt, s->ip.c0_time - s->t); /* land on the event */
+  ves_status st = VES_ERR_NOCONV;
+  int retries = 0;
+  const int variational = strcmp(s->backend->name, "euler") != 0;
+  for (;;) {
+    double Vt = volume_target(s, s->t + dt);
+    int fixed_targets = fabs(Vt - volume_target(s, s->t)) <= 1e-14 * s->V0;
+    ves_step_params sp = {.dt = dt, .hold_area = s->ip.hold_area, .A0 = s->A0,
+                          .hold_volume = s->ip.hold_volume, .V_target = Vt};
+    double lam[2] = {s->lambda[0], s->lambda[1]}, E, A, V;
+    st = ves_step_set(s->step, s->y, &sp);
+    if (st == VES_OK) {
+      ves_step_x0(s->step, s->x);
+      st = s->backend->solve(s->bstate, s->step, s->x, lam, &rep->stats);
+    }
+    if (st == VES_OK) {
+      ves_step_expand(s->step, s->x, s->ynew);
+      st = ves_model_eval(s->model, s->ynew, VES_F_E | VES_F_A | VES_F_V, &E, &A, &V, NULL, NULL,
+                          NULL);
+    }
+    /* energy stability: a VTI minimizer cannot raise E when y^n was feasible */
+    if (st == VES_OK && variational && s->ip.check_energy && fixed_targets &&
+        E > s->E + 1e-10 * fabs(s->E))
+      st = VES_STEP_REJECTED;
+    if (st == VES_OK) {
+      double dE = fabs(E - s->E);
+      memcpy(s->y, s->ynew, 2 * (size_t)s->n * sizeof *s->y);
+      s->t += dt;
+      s->nstep++;
+      s->E = E, s->A = A, s->V = V;
+      s->lambda[0] = lam[0], s->lambda[1] = lam[1];
+      rep->step = s->nstep, rep->t = s->t, rep->dt = dt;
+      rep->E = E / ves_model_get_k(s->model), rep->A = A, rep->V = V;
+      rep->lambda[0] = lam[0], rep->lambda[1] = lam[1];
+      rep->c0 = s->c0, rep->V_target = Vt, rep->retries = retries, rep->solve_status = st;
+      /* next dt */
+      double next = s->dt;
+      if (s->ip.adaptive) {
+        double f = dE > 0 ? s->ip.dE_target * ves_model_get_k(s->model) / dE : s->ip.growth_max;
+        f = fmin(fmax(f, 0.5), s->ip.growth_max);
+        if (rep->stats.iterations > s->ip.iter_target) f = fmin(f, 1.0);
+        next = dt * f;
+        if (retries) next = fmin(next, dt); /* just halved: do not jump back at once */
+      }
+      s->dt = fmin(fmax(next, s->ip.dt_min), s->ip.dt_max);
+      return VES_OK;
+    }
+    rep->solve_status = st;
+    rep->dt = dt;
+    if (st < 0 && st != VES_ERR_DOMAIN && st != VES_ERR_NOCONV && st != VES_ERR_SOLVER &&
+        st != VES_ERR_SINGULAR)
+      return st; /* not a numerical rejection: argument or memory errors */
+    dt *= 0.5;
+    retries++;
+    rep->retries = retries;
+    if (dt < s->ip.dt_min) {
+      s->dt = s->ip.dt_min;
+      return st == VES_STEP_REJECTED || st == VES_MAXITER ? VES_ERR_NOCONV : st;
+    }
+  }
+}
+
+double ves_sim_time(const ves_sim *s) { return s->t; }
+double ves_sim_dt(const ves_sim *s) { return s->dt; }
+const double *ves_sim_y(const ves_sim *s) { return s->y; }
+
+void ves_sim_initial(const ves_sim *s, double *E, double *A, double *V) {
+  if (E) *E = s->E0 / ves_model_get_k(s->model);
+  if (A) *A = s->A0;
+  if (V) *V = s->V0;
+}

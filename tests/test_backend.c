@@ -1,0 +1,365 @@
+/* vesica — tests of the step backends (solver/backend_*.c) on one small step:
+ * a perturbed sphere (mode 2, out of equilibrium) relaxing for one time step
+ * with area and volume held. Ipopt must converge with the constraints met to
+ * 1e-9 and the energy decreasing; NLopt must find the same point; every
+ * backend available (newton when it is implemented) must agree on y; a start
+ * outside the domain must come back as an error status, not a crash. Prints
+ * iterations, evaluations and seconds for each backend. */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+/* cmocka needs the four headers above first */
+#include <cmocka.h>
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "ves/backend.h"
+#include "ves/config.h"
+#include "ves/setup.h"
+#include "ves/step.h"
+
+/* The time step: the mode-2 perturbation (delta = 0.1) relaxes on a time
+ * scale O(1e-1) t*; DT moves the nodes of the band by a few percent of the
+ * band spacing (printed), so the step is nonlinear but small. */
+#ifndef DT
+#define DT 5e-2
+#endif
+
+/* The shared problem. */
+typedef struct {
+  ves_config cfg;
+  ves_setup *setup;
+  ves_step *step;
+  ves_step_params par;
+  int n2, nvar;
+  double *yn;              /* 2n reference positions y^n */
+  double *x0;              /* nvar start */
+  double E0, A0, V0;       /* at y^n */
+  double *x_ipopt;         /* Ipopt's solution (set by the first test) */
+  double *x_nlopt;         /* NLopt's (set by the second: it is slow, run once) */
+  int have_nlopt;
+  double lambda_ipopt[2];  /* its multipliers */
+  int have_ipopt;
+} fixture;
+
+static fixture FX;
+
+static int group_setup(void **state) {
+  (void)state;
+  const char *set[] = {"geometry.epsilon=0.12", "geometry.box_r=1.9", "geometry.box_z=1.9",
+                       "shape.type=sphere",     "shape.mode=2",       "shape.delta=0.1"};
+  char err[512] = "";
+  if (ves_config_load(NULL, 6, set, &FX.cfg, err, sizeof err) != VES_OK) {
+    fprintf(stderr, "config: %s\n", err);
+    return -1;
+  }
+  if (ves_setup_create(&FX.cfg, VES_PHI0_L2, &FX.setup, err, sizeof err) != VES_OK) {
+    fprintf(stderr, "setup: %s\n", err);
+    return -1;
+  }
+  ves_model *m = FX.setup->model;
+  if (ves_step_create(m, &FX.step) != VES_OK) return -1;
+  FX.n2 = 2 * FX.setup->nodes->n;
+  FX.nvar = ves_step_nvar(FX.step);
+  FX.yn = malloc((size_t)FX.n2 * sizeof(double));
+  FX.x0 = malloc((size_t)FX.nvar * sizeof(double));
+  FX.x_ipopt = malloc((size_t)FX.nvar * sizeof(double));
+  FX.x_nlopt = malloc((size_t)FX.nvar * sizeof(double));
+  if (!FX.yn || !FX.x0 || !FX.x_ipopt || !FX.x_nlopt) return -1;
+  ves_model_reference(m, FX.yn);
+  if (ves_model_eval(m, FX.yn, VES_F_E | VES_F_A | VES_F_V, &FX.E0, &FX.A0, &FX.V0, NULL, NULL,
+                     NULL) != VES_OK)
+    return -1;
+  FX.par = (ves_step_params){.dt = DT, .hold_area = 1, .A0 = FX.A0, .hold_volume = 1,
+                             .V_target = FX.V0};
+  if (ves_step_set(FX.step, FX.yn, &FX.par) != VES_OK) return -1;
+  ves_step_x0(FX.step, FX.x0);
+  printf("# problem: %d nodes, %d free dofs, Hessian nnz %d; E0 = %.10g, A0 = %.10g, V0 = "
+         "%.10g, dt = %g\n",
+         FX.n2 / 2, FX.nvar, ves_step_hess_nnz(FX.step), FX.E0, FX.A0, FX.V0, DT);
+  return 0;
+}
+
+static int group_teardown(void **state) {
+  (void)state;
+  ves_step_destroy(&FX.step);
+  ves_setup_destroy(&FX.setup);
+  free(FX.yn), free(FX.x0), free(FX.x_ipopt), free(FX.x_nlopt);
+  return 0;
+}
+
+/* E, A, V at free dofs x. */
+static void eval_at(const double *x, double *E, double *A, double *V) {
+  double *y = malloc((size_t)FX.n2 * sizeof(double));
+  assert_non_null(y);
+  ves_step_expand(FX.step, x, y);
+  assert_int_equal(ves_model_eval(FX.setup->model, y, VES_F_E | VES_F_A | VES_F_V, E, A, V, NULL,
+                                  NULL, NULL),
+                   VES_OK);
+  free(y);
+}
+
+static double max_abs_diff(const double *a, const double *b, int n) {
+  double d = 0.0;
+  for (int i = 0; i < n; i++) d = fmax(d, fabs(a[i] - b[i]));
+  return d;
+}
+
+static double max_abs(const double *a, int n) {
+  double d = 0.0;
+  for (int i = 0; i < n; i++) d = fmax(d, fabs(a[i]));
+  return d;
+}
+
+static void print_stats(const char *name, ves_status st, const ves_backend_stats *s) {
+  printf("# %-7s %-28s iter %4d  f %5d  g %5d  H %4d  viol %.2e  %.3f s  (solver status %d)\n",
+         name, ves_status_str(st), s->iterations, s->f_evals, s->g_evals, s->h_evals,
+         s->violation, s->seconds, s->solver_status);
+}
+
+/* Run backend `name` from x0 with multipliers lambda (in/out); x out. */
+static ves_status run_backend(const ves_backend_type *b, const ves_backend_options *opt, double *x,
+                              double *lambda, ves_backend_stats *stats) {
+  void *state = NULL;
+  ves_status st = b->create(opt, FX.step, &state);
+  if (st != VES_OK) return st;
+  memcpy(x, FX.x0, (size_t)FX.nvar * sizeof(double));
+  st = b->solve(state, FX.step, x, lambda, stats);
+  b->destroy(&state);
+  assert_null(state);
+  return st;
+}
+
+/* Ipopt converges; |A/A0 - 1|, |V/V0 - 1| <= 1e-9 (the default ctol is
+ * 1e-10, so this leaves a factor 10 for the model's own roundoff); the
+ * energy decreases (the K term is >= 0, so f(x) <= f(x0) = dt E0 implies
+ * E < E0 whenever the step moves). */
+static void test_ipopt_converges(void **state) {
+  (void)state;
+  const ves_backend_type *b = ves_backend_find("ipopt");
+  assert_ptr_equal(b, &ves_backend_ipopt);
+  ves_backend_options opt;
+  ves_backend_options_default(&opt);
+  ves_backend_stats stats;
+  double lambda[2] = {0.0, 0.0};
+  ves_status st = run_backend(b, &opt, FX.x_ipopt, lambda, &stats);
+  print_stats("ipopt", st, &stats);
+  assert_int_equal(st, VES_OK);
+  double E, A, V;
+  eval_at(FX.x_ipopt, &E, &A, &V);
+  double move = max_abs_diff(FX.x_ipopt, FX.x0, FX.nvar);
+  printf("# ipopt: E %.12g -> %.12g (dE = %.3e), |A/A0-1| = %.2e, |V/V0-1| = %.2e, max "
+         "|y - y^n| = %.3e (band spacing %.3e), lambda = (%.6e, %.6e)\n",
+         FX.E0, E, E - FX.E0, fabs(A / FX.A0 - 1), fabs(V / FX.V0 - 1), move,
+         FX.cfg.h_band * FX.cfg.epsilon, lambda[0], lambda[1]);
+  assert_true(fabs(A / FX.A0 - 1) <= 1e-9);
+  assert_true(fabs(V / FX.V0 - 1) <= 1e-9);
+  assert_true(E < FX.E0);
+  assert_true(move > 0.0);
+  assert_true(stats.iterations > 0 && stats.f_evals > 0 && stats.h_evals > 0);
+  assert_true(stats.violation <= opt.ctol);
+  memcpy(FX.lambda_ipopt, lambda, sizeof lambda);
+  FX.have_ipopt = 1;
+
+  /* Warm start from the multipliers found: the same solution, no more
+   * iterations than cold. */
+  double *x2 = malloc((size_t)FX.nvar * sizeof(double));
+  assert_non_null(x2);
+  ves_backend_stats s2;
+  double lam2[2] = {lambda[0], lambda[1]};
+  st = run_backend(b, &opt, x2, lam2, &s2);
+  print_stats("ipopt/w", st, &s2);
+  assert_int_equal(st, VES_OK);
+  double d = max_abs_diff(x2, FX.x_ipopt, FX.nvar);
+  printf("# ipopt warm start: max |x_warm - x_cold| = %.2e\n", d);
+  assert_true(d <= 1e-6 * move);
+  free(x2);
+}
+
+/* NLopt (AUGLAG + LBFGS, IC(0)-preconditioned) reaches the point Ipopt found.
+ * Tolerance: Ipopt solves to a relative KKT residual 1e-9 by Newton steps;
+ * LBFGS stops on a first-order test only, and its line search is limited by
+ * the roundoff of f = (1/2) d^T K d + dt E, where dt E (~0.3) carries an
+ * absolute error ~1e-16 dt E while one step lowers f by only ~1e-5: the
+ * attainable relative accuracy of the displacement is ~sqrt(1e-16 * 0.3 /
+ * 1e-5) ~ 1e-6 in the best case, and the AUGLAG outer loop adds its own noise.
+ * Measured: 1.2e-2 of the displacement (6e-6 absolute, 3e-6 of max |y|).
+ * Asserted: 5e-2 of the displacement and 1e-5 of max |y|; the constraints to
+ * 1e-9 as for Ipopt; the multipliers to 1e-3 relative. */
+static void test_nlopt_matches_ipopt(void **state) {
+  (void)state;
+  if (!FX.have_ipopt) skip();
+  const ves_backend_type *b = ves_backend_find("nlopt");
+  assert_ptr_equal(b, &ves_backend_nlopt);
+  ves_backend_options opt;
+  ves_backend_options_default(&opt);
+  ves_backend_stats stats;
+  double lambda[2] = {0.0, 0.0};
+  double *x = FX.x_nlopt;
+  ves_status st = run_backend(b, &opt, x, lambda, &stats);
+  print_stats("nlopt", st, &stats);
+  double move = max_abs_diff(FX.x_ipopt, FX.x0, FX.nvar);
+  double d = max_abs_diff(x, FX.x_ipopt, FX.nvar);
+  double E, A, V;
+  eval_at(x, &E, &A, &V);
+  printf("# nlopt: max |x - x_ipopt| = %.3e (%.3e of the displacement, %.3e of max |y|), "
+         "|A/A0-1| = %.2e, |V/V0-1| = %.2e, dE = %.3e, lambda = (%.6e, %.6e) vs ipopt "
+         "(%.6e, %.6e)\n",
+         d, d / move, d / max_abs(FX.x_ipopt, FX.nvar), fabs(A / FX.A0 - 1),
+         fabs(V / FX.V0 - 1), E - FX.E0, lambda[0], lambda[1], FX.lambda_ipopt[0],
+         FX.lambda_ipopt[1]);
+  assert_int_equal(st, VES_OK);
+  FX.have_nlopt = 1;
+  assert_true(fabs(A / FX.A0 - 1) <= 1e-9);
+  assert_true(fabs(V / FX.V0 - 1) <= 1e-9);
+  assert_true(E < FX.E0);
+  assert_true(d <= 5e-2 * move);
+  assert_true(d <= 1e-5 * max_abs(FX.x_ipopt, FX.nvar));
+  for (int i = 0; i < 2; i++)
+    assert_true(fabs(lambda[i] - FX.lambda_ipopt[i]) <= 1e-3 * fabs(FX.lambda_ipopt[i]));
+}
+
+/* Conformance: the backends give the same y as Ipopt. Newton (written
+ * separately; left out while it is missing or a stub) solves the same KKT
+ * conditions with Newton steps: 1e-6 of max |y| (the state tolerances: tol
+ * 1e-9, ctol 1e-10). NLopt (its run above, reused: it is slow) is held to the
+ * looser 1e-5 of max |y| justified there. */
+static void test_conformance(void **state) {
+  (void)state;
+  if (!FX.have_ipopt) skip();
+  double ymax = max_abs(FX.x_ipopt, FX.nvar);
+  if (FX.have_nlopt) {
+    double d = max_abs_diff(FX.x_nlopt, FX.x_ipopt, FX.nvar);
+    printf("# nlopt vs ipopt: max |dy| / max |y| = %.2e\n", d / ymax);
+    assert_true(d <= 1e-5 * ymax);
+  }
+  const ves_backend_type *b = ves_backend_find("newton");
+  if (!b) {
+    printf("# newton: not in the table\n");
+    return;
+  }
+  double *x = malloc((size_t)FX.nvar * sizeof(double));
+  assert_non_null(x);
+  ves_backend_options opt;
+  ves_backend_options_default(&opt);
+  ves_backend_stats stats = {0};
+  double lambda[2] = {0.0, 0.0};
+  ves_status st = run_backend(b, &opt, x, lambda, &stats);
+  print_stats("newton", st, &stats);
+  if (st != VES_OK) {
+    printf("# newton: %s, left out of the comparison\n", ves_status_str(st));
+  } else {
+    double d = max_abs_diff(x, FX.x_ipopt, FX.nvar);
+    printf("# newton vs ipopt: max |dy| / max |y| = %.2e, lambda (%.6e, %.6e)\n", d / ymax,
+           lambda[0], lambda[1]);
+    assert_true(d <= 1e-6 * ymax);
+  }
+  free(x);
+}
+
+/* A start outside the domain (an element inverted) is an error status from
+ * both backends, not a crash or a silent success. The start: x0 with every
+ * free dof moved by +-0.3 band spacings alternately (neighbours move in
+ * opposite directions); the test checks first that the model refuses it. */
+static void test_domain_start(void **state) {
+  (void)state;
+  double *xb = malloc((size_t)FX.nvar * sizeof(double));
+  double *x = malloc((size_t)FX.nvar * sizeof(double));
+  assert_non_null(xb), assert_non_null(x);
+  double h = FX.cfg.h_band * FX.cfg.epsilon, f;
+  ves_status st = VES_OK;
+  for (double a = 0.3; a <= 3.0 && st != VES_ERR_DOMAIN; a *= 1.5) {
+    for (int i = 0; i < FX.nvar; i++) xb[i] = FX.x0[i] + ((i / 2) % 2 ? a : -a) * h;
+    st = ves_step_eval_f(FX.step, xb, &f);
+  }
+  assert_int_equal(st, VES_ERR_DOMAIN);
+  const char *names[] = {"ipopt", "nlopt"};
+  for (int k = 0; k < 2; k++) {
+    const ves_backend_type *b = ves_backend_find(names[k]);
+    ves_backend_options opt;
+    ves_backend_options_default(&opt);
+    void *sp = NULL;
+    assert_int_equal(b->create(&opt, FX.step, &sp), VES_OK);
+    memcpy(x, xb, (size_t)FX.nvar * sizeof(double));
+    double lambda[2] = {0.0, 0.0};
+    ves_backend_stats stats = {0};
+    st = b->solve(sp, FX.step, x, lambda, &stats);
+    print_stats(names[k], st, &stats);
+    assert_int_equal(st, VES_ERR_DOMAIN);
+    b->destroy(&sp);
+  }
+  free(xb), free(x);
+}
+
+/* A huge time step (dt = 1e3: the energy term dominates, nodes want to move
+ * far): whatever each backend returns, it returns (no crash), and a VES_OK
+ * comes with the constraints met. The step is restored afterwards. */
+static void test_huge_dt(void **state) {
+  (void)state;
+  ves_step_params par = FX.par;
+  par.dt = 1e3;
+  assert_int_equal(ves_step_set(FX.step, FX.yn, &par), VES_OK);
+  double *x = malloc((size_t)FX.nvar * sizeof(double));
+  assert_non_null(x);
+  const char *names[] = {"ipopt", "nlopt"};
+  for (int k = 0; k < 2; k++) {
+    const ves_backend_type *b = ves_backend_find(names[k]);
+    ves_backend_options opt;
+    ves_backend_options_default(&opt);
+    opt.max_iter = 8;
+    double lambda[2] = {0.0, 0.0};
+    ves_backend_stats stats = {0};
+    ves_status st = run_backend(b, &opt, x, lambda, &stats);
+    print_stats(names[k], st, &stats);
+    if (st == VES_OK) {
+      double E, A, V;
+      eval_at(x, &E, &A, &V);
+      assert_true(fabs(A / FX.A0 - 1) <= 1e-9 && fabs(V / FX.V0 - 1) <= 1e-9);
+    }
+  }
+  free(x);
+  assert_int_equal(ves_step_set(FX.step, FX.yn, &FX.par), VES_OK);
+}
+
+/* Usage errors: NULL arguments and bad options are VES_ERR_ARG. */
+static void test_bad_arguments(void **state) {
+  (void)state;
+  const char *names[] = {"ipopt", "nlopt"};
+  for (int k = 0; k < 2; k++) {
+    const ves_backend_type *b = ves_backend_find(names[k]);
+    ves_backend_options opt;
+    ves_backend_options_default(&opt);
+    void *sp = NULL;
+    assert_int_equal(b->create(NULL, FX.step, &sp), VES_ERR_ARG);
+    assert_int_equal(b->create(&opt, NULL, &sp), VES_ERR_ARG);
+    opt.tol = -1;
+    assert_int_equal(b->create(&opt, FX.step, &sp), VES_ERR_ARG);
+    assert_null(sp);
+    ves_backend_options_default(&opt);
+    assert_int_equal(b->create(&opt, FX.step, &sp), VES_OK);
+    assert_int_equal(b->solve(sp, FX.step, NULL, NULL, NULL), VES_ERR_ARG);
+    double *x = malloc((size_t)FX.nvar * sizeof(double));
+    assert_non_null(x);
+    ves_step_x0(FX.step, x);
+    assert_int_equal(b->solve(sp, FX.step, x, NULL, NULL), VES_ERR_ARG); /* ncon = 2 */
+    free(x);
+    b->destroy(&sp);
+    assert_null(sp);
+    b->destroy(&sp); /* NULL is accepted */
+    b->destroy(NULL);
+  }
+}
+
+int main(void) {
+  setvbuf(stdout, NULL, _IOLBF, 0);
+  const struct CMUnitTest tests[] = {
+      cmocka_unit_test(test_ipopt_converges), cmocka_unit_test(test_nlopt_matches_ipopt),
+      cmocka_unit_test(test_conformance),     cmocka_unit_test(test_domain_start),
+      cmocka_unit_test(test_huge_dt),         cmocka_unit_test(test_bad_arguments),
+  };
+  return cmocka_run_group_tests(tests, group_setup, group_teardown);
+}
