@@ -42,7 +42,7 @@ LIB_OBJ  = $(LIB_C:solver/%.c=$(BUILD)/obj/%.o) $(BUILD)/obj/geom.o
 TESTS    = $(patsubst tests/%.c,$(BUILD)/tests/%,$(wildcard tests/test_*.c))
 BENCHES  = $(patsubst bench/%.c,$(BUILD)/bench/%,$(wildcard bench/bench_*.c))
 
-.PHONY: all deps test bench run clean format
+.PHONY: all deps test test-slow bench run clean format
 all: deps-quiet $(BUILD)/libvesica.a $(BUILD)/vesica
 
 $(BUILD)/obj/%.o: solver/%.c | $(BUILD)/obj
@@ -82,6 +82,10 @@ deps-quiet: deps
 test: deps
 	@$(MAKE) --no-print-directory $(BUILD)/libvesica.a $(BUILD)/vesica $(TESTS)
 	@OPENBLAS_NUM_THREADS=1 sh tests/run.sh $(TESTS)
+
+# the slow cases too (the full NLopt-vs-Ipopt step comparison, ~3 min)
+test-slow:
+	@VESICA_SLOW_TESTS=1 $(MAKE) --no-print-directory test
 
 bench: deps
 	@$(MAKE) --no-print-directory $(BUILD)/libvesica.a $(BUILD)/vesica $(BENCHES)
