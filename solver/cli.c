@@ -41,8 +41,24 @@ static void usage_check(FILE *f) {
              "--phi0 sampled uses phi0(X_a) as coefficients (wrong on purpose: for comparison).\n");
 }
 
+/* The tail shared by the commands that take a problem file: a path must have
+ * been given; load it with the overrides. 0 on success, else the exit code. */
+static int load_problem(const char *cmd, const char *path, void (*usage_fn)(FILE *), int nset,
+                        const char *const *set, ves_config *cfg) {
+  char err[1024] = "";
+  if (!path) {
+    usage_fn(stderr);
+    return 2;
+  }
+  if (ves_config_load(path, nset, set, cfg, err, sizeof err) != VES_OK) {
+    fprintf(stderr, "vesica %s: %s\n", cmd, err);
+    return 2;
+  }
+  return 0;
+}
+
 static int cmd_check(int argc, char **argv) {
-  const char *path = NULL, *set[MAX_SET];
+  const char *path = NULL, *set[MAX_SET] = {0};
   int nset = 0;
   ves_phi0_method method = VES_PHI0_L2;
   for (int i = 0; i < argc; i++) {
@@ -71,16 +87,10 @@ static int cmd_check(int argc, char **argv) {
       return 2;
     }
   }
-  if (!path) {
-    usage_check(stderr);
-    return 2;
-  }
   ves_config cfg;
   char err[1024] = "";
-  if (ves_config_load(path, nset, set, &cfg, err, sizeof err) != VES_OK) {
-    fprintf(stderr, "vesica: %s\n", err);
-    return 2;
-  }
+  int rc = load_problem("check", path, usage_check, nset, set, &cfg);
+  if (rc) return rc;
   ves_setup *s = NULL;
   ves_status st = ves_setup_create(&cfg, method, &s, err, sizeof err);
   if (st != VES_OK) {
@@ -150,7 +160,7 @@ static double wall(void) {
 }
 
 static int cmd_run(int argc, char **argv) {
-  const char *path = NULL, *set[MAX_SET], *backend = NULL, *series = NULL;
+  const char *path = NULL, *set[MAX_SET] = {0}, *backend = NULL, *series = NULL;
   int nset = 0, quiet = 0;
   for (int i = 0; i < argc; i++) {
     if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
@@ -175,16 +185,10 @@ static int cmd_run(int argc, char **argv) {
       return 2;
     }
   }
-  if (!path) {
-    usage_run(stderr);
-    return 2;
-  }
   ves_config cfg;
   char err[1024] = "";
-  if (ves_config_load(path, nset, set, &cfg, err, sizeof err) != VES_OK) {
-    fprintf(stderr, "vesica: %s\n", err);
-    return 2;
-  }
+  int rc = load_problem("run", path, usage_run, nset, set, &cfg);
+  if (rc) return rc;
   const ves_backend_type *bk = ves_backend_find(backend ? backend : cfg.backend);
   if (!bk) {
     fprintf(stderr, "vesica run: --backend '%s': not one of ipopt, nlopt, newton, euler\n",
