@@ -20,15 +20,21 @@ static double urand(uint64_t *s) {
   return (double)((*s * 2685821657736338717ULL) >> 11) * 0x1.0p-53;
 }
 
+/* The v = 0.9 oblate spheroid (parameters in *p, for tests that vary them). */
+static ves_shape *oblate09(ves_shape_params *p) {
+  ves_shape_params_default(p);
+  p->kind = VES_SHAPE_SPHEROID;
+  p->v = 0.9;
+  ves_shape *s = NULL;
+  assert_int_equal(ves_shape_create(p, &s), VES_OK);
+  return s;
+}
+
 /* The v = 0.9 oblate spheroid of DESIGN/issue: semi-axes 1.182923, 0.643176. */
 static void test_spheroid_axes(void **state) {
   (void)state;
   ves_shape_params p;
-  ves_shape_params_default(&p);
-  p.kind = VES_SHAPE_SPHEROID;
-  p.v = 0.9;
-  ves_shape *s = NULL;
-  assert_int_equal(ves_shape_create(&p, &s), VES_OK);
+  ves_shape *s = oblate09(&p);
   double a, c, A, V;
   ves_shape_axes(s, &a, &c);
   ves_shape_sharp(s, &A, &V);
@@ -207,11 +213,7 @@ static void test_sizing(void **state) {
 static void test_band_nodes(void **state) {
   (void)state;
   ves_shape_params p;
-  ves_shape_params_default(&p);
-  p.kind = VES_SHAPE_SPHEROID;
-  p.v = 0.9;
-  ves_shape *s = NULL;
-  assert_int_equal(ves_shape_create(&p, &s), VES_OK);
+  ves_shape *s = oblate09(&p);
   const double h = 0.02, hw = 0.22, dl = 0.5 * sqrt(3.0) * h;
   int n = 0, *fl = NULL;
   double *x = NULL;
