@@ -22,6 +22,7 @@
 
 #include "backend_kkt_impl.h"
 #include "ves/backend.h"
+#include "clock_impl.h"
 
 typedef struct {
   kkt_system kkt; /* KKT structure and factorization */
@@ -29,12 +30,6 @@ typedef struct {
   double *J;      /* KKT_NROWS nvar constraint Jacobian at x0 */
   double *sol;    /* nvar + KKT_NROWS right-hand side / solution */
 } euler_state;
-
-static double now(void) {
-  struct timespec ts;
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
 
 static void euler_destroy(void **state) {
   if (!state || !*state) return;
@@ -72,7 +67,7 @@ static ves_status euler_solve(void *state, ves_step *s, double *x, double *lambd
                               ves_backend_stats *stt) {
   VES_CHECK(state && s && x && stt, VES_ERR_ARG);
   memset(stt, 0, sizeof *stt);
-  const double t0 = now();
+  const double t0 = ves_wall_seconds();
   euler_state *w = state;
   const ves_step_params *par = ves_step_get_params(s);
   const double *K = ves_step_K(s);
@@ -88,7 +83,7 @@ static ves_status euler_solve(void *state, ves_step *s, double *x, double *lambd
   ves_status st = kkt_factor(&w->kkt);
   if (st != VES_OK || w->kkt.neg != KKT_NROWS) {
     stt->solver_status = st != VES_OK ? (int)st : w->kkt.neg;
-    stt->seconds = now() - t0;
+    stt->seconds = ves_wall_seconds() - t0;
     return VES_ERR_SOLVER; /* K not SPD or J rank deficient: no Euler step */
   }
   for (int j = 0; j < nv; j++) w->sol[j] = -w->sol[j];
@@ -105,12 +100,12 @@ static ves_status euler_solve(void *state, ves_step *s, double *x, double *lambd
   stt->f_evals = 1;
   st = ves_step_eval_c(s, x, c);
   if (st != VES_OK) {
-    stt->seconds = now() - t0;
+    stt->seconds = ves_wall_seconds() - t0;
     return st; /* the explicit step left the admissible set */
   }
   for (int i = 0; i < ncon; i++) stt->violation = fmax(stt->violation, fabs(c[i]) / tgt[i]);
   stt->solver_status = 0;
-  stt->seconds = now() - t0;
+  stt->seconds = ves_wall_seconds() - t0;
   return VES_OK;
 }
 

@@ -28,6 +28,7 @@
 #include <coin/IpStdCInterface.h>
 
 #include "ves/backend.h"
+#include "clock_impl.h"
 
 /* Ipopt's representation of an infinite bound ("nlp_lower_bound_inf"). */
 #define IPOPT_INF 2e19
@@ -141,13 +142,6 @@ static Bool ipopt_intermediate(Index alg_mod, Index iter, Number obj, Number inf
   return TRUE;
 }
 
-/* Wall-clock seconds. */
-static double ipopt_now(void) {
-  struct timespec t;
-  clock_gettime(CLOCK_MONOTONIC, &t);
-  return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
-}
-
 /* The targets c_i is measured against: A0 and/or V_target (area first). */
 static int ipopt_targets(ves_step *s, double *tgt) {
   const ves_step_params *p = ves_step_get_params(s);
@@ -236,7 +230,7 @@ static ves_status ipopt_solve(void *state, ves_step *s, double *x, double *lambd
                               ves_backend_stats *stats) {
   VES_CHECK(state && s && x, VES_ERR_ARG);
   ipopt_state *st = state;
-  double t0 = ipopt_now();
+  double t0 = ves_wall_seconds();
   VES_CALL(ipopt_build(st, s)); /* a no-op unless the sizes changed */
   int n = st->n, m = st->m;
   VES_CHECK(m == 0 || lambda != NULL, VES_ERR_ARG);
@@ -253,7 +247,7 @@ static ves_status ipopt_solve(void *state, ves_step *s, double *x, double *lambd
   ves_status rc = ves_step_eval_grad(s, x, st->grad);
   c->g_evals++;
   if (rc != VES_OK) {
-    if (stats) stats->g_evals = 1, stats->seconds = ipopt_now() - t0;
+    if (stats) stats->g_evals = 1, stats->seconds = ves_wall_seconds() - t0;
     return rc;
   }
   double gmax = 0.0;
@@ -325,7 +319,7 @@ static ves_status ipopt_solve(void *state, ves_step *s, double *x, double *lambd
     stats->g_evals = c->g_evals;
     stats->h_evals = c->h_evals;
     stats->violation = viol;
-    stats->seconds = ipopt_now() - t0;
+    stats->seconds = ves_wall_seconds() - t0;
     stats->solver_status = (int)ars;
   }
   return out;

@@ -42,6 +42,7 @@
 
 #include "backend_kkt_impl.h"
 #include "ves/backend.h"
+#include "clock_impl.h"
 
 #define NEWTON_ARMIJO 1e-4     /* sufficient decrease of the merit function */
 #define NEWTON_MAX_LS 40       /* backtracking halvings */
@@ -62,12 +63,6 @@ typedef struct {
   double *xt;              /* nvar trial point */
   double noise;            /* eps_mach (|H| |x|)_inf at the last assembly */
 } newton_state;
-
-static double now(void) {
-  struct timespec ts;
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
 
 static void newton_destroy(void **state) {
   if (!state || !*state) return;
@@ -166,7 +161,7 @@ static ves_status newton_solve(void *state, ves_step *s, double *x, double *lamb
                                ves_backend_stats *stt) {
   VES_CHECK(state && s && x && stt, VES_ERR_ARG);
   memset(stt, 0, sizeof *stt);
-  const double t0 = now();
+  const double t0 = ves_wall_seconds();
   newton_state *w = state;
   w->noise = 0;
   const ves_step_params *par = ves_step_get_params(s);
@@ -299,7 +294,7 @@ static ves_status newton_solve(void *state, ves_step *s, double *x, double *lamb
   if (st != VES_OK) result = st == VES_ERR_SINGULAR ? VES_ERR_SOLVER : st; /* no usable KKT matrix */
   for (int i = 0; i < ncon; i++) lambda[i] = lam[i];
   stt->solver_status = (int)result;
-  stt->seconds = now() - t0;
+  stt->seconds = ves_wall_seconds() - t0;
   return result;
 }
 

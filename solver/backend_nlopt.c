@@ -60,6 +60,7 @@
 #include <nlopt.h>
 
 #include "ves/backend.h"
+#include "clock_impl.h"
 
 #define NLB_EVALS_PER_ITER 100 /* maxeval = this * max_iter */
 #define NLB_DOMAIN_MAX 30      /* consecutive domain errors before giving up */
@@ -104,12 +105,6 @@ typedef struct {
   nlb_ic L;                /* preconditioner */
   nlb_ctx ctx;
 } nlb_state;
-
-static double nlb_now(void) {
-  struct timespec t;
-  clock_gettime(CLOCK_MONOTONIC, &t);
-  return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
-}
 
 /* ---- IC(0) ------------------------------------------------------------- */
 
@@ -408,7 +403,7 @@ static ves_status nlb_solve(void *state, ves_step *s, double *x, double *lambda,
                             ves_backend_stats *stats) {
   VES_CHECK(state && s && x, VES_ERR_ARG);
   nlb_state *st = state;
-  double t0 = nlb_now();
+  double t0 = ves_wall_seconds();
   ves_backend_stats zero = {0};
   if (stats) *stats = zero;
   VES_CALL(nlb_alloc(st, s));
@@ -431,7 +426,7 @@ static ves_status nlb_solve(void *state, ves_step *s, double *x, double *lambda,
   if (rc == VES_OK) rc = ves_step_eval_grad(s, x, st->g);
   if (rc == VES_OK) rc = nlb_precondition(st, s, x, m > 0 ? lambda : NULL);
   if (rc != VES_OK) {
-    if (stats) stats->f_evals = stats->g_evals = 1, stats->seconds = nlb_now() - t0;
+    if (stats) stats->f_evals = stats->g_evals = 1, stats->seconds = ves_wall_seconds() - t0;
     return rc;
   }
   memcpy(st->xs, x, (size_t)n * sizeof(double));
@@ -535,7 +530,7 @@ done:;
     stats->g_evals = c->g_evals + 1;
     stats->h_evals = 1;
     stats->violation = viol;
-    stats->seconds = nlb_now() - t0;
+    stats->seconds = ves_wall_seconds() - t0;
     stats->solver_status = (int)r;
   }
   return out;

@@ -14,6 +14,7 @@
 #include "ves/config.h"
 #include "ves/integrate.h"
 #include "ves/setup.h"
+#include "clock_impl.h"
 
 #define VES_VERSION "0.1.0"
 #define MAX_SET 64
@@ -153,12 +154,6 @@ static void usage_run(FILE *f) {
           "good state is the last line of the series).\n");
 }
 
-static double wall(void) {
-  struct timespec ts;
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return ts.tv_sec + 1e-9 * ts.tv_nsec;
-}
-
 static int cmd_run(int argc, char **argv) {
   const char *path = NULL, *set[MAX_SET] = {0}, *backend = NULL, *series = NULL;
   int nset = 0, quiet = 0;
@@ -226,7 +221,7 @@ static int cmd_run(int argc, char **argv) {
     if (out) fclose(out);
     return st == VES_ERR_ARG ? 2 : 3;
   }
-  double E0, A0, V0, t0 = wall();
+  double E0, A0, V0, t0 = ves_wall_seconds();
   ves_sim_initial(sim, &E0, &A0, &V0);
   if (out)
     fprintf(out, "# vesica %s run %s backend %s nodes %d E0 %.12g A0 %.12g V0 %.12g\n"
@@ -246,7 +241,7 @@ static int cmd_run(int argc, char **argv) {
       fflush(out); /* a killed run keeps every completed step */
     }
     if (!quiet && (tty || rep.step % 10 == 0)) {
-      double el = wall() - t0, eta = rep.t > 0 ? el * (cfg.t_end - rep.t) / rep.t : 0;
+      double el = ves_wall_seconds() - t0, eta = rep.t > 0 ? el * (cfg.t_end - rep.t) / rep.t : 0;
       fprintf(stderr, "%sstep %ld  t* %.4g/%.4g  dt* %.3g  E* %.6f  iter %d  ETA %.0f s%s",
               tty ? "\r" : "", rep.step, rep.t, cfg.t_end, rep.dt, rep.E, rep.stats.iterations,
               eta, tty ? "   " : "\n");
@@ -260,7 +255,7 @@ static int cmd_run(int argc, char **argv) {
     code = 3;
   } else if (!quiet) {
     fprintf(stderr, "vesica: t* = %.6g reached, %ld iterations in all, %.1f s\n", ves_sim_time(sim),
-            iters, wall() - t0);
+            iters, ves_wall_seconds() - t0);
   }
   if (out) fclose(out);
   ves_sim_destroy(&sim);

@@ -12,6 +12,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
+#include "clock_impl.h"
 
 #define QA1 0.4459484909159648863183292538830519883991
 #define QW1 0.2233815896780114656950070084331228043703
@@ -90,12 +91,6 @@ fail:
   return s;
 }
 
-static double now_seconds(void) {
-  struct timespec ts;
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return ts.tv_sec + 1e-9 * ts.tv_nsec;
-}
-
 /* Grow *buf to hold at least need elements of size sz (capacity in *cap). */
 static int grow(void **buf, size_t *cap, size_t need, size_t sz) {
   if (need <= *cap) return 0;
@@ -113,7 +108,7 @@ static int grow(void **buf, size_t *cap, size_t need, size_t sz) {
 ves_status ves_quad_tables(ves_quad *q, const ves_nodes *nodes,
                            const ves_lme_params *lme, ves_quad_info *info) {
   VES_CHECK(q && nodes && lme, VES_ERR_ARG);
-  double t0 = now_seconds();
+  double t0 = ves_wall_seconds();
   tables_free(q);
   int n = nodes->n, ne = nodes->n + nodes->ng;
   ves_status s = VES_OK;
@@ -209,7 +204,7 @@ ves_status ves_quad_tables(ves_quad *q, const ves_nodes *nodes,
     info->m_max = m_max;
     info->iter_mean = q->nq ? (double)iter_sum / q->nq : 0.0;
     info->iter_max = iter_max;
-    info->seconds = now_seconds() - t0;
+    info->seconds = ves_wall_seconds() - t0;
   }
 done:
   if (s != VES_OK) tables_free(q);

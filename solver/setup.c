@@ -9,12 +9,7 @@
 #include <string.h>
 #include <strings.h>
 #include <time.h>
-
-static double now_seconds(void) {
-  struct timespec ts;
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return ts.tv_sec + 1e-9 * ts.tv_nsec;
-}
+#include "clock_impl.h"
 
 void ves_setup_destroy(ves_setup **s) {
   if (!s || !*s) return;
@@ -39,7 +34,7 @@ ves_status ves_setup_create(const ves_config *cfg, ves_phi0_method method, ves_s
                             char *err, size_t errlen) {
   VES_CHECK(cfg && out && err && errlen, VES_ERR_ARG);
   *out = NULL;
-  double t0 = now_seconds(), t;
+  double t0 = ves_wall_seconds(), t;
   ves_status st;
   double *f = NULL, *bx = NULL, *cpts = NULL;
   int *bflag = NULL;
@@ -91,7 +86,7 @@ ves_status ves_setup_create(const ves_config *cfg, ves_phi0_method method, ves_s
   np.axis_spacings = cfg->axis_spacings;
   np.lloyd_iter = cfg->lloyd_iterations;
   np.seed = (unsigned)cfg->seed;
-  t = now_seconds();
+  t = ves_wall_seconds();
   if (cfg->band_layers) {
     if ((st = ves_shape_band_nodes(s->shape, hb, halfwidth, &np.nfixed, &bx, &bflag)) != VES_OK)
       FAIL(st,
@@ -103,9 +98,9 @@ ves_status ves_setup_create(const ves_config *cfg, ves_phi0_method method, ves_s
   }
   if ((st = ves_nodes_generate(&np, &s->nodes)) != VES_OK)
     FAIL(st, "node generation: %s", ves_status_str(st));
-  s->seconds_nodes = now_seconds() - t;
+  s->seconds_nodes = ves_wall_seconds() - t;
 
-  t = now_seconds();
+  t = ves_wall_seconds();
   if ((st = ves_quad_create(s->nodes, &s->quad)) != VES_OK)
     FAIL(st, "quadrature: %s", ves_status_str(st));
   ves_lme_params lp;
@@ -113,10 +108,10 @@ ves_status ves_setup_create(const ves_config *cfg, ves_phi0_method method, ves_s
   lp.gamma = cfg->gamma, lp.tol0 = cfg->support_tol;
   if ((st = ves_quad_tables(s->quad, s->nodes, &lp, &s->qinfo)) != VES_OK)
     FAIL(st, "LME tables: %s", ves_status_str(st));
-  s->seconds_tables = now_seconds() - t;
+  s->seconds_tables = ves_wall_seconds() - t;
 
   /* phi0 coefficients: sampled values, then (L2) the least-squares fit */
-  t = now_seconds();
+  t = ves_wall_seconds();
   int n = s->nodes->n;
   s->phi0c = malloc((size_t)n * sizeof *s->phi0c);
   f = malloc((size_t)s->quad->nq * sizeof *f);
@@ -133,13 +128,13 @@ ves_status ves_setup_create(const ves_config *cfg, ves_phi0_method method, ves_s
            "phi0 projection: %s (relative residual %.2e after %d refinement steps)",
            ves_status_str(st), s->proj_residual, s->proj_refinements);
   }
-  s->seconds_project = now_seconds() - t;
+  s->seconds_project = ves_wall_seconds() - t;
 
   ves_model_params mp = {.eps = cfg->epsilon, .c0 = cfg->c0, .k = cfg->k, .mu = cfg->mu,
                          .lambda = cfg->lambda_ratio * cfg->mu};
   if ((st = ves_model_create(s->nodes, s->quad, s->phi0c, &mp, &s->model)) != VES_OK)
     FAIL(st, "model: %s", ves_status_str(st));
-  s->seconds_total = now_seconds() - t0;
+  s->seconds_total = ves_wall_seconds() - t0;
   free(f);
   free(bx);
   free(bflag);
