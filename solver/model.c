@@ -399,17 +399,13 @@ done:
   return s;
 }
 
-ves_status ves_model_create(const ves_nodes *nodes, const ves_quad *q, const double *phi0c,
-                            const ves_model_params *par, ves_model **out) {
-  VES_CHECK(out, VES_ERR_ARG);
-  *out = NULL; /* on every error path */
-  VES_CHECK(nodes && q && q->tab && phi0c && par, VES_ERR_ARG);
-  VES_CHECK(par->eps > 0 && par->k > 0 && par->mu >= 0, VES_ERR_ARG);
-  VES_CHECK(q->nq == NPT * q->ntri, VES_ERR_ARG);
+/* The model from checked arguments and point data pd[6 nq] (copied): the
+ * common part of ves_model_create and ves_model_create_points. */
+static ves_status model_build(const ves_nodes *nodes, const ves_quad *q, const double *pd,
+                              const ves_model_params *par, ves_model **out) {
   int n = nodes->n;
   ves_status s = VES_ERR_ALLOC;
   ves_model *m = calloc(1, sizeof *m);
-  double *fld = NULL;
   if (!m)
     return VES_ERR_ALLOC;
   m->nodes = nodes, m->q = q, m->par = *par;
@@ -430,8 +426,7 @@ ves_status ves_model_create(const ves_nodes *nodes, const ves_quad *q, const dou
   m->yref = malloc(2 * (size_t)n * sizeof *m->yref);
   m->ws = calloc((size_t)m->nthr, sizeof *m->ws);
   m->ev = malloc(3 * (size_t)q->nq * sizeof *m->ev);
-  fld = malloc(6 * (size_t)q->nq * sizeof *fld);
-  if (!m->pt || !m->fixed || !m->yref || !m->ws || !m->ev || !fld)
+  if (!m->pt || !m->fixed || !m->yref || !m->ws || !m->ev)
     goto fail;
   for (int k = 0; k < m->nthr; k++)
     if ((s = ws_alloc(m->ws + k, n, m->mmax, m->cap, m->ldc)) != VES_OK)
@@ -441,9 +436,8 @@ ves_status ves_model_create(const ves_nodes *nodes, const ves_quad *q, const dou
     m->fixed[2 * a + 1] = (nodes->flag[a] & VES_NODE_WALL) != 0;              /* z */
   }
   memcpy(m->yref, nodes->x, 2 * (size_t)n * sizeof *m->yref);
-  ves_quad_field(q, phi0c, 2, fld);
   for (int al = 0; al < q->nq; al++) {
-    const double *f = fld + 6 * (size_t)al;
+    const double *f = pd + 6 * (size_t)al;
     m->pt[al].phi0 = f[0];
     m->pt[al].dphi0[0] = f[1], m->pt[al].dphi0[1] = f[2];
     m->pt[al].ddphi0[0] = f[3], m->pt[al].ddphi0[1] = f[4], m->pt[al].ddphi0[2] = f[5];
@@ -453,14 +447,57 @@ ves_status ves_model_create(const ves_nodes *nodes, const ves_quad *q, const dou
   s = ves_pattern_create(q, n, m->fixed, &m->pat);
   if (s != VES_OK)
     goto fail;
-  free(fld);
   *out = m;
   return VES_OK;
 fail:
-  free(fld);
   ves_model_destroy(&m);
   return s;
 }
+
+ves_status ves_model_create_points(const ves_nodes *nodes, const ves_quad *q, const double *pd,
+                                   const ves_model_params *par, ves_model **out) {
+  VES_CHECK(out, VES_ERR_ARG);
+  *out = NULL; /* on every error path */
+  VES_CHECK(nodes && q && q->tab && pd && par, VES_ERR_ARG);
+  VES_CHECK(par->eps > 0 && par->k > 0 && par->mu >= 0, VES_ERR_ARG);
+  VES_CHECK(q->nq == NPT * q->ntri, VES_ERR_ARG);
+  for (size_t i = 0; i < 6 * (size_t)q->nq; i++)
+    VES_CHECK(isfinite(pd[i]), VES_ERR_ARG);
+  return model_build(nodes, q, pd, par, out);
+}
+
+/* The point data of phi0 from its nodal coefficients (ves_quad_field), then
+ * the common build. */
+ves_status ves_model_create(const ves_nodes *nodes, const ves_quad *q, const double *phi0c,
+                            const ves_model_params *par, ves_model **out) {
+  VES_CHECK(out, VES_ERR_ARG);
+  *out = NULL; /* on every error path */
+  VES_CHECK(nodes && q && q->tab && phi0c && par, VES_ERR_ARG);
+  VES_CHECK(par->eps > 0 && par->k > 0 && par->mu >= 0, VES_ERR_ARG);
+  VES_CHECK(q->nq == NPT * q->ntri, VES_ERR_ARG);
+  double *fld = malloc(6 * (size_t)q->nq * sizeof *fld);
+  if (!fld)
+    return VES_ERR_ALLOC;
+  ves_quad_field(q, phi0c, 2, fld);
+  ves_status s = model_build(nodes, q, fld, par, out);
+  free(fld);
+  return s;
+}
+
+void ves_model_point_data(const ves_model *m, double *pd) {
+  for (int al = 0; al < m->q->nq; al++) {
+    const ves_model_point *p = m->pt + al;
+    double *f = pd + 6 * (size_t)al;
+    f[0] = p->phi0, f[1] = p->dphi0[0], f[2] = p->dphi0[1];
+    f[3] = p->ddphi0[0], f[4] = p->ddphi0[1], f[5] = p->ddphi0[2];
+  }
+}
+
+void ves_model_get_params(const ves_model *m, ves_model_params *par) { *par = m->par; }
+
+const ves_nodes *ves_model_nodes(const ves_model *m) { return m->nodes; }
+
+const ves_quad *ves_model_quad(const ves_model *m) { return m->q; }
 
 /* q = B y at the point (the 11 local kinematic variables). */
 static void kinematics(const folded *f, const double *y, double q[VES_NQ]) {

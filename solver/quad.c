@@ -9,6 +9,7 @@
  * on the hull boundary. */
 #include "ves/quad.h"
 
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
@@ -89,6 +90,34 @@ ves_status ves_quad_create(const ves_nodes *nodes, ves_quad **out) {
 fail:
   ves_quad_destroy(&q);
   return s;
+}
+
+/* Copies of the caller's points, weights and (optional) triangles. */
+ves_status ves_quad_create_points(int nq, const double *x, const double *w, int ntri,
+                                  const int *tri, ves_quad **out) {
+  VES_CHECK(out, VES_ERR_ARG);
+  *out = NULL;
+  VES_CHECK(nq >= 1 && x && w && ntri >= 0 && (ntri == 0 || tri), VES_ERR_ARG);
+  VES_CHECK(ntri == 0 || nq == VES_QUAD_NPT * ntri, VES_ERR_ARG);
+  for (int p = 0; p < nq; p++)
+    VES_CHECK(isfinite(x[2 * p]) && isfinite(x[2 * p + 1]) && isfinite(w[p]) && w[p] > 0,
+              VES_ERR_ARG);
+  for (int k = 0; k < 3 * ntri; k++) VES_CHECK(tri[k] >= 0, VES_ERR_ARG);
+  ves_quad *q = calloc(1, sizeof *q);
+  if (!q) return VES_ERR_ALLOC;
+  q->ntri = ntri, q->nq = nq;
+  q->tri = malloc((ntri ? 3 * (size_t)ntri : 1) * sizeof *q->tri);
+  q->x = malloc(2 * (size_t)nq * sizeof *q->x);
+  q->w = malloc((size_t)nq * sizeof *q->w);
+  if (!q->tri || !q->x || !q->w) {
+    ves_quad_destroy(&q);
+    return VES_ERR_ALLOC;
+  }
+  if (ntri) memcpy(q->tri, tri, 3 * (size_t)ntri * sizeof *q->tri);
+  memcpy(q->x, x, 2 * (size_t)nq * sizeof *q->x);
+  memcpy(q->w, w, (size_t)nq * sizeof *q->w);
+  *out = q;
+  return VES_OK;
 }
 
 /* Grow *buf to hold at least need elements of size sz (capacity in *cap). */
@@ -233,5 +262,22 @@ void ves_quad_field(const ves_quad *q, const double *c, int nder, double *out) {
       for (int k = 0; k < m; k++) s += t[j * m + k] * c[nb[k]];
       out[6 * (size_t)p + j] = s;
     }
+  }
+}
+
+/* y_i(X_al) = sum_k T_jk s_k y_i(nbr_k), s_k = -1 for the r of a ghost entry
+ * (r odd in R), else +1; rows j = value, d/dR, d/dZ, d2/dR2, d2/dRdZ, d2/dZ2. */
+void ves_quad_motion(const ves_quad *q, const double *y, int al, int nder, double out[12]) {
+  const int rows = nder <= 0 ? 1 : nder == 1 ? 3 : 6, m = q->ptr[al + 1] - q->ptr[al];
+  const int *nb = q->nbr + q->ptr[al];
+  const unsigned char *mir = q->mirror + q->ptr[al];
+  const double *t = q->tab + 6 * (size_t)q->ptr[al];
+  for (int j = 0; j < rows; j++) {
+    double sr = 0.0, sz = 0.0;
+    for (int k = 0; k < m; k++) {
+      sr += t[j * m + k] * (mir[k] ? -y[2 * nb[k]] : y[2 * nb[k]]);
+      sz += t[j * m + k] * y[2 * nb[k] + 1];
+    }
+    out[j] = sr, out[6 + j] = sz;
   }
 }

@@ -40,6 +40,29 @@ ves_status ves_model_create(const ves_nodes *nodes, const ves_quad *q, const dou
                             const ves_model_params *par, ves_model **out);
 void ves_model_destroy(ves_model **m);
 
+/* As ves_model_create, from the point data of phi0 instead of nodal
+ * coefficients: pd[6 nq], point-major, pd[6 alpha + j] = phi0, d phi0/dR,
+ * d phi0/dZ, d2 phi0/dR2, d2 phi0/dRdZ, d2 phi0/dZ2 at point alpha with
+ * respect to the reference coordinates of nodes and q (units 1, 1/R0,
+ * 1/R0^2; the layout of ves_quad_field), copied. nodes and q borrowed (they
+ * must outlive the model). ves_model_create is this function applied to
+ * ves_quad_field(q, phi0c). Used after a reset of the reference
+ * configuration (reconnect.h), where phi0 has no nodal coefficients.
+ * VES_ERR_ARG also for a non-finite entry of pd. */
+ves_status ves_model_create_points(const ves_nodes *nodes, const ves_quad *q, const double *pd,
+                                   const ves_model_params *par, ves_model **out);
+
+/* The model's point data pd[6 nq] (layout of ves_model_create_points). */
+void ves_model_point_data(const ves_model *m, double *pd);
+
+/* The parameters in force (c0 as last set by ves_model_set_c0). */
+void ves_model_get_params(const ves_model *m, ves_model_params *par);
+
+/* The nodes and the quadrature the model was built on (borrowed by the
+ * model, so by the caller too). */
+const ves_nodes *ves_model_nodes(const ves_model *m);
+const ves_quad *ves_model_quad(const ves_model *m);
+
 /* The sparse pattern shared by the Hessians and K (owned by the model). */
 const ves_pattern *ves_model_pattern(const ves_model *m);
 

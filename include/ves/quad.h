@@ -45,6 +45,18 @@ typedef struct {
  * triangle. nodes is borrowed; *out is taken by the caller. */
 ves_status ves_quad_create(const ves_nodes *nodes, ves_quad **out);
 
+/* A point set given by the caller: nq points x[2 nq] (R, Z) and weights
+ * w[nq] (units R0^2), all copied, no tables. When ntri > 0 the points are
+ * grouped VES_QUAD_NPT per triangle of tri[3 ntri] (copied; nq must be
+ * VES_QUAD_NPT ntri), the unit of assembly of the model; ntri = 0 (tri NULL)
+ * gives a point set for evaluation only (ves_quad_tables, ves_quad_field,
+ * ves_quad_motion), which ves_model_create refuses. Used by the reset of the
+ * reference configuration (reconnect.h): the old triangles with the moved
+ * points and weights. *out is taken by the caller. VES_ERR_ARG for nq < 1, a
+ * non-finite coordinate, a weight <= 0 or non-finite, or a triangle index < 0. */
+ves_status ves_quad_create_points(int nq, const double *x, const double *w, int ntri,
+                                  const int *tri, ves_quad **out);
+
 /* Build the tables for the current points against the current nodes (real +
  * ghost), with support radii ves_lme_radius(lme, h_a) and beta_a = gamma/h_a^2.
  * Replaces previous tables. info may be NULL. */
@@ -58,6 +70,15 @@ ves_status ves_quad_tables(ves_quad *q, const ves_nodes *nodes,
  * d/dZ, d2/dR2, d2/dRdZ, d2/dZ2) at every point, point-major: out[6 alpha + j].
  * nder as in ves_lme_eval (rows beyond are not written). */
 void ves_quad_field(const ves_quad *q, const double *c, int nder, double *out);
+
+/* The motion y(X) = sum_a p_a(X) y^a and its derivatives at point al, from
+ * the point's table and the nodal positions y[2n] (r_a, z_a) of the real
+ * nodes (a ghost entry carries (-r_a, z_a): r is odd in R, z even):
+ *   out[0..5]  = r, dr/dR, dr/dZ, d2r/dR2, d2r/dRdZ, d2r/dZ2
+ *   out[6..11] = z, dz/dR, dz/dZ, d2z/dR2, d2z/dRdZ, d2z/dZ2
+ * i.e. F_iI = out[6 i + 1 + I], G_iJK = out[6 i + 3 + (J + K)]. nder as in
+ * ves_lme_eval: rows beyond it are not written. Requires the tables. */
+void ves_quad_motion(const ves_quad *q, const double *y, int al, int nder, double out[12]);
 
 /* Free; accepts NULL and sets *q to NULL. */
 void ves_quad_destroy(ves_quad **q);

@@ -1,0 +1,141 @@
+/* vesica — resetting the reference configuration (paper Sec. 3.3 and Fig. 2;
+ * DESIGN.md §4): the current nodal positions become the new reference nodes,
+ * the quadrature points move with the material, and the LME basis, the
+ * neighbour lists and the sparse pattern are rebuilt, without any field
+ * projection or new quadrature.
+ *
+ * Given the model on reference nodes X_a with points Xh_alpha, weights
+ * w_alpha and point data (phi0, grad phi0, Hess phi0), and the current
+ * positions y^a (the motion y(X) = sum_a p_a(X) y^a, F = Dy, G = D2y):
+ *   new nodes      X'_a = y^a (ghosts (-r_a, z_a) regenerated; flags kept)
+ *   new spacing    h'_a from the new node set (ves_geom_spacing on real +
+ *                  ghost nodes, as ves_nodes_generate), beta'_a = gamma/h'_a^2
+ *   new points     Xh'_alpha = y(Xh_alpha), grouped in the old triangles
+ *   new weights    w'_alpha = w_alpha det F(Xh_alpha)
+ *   point data     phi0' = phi0 (a material property, unchanged), and
+ *                  grad' phi0 = grad phi0 F^-1                      (Eq. 2)
+ *                  Hess' phi0 = F^-T (Hess phi0 - g_n G_n) F^-1     (Eq. 3)
+ *                  with g = grad' phi0 and G_n = D2 y_n
+ * (ves_reconnect_push_forward). Every functional is 2 pi sum w e(q) with
+ * e = (density) det F r: the new motion is the identity, y'(X') = X'
+ * exactly (LME reproduces affine functions, and the ghosts carry the
+ * mirrored positions), so F' = I, G' = 0 and r' = r(Xh) at the new points,
+ * and E, A, V are unchanged up to rounding. The discrete space of motions
+ * does change (p'_a o y differs from p_a unless y is a similarity; and h'_a
+ * jumps where Delaunay edges of the moved nodes flip, ~0.7% already at
+ * cond F = 1.002), so the gradients at the reset state and the dynamics after
+ * it differ from those without it at the level of the discretization error,
+ * not of rounding; the nodal values y^a, coefficients of a smoothing basis,
+ * differ more than the motion of the material does (tests/test_reconnect.c
+ * measures all of it). */
+#ifndef VES_RECONNECT_H
+#define VES_RECONNECT_H
+
+#include "ves/geom.h"
+#include "ves/lme.h"
+#include "ves/model.h"
+#include "ves/quad.h"
+#include "ves/status.h"
+
+/* A reference configuration made by a reset: it owns its nodes, its
+ * quadrature (points, weights, tables) and the model built on them (the
+ * model borrows the other two, so all three live and die together). It
+ * borrows nothing from the model it was made from: that model (and the
+ * setup or reconnect object owning it) may be destroyed once the caller has
+ * switched over. */
+typedef struct ves_reconnect ves_reconnect;
+
+/* Statistics of one reset. */
+typedef struct {
+  double cond_max;     /* distortion of y relative to the old reference:
+                          max over the points of cond_2 F (>= 1) */
+  double det_min;      /* min over the points of det F */
+  double h_min, h_max; /* range of the new spacings h'_a (units R0) */
+  ves_quad_info qinfo; /* the table build of the new reference */
+  double seconds;      /* wall time of the whole reset */
+} ves_reconnect_info;
+
+/* Reset the reference configuration of model m to the positions y.
+ *   m     the current model (borrowed; read only); its nodes, quadrature
+ *         (with tables), point data and parameters (c0 as in force) are used
+ *   y     2n current positions (r_a, z_a) of the real nodes (borrowed); axis
+ *         nodes must have r_a = 0 exactly, every other node r_a > 0 (it gets
+ *         a ghost); wall nodes keep their flag and stay fixed at y^a
+ *   lme   LME parameters of the new tables (borrowed; those of the setup)
+ *   out   the new reference, taken by the caller (ves_reconnect_destroy)
+ * The new model's reference positions (ves_model_reference) are y, its
+ * fixed dofs those of the old one, its parameters copied from m.
+ * Allocates (a once-per-reset operation: ~ the cost of the setup's tables).
+ * Returns VES_OK; VES_ERR_ARG (NULL, non-finite y, an axis node with
+ * r != 0, invalid lme); VES_ERR_DOMAIN (det F <= 0 or r <= 0 at a point, or
+ * a non-axis node with r <= 0: y is not admissible); VES_ERR_GEOM (two nodes
+ * at the same position); VES_ERR_NOCONV / VES_ERR_ARG from the LME tables
+ * (a point outside the hull of its new neighbours); VES_ERR_ALLOC. */
+ves_status ves_reconnect_create(const ves_model *m, const double *y, const ves_lme_params *lme,
+                                ves_reconnect **out);
+
+/* Free the model, quadrature and nodes; accepts NULL and sets *r to NULL.
+ * The model must no longer be in use (step problems and backends on it
+ * destroyed first). */
+void ves_reconnect_destroy(ves_reconnect **r);
+
+/* The new model (owned by r; the step problem may modify its c0). */
+ves_model *ves_reconnect_model(ves_reconnect *r);
+/* The new nodes and quadrature (owned by r). */
+const ves_nodes *ves_reconnect_nodes(const ves_reconnect *r);
+const ves_quad *ves_reconnect_quad(const ves_reconnect *r);
+/* Statistics of the reset. */
+void ves_reconnect_get_info(const ves_reconnect *r, ves_reconnect_info *info);
+
+/* The distortion of the motion y relative to the model's reference
+ * configuration, over the quadrature points:
+ *   *cond_max = max_alpha cond_2 F(Xh_alpha) = sigma_max / sigma_min of the
+ *               2 x 2 meridian deformation gradient F-tilde (1 for rigid
+ *               motions and uniform dilatations; rotation invariant, like
+ *               the LME basis itself); +inf if det F <= 0 somewhere
+ *   *det_min  = min_alpha det F(Xh_alpha) (compression; <= 0: folded)
+ * The hoop stretch r/R is not included: it does not distort the meridian
+ * node layout the basis lives on. Either output may be NULL. No allocation
+ * (callable every step); OpenMP threads over the points (a max and a min:
+ * the same result for any thread count).
+ * VES_ERR_ARG for NULL m or y or a non-finite y. */
+ves_status ves_reconnect_distortion(const ves_model *m, const double *y, double *cond_max,
+                                    double *det_min);
+
+/* The same per point: cond[nq] and det[nq] (either may be NULL); cond is
+ * +inf where det <= 0. */
+ves_status ves_reconnect_distortion_points(const ves_model *m, const double *y, double *cond,
+                                           double *det);
+
+/* The push-forward of the point data of phi0 at one point (Eqs. 2-3):
+ *   F[4]   (F_rR, F_rZ, F_zR, F_zZ), F_iI = dy_i/dX_I
+ *   G[6]   (r_RR, r_RZ, r_ZZ, z_RR, z_RZ, z_ZZ), second derivatives of y
+ *   pd[6]  (phi0, phi0_R, phi0_Z, phi0_RR, phi0_RZ, phi0_ZZ) in X
+ *   out[6] (phi0, phi_r, phi_z, phi_rr, phi_rz, phi_zz): the derivatives of
+ *          phi = phi0 o y^-1 with respect to the current coordinates at y(X):
+ *          g_i = phi0_I H_Ii, phi_ij = H_Ii (phi0_IJ - g_n G_nIJ) H_Jj,
+ *          H = F^-1 (from phi0(X) = phi(y(X)) differentiated twice).
+ * Returns VES_OK or VES_ERR_DOMAIN (det F <= 0; out not written). */
+ves_status ves_reconnect_push_forward(const double F[4], const double G[6], const double pd[6],
+                                      double out[6]);
+
+/* When to reset (the integrator's policy; a reset is due when any enabled
+ * criterion holds). */
+typedef struct {
+  int every;       /* accepted steps between resets (0: off; paper Fig. 5: 20) */
+  double cond_max; /* reset when max cond_2 F exceeds this (> 1; 0: off) */
+  double det_min;  /* reset when min det F drops below this (in (0, 1); 0: off) */
+} ves_reconnect_params;
+
+/* Defaults: every = 0, cond_max = 2, det_min = 0.5 (see the implementation
+ * for the reasons). */
+void ves_reconnect_params_default(ves_reconnect_params *par);
+
+/* *due = 1 when a reset is due at y after `steps` accepted steps since the
+ * last reset (or the start), else 0; *cond and *det (may be NULL) receive
+ * the distortion measured (only when a threshold is enabled; else 1 and 1).
+ * VES_ERR_ARG for invalid arguments or parameters. */
+ves_status ves_reconnect_due(const ves_reconnect_params *par, const ves_model *m, const double *y,
+                             long steps, int *due, double *cond, double *det);
+
+#endif
