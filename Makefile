@@ -4,7 +4,7 @@
 #   make            build build/libvesica.a and build/vesica
 #   make test       every test in tests/ (SAN=1: AddressSanitizer + UBSan)
 #   make bench      the benchmarks in bench/, printing tables
-#   make run        the default problem
+#   make run        the default problem (results/oblate.h5, .xdmf, PNG figures)
 #   make deps       install missing Debian packages (root) or print the command
 #   make clean
 
@@ -92,9 +92,14 @@ bench: deps
 	@for b in $(BENCHES); do echo "== $$b"; $$b || exit 1; done
 	@echo "== bench/sphere_convergence.sh"; sh bench/sphere_convergence.sh $(BUILD)/vesica
 
+# The default run: the oblate relaxation of problems/oblate.ini (paper
+# Figs. 3-4, ~1.5 min on 2 cores) to results/oblate.h5 (+ .xdmf) and its
+# figures results/oblate_*.png.
 run: deps
 	@$(MAKE) --no-print-directory $(BUILD)/vesica
-	$(BUILD)/vesica check problems/sphere.ini
+	@mkdir -p results
+	OPENBLAS_NUM_THREADS=1 $(BUILD)/vesica run problems/oblate.ini --out results/oblate.h5
+	$(BUILD)/vesica plot results/oblate.h5 --outdir results
 
 format:
 	clang-format -i include/ves/*.h solver/*.c solver/*.cpp tests/*.c bench/*.c

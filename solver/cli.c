@@ -1,11 +1,16 @@
 /* vesica — the command-line program: parses arguments, drives the library,
  * prints and exits (the library itself never prints or exits).
  * Exit codes: 0 ok, 2 bad input (usage, configuration, files), 3 numerical
- * failure. */
+ * failure (or a write error during a run), 130/143 stopped by SIGINT/SIGTERM
+ * (the last state saved). */
+#include <errno.h>
+#include <limits.h>
 #include <math.h>
+#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
 #include <time.h>
 #include <unistd.h>
@@ -13,33 +18,64 @@
 #include "ves/backend.h"
 #include "ves/config.h"
 #include "ves/integrate.h"
+#include "ves/io.h"
+#include "ves/plot.h"
 #include "ves/setup.h"
 #include "clock_impl.h"
 
 #define VES_VERSION "0.1.0"
 #define MAX_SET 64
+/* energy_monotone: a rise above this relative rounding counts (the
+ * integrator's own acceptance test uses the same margin) */
+#define MONOTONE_TOL 1e-10
 
 static void usage(FILE *f) {
-  fprintf(f,
-          "usage: vesica <command> [options]\n"
-          "commands:\n"
-          "  check CONFIG.ini [--set section.key=value]... [--phi0 l2|sampled]\n"
-          "                     build the initial state and print its derived quantities\n"
-          "  run CONFIG.ini [--backend ipopt|nlopt|newton|euler] [--set section.key=value]...\n"
-          "                [--series FILE.tsv] [--quiet]\n"
-          "                     integrate in time; a progress line on stderr\n"
-          "  keys               print every problem-file key with its default and range\n"
-          "  --version          print the version\n"
-          "  --help             this text (also: vesica COMMAND --help)\n");
+  fprintf(f, "usage: vesica <command> [options]\n"
+             "commands:\n"
+             "  run CONFIG.ini [--backend ipopt|nlopt|newton|euler] [--out FILE.h5]\n"
+             "                 [--set section.key=value]... [--max-steps N] [--series FILE.tsv]\n"
+             "                 [--quiet]\n"
+             "  run --restart FILE.h5 [--max-steps N] [--quiet]\n"
+             "                     integrate in time, writing FILE.h5 (+ FILE.xdmf)\n"
+             "  check CONFIG.ini [--set section.key=value]... [--phi0 l2|sampled]\n"
+             "                     build the initial state and print its derived quantities\n"
+             "  info FILE.h5       summary of a run, one 'key = value' per line\n"
+             "  plot FILE.h5 [--outdir DIR] [--times T1,T2,...]\n"
+             "                     PNG figures: energy and dt, node snapshots, constraints\n"
+             "  keys               print every problem-file key with its default and range\n"
+             "  --version          print the version\n"
+             "  --help             this text (also: vesica COMMAND --help)\n"
+             "exit codes: 0 ok, 2 bad input, 3 numerical failure (last good state saved)\n");
 }
+
+/* --------------------------------------------------------------------------
+ * check */
 
 static void usage_check(FILE *f) {
   fprintf(f, "usage: vesica check CONFIG.ini [--set section.key=value]... [--phi0 l2|sampled]\n"
-             "Builds shape, adapted nodes, quadrature, LME tables and the least-squares phase\n"
-             "field, then prints one 'key = value' per line: nodes, ghosts, quadrature_points,\n"
-             "neighbours_mean, energy (E/k), energy_sharp, area_ratio (A over the sharp area),\n"
-             "volume_ratio, reduced_volume, epsilon, setup_seconds, ...\n"
-             "--phi0 sampled uses phi0(X_a) as coefficients (wrong on purpose: for comparison).\n");
+             "Validates the problem file, builds shape, adapted nodes, quadrature, LME tables and\n"
+             "the least-squares phase field (no time stepping), then prints one 'key = value'\n"
+             "per line: nodes, ghosts, quadrature_points, neighbours_mean, energy (E/k),\n"
+             "energy_sharp, area_ratio (A over the sharp area), volume_ratio, reduced_volume,\n"
+             "epsilon, setup_seconds, ...\n"
+             "--phi0 sampled uses phi0(X_a) as coefficients (wrong on purpose: for comparison).\n"
+             "Exit 0 ok, 2 bad input (the message names file, key and reason), 3 numerical "
+             "failure.\n");
+}
+
+/* A setup message names the file itself when it comes from reading one (a
+ * points file): then do not name the problem file twice. */
+static void setup_error(const char *cmd, const char *label, const char *err) {
+  if (!strncmp(err, label, strlen(label)) && err[strlen(label)] == ':')
+    fprintf(stderr, "vesica %s: %s\n", cmd, err);
+  else
+    fprintf(stderr, "vesica %s: %s: %s\n", cmd, label, err);
+}
+
+/* Exit code for a failed setup: bad input (configuration, arguments, an
+ * unreadable points file) 2, anything numerical 3. */
+static int exit_for(ves_status st) {
+  return st == VES_ERR_CONFIG || st == VES_ERR_ARG || st == VES_ERR_IO ? 2 : 3;
 }
 
 /* The tail shared by the commands that take a problem file: a path must have
@@ -58,20 +94,30 @@ static int load_problem(const char *cmd, const char *path, void (*usage_fn)(FILE
   return 0;
 }
 
+/* A --set argument: 0 when taken, else the exit code (message printed). */
+static int take_set(const char *cmd, int argc, char **argv, int *i, int *nset, const char **set) {
+  if (*i + 1 >= argc || argv[*i + 1][0] == '-') {
+    fprintf(stderr, "vesica %s: --set needs section.key=value\n", cmd);
+    return 2;
+  }
+  if (*nset == MAX_SET) {
+    fprintf(stderr, "vesica %s: more than %d --set options\n", cmd, MAX_SET);
+    return 2;
+  }
+  set[(*nset)++] = argv[++*i];
+  return 0;
+}
+
 static int cmd_check(int argc, char **argv) {
   const char *path = NULL, *set[MAX_SET] = {0};
-  int nset = 0;
+  int nset = 0, rc;
   ves_phi0_method method = VES_PHI0_L2;
   for (int i = 0; i < argc; i++) {
     if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
       usage_check(stdout);
       return 0;
     } else if (!strcmp(argv[i], "--set")) {
-      if (i + 1 >= argc || nset == MAX_SET) {
-        fprintf(stderr, "vesica check: --set needs section.key=value\n");
-        return 2;
-      }
-      set[nset++] = argv[++i];
+      if ((rc = take_set("check", argc, argv, &i, &nset, set))) return rc;
     } else if (!strcmp(argv[i], "--phi0")) {
       if (i + 1 >= argc || (strcmp(argv[i + 1], "l2") && strcmp(argv[i + 1], "sampled"))) {
         fprintf(stderr, "vesica check: --phi0 takes l2 or sampled\n");
@@ -79,7 +125,7 @@ static int cmd_check(int argc, char **argv) {
       }
       method = !strcmp(argv[++i], "sampled") ? VES_PHI0_SAMPLED : VES_PHI0_L2;
     } else if (argv[i][0] == '-') {
-      fprintf(stderr, "vesica check: unknown option '%s'\n", argv[i]);
+      fprintf(stderr, "vesica check: unknown option '%s' (see vesica check --help)\n", argv[i]);
       return 2;
     } else if (!path) {
       path = argv[i];
@@ -90,17 +136,16 @@ static int cmd_check(int argc, char **argv) {
   }
   ves_config cfg;
   char err[1024] = "";
-  int rc = load_problem("check", path, usage_check, nset, set, &cfg);
-  if (rc) return rc;
+  if ((rc = load_problem("check", path, usage_check, nset, set, &cfg))) return rc;
   ves_setup *s = NULL;
   ves_status st = ves_setup_create(&cfg, method, &s, err, sizeof err);
   if (st != VES_OK) {
-    fprintf(stderr, "vesica: %s: %s\n", path, err);
-    return st == VES_ERR_CONFIG || st == VES_ERR_ARG ? 2 : 3;
+    setup_error("check", path, err);
+    return exit_for(st);
   }
   double *y = malloc(2 * (size_t)s->nodes->n * sizeof *y), E = 0, A = 0, V = 0;
   if (!y) {
-    fprintf(stderr, "vesica: out of memory\n");
+    fprintf(stderr, "vesica check: out of memory\n");
     ves_setup_destroy(&s);
     return 3;
   }
@@ -108,7 +153,7 @@ static int cmd_check(int argc, char **argv) {
   st = ves_model_eval(s->model, y, VES_F_E | VES_F_A | VES_F_V, &E, &A, &V, NULL, NULL, NULL);
   free(y);
   if (st != VES_OK) {
-    fprintf(stderr, "vesica: %s: model evaluation: %s\n", path, ves_status_str(st));
+    fprintf(stderr, "vesica check: %s: model evaluation: %s\n", path, ves_status_str(st));
     ves_setup_destroy(&s);
     return 3;
   }
@@ -121,7 +166,8 @@ static int cmd_check(int argc, char **argv) {
   printf("neighbours_max = %d\n", s->qinfo.m_max);
   printf("lme_newton_mean = %.2f\n", s->qinfo.iter_mean);
   printf("phi0_coefficients = %s\n", method == VES_PHI0_L2 ? "l2" : "sampled");
-  printf("projection_refinements = %d\nprojection_residual = %.2e\n", s->proj_refinements, s->proj_residual);
+  printf("projection_refinements = %d\nprojection_residual = %.2e\n", s->proj_refinements,
+         s->proj_residual);
   printf("energy = %.9f\n", E / cfg.k);
   printf("energy_sharp = %.9f\n", ves_shape_sharp_energy(s->shape, cfg.c0));
   printf("area = %.12f\n", A);
@@ -141,126 +187,710 @@ static int cmd_check(int argc, char **argv) {
   return 0;
 }
 
+/* --------------------------------------------------------------------------
+ * run */
+
 static void usage_run(FILE *f) {
   fprintf(f,
-          "usage: vesica run CONFIG.ini [--backend ipopt|nlopt|newton|euler]\n"
-          "                 [--set section.key=value]... [--series FILE.tsv] [--quiet]\n"
+          "usage: vesica run CONFIG.ini [--backend ipopt|nlopt|newton|euler] [--out FILE.h5]\n"
+          "                 [--set section.key=value]... [--max-steps N] [--series FILE.tsv]\n"
+          "                 [--quiet]\n"
+          "       vesica run --restart FILE.h5 [--max-steps N] [--quiet]\n"
           "Builds the initial state as 'check' does and integrates to [time] t_end with the\n"
-          "chosen backend (default [solver] backend). One progress line on stderr (step, t*,\n"
-          "dt*, E*, iterations, ETA), updated in place on a terminal; --quiet: none.\n"
-          "--series writes one tab-separated line per accepted step: step t dt E A/A0-1\n"
-          "V/Vtarget-1 lambda_A lambda_V iterations f_evals g_evals h_evals seconds retries.\n"
-          "Exit 0 at t_end, 2 on bad input, 3 when a step fails down to dt_min (the last\n"
-          "good state is the last line of the series).\n");
+          "chosen backend (default [solver] backend).\n"
+          "  --out FILE.h5     the run's HDF5 file (default: the problem file's name with .h5,\n"
+          "                    in the current folder), with FILE.xdmf beside it for ParaView:\n"
+          "                    parameters, one row per accepted step (flushed at every step),\n"
+          "                    snapshots every [output] snapshot_every steps and at the end\n"
+          "  --restart FILE.h5 continue the run of FILE.h5 from its last snapshot, appending to\n"
+          "                    it; the trajectory is bit for bit the uninterrupted one\n"
+          "  --max-steps N     stop (with a snapshot, exit 0) once N steps are accepted in all\n"
+          "  --series FILE.tsv also one tab-separated line per accepted step: step t dt E\n"
+          "                    A/A0-1 V/Vtarget-1 lambda_A lambda_V iterations f_evals g_evals\n"
+          "                    h_evals seconds retries\n"
+          "  --quiet           no progress line (otherwise one line on stderr: step, t*, dt*,\n"
+          "                    E*, iterations, ETA; updated in place on a terminal)\n"
+          "Exit 0 at t_end (or --max-steps), 2 on bad input (nothing written), 3 when a step\n"
+          "fails down to dt_min (the last good state is saved as the last snapshot), 130/143 on\n"
+          "SIGINT/SIGTERM after the current step (state saved; a second signal kills).\n");
 }
 
-static int cmd_run(int argc, char **argv) {
-  const char *path = NULL, *set[MAX_SET] = {0}, *backend = NULL, *series = NULL;
-  int nset = 0, quiet = 0;
-  for (int i = 0; i < argc; i++) {
-    if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
-      usage_run(stdout);
-      return 0;
-    } else if (!strcmp(argv[i], "--set") && i + 1 < argc && nset < MAX_SET) {
-      set[nset++] = argv[++i];
-    } else if (!strcmp(argv[i], "--backend") && i + 1 < argc) {
-      backend = argv[++i];
-    } else if (!strcmp(argv[i], "--series") && i + 1 < argc) {
-      series = argv[++i];
-    } else if (!strcmp(argv[i], "--quiet")) {
-      quiet = 1;
-    } else if (argv[i][0] == '-') {
-      fprintf(stderr, "vesica run: unknown or incomplete option '%s' (see vesica run --help)\n",
-              argv[i]);
-      return 2;
-    } else if (!path) {
-      path = argv[i];
-    } else {
-      fprintf(stderr, "vesica run: more than one configuration file ('%s')\n", argv[i]);
-      return 2;
-    }
-  }
-  ves_config cfg;
+/* Set by SIGINT/SIGTERM: stop after the current step. */
+static volatile sig_atomic_t stop_signal = 0;
+static void on_signal(int sig) { stop_signal = sig; }
+
+/* Everything a run holds. */
+typedef struct {
+  const char *label;          /* what messages name: the problem file or FILE.h5 */
+  char out[PATH_MAX];         /* the HDF5 file */
+  ves_config cfg;             /* parameters */
+  const ves_backend_type *bk; /* step solver */
+  ves_setup *setup;           /* initial discrete state */
+  ves_sim *sim;               /* the integrator */
+  ves_io *io;                 /* the output file */
+  double *phi;                /* n phi at the nodes */
+  double *y;                  /* 2n scratch */
+  FILE *series;               /* --series file or NULL */
+  int quiet;                  /* --quiet */
+  long max_steps;             /* --max-steps (0: none) */
+  double wall_offset;         /* wall time of the time loop before this process */
+  long last_snapshot_step;    /* step of the last snapshot written */
+} run_ctx;
+
+static void run_free(run_ctx *r) {
+  ves_io_close(&r->io);
+  ves_sim_destroy(&r->sim);
+  ves_setup_destroy(&r->setup);
+  free(r->phi);
+  free(r->y);
+  if (r->series) fclose(r->series);
+}
+
+/* Setup, phi at the nodes and the integrator for r->cfg and r->bk. */
+static int build(run_ctx *r) {
   char err[1024] = "";
-  int rc = load_problem("run", path, usage_run, nset, set, &cfg);
-  if (rc) return rc;
-  const ves_backend_type *bk = ves_backend_find(backend ? backend : cfg.backend);
-  if (!bk) {
-    fprintf(stderr, "vesica run: --backend '%s': not one of ipopt, nlopt, newton, euler\n",
-            backend ? backend : cfg.backend);
-    return 2;
-  }
-  FILE *out = NULL;
-  if (series && !(out = fopen(series, "w"))) {
-    fprintf(stderr, "vesica run: --series %s: cannot open for writing\n", series);
-    return 2;
-  }
-  ves_setup *s = NULL;
-  ves_status st = ves_setup_create(&cfg, VES_PHI0_L2, &s, err, sizeof err);
+  ves_status st = ves_setup_create(&r->cfg, VES_PHI0_L2, &r->setup, err, sizeof err);
   if (st != VES_OK) {
-    fprintf(stderr, "vesica: %s: %s\n", path, err);
-    if (out) fclose(out), remove(series);
-    return st == VES_ERR_CONFIG || st == VES_ERR_ARG ? 2 : 3;
+    setup_error("run", r->label, err);
+    return exit_for(st);
+  }
+  int n = r->setup->nodes->n;
+  r->phi = malloc((size_t)n * sizeof *r->phi);
+  r->y = malloc(2 * (size_t)n * sizeof *r->y);
+  if (!r->phi || !r->y) {
+    fprintf(stderr, "vesica run: out of memory\n");
+    return 3;
+  }
+  ves_lme_params lp;
+  ves_lme_params_default(&lp);
+  lp.gamma = r->cfg.gamma, lp.tol0 = r->cfg.support_tol;
+  if ((st = ves_io_nodal_phi(r->setup->nodes, r->setup->phi0c, &lp, r->phi)) != VES_OK) {
+    fprintf(stderr, "vesica run: %s: phi at the nodes: %s\n", r->label, ves_status_str(st));
+    return 3;
   }
   ves_backend_options bo;
   ves_backend_options_default(&bo);
-  bo.tol = cfg.tol, bo.ctol = cfg.ctol, bo.max_iter = cfg.max_iter;
-  bo.freeze_hessian = cfg.freeze_hessian;
+  bo.tol = r->cfg.tol, bo.ctol = r->cfg.ctol, bo.max_iter = r->cfg.max_iter;
+  bo.freeze_hessian = r->cfg.freeze_hessian;
   ves_integrate_params ip;
   ves_integrate_params_default(&ip);
-  ip.t_end = cfg.t_end, ip.dt_initial = cfg.dt_initial, ip.dt_max = cfg.dt_max;
-  ip.dt_min = cfg.dt_min, ip.adaptive = cfg.adaptive, ip.dE_target = cfg.dE_target;
-  ip.growth_max = cfg.growth_max, ip.iter_target = cfg.iter_target;
-  ip.hold_area = cfg.area, ip.hold_volume = cfg.volume;
-  ip.volume_rate = cfg.volume_rate, ip.volume_final = cfg.volume_final;
-  ip.c0_time = cfg.c0_time, ip.c0_after = cfg.c0_after;
-  ves_sim *sim = NULL;
-  if ((st = ves_sim_create(s->model, bk, &bo, &ip, &sim)) != VES_OK) {
-    fprintf(stderr, "vesica: %s: cannot start the time loop: %s\n", path, ves_status_str(st));
-    ves_setup_destroy(&s);
-    if (out) fclose(out);
-    return st == VES_ERR_ARG ? 2 : 3;
+  const ves_config *c = &r->cfg;
+  ip.t_end = c->t_end, ip.dt_initial = c->dt_initial, ip.dt_max = c->dt_max;
+  ip.dt_min = c->dt_min, ip.adaptive = c->adaptive, ip.dE_target = c->dE_target;
+  ip.growth_max = c->growth_max, ip.iter_target = c->iter_target;
+  ip.hold_area = c->area, ip.hold_volume = c->volume;
+  ip.volume_rate = c->volume_rate, ip.volume_final = c->volume_final;
+  ip.c0_time = c->c0_time, ip.c0_after = c->c0_after;
+  if ((st = ves_sim_create(r->setup->model, r->bk, &bo, &ip, &r->sim)) != VES_OK) {
+    fprintf(stderr, "vesica run: %s: cannot start the time loop: %s\n", r->label,
+            ves_status_str(st));
+    return exit_for(st);
   }
-  double E0, A0, V0, t0 = ves_wall_seconds();
-  ves_sim_initial(sim, &E0, &A0, &V0);
-  if (out)
-    fprintf(out, "# vesica %s run %s backend %s nodes %d E0 %.12g A0 %.12g V0 %.12g\n"
-                 "# step\tt\tdt\tE\tA/A0-1\tV/Vt-1\tlambda_A\tlambda_V\titer\tf\tg\th\t"
-                 "seconds\tretries\n",
-            VES_VERSION, path, bk->name, s->nodes->n, E0, A0, V0);
+  return 0;
+}
+
+/* A snapshot of the current state. */
+static ves_status snapshot(run_ctx *r, double wall) {
+  ves_io_snapinfo si = {.wall_seconds = wall, .reconnections = 0, .rows = ves_io_rows(r->io)};
+  ves_sim_get_state(r->sim, &si.state, r->y);
+  r->last_snapshot_step = si.state.nstep;
+  return ves_io_snapshot(r->io, r->y, r->phi, &si);
+}
+
+/* The folder of path must exist and be writable, path must not be a folder. */
+static int check_writable(const char *what, const char *path) {
+  char dir[PATH_MAX];
+  const char *slash = strrchr(path, '/');
+  if (!*path || strlen(path) >= sizeof dir - 8) {
+    fprintf(stderr, "vesica run: %s '%s': not a usable file name\n", what, path);
+    return 2;
+  }
+  if (slash == path)
+    snprintf(dir, sizeof dir, "/");
+  else if (slash)
+    snprintf(dir, sizeof dir, "%.*s", (int)(slash - path), path);
+  else
+    snprintf(dir, sizeof dir, ".");
+  struct stat sb;
+  if (stat(dir, &sb) != 0 || !S_ISDIR(sb.st_mode)) {
+    fprintf(stderr, "vesica run: %s %s: folder %s does not exist\n", what, path, dir);
+    return 2;
+  }
+  if (access(dir, W_OK) != 0) {
+    fprintf(stderr, "vesica run: %s %s: folder %s is not writable\n", what, path, dir);
+    return 2;
+  }
+  if (stat(path, &sb) == 0 && !S_ISREG(sb.st_mode)) {
+    fprintf(stderr, "vesica run: %s %s: exists and is not a regular file\n", what, path);
+    return 2;
+  }
+  return 0;
+}
+
+/* Remove the output of a run that failed before its first step. */
+static void remove_output(const char *out) {
+  char x[PATH_MAX];
+  ves_io_xdmf_path(out, x, sizeof x);
+  remove(out);
+  remove(x);
+}
+
+/* The time loop: steps, rows, snapshots, progress. Returns the exit code. */
+static int loop(run_ctx *r) {
+  double t0 = ves_wall_seconds(), tstart = ves_sim_time(r->sim), tend = r->cfg.t_end;
   int tty = isatty(2), code = 0;
+  long iters = 0, steps = 0;
   ves_step_report rep;
-  long iters = 0;
-  while ((st = ves_sim_step(sim, &rep)) == VES_OK) {
+  ves_status st = VES_OK, wst = VES_OK;
+  struct sigaction sa;
+  memset(&sa, 0, sizeof sa);
+  sa.sa_handler = on_signal;
+  sa.sa_flags = SA_RESETHAND; /* a second signal kills */
+  sigaction(SIGINT, &sa, NULL);
+  sigaction(SIGTERM, &sa, NULL);
+  for (;;) {
+    ves_sim_state now;
+    ves_sim_get_state(r->sim, &now, NULL);
+    if (r->max_steps > 0 && now.nstep >= r->max_steps) break;
+    if (stop_signal) break;
+    if ((st = ves_sim_step(r->sim, &rep)) != VES_OK) break;
+    steps++;
     iters += rep.stats.iterations;
-    if (out) {
-      fprintf(out, "%ld\t%.9g\t%.6g\t%.12g\t%.3e\t%.3e\t%.9g\t%.9g\t%d\t%d\t%d\t%d\t%.3f\t%d\n",
+    double wall = r->wall_offset + ves_wall_seconds() - t0;
+    ves_io_row row = {.step = rep.step,
+                      .t = rep.t,
+                      .dt = rep.dt,
+                      .E = rep.E,
+                      .A = rep.A,
+                      .V = rep.V,
+                      .V_target = rep.V_target,
+                      .lambda_A = rep.lambda[0],
+                      .lambda_V = rep.lambda[1],
+                      .c0 = rep.c0,
+                      .iterations = rep.stats.iterations,
+                      .f_evals = rep.stats.f_evals,
+                      .g_evals = rep.stats.g_evals,
+                      .h_evals = rep.stats.h_evals,
+                      .violation = rep.stats.violation,
+                      .solve_seconds = rep.stats.seconds,
+                      .wall_seconds = wall,
+                      .retries = rep.retries,
+                      .status = rep.solve_status,
+                      .reconnections = 0};
+    if ((wst = ves_io_append(r->io, &row)) != VES_OK) break;
+    if (rep.step % r->cfg.snapshot_every == 0 && (wst = snapshot(r, wall)) != VES_OK) break;
+    if (r->series) {
+      double A0, V0;
+      ves_sim_initial(r->sim, NULL, &A0, &V0);
+      fprintf(r->series,
+              "%ld\t%.9g\t%.6g\t%.12g\t%.3e\t%.3e\t%.9g\t%.9g\t%d\t%d\t%d\t%d\t%.3f\t%d\n",
               rep.step, rep.t, rep.dt, rep.E, rep.A / A0 - 1, rep.V / rep.V_target - 1,
               rep.lambda[0], rep.lambda[1], rep.stats.iterations, rep.stats.f_evals,
               rep.stats.g_evals, rep.stats.h_evals, rep.stats.seconds, rep.retries);
-      fflush(out); /* a killed run keeps every completed step */
+      fflush(r->series);
     }
-    if (!quiet && (tty || rep.step % 10 == 0)) {
-      double el = ves_wall_seconds() - t0, eta = rep.t > 0 ? el * (cfg.t_end - rep.t) / rep.t : 0;
+    if (!r->quiet && (tty || rep.step % 10 == 0)) {
+      double el = ves_wall_seconds() - t0;
+      double eta = rep.t > tstart ? el * (tend - rep.t) / (rep.t - tstart) : 0;
       fprintf(stderr, "%sstep %ld  t* %.4g/%.4g  dt* %.3g  E* %.6f  iter %d  ETA %.0f s%s",
-              tty ? "\r" : "", rep.step, rep.t, cfg.t_end, rep.dt, rep.E, rep.stats.iterations,
-              eta, tty ? "   " : "\n");
+              tty ? "\r" : "", rep.step, rep.t, tend, rep.dt, rep.E, rep.stats.iterations, eta,
+              tty ? "   " : "\n");
     }
   }
-  if (tty && !quiet) fputc('\n', stderr);
-  if (st < 0) {
-    fprintf(stderr, "vesica: %s: no acceptable step at t* = %.6g down to dt* = %g (%s); the last "
-                    "good state is the last step written\n",
-            path, ves_sim_time(sim), cfg.dt_min, ves_status_str(st));
-    code = 3;
-  } else if (!quiet) {
-    fprintf(stderr, "vesica: t* = %.6g reached, %ld iterations in all, %.1f s\n", ves_sim_time(sim),
-            iters, ves_wall_seconds() - t0);
+  if (tty && !r->quiet && steps) fputc('\n', stderr);
+  signal(SIGINT, SIG_DFL);
+  signal(SIGTERM, SIG_DFL);
+  double wall = r->wall_offset + ves_wall_seconds() - t0;
+  ves_sim_state fin;
+  ves_sim_get_state(r->sim, &fin, NULL);
+  const char *status = "finished";
+  if (wst != VES_OK) {
+    fprintf(stderr, "vesica run: %s: cannot write: %s\n", r->out, ves_status_str(wst));
+    return 3; /* the file holds every step written before */
   }
-  if (out) fclose(out);
-  ves_sim_destroy(&sim);
-  ves_setup_destroy(&s);
+  if (st < 0) {
+    fprintf(stderr,
+            "vesica run: %s: no acceptable step at t* = %.6g down to dt* = %g (%s); the last "
+            "good state (step %ld) is the last snapshot of %s\n",
+            r->label, fin.t, r->cfg.dt_min, ves_status_str(st), fin.nstep, r->out);
+    status = "failed", code = 3;
+  } else if (stop_signal) {
+    fprintf(stderr,
+            "vesica run: stopped by signal %d at step %ld, t* = %.6g; continue with "
+            "vesica run --restart %s\n",
+            (int)stop_signal, fin.nstep, fin.t, r->out);
+    status = "stopped", code = 128 + (int)stop_signal;
+  } else if (st != VES_MAXITER && fin.t < tend - 1e-12 * (1 + fabs(tend))) {
+    status = "stopped"; /* --max-steps */
+  }
+  if (fin.nstep != r->last_snapshot_step && (wst = snapshot(r, wall)) != VES_OK) {
+    fprintf(stderr, "vesica run: %s: cannot write the last snapshot: %s\n", r->out,
+            ves_status_str(wst));
+    return 3;
+  }
+  if ((wst = ves_io_set_status(r->io, status)) != VES_OK) {
+    fprintf(stderr, "vesica run: %s: cannot write: %s\n", r->out, ves_status_str(wst));
+    return 3;
+  }
+  if (!r->quiet && code == 0)
+    fprintf(stderr,
+            "vesica run: %s at step %ld, t* = %.6g: %ld steps, %ld iterations, %.1f s; "
+            "wrote %s\n",
+            !strcmp(status, "finished") ? "t_end reached" : "--max-steps reached", fin.nstep, fin.t,
+            steps, iters, ves_wall_seconds() - t0, r->out);
   return code;
+}
+
+/* A new run: CONFIG.ini [options]. */
+static int run_new(run_ctx *r, const char *path, const char *out, const char *backend, int nset,
+                   const char *const *set, const char *series) {
+  int rc = load_problem("run", path, usage_run, nset, set, &r->cfg);
+  if (rc) return rc;
+  r->label = path;
+  r->bk = ves_backend_find(backend ? backend : r->cfg.backend);
+  if (!r->bk) {
+    fprintf(stderr, "vesica run: --backend '%s': not one of ipopt, nlopt, newton, euler\n",
+            backend ? backend : r->cfg.backend);
+    return 2;
+  }
+  if (out) {
+    snprintf(r->out, sizeof r->out, "%s", out);
+  } else { /* the problem file's name, .h5, here */
+    const char *base = strrchr(path, '/') ? strrchr(path, '/') + 1 : path;
+    size_t l = strlen(base);
+    if (l > 4 && !strcmp(base + l - 4, ".ini")) l -= 4;
+    snprintf(r->out, sizeof r->out, "%.*s.h5", (int)l, base);
+  }
+  char xdmf[PATH_MAX];
+  ves_io_xdmf_path(r->out, xdmf, sizeof xdmf);
+  if ((rc = check_writable("--out", r->out)) || (rc = check_writable("--out", xdmf))) return rc;
+  if (series && (rc = check_writable("--series", series))) return rc;
+  char abs[PATH_MAX], *problem = NULL, err[1024] = "";
+  if (!realpath(path, abs)) snprintf(abs, sizeof abs, "%s", path);
+  if (ves_config_to_text(&r->cfg, &problem) != VES_OK) {
+    fprintf(stderr, "vesica run: out of memory\n");
+    return 3;
+  }
+  if ((rc = build(r))) {
+    free(problem);
+    return rc;
+  }
+  double E0, A0, V0;
+  ves_sim_initial(r->sim, &E0, &A0, &V0);
+  ves_io_header h = {.version = VES_VERSION,
+                     .backend = r->bk->name,
+                     .problem = problem,
+                     .source = abs,
+                     .cfg = &r->cfg,
+                     .n = r->setup->nodes->n,
+                     .X = r->setup->nodes->x,
+                     .ntri = r->setup->quad->ntri,
+                     .tri = r->setup->quad->tri,
+                     .E0 = E0,
+                     .A0 = A0,
+                     .V0 = V0,
+                     .setup_seconds = r->setup->seconds_total};
+  ves_status st = ves_io_create(r->out, &h, &r->io, err, sizeof err);
+  free(problem);
+  if (st != VES_OK) { /* not created: nothing of ours to remove */
+    fprintf(stderr, "vesica run: %s\n", err);
+    return 2;
+  }
+  if ((st = snapshot(r, 0.0)) != VES_OK) { /* nothing half-written stays behind */
+    fprintf(stderr, "vesica run: %s: cannot write the first snapshot: %s\n", r->out,
+            ves_status_str(st));
+    ves_io_close(&r->io);
+    remove_output(r->out);
+    return 2;
+  }
+  if (series) {
+    if (!(r->series = fopen(series, "w"))) {
+      fprintf(stderr, "vesica run: --series %s: cannot open for writing: %s\n", series,
+              strerror(errno));
+      ves_io_close(&r->io);
+      remove_output(r->out);
+      return 2;
+    }
+    fprintf(r->series,
+            "# vesica %s run %s backend %s nodes %d E0 %.12g A0 %.12g V0 %.12g\n"
+            "# step\tt\tdt\tE\tA/A0-1\tV/Vt-1\tlambda_A\tlambda_V\titer\tf\tg\th\tseconds\t"
+            "retries\n",
+            VES_VERSION, path, r->bk->name, r->setup->nodes->n, E0, A0, V0);
+  }
+  return loop(r);
+}
+
+/* Continue FILE.h5 from its last snapshot. */
+static int run_restart(run_ctx *r, const char *file) {
+  char err[1024] = "";
+  r->label = file;
+  snprintf(r->out, sizeof r->out, "%s", file);
+  char xdmf[PATH_MAX];
+  ves_io_xdmf_path(file, xdmf, sizeof xdmf);
+  int rc = check_writable("--restart", xdmf);
+  if (rc) return rc;
+  ves_status st = ves_io_open(file, 1, &r->io, err, sizeof err);
+  if (st != VES_OK) {
+    fprintf(stderr, "vesica run: --restart %s\n", err);
+    return 2;
+  }
+  const ves_io_info *in = ves_io_get_info(r->io);
+  int S = ves_io_snapshots(r->io);
+  if (S < 1) {
+    fprintf(stderr, "vesica run: --restart %s: no snapshot to continue from\n", file);
+    return 2;
+  }
+  if (ves_config_load_text(in->problem, in->source, &r->cfg, err, sizeof err) != VES_OK) {
+    fprintf(stderr, "vesica run: --restart %s: the stored problem: %s\n", file, err);
+    return 2;
+  }
+  if (!(r->bk = ves_backend_find(in->backend))) {
+    fprintf(stderr, "vesica run: --restart %s: unknown backend '%s'\n", file, in->backend);
+    return 2;
+  }
+  if ((rc = build(r))) return rc;
+  /* the setup is deterministic: the rebuilt nodes must be the file's, bit for bit */
+  int n = r->setup->nodes->n;
+  if (n != in->n || r->setup->quad->ntri != in->ntri) {
+    fprintf(stderr,
+            "vesica run: --restart %s: the rebuilt setup has %d nodes, %d triangles; "
+            "the file %d, %d\n",
+            file, n, r->setup->quad->ntri, in->n, in->ntri);
+    return 2;
+  }
+  double *X = malloc(2 * (size_t)n * sizeof *X);
+  if (!X) return 3;
+  st = ves_io_read_mesh(r->io, X, NULL);
+  int same = st == VES_OK && !memcmp(X, r->setup->nodes->x, 2 * (size_t)n * sizeof *X);
+  free(X);
+  if (!same) {
+    fprintf(stderr,
+            "vesica run: --restart %s: the rebuilt nodes differ from the file's mesh "
+            "(another vesica version, or a changed points file?)\n",
+            file);
+    return 2;
+  }
+  ves_io_snapinfo si;
+  if ((st = ves_io_read_snapshot(r->io, S - 1, r->y, NULL, &si)) != VES_OK ||
+      si.rows > ves_io_rows(r->io) || si.rows != si.state.nstep) {
+    fprintf(stderr, "vesica run: --restart %s: snapshot %d is unreadable or inconsistent\n", file,
+            S - 1);
+    return 2;
+  }
+  if ((st = ves_sim_set_state(r->sim, &si.state, r->y)) != VES_OK) {
+    fprintf(stderr, "vesica run: --restart %s: snapshot %d: %s\n", file, S - 1, ves_status_str(st));
+    return 2;
+  }
+  if ((st = ves_io_truncate(r->io, si.rows)) != VES_OK ||
+      (st = ves_io_set_setup_seconds(r->io, r->setup->seconds_total)) != VES_OK ||
+      (st = ves_io_set_status(r->io, "running")) != VES_OK) {
+    fprintf(stderr, "vesica run: --restart %s: cannot write: %s\n", file, ves_status_str(st));
+    return 3;
+  }
+  r->wall_offset = si.wall_seconds;
+  r->last_snapshot_step = si.state.nstep;
+  if (!r->quiet)
+    fprintf(stderr, "vesica run: continuing %s from snapshot %d (step %ld, t* = %.6g)\n", file,
+            S - 1, si.state.nstep, si.state.t);
+  return loop(r);
+}
+
+static int cmd_run(int argc, char **argv) {
+  const char *path = NULL, *set[MAX_SET] = {0}, *backend = NULL, *series = NULL, *out = NULL;
+  const char *restart = NULL;
+  int nset = 0, quiet = 0, rc;
+  long max_steps = 0;
+  for (int i = 0; i < argc; i++) {
+    const char *a = argv[i];
+    int has = i + 1 < argc && argv[i + 1][0] != '-'; /* a value follows */
+    if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
+      usage_run(stdout);
+      return 0;
+    } else if (!strcmp(a, "--set")) {
+      if ((rc = take_set("run", argc, argv, &i, &nset, set))) return rc;
+    } else if (!strcmp(a, "--backend") || !strcmp(a, "--series") || !strcmp(a, "--out") ||
+               !strcmp(a, "--restart") || !strcmp(a, "--max-steps")) {
+      if (!has) {
+        fprintf(stderr, "vesica run: %s needs a value (see vesica run --help)\n", a);
+        return 2;
+      }
+      const char *v = argv[++i];
+      if (!strcmp(a, "--backend"))
+        backend = v;
+      else if (!strcmp(a, "--series"))
+        series = v;
+      else if (!strcmp(a, "--out"))
+        out = v;
+      else if (!strcmp(a, "--restart"))
+        restart = v;
+      else {
+        char *end;
+        errno = 0;
+        max_steps = strtol(v, &end, 10);
+        if (*end || errno || max_steps < 1) {
+          fprintf(stderr, "vesica run: --max-steps '%s': not a positive integer\n", v);
+          return 2;
+        }
+      }
+    } else if (!strcmp(a, "--quiet")) {
+      quiet = 1;
+    } else if (a[0] == '-') {
+      fprintf(stderr, "vesica run: unknown option '%s' (see vesica run --help)\n", a);
+      return 2;
+    } else if (!path) {
+      path = a;
+    } else {
+      fprintf(stderr, "vesica run: more than one configuration file ('%s')\n", a);
+      return 2;
+    }
+  }
+  if (restart && (path || nset || backend || out || series)) {
+    fprintf(stderr,
+            "vesica run: --restart %s continues the stored problem: no CONFIG.ini, --set, "
+            "--backend, --out or --series with it\n",
+            restart);
+    return 2;
+  }
+  if (backend && !ves_backend_find(backend)) {
+    fprintf(stderr, "vesica run: --backend '%s': not one of ipopt, nlopt, newton, euler\n",
+            backend);
+    return 2;
+  }
+  run_ctx r;
+  memset(&r, 0, sizeof r);
+  r.quiet = quiet, r.max_steps = max_steps, r.last_snapshot_step = -1;
+  rc = restart ? run_restart(&r, restart) : run_new(&r, path, out, backend, nset, set, series);
+  run_free(&r);
+  return rc;
+}
+
+/* --------------------------------------------------------------------------
+ * info */
+
+static void usage_info(FILE *f) {
+  fprintf(f, "usage: vesica info FILE.h5\n"
+             "Summary of a run, one 'key = value' per line (stable keys, for scripts):\n"
+             "  file, format_version, version, status (running = still running or killed,\n"
+             "  finished, stopped, failed), backend, nodes, triangles, snapshots, steps,\n"
+             "  t_final, t_end, energy_initial, energy_final (E*), energy_monotone (yes/no: E*\n"
+             "  never rose by more than 1e-10 relative between accepted steps),\n"
+             "  area_drift_max (max |A/A0 - 1|), volume_drift_max (max |V/V_target - 1|),\n"
+             "  reduced_volume_initial, reduced_volume_final, dt_first, dt_largest, retries,\n"
+             "  reconnections, newton_iterations (the backend's iterations in all: Newton steps,\n"
+             "  Ipopt iterations, ...), hessian_evaluations, wall_seconds (time loop, over\n"
+             "  restarts), setup_seconds, source;\n"
+             "then every parameter as section.key = value.\n");
+}
+
+/* v = V / (4 pi R0^3 / 3), R0 = sqrt(A / 4 pi). */
+static double reduced_volume(double A, double V) {
+  double R0 = sqrt(A / (4 * M_PI));
+  return V / (4.0 / 3.0 * M_PI * R0 * R0 * R0);
+}
+
+static int cmd_info(int argc, char **argv) {
+  const char *path = NULL;
+  for (int i = 0; i < argc; i++) {
+    if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
+      usage_info(stdout);
+      return 0;
+    } else if (argv[i][0] == '-') {
+      fprintf(stderr, "vesica info: unknown option '%s' (see vesica info --help)\n", argv[i]);
+      return 2;
+    } else if (path) {
+      fprintf(stderr, "vesica info: more than one file ('%s')\n", argv[i]);
+      return 2;
+    }
+    path = argv[i];
+  }
+  if (!path) {
+    usage_info(stderr);
+    return 2;
+  }
+  char err[1024] = "";
+  ves_io *io = NULL;
+  if (ves_io_open(path, 0, &io, err, sizeof err) != VES_OK) {
+    fprintf(stderr, "vesica info: %s\n", err);
+    return 2;
+  }
+  const ves_io_info *in = ves_io_get_info(io);
+  ves_config cfg;
+  if (ves_config_load_text(in->problem, in->source, &cfg, err, sizeof err) != VES_OK) {
+    fprintf(stderr, "vesica info: %s: the stored problem: %s\n", path, err);
+    ves_io_close(&io);
+    return 2;
+  }
+  long R = ves_io_rows(io);
+  const char *names[] = {"t",           "dt",         "E",       "A",       "V",
+                         "V_target",    "iterations", "h_evals", "retries", "reconnections",
+                         "wall_seconds"};
+  enum { NC = sizeof names / sizeof names[0] };
+  double *col[NC] = {0};
+  int rc = 0;
+  for (int c = 0; c < NC && !rc; c++) {
+    col[c] = malloc((size_t)(R > 0 ? R : 1) * sizeof *col[c]);
+    if (!col[c] || ves_io_read_series(io, names[c], col[c]) != VES_OK) rc = 2;
+  }
+  if (rc) {
+    fprintf(stderr, "vesica info: %s: cannot read the series\n", path);
+  } else {
+    double *t = col[0], *dt = col[1], *E = col[2], *A = col[3], *V = col[4], *Vt = col[5];
+    double adrift = 0, vdrift = 0, dtmax = 0, iters = 0, hes = 0, retries = 0;
+    int monotone = 1;
+    for (long i = 0; i < R; i++) {
+      double Eprev = i ? E[i - 1] : in->E0;
+      if (E[i] > Eprev + MONOTONE_TOL * fabs(Eprev)) monotone = 0;
+      adrift = fmax(adrift, fabs(A[i] / in->A0 - 1));
+      vdrift = fmax(vdrift, fabs(V[i] / Vt[i] - 1));
+      dtmax = fmax(dtmax, dt[i]);
+      iters += col[6][i], hes += col[7][i], retries += col[8][i];
+    }
+    printf("file = %s\n", path);
+    printf("format_version = %d\nversion = %s\nstatus = %s\nbackend = %s\n", in->format_version,
+           in->version, in->status, in->backend);
+    printf("nodes = %d\ntriangles = %d\nsnapshots = %d\nsteps = %ld\n", in->n, in->ntri,
+           ves_io_snapshots(io), R);
+    printf("t_final = %.12g\nt_end = %.12g\n", R ? t[R - 1] : 0.0, cfg.t_end);
+    printf("energy_initial = %.12g\nenergy_final = %.12g\n", in->E0, R ? E[R - 1] : in->E0);
+    printf("energy_monotone = %s\n", monotone ? "yes" : "no");
+    printf("area_drift_max = %.6e\nvolume_drift_max = %.6e\n", adrift, vdrift);
+    printf("reduced_volume_initial = %.12g\nreduced_volume_final = %.12g\n",
+           reduced_volume(in->A0, in->V0),
+           R ? reduced_volume(A[R - 1], V[R - 1]) : reduced_volume(in->A0, in->V0));
+    printf("dt_first = %.6g\ndt_largest = %.6g\n", R ? dt[0] : 0.0, dtmax);
+    printf("retries = %.0f\nreconnections = %.0f\n", retries, R ? col[9][R - 1] : 0.0);
+    printf("newton_iterations = %.0f\nhessian_evaluations = %.0f\n", iters, hes);
+    printf("wall_seconds = %.3f\nsetup_seconds = %.3f\n", R ? col[10][R - 1] : 0.0,
+           in->setup_seconds);
+    printf("source = %s\n", in->source);
+    for (int i = 0; i < ves_config_count(); i++) {
+      ves_config_entry e;
+      ves_config_entry_get(&cfg, i, &e);
+      printf("%s.%s = ", e.section, e.key);
+      char num[32];
+      ves_config_format_real(e.real, num, sizeof num);
+      if (e.type == VES_KEY_REAL)
+        printf("%s\n", num);
+      else if (e.type == VES_KEY_INT)
+        printf("%d\n", e.integer);
+      else
+        printf("%s\n", e.text);
+    }
+  }
+  for (int c = 0; c < NC; c++) free(col[c]);
+  ves_io_close(&io);
+  return rc;
+}
+
+/* --------------------------------------------------------------------------
+ * plot */
+
+static void usage_plot(FILE *f) {
+  fprintf(f,
+          "usage: vesica plot FILE.h5 [--outdir DIR] [--times T1,T2,...]\n"
+          "Writes three PNG figures (gnuplot, pngcairo) named after FILE:\n"
+          "  FILE_energy.png       E* and dt* against t* on a log time axis (paper Fig. 4)\n"
+          "  FILE_snapshots.png    the nodes at chosen times, mirrored across the axis,\n"
+          "                        coloured by phi (paper Figs. 3, 5)\n"
+          "  FILE_constraints.png  |A/A0 - 1|, |V/V_target - 1| and V/V0 against t*\n"
+          "--outdir DIR    where (default: the folder of FILE.h5; created if missing)\n"
+          "--times LIST    the snapshots nearest to these times t* (at most %d; default: the\n"
+          "                first, the last and two between them on a log time scale)\n",
+          VES_PLOT_MAXTIMES);
+}
+
+/* "t1,t2,..." into p->times. 0 ok, else 2 (message printed). */
+static int parse_times(const char *s, ves_plot_params *p) {
+  p->ntimes = 0;
+  while (*s) {
+    char *end;
+    errno = 0;
+    double v = strtod(s, &end);
+    if (end == s || errno || !isfinite(v) || v < 0 || (*end && *end != ',') ||
+        p->ntimes == VES_PLOT_MAXTIMES) {
+      fprintf(stderr,
+              "vesica plot: --times '%s': expected up to %d times t* >= 0, "
+              "comma-separated\n",
+              s, VES_PLOT_MAXTIMES);
+      return 2;
+    }
+    p->times[p->ntimes++] = v;
+    s = *end ? end + 1 : end;
+  }
+  if (!p->ntimes) {
+    fprintf(stderr, "vesica plot: --times: no time given\n");
+    return 2;
+  }
+  return 0;
+}
+
+static int cmd_plot(int argc, char **argv) {
+  const char *path = NULL, *outdir = NULL;
+  ves_plot_params p;
+  memset(&p, 0, sizeof p);
+  for (int i = 0; i < argc; i++) {
+    if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
+      usage_plot(stdout);
+      return 0;
+    } else if (!strcmp(argv[i], "--outdir") || !strcmp(argv[i], "--times")) {
+      if (i + 1 >= argc) {
+        fprintf(stderr, "vesica plot: %s needs a value\n", argv[i]);
+        return 2;
+      }
+      if (!strcmp(argv[i], "--outdir"))
+        outdir = argv[++i];
+      else if (parse_times(argv[++i], &p))
+        return 2;
+    } else if (argv[i][0] == '-') {
+      fprintf(stderr, "vesica plot: unknown option '%s' (see vesica plot --help)\n", argv[i]);
+      return 2;
+    } else if (path) {
+      fprintf(stderr, "vesica plot: more than one file ('%s')\n", argv[i]);
+      return 2;
+    } else {
+      path = argv[i];
+    }
+  }
+  if (!path) {
+    usage_plot(stderr);
+    return 2;
+  }
+  char err[1024] = "", dir[PATH_MAX], stem[PATH_MAX];
+  const char *slash = strrchr(path, '/'), *base = slash ? slash + 1 : path;
+  size_t l = strlen(base);
+  if (l > 3 && !strcmp(base + l - 3, ".h5")) l -= 3;
+  snprintf(stem, sizeof stem, "%.*s", (int)l, base);
+  if (outdir)
+    snprintf(dir, sizeof dir, "%s", outdir);
+  else if (slash)
+    snprintf(dir, sizeof dir, "%.*s", slash == path ? 1 : (int)(slash - path), path);
+  else
+    snprintf(dir, sizeof dir, ".");
+  ves_io *io = NULL;
+  if (ves_io_open(path, 0, &io, err, sizeof err) != VES_OK) {
+    fprintf(stderr, "vesica plot: %s\n", err);
+    return 2;
+  }
+  struct stat sb;
+  if (stat(dir, &sb) != 0 && mkdir(dir, 0777) != 0) {
+    fprintf(stderr, "vesica plot: --outdir %s: cannot create: %s\n", dir, strerror(errno));
+    ves_io_close(&io);
+    return 2;
+  }
+  if (stat(dir, &sb) != 0 || !S_ISDIR(sb.st_mode) || access(dir, W_OK) != 0) {
+    fprintf(stderr, "vesica plot: --outdir %s: not a writable folder\n", dir);
+    ves_io_close(&io);
+    return 2;
+  }
+  p.outdir = dir, p.stem = stem;
+  ves_status st = ves_plot_write(io, &p, err, sizeof err);
+  ves_io_close(&io);
+  if (st != VES_OK) {
+    fprintf(stderr, "vesica plot: %s: %s\n", path, err);
+    return st == VES_ERR_ARG ? 2 : 3;
+  }
+  for (int k = 0; k < VES_PLOT_NFIG; k++) printf("%s/%s_%s.png\n", dir, stem, ves_plot_figures[k]);
+  return 0;
 }
 
 int main(int argc, char **argv) {
@@ -278,7 +908,18 @@ int main(int argc, char **argv) {
   }
   if (!strcmp(argv[1], "check")) return cmd_check(argc - 2, argv + 2);
   if (!strcmp(argv[1], "run")) return cmd_run(argc - 2, argv + 2);
+  if (!strcmp(argv[1], "info")) return cmd_info(argc - 2, argv + 2);
+  if (!strcmp(argv[1], "plot")) return cmd_plot(argc - 2, argv + 2);
   if (!strcmp(argv[1], "keys")) {
+    if (argc > 2 && (!strcmp(argv[2], "--help") || !strcmp(argv[2], "-h"))) {
+      printf("usage: vesica keys\nPrints every problem-file key as a Markdown table: section, "
+             "key, type,\ndefault, allowed values and meaning (as in problems/README.md).\n");
+      return 0;
+    }
+    if (argc > 2) {
+      fprintf(stderr, "vesica keys: takes no arguments ('%s')\n", argv[2]);
+      return 2;
+    }
     ves_config_print_keys(stdout);
     return 0;
   }

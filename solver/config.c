@@ -9,17 +9,18 @@
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
+#include <unistd.h>
 
 typedef enum { KEY_DOUBLE, KEY_INT, KEY_STRING } key_type;
 
 typedef struct {
   const char *section, *key;
   key_type type;
-  size_t offset;     /* into ves_config */
-  const char *def;   /* default, as text */
-  double min, max;   /* inclusive range (numbers) */
-  const char *choice;/* strings: allowed values, '|'-separated */
-  const char *doc;   /* units and meaning */
+  size_t offset;      /* into ves_config */
+  const char *def;    /* default, as text */
+  double min, max;    /* inclusive range (numbers) */
+  const char *choice; /* strings: allowed values, '|'-separated */
+  const char *doc;    /* units and meaning */
 } key_spec;
 
 #define OFF(f) offsetof(ves_config, f)
@@ -102,8 +103,7 @@ static const key_spec KEYS[] = {
      "optimality tolerance of the step solve (relative)"},
     {"solver", "ctol", KEY_DOUBLE, OFF(ctol), "1e-10", 1e-16, 1e-2, NULL,
      "constraint tolerance, relative to A0 and V"},
-    {"solver", "max_iter", KEY_INT, OFF(max_iter), "100", 1, 100000, NULL,
-     "iterations per step"},
+    {"solver", "max_iter", KEY_INT, OFF(max_iter), "100", 1, 100000, NULL, "iterations per step"},
     {"solver", "freeze_hessian", KEY_INT, OFF(freeze_hessian), "1", 0, 1, NULL,
      "newton: assemble the Hessian once per step (paper)"},
     {"output", "snapshot_every", KEY_INT, OFF(snapshot_every), "10", 1, 1000000, NULL,
@@ -129,7 +129,7 @@ static int set_value(ves_config *cfg, const key_spec *k, const char *text, const
     if (len == 0 || len >= VES_CONFIG_STR) return *why = "empty or too long", -1;
     const char *c = k->choice;
     int ok = c == NULL; /* free text when no choices are listed */
-    while (c && *c) { /* one of the '|'-separated choices */
+    while (c && *c) {   /* one of the '|'-separated choices */
       size_t l = strcspn(c, "|");
       if (l == len && !strncasecmp(c, text, l)) ok = 1;
       c += l + (c[l] == '|');
@@ -144,8 +144,10 @@ static int set_value(ves_config *cfg, const key_spec *k, const char *text, const
   if (end == text || *end || errno || !isfinite(v)) return *why = "not a number", -1;
   if (k->type == KEY_INT && v != floor(v)) return *why = "not an integer", -1;
   if (v < k->min || v > k->max) return *why = "out of range", -1;
-  if (k->type == KEY_INT) *(int *)field = (int)v;
-  else *(double *)field = v;
+  if (k->type == KEY_INT)
+    *(int *)field = (int)v;
+  else
+    *(double *)field = v;
   return 0;
 }
 
@@ -187,58 +189,67 @@ static ves_status range_msg(char *err, size_t errlen, const char *src, const key
   return VES_ERR_CONFIG;
 }
 
-ves_status ves_config_load(const char *path, int nset, const char *const *set, ves_config *cfg,
-                           char *err, size_t errlen) {
-  VES_CHECK(cfg && (nset == 0 || set), VES_ERR_ARG);
-  ves_config_default(cfg);
-  if (path) {
-    snprintf(cfg->source, sizeof cfg->source, "%s", path);
-    FILE *f = fopen(path, "r");
-    if (!f) {
-      say(err, errlen, "%s: cannot open: %s", path, strerror(errno));
-      return VES_ERR_IO;
-    }
-    fclose(f);
-    iniparser_set_error_callback(ini_quiet);
-    dictionary *d = iniparser_load(path);
-    if (!d) {
-      say(err, errlen, "%s: not a readable INI file", path);
-      return VES_ERR_CONFIG;
-    }
-    ves_status s = VES_OK;
-    for (int i = 0; i < iniparser_getnsec(d) && s == VES_OK; i++) {
-      const char *sec = iniparser_getsecname(d, i);
-      if (!known_section(sec)) {
-        say(err, errlen, "%s: [%s]: unknown section", path, sec);
-        s = VES_ERR_CONFIG;
-        break;
-      }
-      int nk = iniparser_getsecnkeys(d, sec);
-      const char **keys = nk > 0 ? malloc((size_t)nk * sizeof *keys) : NULL;
-      if (nk > 0 && !keys) {
-        s = VES_ERR_ALLOC;
-        break;
-      }
-      if (nk > 0) iniparser_getseckeys(d, sec, keys);
-      for (int j = 0; j < nk && s == VES_OK; j++) {
-        const char *full = keys[j], *dot = strchr(full, ':');
-        const char *name = dot ? dot + 1 : full;
-        const key_spec *k = find_key(sec, name);
-        const char *val = iniparser_getstring(d, full, NULL);
-        const char *why;
-        if (!k) {
-          say(err, errlen, "%s: [%s] %s: unknown key", path, sec, name);
-          s = VES_ERR_CONFIG;
-        } else if (!val || set_value(cfg, k, val, &why)) {
-          s = range_msg(err, errlen, path, k, val ? val : "", val ? why : "no value");
-        }
-      }
-      free(keys);
-    }
-    iniparser_freedict(d);
-    if (s != VES_OK) return s;
+/* Read the INI file `path` over cfg; messages name `name` (the file itself,
+ * or where its text came from). */
+static ves_status load_ini(const char *path, const char *name, ves_config *cfg, char *err,
+                           size_t errlen) {
+  FILE *f = fopen(path, "r");
+  if (!f) {
+    say(err, errlen, "%s: cannot open: %s", name, strerror(errno));
+    return VES_ERR_IO;
   }
-  for (int i = 0; i < nset; i++) { /* --set section.key=value */
+  fclose(f);
+  iniparser_set_error_callback(ini_quiet);
+  dictionary *d = iniparser_load(path);
+  if (!d) {
+    say(err, errlen, "%s: not a readable INI file", name);
+    return VES_ERR_CONFIG;
+  }
+  ves_status s = VES_OK;
+  /* keys before the first section header: iniparser stores a key as
+   * "section:key", these as ":key" */
+  for (ssize_t i = 0; i < d->size && s == VES_OK; i++)
+    if (d->key[i] && d->key[i][0] == ':') {
+      say(err, errlen, "%s: %s: key outside a section", name, d->key[i] + 1);
+      s = VES_ERR_CONFIG;
+    }
+  for (int i = 0; i < iniparser_getnsec(d) && s == VES_OK; i++) {
+    const char *sec = iniparser_getsecname(d, i);
+    if (!known_section(sec)) {
+      say(err, errlen, "%s: [%s]: unknown section", name, sec);
+      s = VES_ERR_CONFIG;
+      break;
+    }
+    int nk = iniparser_getsecnkeys(d, sec);
+    const char **keys = nk > 0 ? malloc((size_t)nk * sizeof *keys) : NULL;
+    if (nk > 0 && !keys) {
+      s = VES_ERR_ALLOC;
+      break;
+    }
+    if (nk > 0) iniparser_getseckeys(d, sec, keys);
+    for (int j = 0; j < nk && s == VES_OK; j++) {
+      const char *full = keys[j], *dot = strchr(full, ':');
+      const char *kname = dot ? dot + 1 : full;
+      const key_spec *k = find_key(sec, kname);
+      const char *val = iniparser_getstring(d, full, NULL);
+      const char *why;
+      if (!k) {
+        say(err, errlen, "%s: [%s] %s: unknown key", name, sec, kname);
+        s = VES_ERR_CONFIG;
+      } else if (!val || set_value(cfg, k, val, &why)) {
+        s = range_msg(err, errlen, name, k, val ? val : "", val ? why : "no value");
+      }
+    }
+    free(keys);
+  }
+  iniparser_freedict(d);
+  return s;
+}
+
+/* Apply the overrides "section.key=value". */
+static ves_status apply_overrides(int nset, const char *const *set, ves_config *cfg, char *err,
+                                  size_t errlen) {
+  for (int i = 0; i < nset; i++) {
     char sec[64], key[64];
     const char *dot = strchr(set[i], '.'), *eq = strchr(set[i], '=');
     if (!dot || !eq || dot > eq || dot - set[i] >= 64 || eq - dot - 1 >= 64 || eq == dot + 1) {
@@ -257,6 +268,47 @@ ves_status ves_config_load(const char *path, int nset, const char *const *set, v
     }
     if (set_value(cfg, k, eq + 1, &why)) return range_msg(err, errlen, "--set", k, eq + 1, why);
   }
+  return VES_OK;
+}
+
+ves_status ves_config_load(const char *path, int nset, const char *const *set, ves_config *cfg,
+                           char *err, size_t errlen) {
+  VES_CHECK(cfg && (nset == 0 || set), VES_ERR_ARG);
+  ves_config_default(cfg);
+  if (path) {
+    snprintf(cfg->source, sizeof cfg->source, "%s", path);
+    VES_CALL(load_ini(path, path, cfg, err, errlen));
+  }
+  VES_CALL(apply_overrides(nset, set, cfg, err, errlen));
+  return ves_config_validate(cfg, err, errlen);
+}
+
+ves_status ves_config_load_text(const char *text, const char *name, ves_config *cfg, char *err,
+                                size_t errlen) {
+  VES_CHECK(text && name && cfg, VES_ERR_ARG);
+  ves_config_default(cfg);
+  snprintf(cfg->source, sizeof cfg->source, "%s", name);
+  /* iniparser reads files only: a private temporary copy of the text */
+  const char *dir = getenv("TMPDIR");
+  char tmp[512];
+  snprintf(tmp, sizeof tmp, "%s/vesica_cfg_XXXXXX", dir && *dir ? dir : "/tmp");
+  int fd = mkstemp(tmp);
+  if (fd < 0) {
+    say(err, errlen, "%s: cannot create a temporary file in %s: %s", name,
+        dir && *dir ? dir : "/tmp", strerror(errno));
+    return VES_ERR_IO;
+  }
+  FILE *f = fdopen(fd, "w");
+  size_t len = strlen(text);
+  int ok = f && fwrite(text, 1, len, f) == len;
+  if (f)
+    ok = (fclose(f) == 0) && ok;
+  else
+    close(fd);
+  ves_status s = ok ? load_ini(tmp, name, cfg, err, errlen) : VES_ERR_IO;
+  if (!ok) say(err, errlen, "%s: cannot write a temporary file %s", name, tmp);
+  unlink(tmp);
+  if (s != VES_OK) return s;
   return ves_config_validate(cfg, err, errlen);
 }
 
@@ -281,15 +333,92 @@ ves_status ves_config_validate(const ves_config *cfg, char *err, size_t errlen) 
   double size = cfg->radius * (1 + fabs(cfg->delta));
   if (!strcasecmp(cfg->shape_type, "sphere") &&
       size + (cfg->band + 1) * cfg->epsilon >= fmin(cfg->box_r, cfg->box_z)) {
-    say(err, errlen, "%s: [geometry] box_r/box_z = %g/%g: the sphere (radius %g) and its band of "
-                     "(band + 1) eps = %g do not fit in the box", src, cfg->box_r, cfg->box_z, size,
-        (cfg->band + 1) * cfg->epsilon);
+    say(err, errlen,
+        "%s: [geometry] box_r/box_z = %g/%g: the sphere (radius %g) and its band of "
+        "(band + 1) eps = %g do not fit in the box",
+        src, cfg->box_r, cfg->box_z, size, (cfg->band + 1) * cfg->epsilon);
     return VES_ERR_CONFIG;
   }
   if (cfg->h_far < cfg->h_band * cfg->epsilon) {
     say(err, errlen, "%s: [geometry] h_far = %g: smaller than the band spacing %g", src, cfg->h_far,
         cfg->h_band * cfg->epsilon);
     return VES_ERR_CONFIG;
+  }
+  /* protocols that would silently do nothing */
+  if (cfg->volume_rate != 0 && !cfg->volume) {
+    say(err, errlen,
+        "%s: [protocol] volume_rate = %g: a volume ramp needs [constraints] volume = 1", src,
+        cfg->volume_rate);
+    return VES_ERR_CONFIG;
+  }
+  if ((cfg->volume_rate < 0 && cfg->volume_final >= 1) ||
+      (cfg->volume_rate > 0 && cfg->volume_final <= 1)) {
+    say(err, errlen, "%s: [protocol] volume_final = %g: must be %s 1 for volume_rate = %g", src,
+        cfg->volume_final, cfg->volume_rate < 0 ? "below" : "above", cfg->volume_rate);
+    return VES_ERR_CONFIG;
+  }
+  if (cfg->c0_time < 0 && cfg->c0_after != 0) {
+    say(err, errlen, "%s: [protocol] c0_after = %g: has no effect without c0_time >= 0", src,
+        cfg->c0_after);
+    return VES_ERR_CONFIG;
+  }
+  if (cfg->c0_time > cfg->t_end) {
+    say(err, errlen, "%s: [protocol] c0_time = %g: after [time] t_end = %g", src, cfg->c0_time,
+        cfg->t_end);
+    return VES_ERR_CONFIG;
+  }
+  return VES_OK;
+}
+
+int ves_config_count(void) { return NKEYS; }
+
+void ves_config_entry_get(const ves_config *cfg, int i, ves_config_entry *e) {
+  const key_spec *k = &KEYS[i];
+  const void *field = (const char *)cfg + k->offset;
+  memset(e, 0, sizeof *e);
+  e->section = k->section, e->key = k->key;
+  e->type = k->type == KEY_DOUBLE ? VES_KEY_REAL : k->type == KEY_INT ? VES_KEY_INT : VES_KEY_TEXT;
+  if (k->type == KEY_DOUBLE)
+    e->real = *(const double *)field;
+  else if (k->type == KEY_INT)
+    e->integer = *(const int *)field;
+  else
+    e->text = field;
+}
+
+void ves_config_format_real(double v, char *buf, size_t len) {
+  for (int digits = 15; digits <= 17; digits++) { /* 17 always reads back exactly */
+    snprintf(buf, len, "%.*g", digits, v);
+    if (strtod(buf, NULL) == v) return;
+  }
+}
+
+ves_status ves_config_to_text(const ves_config *cfg, char **text) {
+  VES_CHECK(cfg && text, VES_ERR_ARG);
+  *text = NULL;
+  size_t len = 0;
+  FILE *f = open_memstream(text, &len);
+  if (!f) return VES_ERR_ALLOC;
+  fprintf(f, "; every key of the run (reals in their shortest exact form)\n");
+  const char *section = "";
+  for (int i = 0; i < NKEYS; i++) {
+    ves_config_entry e;
+    ves_config_entry_get(cfg, i, &e);
+    if (strcmp(e.section, section)) fprintf(f, "%s[%s]\n", i ? "\n" : "", e.section);
+    section = e.section;
+    char num[32];
+    ves_config_format_real(e.real, num, sizeof num);
+    if (e.type == VES_KEY_REAL)
+      fprintf(f, "%s = %s\n", e.key, num);
+    else if (e.type == VES_KEY_INT)
+      fprintf(f, "%s = %d\n", e.key, e.integer);
+    else
+      fprintf(f, "%s = \"%s\"\n", e.key, e.text); /* quoted: ';' and '#' stay text */
+  }
+  if (fclose(f) != 0 || !*text) {
+    free(*text);
+    *text = NULL;
+    return VES_ERR_ALLOC;
   }
   return VES_OK;
 }
@@ -309,8 +438,10 @@ void ves_config_print_keys(FILE *f) {
   for (int i = 0; i < NKEYS; i++) {
     const key_spec *k = &KEYS[i];
     char range[96];
-    if (k->type == KEY_STRING) snprintf(range, sizeof range, "%s", k->choice ? k->choice : "text");
-    else snprintf(range, sizeof range, "%.10g to %.10g", k->min, k->max);
+    if (k->type == KEY_STRING)
+      snprintf(range, sizeof range, "%s", k->choice ? k->choice : "text");
+    else
+      snprintf(range, sizeof range, "%.10g to %.10g", k->min, k->max);
     cell(f, k->section), cell(f, k->key);
     cell(f, k->type == KEY_DOUBLE ? "real" : k->type == KEY_INT ? "integer" : "text");
     cell(f, k->def), cell(f, range), cell(f, k->doc);
@@ -364,7 +495,8 @@ ves_status ves_config_read_points(const ves_config *cfg, int *n, double **pts, c
   }
   fclose(f);
   if (st == VES_OK && (cnt < 4 || p[0] != 0.0 || p[2 * cnt - 2] != 0.0)) {
-    say(err, errlen, "%s: %d points: need at least 4, the first and the last with R = 0", path, cnt);
+    say(err, errlen, "%s: %d points: need at least 4, the first and the last with R = 0", path,
+        cnt);
     st = VES_ERR_CONFIG;
   }
   if (st != VES_OK) {

@@ -200,3 +200,29 @@ void ves_sim_initial(const ves_sim *s, double *E, double *A, double *V) {
   if (A) *A = s->A0;
   if (V) *V = s->V0;
 }
+
+void ves_sim_get_state(const ves_sim *s, ves_sim_state *st, double *y) {
+  st->t = s->t, st->dt = s->dt, st->nstep = s->nstep;
+  st->E = s->E, st->A = s->A, st->V = s->V;
+  st->E0 = s->E0, st->A0 = s->A0, st->V0 = s->V0;
+  st->lambda[0] = s->lambda[0], st->lambda[1] = s->lambda[1];
+  st->c0 = s->c0;
+  if (y) memcpy(y, s->y, 2 * (size_t)s->n * sizeof *y);
+}
+
+ves_status ves_sim_set_state(ves_sim *s, const ves_sim_state *st, const double *y) {
+  VES_CHECK(s && st && y, VES_ERR_ARG);
+  const double v[] = {st->t,  st->dt, st->E,         st->A,         st->V, st->E0,
+                      st->A0, st->V0, st->lambda[0], st->lambda[1], st->c0};
+  for (size_t i = 0; i < sizeof v / sizeof v[0]; i++) VES_CHECK(isfinite(v[i]), VES_ERR_ARG);
+  VES_CHECK(st->t >= 0 && st->dt > 0 && st->nstep >= 0 && st->A0 > 0 && st->V0 > 0, VES_ERR_ARG);
+  for (int i = 0; i < 2 * s->n; i++) VES_CHECK(isfinite(y[i]), VES_ERR_ARG);
+  VES_CALL(ves_model_set_c0(s->model, st->c0));
+  memcpy(s->y, y, 2 * (size_t)s->n * sizeof *s->y);
+  s->t = st->t, s->dt = st->dt, s->nstep = st->nstep;
+  s->E = st->E, s->A = st->A, s->V = st->V;
+  s->E0 = st->E0, s->A0 = st->A0, s->V0 = st->V0;
+  s->lambda[0] = st->lambda[0], s->lambda[1] = st->lambda[1];
+  s->c0 = st->c0;
+  return VES_OK;
+}

@@ -79,6 +79,16 @@ static void test_errors(void **state) {
   expect_error("[solver]\nbackend = cg\n", 0, NULL, VES_ERR_CONFIG, "ipopt|nlopt|newton|euler");
   expect_error("[constraints]\narea = 2\n", 0, NULL, VES_ERR_CONFIG, "out of range");
   expect_error("[geometry]\nepsilon = 0.3\n", 0, NULL, VES_ERR_CONFIG, "too large for the box");
+  expect_error("epsilon = 0.1\n[geometry]\n", 0, NULL, VES_ERR_CONFIG, "outside a section");
+  expect_error("[geometry\nepsilon = 0.1\n", 0, NULL, VES_ERR_CONFIG, "not a readable INI");
+  expect_error("[protocol]\nvolume_rate = -1\nvolume_final = 0.8\n[constraints]\nvolume = 0\n", 0,
+               NULL, VES_ERR_CONFIG, "volume_rate");
+  expect_error("[protocol]\nvolume_rate = -1\n", 0, NULL, VES_ERR_CONFIG, "must be below 1");
+  expect_error("[protocol]\nvolume_rate = 1\nvolume_final = 0.5\n", 0, NULL, VES_ERR_CONFIG,
+               "must be above 1");
+  expect_error("[protocol]\nc0_after = 3\n", 0, NULL, VES_ERR_CONFIG, "c0_after");
+  expect_error("[protocol]\nc0_time = 2\nc0_after = 3\n", 0, NULL, VES_ERR_CONFIG,
+               "after [time] t_end");
   const char *s1[] = {"geometry.epsilon"};
   expect_error("", 1, s1, VES_ERR_CONFIG, "section.key=value");
   const char *s2[] = {"geometry.nope=1"};
@@ -123,6 +133,47 @@ static void test_points_file(void **state) {
   assert_null(p);
 }
 
+/* Text round trip: every key back bit for bit (reals in their shortest
+ * exact form), strings with ';' and '#' intact; the name stands for the file
+ * in messages and points files. */
+static void test_text_roundtrip(void **state) {
+  (void)state;
+  ves_config c, d;
+  char err[512] = "", *text = NULL;
+  ves_config_default(&c);
+  c.epsilon = 0.1 / 3, c.c0 = -2.0 / 7, c.t_end = 1e-7 * 3, c.seed = 12345, c.dt_min = 1e-15 / 3;
+  snprintf(c.points, sizeof c.points, "a;b#c.txt");
+  snprintf(c.shape_type, sizeof c.shape_type, "curve");
+  assert_int_equal(ves_config_to_text(&c, &text), VES_OK);
+  assert_non_null(strstr(text, "[geometry]\nepsilon = 0.0333333333333333"));
+  assert_non_null(strstr(text, "\nh_band = 0.5\n")); /* short where exact */
+  assert_int_equal(ves_config_load_text(text, "/data/run.ini", &d, err, sizeof err), VES_OK);
+  assert_string_equal(d.source, "/data/run.ini");
+  for (int i = 0; i < ves_config_count(); i++) {
+    ves_config_entry a, b;
+    ves_config_entry_get(&c, i, &a);
+    ves_config_entry_get(&d, i, &b);
+    assert_string_equal(a.section, b.section);
+    assert_string_equal(a.key, b.key);
+    if (a.type == VES_KEY_REAL)
+      assert_memory_equal(&a.real, &b.real, sizeof a.real);
+    else if (a.type == VES_KEY_INT)
+      assert_int_equal(a.integer, b.integer);
+    else
+      assert_string_equal(a.text, b.text);
+  }
+  free(text);
+  /* errors in stored text name the given name */
+  assert_int_equal(ves_config_load_text("[geometry]\nnope = 1\n", "stored.h5", &d, err, sizeof err),
+                   VES_ERR_CONFIG);
+  assert_non_null(strstr(err, "stored.h5: [geometry] nope: unknown key"));
+  char buf[32];
+  ves_config_format_real(0.1, buf, sizeof buf);
+  assert_string_equal(buf, "0.1");
+  ves_config_format_real(1.0 / 3, buf, sizeof buf);
+  assert_true(strtod(buf, NULL) == 1.0 / 3);
+}
+
 static void test_key_listing(void **state) {
   (void)state;
   char *buf = NULL;
@@ -142,6 +193,7 @@ int main(void) {
       cmocka_unit_test(test_defaults_and_overrides),
       cmocka_unit_test(test_errors),
       cmocka_unit_test(test_points_file),
+      cmocka_unit_test(test_text_roundtrip),
       cmocka_unit_test(test_key_listing),
   };
   return cmocka_run_group_tests_name("config", tests, NULL, NULL);

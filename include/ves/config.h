@@ -15,53 +15,53 @@
 /* All parameters of a run. Lengths in R0 = sqrt(A0/4pi), energies in k, times
  * in t* = t k / (mu R0^3). */
 typedef struct {
-  char source[512];                /* the file it came from */
+  char source[512]; /* the file it came from */
   /* [geometry] */
-  double epsilon;                  /* interface width eps / R0 */
-  double box_r, box_z;             /* meridian box [0, box_r] x [-box_z, box_z] */
-  double h_band;                   /* node spacing in the band, in units of eps */
-  double band;                     /* half-width of the refined band, units of eps */
-  double slope;                    /* growth of the spacing away from the band */
-  double h_far;                    /* largest spacing */
-  double gamma;                    /* LME aspect ratio */
-  double support_tol;              /* LME support truncation tol0 */
-  double axis_spacings;            /* width of the regular axis strip (spacings) */
-  int lloyd_iterations;            /* CVT smoothing iterations */
-  int band_layers;                 /* 1: interface-aligned layers in the band */
-  int seed;                        /* seed of the node sampling */
+  double epsilon;       /* interface width eps / R0 */
+  double box_r, box_z;  /* meridian box [0, box_r] x [-box_z, box_z] */
+  double h_band;        /* node spacing in the band, in units of eps */
+  double band;          /* half-width of the refined band, units of eps */
+  double slope;         /* growth of the spacing away from the band */
+  double h_far;         /* largest spacing */
+  double gamma;         /* LME aspect ratio */
+  double support_tol;   /* LME support truncation tol0 */
+  double axis_spacings; /* width of the regular axis strip (spacings) */
+  int lloyd_iterations; /* CVT smoothing iterations */
+  int band_layers;      /* 1: interface-aligned layers in the band */
+  int seed;             /* seed of the node sampling */
   /* [shape] */
-  char shape_type[VES_CONFIG_STR]; /* sphere | spheroid | discocyte | curve */
-  char points[VES_CONFIG_STR];     /* curve: points file, relative to the problem file's folder */
-  double radius;                   /* sphere radius */
-  double reduced_volume;           /* spheroid reduced volume v */
-  char orientation[VES_CONFIG_STR];/* spheroid: oblate | prolate */
-  int mode;                        /* radial perturbation 1 + delta P_mode(cos t) */
-  double delta;                    /* perturbation amplitude */
+  char shape_type[VES_CONFIG_STR];  /* sphere | spheroid | discocyte | curve */
+  char points[VES_CONFIG_STR];      /* curve: points file, relative to the problem file's folder */
+  double radius;                    /* sphere radius */
+  double reduced_volume;            /* spheroid reduced volume v */
+  char orientation[VES_CONFIG_STR]; /* spheroid: oblate | prolate */
+  int mode;                         /* radial perturbation 1 + delta P_mode(cos t) */
+  double delta;                     /* perturbation amplitude */
   /* [material] */
-  double k;                        /* bending stiffness (energy unit: 1) */
-  double mu;                       /* viscosity (unit: 1) */
-  double lambda_ratio;             /* penalty lambda / mu (>= 10) */
-  double c0;                       /* spontaneous curvature C0 R0 */
+  double k;            /* bending stiffness (energy unit: 1) */
+  double mu;           /* viscosity (unit: 1) */
+  double lambda_ratio; /* penalty lambda / mu (>= 10) */
+  double c0;           /* spontaneous curvature C0 R0 */
   /* [time] (t* units) */
   double t_end, dt_initial, dt_max, dt_min; /* end, first, largest, smallest step */
-  int adaptive;                    /* 1: dt from the energy decrement */
-  double dE_target;                /* target |dE*| per step */
-  double growth_max;               /* largest dt growth factor per step */
-  int iter_target;                 /* no dt growth above this many iterations */
+  int adaptive;                             /* 1: dt from the energy decrement */
+  double dE_target;                         /* target |dE*| per step */
+  double growth_max;                        /* largest dt growth factor per step */
+  int iter_target;                          /* no dt growth above this many iterations */
   /* [constraints] */
-  int area, volume;                /* 1: hold A = A0, V = V_target */
+  int area, volume; /* 1: hold A = A0, V = V_target */
   /* [protocol] */
-  double volume_rate;              /* dV/dt / V0 (1/t*), < 0 deflates */
-  double volume_final;             /* V/V0 where the ramp stops */
-  double c0_time;                  /* time of a step change of C0 (< 0: none) */
-  double c0_after;                 /* C0 R0 after it */
+  double volume_rate;  /* dV/dt / V0 (1/t*), < 0 deflates */
+  double volume_final; /* V/V0 where the ramp stops */
+  double c0_time;      /* time of a step change of C0 (< 0: none) */
+  double c0_after;     /* C0 R0 after it */
   /* [solver] */
-  char backend[VES_CONFIG_STR];    /* ipopt | nlopt | newton | euler */
-  double tol, ctol;                /* optimality and constraint tolerances */
-  int max_iter;                    /* iterations per step */
-  int freeze_hessian;              /* newton: Hessian once per step */
+  char backend[VES_CONFIG_STR]; /* ipopt | nlopt | newton | euler */
+  double tol, ctol;             /* optimality and constraint tolerances */
+  int max_iter;                 /* iterations per step */
+  int freeze_hessian;           /* newton: Hessian once per step */
   /* [output] */
-  int snapshot_every;              /* accepted steps between snapshots */
+  int snapshot_every; /* accepted steps between snapshots */
 } ves_config;
 
 /* Defaults for every key. */
@@ -73,8 +73,37 @@ void ves_config_default(ves_config *cfg);
 ves_status ves_config_load(const char *path, int nset, const char *const *set, ves_config *cfg,
                            char *err, size_t errlen);
 
-/* Cross-key consistency (epsilon vs box, ...); same error convention. */
+/* The same from problem-file text (e.g. the text stored in an output file):
+ * `name` stands for the file in messages and in cfg->source (a relative
+ * points file is found next to it). No overrides. */
+ves_status ves_config_load_text(const char *text, const char *name, ves_config *cfg, char *err,
+                                size_t errlen);
+
+/* Cross-key consistency (epsilon vs box, a protocol that would do nothing,
+ * an event after t_end, ...); same error convention. */
 ves_status ves_config_validate(const ves_config *cfg, char *err, size_t errlen);
+
+/* Typed access to every key, in table order (for writers of parameters). */
+typedef enum { VES_KEY_REAL, VES_KEY_INT, VES_KEY_TEXT } ves_key_type;
+typedef struct {
+  const char *section, *key; /* names (static strings) */
+  ves_key_type type;         /* which of the three values below holds */
+  double real;               /* VES_KEY_REAL */
+  int integer;               /* VES_KEY_INT */
+  const char *text;          /* VES_KEY_TEXT, borrowed from the configuration */
+} ves_config_entry;
+
+/* Number of keys, and key i (0 <= i < count) of cfg. */
+int ves_config_count(void);
+void ves_config_entry_get(const ves_config *cfg, int i, ves_config_entry *e);
+
+/* Every key of cfg as problem-file text (reals in the shortest form that
+ * reads back exactly, so ves_config_load_text gives back the identical
+ * configuration). *text is malloc'd and taken by the caller. */
+ves_status ves_config_to_text(const ves_config *cfg, char **text);
+
+/* v as the shortest "%.Ng" (N = 15..17) that strtod reads back as v. */
+void ves_config_format_real(double v, char *buf, size_t len);
 
 /* Read a points file (lines "R Z", '#' comments) for a curve shape; a
  * relative path is taken relative to the folder of cfg->source. *pts (2 *n)

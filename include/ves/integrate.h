@@ -60,6 +60,28 @@ void ves_sim_destroy(ves_sim **s);
  * last accepted one and rep describes the last attempt. */
 ves_status ves_sim_step(ves_sim *s, ves_step_report *rep);
 
+/* The integrator's whole state between steps: with the same model and
+ * parameters, a simulation set to it continues the identical trajectory,
+ * bit for bit (what a restart needs). E, A, V in model units (E* = E / k). */
+typedef struct {
+  double t;          /* time reached (t*) */
+  double dt;         /* the next step's dt (t*) */
+  long nstep;        /* accepted steps so far */
+  double E, A, V;    /* energy, area and volume at y */
+  double E0, A0, V0; /* at t = 0 (A0 is the area target, V0 scales the volume ramp) */
+  double lambda[2];  /* multipliers of the last accepted step (the next warm start) */
+  double c0;         /* C0 R0 in force */
+} ves_sim_state;
+
+/* Copy the state out; y (2n, the caller's buffer) receives the positions
+ * unless NULL. */
+void ves_sim_get_state(const ves_sim *s, ves_sim_state *st, double *y);
+
+/* Continue from state st and positions y (2n); both copied. Sets the
+ * model's C0 to st->c0. VES_ERR_ARG for non-finite or inconsistent values
+ * (t < 0, dt <= 0, nstep < 0, A0 or V0 <= 0); then nothing changes. */
+ves_status ves_sim_set_state(ves_sim *s, const ves_sim_state *st, const double *y);
+
 double ves_sim_time(const ves_sim *s);
 double ves_sim_dt(const ves_sim *s);            /* the next step's dt */
 const double *ves_sim_y(const ves_sim *s);      /* current positions, 2n */

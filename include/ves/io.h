@@ -1,0 +1,183 @@
+/* vesica — run output: one HDF5 file per run (written as the run goes, read
+ * back by `vesica info`, `plot` and restart) and an XDMF file beside it so
+ * ParaView opens the snapshots as a time series. The module writes files and
+ * never prints.
+ *
+ * Layout (format_version 1; HDF5 1.10, default (earliest) format bounds, so a
+ * killed writer leaves no "file open for writing" flag behind):
+ *
+ *   /                    attributes
+ *     format_version     int 1
+ *     program, version   "vesica", the program version
+ *     backend            step solver of the run
+ *     nodes              int n (real nodes; y has 2n entries)
+ *     problem            the full problem text after --set overrides (every
+ *                        key, reals in their shortest exact form): a restart
+ *                        rebuilds the identical setup from it
+ *     source             absolute path of the problem file (points files of
+ *                        a curve shape are found next to it)
+ *     E0, A0, V0         E* (units k), area and volume at t = 0
+ *     setup_seconds      wall time of the setup (last run or restart)
+ *     status             running | finished | stopped | failed (a killed run
+ *                        stays "running")
+ *   /parameters          every problem-file key as a typed attribute named
+ *                        "section.key" (double, int or string)
+ *   /mesh/X              n x 2 reference node positions (R, Z), units R0
+ *   /mesh/triangles      ntri x 3 int, the reference Delaunay triangles (fixed
+ *                        connectivity: each snapshot is this mesh deformed)
+ *   /mesh/vertices       n int 0..n-1 (the nodes as XDMF points)
+ *   /series/<name>       1-D extendible chunked datasets, one row per accepted
+ *                        step, appended and flushed (H5Fflush) after every
+ *                        step: t, dt, E (E*), A, V, V_target, lambda_A,
+ *                        lambda_V, c0, iterations, f_evals, g_evals, h_evals,
+ *                        violation, solve_seconds, wall_seconds, retries,
+ *                        status, reconnections and last step (row i holds
+ *                        step i + 1; the table SERIES in io.c)
+ *   /snapshots           attribute count; groups "0", "1", ... each with
+ *     y                  n x 2 node positions (r, z)
+ *     phi                n, phi at the nodes (material: phi0 at X_a)
+ *     attributes         t, step, rows (series rows at the snapshot), and the
+ *                        integrator state (ves_sim_state: dt, E, A, V, E0, A0,
+ *                        V0 in model units, E* = E / k; lambda_A, lambda_V,
+ *                        c0), wall_seconds, reconnections
+ *
+ * Snapshot 0 is the initial state; then every [output] snapshot_every steps
+ * and the last state of a run (finished, stopped or failed). A restart
+ * continues from the last snapshot and drops the series rows after it.
+ * Reference-configuration resets (reconnection) will need the reference of
+ * each snapshot (nodes, quadrature points, weights, point data of phi0) for
+ * a restart: that is format_version 2. */
+#ifndef VES_IO_H
+#define VES_IO_H
+
+#include <stddef.h>
+
+#include "ves/config.h"
+#include "ves/geom.h"
+#include "ves/integrate.h"
+#include "ves/lme.h"
+#include "ves/status.h"
+
+#define VES_IO_FORMAT 1 /* format_version written and understood */
+
+/* What a new file starts with (everything borrowed for the call). */
+typedef struct {
+  const char *version;   /* program version */
+  const char *backend;   /* backend name */
+  const char *problem;   /* problem text (ves_config_to_text) */
+  const char *source;    /* absolute path of the problem file, or "" */
+  const ves_config *cfg; /* the parameters, for /parameters */
+  int n;                 /* real nodes */
+  const double *X;       /* 2n reference positions */
+  int ntri;              /* reference triangles */
+  const int *tri;        /* 3 ntri node indices */
+  double E0, A0, V0;     /* initial E*, A, V */
+  double setup_seconds;  /* wall time of the setup */
+} ves_io_header;
+
+/* One row of the series: one accepted step. */
+typedef struct {
+  long step;                     /* accepted-step index (1, 2, ...) */
+  double t, dt;                  /* time reached, step taken (t*) */
+  double E, A, V;                /* E* (units k), area, volume after the step */
+  double V_target;               /* volume target of the step */
+  double lambda_A;               /* multiplier of the area constraint */
+  double lambda_V;               /* multiplier of the volume constraint */
+  double c0;                     /* C0 R0 in force */
+  int iterations;                /* backend iterations */
+  int f_evals, g_evals, h_evals; /* objective, gradient, Hessian evaluations */
+  double violation;              /* max |c_i| / target_i at the solution */
+  double solve_seconds;          /* wall time of the accepted solve */
+  double wall_seconds;           /* wall time of the time loop since t = 0 (over restarts) */
+  int retries;                   /* halvings of dt before acceptance */
+  int status;                    /* ves_status of the accepted solve */
+  int reconnections;             /* reference-configuration resets so far */
+} ves_io_row;
+
+/* What was written with a snapshot besides y and phi. */
+typedef struct {
+  ves_sim_state state; /* the integrator's state (t, step = state.nstep, ...) */
+  double wall_seconds; /* wall time of the time loop at the snapshot */
+  int reconnections;   /* resets so far */
+  long rows;           /* series rows at the snapshot */
+} ves_io_snapinfo;
+
+/* The header of an open file (owned by the handle). */
+typedef struct {
+  int format_version;
+  char version[64], backend[64], status[16];
+  char *problem;     /* problem text */
+  char *source;      /* absolute path of the problem file */
+  int n;             /* real nodes */
+  int ntri;          /* reference triangles */
+  double E0, A0, V0; /* initial E*, A, V */
+  double setup_seconds;
+} ves_io_info;
+
+typedef struct ves_io ves_io;
+
+/* Create (truncate) path and write the header, /parameters and /mesh.
+ * VES_ERR_IO when the file cannot be created (message in err). The XDMF file
+ * is written next to it (path with .h5 replaced by .xdmf) at every snapshot. */
+ves_status ves_io_create(const char *path, const ves_io_header *h, ves_io **out, char *err,
+                         size_t errlen);
+
+/* Open an existing output file, read-only or (writable) to continue it.
+ * VES_ERR_IO: cannot open / not HDF5; VES_ERR_CONFIG: HDF5 but not a vesica
+ * file of a known format_version (message in err, naming the file). */
+ves_status ves_io_open(const char *path, int writable, ves_io **out, char *err, size_t errlen);
+
+/* Flush and close; accepts NULL and sets *io to NULL. */
+void ves_io_close(ves_io **io);
+
+const ves_io_info *ves_io_get_info(const ves_io *io);
+
+/* Append one row to every series and flush the file. */
+ves_status ves_io_append(ves_io *io, const ves_io_row *row);
+
+/* Write snapshot number ves_io_snapshots(io) — positions y (2n), phi (n),
+ * and si — flush, and rewrite the XDMF file. */
+ves_status ves_io_snapshot(ves_io *io, const double *y, const double *phi,
+                           const ves_io_snapinfo *si);
+
+/* Set the root attribute status (at most 15 characters) and flush. */
+ves_status ves_io_set_status(ves_io *io, const char *status);
+
+/* Overwrite the root attribute setup_seconds (a restart's own setup). */
+ves_status ves_io_set_setup_seconds(ves_io *io, double seconds);
+
+/* Keep the first `rows` rows of every series (a restart drops the rows
+ * after its snapshot). */
+ves_status ves_io_truncate(ves_io *io, long rows);
+
+/* Complete rows: the length of the shortest series, less one when its last
+ * "step" (written last) is not yet there (a run killed in the middle of an
+ * append leaves some series one row longer). */
+long ves_io_rows(const ves_io *io);
+
+/* Series `name` (one of the names in the layout) as doubles: out[rows].
+ * VES_ERR_ARG for an unknown name. */
+ves_status ves_io_read_series(ves_io *io, const char *name, double *out);
+
+/* Number of snapshots (complete ones: a snapshot group without its data is
+ * not counted). */
+int ves_io_snapshots(const ves_io *io);
+
+/* Snapshot k: y (2n) and phi (n) unless NULL, si unless NULL. */
+ves_status ves_io_read_snapshot(ves_io *io, int k, double *y, double *phi, ves_io_snapinfo *si);
+
+/* The reference mesh: X (2n) and tri (3 ntri), either may be NULL. */
+ves_status ves_io_read_mesh(ves_io *io, double *X, int *tri);
+
+/* phi at the reference node positions from the nodal coefficients phi0c (n)
+ * of the LME basis: phi[a] = sum_b p_b(X_a) phi0c_b over real and ghost
+ * neighbours (the material value of node a, constant in time). Wall nodes
+ * lie on the hull, where LME is not evaluated: they are moved 1e-3 h_a
+ * inwards (phi there is flat to the tanh tail). nodes, phi0c, par borrowed. */
+ves_status ves_io_nodal_phi(const ves_nodes *nodes, const double *phi0c, const ves_lme_params *par,
+                            double *phi);
+
+/* The XDMF path for an HDF5 path: ".h5" replaced by ".xdmf" (or appended). */
+void ves_io_xdmf_path(const char *h5path, char *out, size_t len);
+
+#endif

@@ -1,0 +1,40 @@
+/* vesica — figures of a run (PNG, gnuplot's pngcairo terminal), read from its
+ * HDF5 output:
+ *   <stem>_energy.png       E* and dt* against t* on a log time axis (the
+ *                           paper's Fig. 4)
+ *   <stem>_snapshots.png    the nodes at chosen times (mirrored across the
+ *                           axis: the whole meridian section), coloured by
+ *                           phi (paper Figs. 3 and 5)
+ *   <stem>_constraints.png  constraint drift |A/A0 - 1|, |V/V_target - 1| and
+ *                           the volume V/V0 against t*
+ * gnuplot runs as a child process on a script written to a temporary file;
+ * its exit status is checked and its messages returned in err. */
+#ifndef VES_PLOT_H
+#define VES_PLOT_H
+
+#include <stddef.h>
+
+#include "ves/io.h"
+#include "ves/status.h"
+
+#define VES_PLOT_NFIG 3
+#define VES_PLOT_MAXTIMES 8 /* snapshot panels at most */
+
+/* The suffixes of the figures, in the order above ("energy", ...). */
+extern const char *const ves_plot_figures[VES_PLOT_NFIG];
+
+typedef struct {
+  const char *outdir;              /* existing folder for the PNGs (borrowed) */
+  const char *stem;                /* file-name stem, e.g. "oblate" (borrowed) */
+  int ntimes;                      /* number of chosen times (0: automatic, up to 4 spread
+                                      over the snapshots on a log time scale) */
+  double times[VES_PLOT_MAXTIMES]; /* chosen times (t*): the nearest snapshot each */
+} ves_plot_params;
+
+/* Write the three figures. VES_ERR_ARG for bad parameters (no rows or no
+ * snapshots in the file included: message in err); VES_ERR_IO when a
+ * temporary file cannot be written or gnuplot fails (its exit status and
+ * first message in err). */
+ves_status ves_plot_write(ves_io *io, const ves_plot_params *par, char *err, size_t errlen);
+
+#endif

@@ -1,0 +1,812 @@
+/* vesica — run output in HDF5 (+ XDMF): header, typed parameters, reference
+ * mesh, per-step series appended and flushed step by step, snapshots with the
+ * integrator state for restart. Layout: include/ves/io.h. */
+#include "ves/io.h"
+
+#include <errno.h>
+#include <hdf5.h>
+#include <limits.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define IO_CHUNK 512 /* rows per chunk of a series (4 KiB of doubles) */
+
+typedef enum { COL_LONG, COL_INT, COL_DOUBLE } col_type;
+
+/* The series, one table for create, append, truncate and read. */
+typedef struct {
+  const char *name;
+  col_type type;
+  size_t offset; /* into ves_io_row */
+} series_spec;
+
+#define ROW(f) offsetof(ves_io_row, f)
+/* "step" comes last: a row is complete once its step is written (rows i
+ * holds step i + 1; ves_io_rows checks it). */
+static const series_spec SERIES[] = {
+    {"t", COL_DOUBLE, ROW(t)},
+    {"dt", COL_DOUBLE, ROW(dt)},
+    {"E", COL_DOUBLE, ROW(E)},
+    {"A", COL_DOUBLE, ROW(A)},
+    {"V", COL_DOUBLE, ROW(V)},
+    {"V_target", COL_DOUBLE, ROW(V_target)},
+    {"lambda_A", COL_DOUBLE, ROW(lambda_A)},
+    {"lambda_V", COL_DOUBLE, ROW(lambda_V)},
+    {"c0", COL_DOUBLE, ROW(c0)},
+    {"iterations", COL_INT, ROW(iterations)},
+    {"f_evals", COL_INT, ROW(f_evals)},
+    {"g_evals", COL_INT, ROW(g_evals)},
+    {"h_evals", COL_INT, ROW(h_evals)},
+    {"violation", COL_DOUBLE, ROW(violation)},
+    {"solve_seconds", COL_DOUBLE, ROW(solve_seconds)},
+    {"wall_seconds", COL_DOUBLE, ROW(wall_seconds)},
+    {"retries", COL_INT, ROW(retries)},
+    {"status", COL_INT, ROW(status)},
+    {"reconnections", COL_INT, ROW(reconnections)},
+    {"step", COL_LONG, ROW(step)},
+};
+#define NSERIES ((int)(sizeof SERIES / sizeof SERIES[0]))
+
+struct ves_io {
+  hid_t file;            /* the HDF5 file */
+  int writable;          /* opened for writing */
+  char path[PATH_MAX];   /* the HDF5 file */
+  char xdmf[PATH_MAX];   /* the XDMF file beside it */
+  hid_t series[NSERIES]; /* open series datasets */
+  ves_io_info info;      /* header */
+  int nsnap;             /* complete snapshots */
+  double *snap_t;        /* nsnap times (for the XDMF file) */
+  int snap_cap;          /* capacity of snap_t */
+};
+
+static void say(char *err, size_t errlen, const char *fmt, ...) {
+  if (!err || !errlen) return;
+  va_list ap;
+  va_start(ap, fmt);
+  vsnprintf(err, errlen, fmt, ap);
+  va_end(ap);
+}
+
+/* HDF5 prints its error stack by default: the library stays silent. */
+static void quiet_hdf5(void) { H5Eset_auto2(H5E_DEFAULT, NULL, NULL); }
+
+/* ---- attributes ----------------------------------------------------------- */
+
+static ves_status attr_write(hid_t obj, const char *name, hid_t ftype, hid_t mtype, const void *v) {
+  if (H5Aexists(obj, name) > 0 && H5Adelete(obj, name) < 0) return VES_ERR_IO;
+  hid_t sp = H5Screate(H5S_SCALAR);
+  hid_t a = sp < 0 ? -1 : H5Acreate2(obj, name, ftype, sp, H5P_DEFAULT, H5P_DEFAULT);
+  herr_t e = a < 0 ? -1 : H5Awrite(a, mtype, v);
+  if (a >= 0) H5Aclose(a);
+  if (sp >= 0) H5Sclose(sp);
+  return e < 0 ? VES_ERR_IO : VES_OK;
+}
+
+static ves_status attr_double(hid_t obj, const char *name, double v) {
+  return attr_write(obj, name, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, &v);
+}
+
+static ves_status attr_int(hid_t obj, const char *name, int v) {
+  return attr_write(obj, name, H5T_STD_I32LE, H5T_NATIVE_INT, &v);
+}
+
+static ves_status attr_long(hid_t obj, const char *name, long v) {
+  return attr_write(obj, name, H5T_STD_I64LE, H5T_NATIVE_LONG, &v);
+}
+
+/* A fixed-length, NUL-terminated string attribute. */
+static ves_status attr_str(hid_t obj, const char *name, const char *s) {
+  hid_t t = H5Tcopy(H5T_C_S1);
+  if (t < 0) return VES_ERR_IO;
+  ves_status st = VES_ERR_IO;
+  if (H5Tset_size(t, strlen(s) + 1) >= 0 && H5Tset_strpad(t, H5T_STR_NULLTERM) >= 0)
+    st = attr_write(obj, name, t, t, s);
+  H5Tclose(t);
+  return st;
+}
+
+static ves_status attr_read(hid_t obj, const char *name, hid_t mtype, void *v) {
+  if (H5Aexists(obj, name) <= 0) return VES_ERR_CONFIG;
+  hid_t a = H5Aopen(obj, name, H5P_DEFAULT);
+  if (a < 0) return VES_ERR_IO;
+  herr_t e = H5Aread(a, mtype, v);
+  H5Aclose(a);
+  return e < 0 ? VES_ERR_IO : VES_OK;
+}
+
+static ves_status attr_read_double(hid_t obj, const char *name, double *v) {
+  return attr_read(obj, name, H5T_NATIVE_DOUBLE, v);
+}
+
+/* A string attribute, malloc'd (taken by the caller). */
+static ves_status attr_read_str(hid_t obj, const char *name, char **out) {
+  *out = NULL;
+  if (H5Aexists(obj, name) <= 0) return VES_ERR_CONFIG;
+  hid_t a = H5Aopen(obj, name, H5P_DEFAULT);
+  if (a < 0) return VES_ERR_IO;
+  ves_status st = VES_ERR_IO;
+  hid_t ft = H5Aget_type(a), mt = -1;
+  if (ft >= 0 && H5Tget_class(ft) == H5T_STRING && !H5Tis_variable_str(ft)) {
+    size_t len = H5Tget_size(ft);
+    char *s = calloc(len + 1, 1);
+    mt = H5Tcopy(H5T_C_S1);
+    if (!s)
+      st = VES_ERR_ALLOC;
+    else if (mt >= 0 && H5Tset_size(mt, len + 1) >= 0 && H5Aread(a, mt, s) >= 0)
+      *out = s, st = VES_OK;
+    if (st != VES_OK) free(s);
+  }
+  if (mt >= 0) H5Tclose(mt);
+  if (ft >= 0) H5Tclose(ft);
+  H5Aclose(a);
+  return st;
+}
+
+/* Into a fixed buffer (truncated to fit). */
+static ves_status attr_read_buf(hid_t obj, const char *name, char *buf, size_t len) {
+  char *s;
+  VES_CALL(attr_read_str(obj, name, &s));
+  snprintf(buf, len, "%s", s);
+  free(s);
+  return VES_OK;
+}
+
+/* ---- datasets ------------------------------------------------------------- */
+
+/* A contiguous dataset of rank 1 or 2 (dims[1] = 0 for rank 1), written once. */
+static ves_status dset_write(hid_t loc, const char *name, hid_t ftype, hid_t mtype, hsize_t d0,
+                             hsize_t d1, const void *data) {
+  hsize_t dims[2] = {d0, d1};
+  hid_t sp = H5Screate_simple(d1 ? 2 : 1, dims, NULL);
+  hid_t d = sp < 0 ? -1 : H5Dcreate2(loc, name, ftype, sp, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+  herr_t e = d < 0 ? -1 : H5Dwrite(d, mtype, H5S_ALL, H5S_ALL, H5P_DEFAULT, data);
+  if (d >= 0) H5Dclose(d);
+  if (sp >= 0) H5Sclose(sp);
+  return e < 0 ? VES_ERR_IO : VES_OK;
+}
+
+/* Read a whole dataset of exactly `count` elements. */
+static ves_status dset_read(hid_t loc, const char *name, hid_t mtype, hsize_t count, void *data) {
+  hid_t d = H5Dopen2(loc, name, H5P_DEFAULT);
+  if (d < 0) return VES_ERR_IO;
+  ves_status st = VES_ERR_IO;
+  hid_t sp = H5Dget_space(d);
+  if (sp >= 0 && (hsize_t)H5Sget_simple_extent_npoints(sp) == count &&
+      H5Dread(d, mtype, H5S_ALL, H5S_ALL, H5P_DEFAULT, data) >= 0)
+    st = VES_OK;
+  if (sp >= 0) H5Sclose(sp);
+  H5Dclose(d);
+  return st;
+}
+
+static hsize_t dset_len(hid_t d) {
+  hsize_t dims[1] = {0};
+  hid_t sp = H5Dget_space(d);
+  if (sp < 0) return 0;
+  if (H5Sget_simple_extent_ndims(sp) != 1 || H5Sget_simple_extent_dims(sp, dims, NULL) < 0)
+    dims[0] = 0;
+  H5Sclose(sp);
+  return dims[0];
+}
+
+static hid_t col_file_type(col_type t) {
+  return t == COL_LONG ? H5T_STD_I64LE : t == COL_INT ? H5T_STD_I32LE : H5T_IEEE_F64LE;
+}
+
+static hid_t col_mem_type(col_type t) {
+  return t == COL_LONG ? H5T_NATIVE_LONG : t == COL_INT ? H5T_NATIVE_INT : H5T_NATIVE_DOUBLE;
+}
+
+/* ---- XDMF ------------------------------------------------------------------ */
+
+void ves_io_xdmf_path(const char *h5path, char *out, size_t len) {
+  size_t l = strlen(h5path);
+  if (l > 3 && !strcmp(h5path + l - 3, ".h5"))
+    snprintf(out, len, "%.*s.xdmf", (int)(l - 3), h5path);
+  else
+    snprintf(out, len, "%s.xdmf", h5path);
+}
+
+/* Text with the XML special characters escaped. */
+static void xml_text(FILE *f, const char *s) {
+  for (; *s; s++) {
+    if (*s == '&')
+      fputs("&amp;", f);
+    else if (*s == '<')
+      fputs("&lt;", f);
+    else if (*s == '>')
+      fputs("&gt;", f);
+    else if (*s == '"')
+      fputs("&quot;", f);
+    else
+      fputc(*s, f);
+  }
+}
+
+static void xdmf_item(FILE *f, const char *h5, const char *dims, const char *num, int prec,
+                      const char *dset) {
+  fprintf(f, "     <DataItem Dimensions=\"%s\" NumberType=\"%s\" Precision=\"%d\" Format=\"HDF\">",
+          dims, num, prec);
+  xml_text(f, h5);
+  fprintf(f, ":%s</DataItem>\n", dset);
+}
+
+/* Two temporal collections over the snapshots: the deformed reference
+ * triangles with phi at the nodes, and the nodes alone as points. Written to
+ * a temporary name and renamed, so a reader never sees half a file. */
+static ves_status xdmf_write(const ves_io *io) {
+  const char *slash = strrchr(io->path, '/');
+  const char *h5 = slash ? slash + 1 : io->path; /* relative: the pair moves together */
+  char tmp[PATH_MAX + 8], dims[64];
+  snprintf(tmp, sizeof tmp, "%s.tmp", io->xdmf);
+  FILE *f = fopen(tmp, "w");
+  if (!f) return VES_ERR_IO;
+  int n = io->info.n, nt = io->info.ntri;
+  fprintf(f, "<?xml version=\"1.0\" ?>\n<!DOCTYPE Xdmf SYSTEM \"Xdmf.dtd\" []>\n"
+             "<Xdmf Version=\"2.0\">\n <Domain>\n");
+  for (int pass = 0; pass < 2; pass++) {
+    fprintf(f, "  <Grid Name=\"%s\" GridType=\"Collection\" CollectionType=\"Temporal\">\n",
+            pass ? "nodes" : "mesh");
+    for (int k = 0; k < io->nsnap; k++) {
+      char y[64], phi[64];
+      snprintf(y, sizeof y, "/snapshots/%d/y", k);
+      snprintf(phi, sizeof phi, "/snapshots/%d/phi", k);
+      fprintf(f, "   <Grid Name=\"%s_%d\" GridType=\"Uniform\">\n    <Time Value=\"%.17g\"/>\n",
+              pass ? "nodes" : "mesh", k, io->snap_t[k]);
+      if (pass == 0) {
+        fprintf(f,
+                "    <Topology TopologyType=\"Triangle\" NumberOfElements=\"%d\" "
+                "NodesPerElement=\"3\">\n",
+                nt);
+        snprintf(dims, sizeof dims, "%d 3", nt);
+        xdmf_item(f, h5, dims, "Int", 4, "/mesh/triangles");
+      } else {
+        fprintf(f,
+                "    <Topology TopologyType=\"Polyvertex\" NumberOfElements=\"%d\" "
+                "NodesPerElement=\"1\">\n",
+                n);
+        snprintf(dims, sizeof dims, "%d", n);
+        xdmf_item(f, h5, dims, "Int", 4, "/mesh/vertices");
+      }
+      fprintf(f, "    </Topology>\n    <Geometry GeometryType=\"XY\">\n");
+      snprintf(dims, sizeof dims, "%d 2", n);
+      xdmf_item(f, h5, dims, "Float", 8, y);
+      fprintf(f, "    </Geometry>\n    <Attribute Name=\"phi\" AttributeType=\"Scalar\" "
+                 "Center=\"Node\">\n");
+      snprintf(dims, sizeof dims, "%d", n);
+      xdmf_item(f, h5, dims, "Float", 8, phi);
+      fprintf(f, "    </Attribute>\n   </Grid>\n");
+    }
+    fprintf(f, "  </Grid>\n");
+  }
+  fprintf(f, " </Domain>\n</Xdmf>\n");
+  int bad = ferror(f);
+  if (fclose(f) != 0 || bad || rename(tmp, io->xdmf) != 0) {
+    remove(tmp);
+    return VES_ERR_IO;
+  }
+  return VES_OK;
+}
+
+/* ---- create / open / close ----------------------------------------------- */
+
+static ves_io *io_alloc(const char *path, int writable) {
+  ves_io *io = calloc(1, sizeof *io);
+  if (!io) return NULL;
+  io->file = -1;
+  io->writable = writable;
+  for (int i = 0; i < NSERIES; i++) io->series[i] = -1;
+  snprintf(io->path, sizeof io->path, "%s", path);
+  ves_io_xdmf_path(path, io->xdmf, sizeof io->xdmf);
+  return io;
+}
+
+void ves_io_close(ves_io **pio) {
+  if (!pio || !*pio) return;
+  ves_io *io = *pio;
+  for (int i = 0; i < NSERIES; i++)
+    if (io->series[i] >= 0) H5Dclose(io->series[i]);
+  if (io->file >= 0) {
+    if (io->writable) H5Fflush(io->file, H5F_SCOPE_LOCAL);
+    H5Fclose(io->file);
+  }
+  free(io->info.problem);
+  free(io->info.source);
+  free(io->snap_t);
+  free(io);
+  *pio = NULL;
+}
+
+/* Every configuration key as a typed attribute of /parameters. */
+static ves_status write_parameters(hid_t file, const ves_config *cfg) {
+  hid_t g = H5Gcreate2(file, "parameters", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+  if (g < 0) return VES_ERR_IO;
+  ves_status st = VES_OK;
+  for (int i = 0; i < ves_config_count() && st == VES_OK; i++) {
+    ves_config_entry e;
+    char name[128];
+    ves_config_entry_get(cfg, i, &e);
+    snprintf(name, sizeof name, "%s.%s", e.section, e.key);
+    if (e.type == VES_KEY_REAL)
+      st = attr_double(g, name, e.real);
+    else if (e.type == VES_KEY_INT)
+      st = attr_int(g, name, e.integer);
+    else
+      st = attr_str(g, name, e.text);
+  }
+  H5Gclose(g);
+  return st;
+}
+
+/* The extendible series datasets (empty). */
+static ves_status create_series(ves_io *io) {
+  hid_t g = H5Gcreate2(io->file, "series", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+  if (g < 0) return VES_ERR_IO;
+  hsize_t zero = 0, unlim = H5S_UNLIMITED, chunk = IO_CHUNK;
+  hid_t sp = H5Screate_simple(1, &zero, &unlim), dcpl = H5Pcreate(H5P_DATASET_CREATE);
+  ves_status st = sp >= 0 && dcpl >= 0 && H5Pset_chunk(dcpl, 1, &chunk) >= 0 ? VES_OK : VES_ERR_IO;
+  for (int i = 0; i < NSERIES && st == VES_OK; i++) {
+    io->series[i] = H5Dcreate2(g, SERIES[i].name, col_file_type(SERIES[i].type), sp, H5P_DEFAULT,
+                               dcpl, H5P_DEFAULT);
+    if (io->series[i] < 0) st = VES_ERR_IO;
+  }
+  if (dcpl >= 0) H5Pclose(dcpl);
+  if (sp >= 0) H5Sclose(sp);
+  H5Gclose(g);
+  return st;
+}
+
+static ves_status write_header(ves_io *io, const ves_io_header *h) {
+  hid_t f = io->file;
+  VES_CALL(attr_int(f, "format_version", VES_IO_FORMAT));
+  VES_CALL(attr_str(f, "program", "vesica"));
+  VES_CALL(attr_str(f, "version", h->version));
+  VES_CALL(attr_str(f, "backend", h->backend));
+  VES_CALL(attr_int(f, "nodes", h->n));
+  VES_CALL(attr_str(f, "problem", h->problem));
+  VES_CALL(attr_str(f, "source", h->source ? h->source : ""));
+  VES_CALL(attr_double(f, "E0", h->E0));
+  VES_CALL(attr_double(f, "A0", h->A0));
+  VES_CALL(attr_double(f, "V0", h->V0));
+  VES_CALL(attr_double(f, "setup_seconds", h->setup_seconds));
+  VES_CALL(attr_str(f, "status", "running"));
+  VES_CALL(write_parameters(f, h->cfg));
+  hid_t g = H5Gcreate2(f, "mesh", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+  if (g < 0) return VES_ERR_IO;
+  int *v = malloc((size_t)h->n * sizeof *v);
+  ves_status st = v ? VES_OK : VES_ERR_ALLOC;
+  for (int a = 0; v && a < h->n; a++) v[a] = a;
+  if (st == VES_OK)
+    st = dset_write(g, "X", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, (hsize_t)h->n, 2, h->X);
+  if (st == VES_OK)
+    st = dset_write(g, "triangles", H5T_STD_I32LE, H5T_NATIVE_INT, (hsize_t)h->ntri, 3, h->tri);
+  if (st == VES_OK)
+    st = dset_write(g, "vertices", H5T_STD_I32LE, H5T_NATIVE_INT, (hsize_t)h->n, 0, v);
+  free(v);
+  H5Gclose(g);
+  VES_CALL(st);
+  hid_t s = H5Gcreate2(f, "snapshots", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+  if (s < 0) return VES_ERR_IO;
+  st = attr_int(s, "count", 0);
+  H5Gclose(s);
+  VES_CALL(st);
+  VES_CALL(create_series(io));
+  return H5Fflush(f, H5F_SCOPE_LOCAL) < 0 ? VES_ERR_IO : VES_OK;
+}
+
+static void fill_info(ves_io *io, const ves_io_header *h) {
+  ves_io_info *in = &io->info;
+  in->format_version = VES_IO_FORMAT;
+  snprintf(in->version, sizeof in->version, "%s", h->version);
+  snprintf(in->backend, sizeof in->backend, "%s", h->backend);
+  snprintf(in->status, sizeof in->status, "running");
+  in->problem = strdup(h->problem);
+  in->source = strdup(h->source ? h->source : "");
+  in->n = h->n, in->ntri = h->ntri;
+  in->E0 = h->E0, in->A0 = h->A0, in->V0 = h->V0;
+  in->setup_seconds = h->setup_seconds;
+}
+
+ves_status ves_io_create(const char *path, const ves_io_header *h, ves_io **out, char *err,
+                         size_t errlen) {
+  VES_CHECK(path && h && out && h->cfg && h->version && h->backend && h->problem && h->X &&
+                h->tri && h->n > 0 && h->ntri > 0,
+            VES_ERR_ARG);
+  *out = NULL;
+  quiet_hdf5();
+  if (strlen(path) >= PATH_MAX - 8) {
+    say(err, errlen, "%s: path too long", path);
+    return VES_ERR_IO;
+  }
+  /* an HDF5 file there may be the output of a running vesica (which holds
+   * a lock on it): never truncate that one */
+  if (H5Fis_hdf5(path) > 0) {
+    hid_t f = H5Fopen(path, H5F_ACC_RDWR, H5P_DEFAULT);
+    if (f < 0) {
+      say(err, errlen, "%s: exists and cannot be opened for writing (in use by a running vesica?)",
+          path);
+      return VES_ERR_IO;
+    }
+    H5Fclose(f);
+  }
+  ves_io *io = io_alloc(path, 1);
+  if (!io) return VES_ERR_ALLOC;
+  io->file = H5Fcreate(path, H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
+  if (io->file < 0) {
+    say(err, errlen, "%s: cannot create the HDF5 file", path);
+    ves_io_close(&io);
+    return VES_ERR_IO;
+  }
+  fill_info(io, h);
+  ves_status st = io->info.problem && io->info.source ? write_header(io, h) : VES_ERR_ALLOC;
+  if (st != VES_OK) {
+    say(err, errlen, "%s: cannot write the header: %s", path, ves_status_str(st));
+    ves_io_close(&io);
+    return st;
+  }
+  *out = io;
+  return VES_OK;
+}
+
+/* Count the complete snapshots and read their times. */
+static ves_status read_snapshot_times(ves_io *io) {
+  hid_t s = H5Gopen2(io->file, "snapshots", H5P_DEFAULT);
+  if (s < 0) return VES_ERR_CONFIG;
+  int count = 0;
+  ves_status st = attr_read(s, "count", H5T_NATIVE_INT, &count);
+  if (st == VES_OK && count < 0) st = VES_ERR_CONFIG;
+  if (st == VES_OK && count > 0) {
+    io->snap_t = malloc((size_t)count * sizeof *io->snap_t);
+    io->snap_cap = count;
+    if (!io->snap_t) st = VES_ERR_ALLOC;
+  }
+  for (int k = 0; k < count && st == VES_OK; k++) {
+    char name[32];
+    snprintf(name, sizeof name, "%d", k);
+    hid_t g = H5Gopen2(s, name, H5P_DEFAULT);
+    if (g < 0) {
+      st = VES_ERR_CONFIG;
+      break;
+    }
+    st = attr_read_double(g, "t", &io->snap_t[k]);
+    H5Gclose(g);
+  }
+  H5Gclose(s);
+  if (st == VES_OK) io->nsnap = count;
+  return st;
+}
+
+static ves_status read_header(ves_io *io) {
+  hid_t f = io->file;
+  ves_io_info *in = &io->info;
+  char prog[32];
+  if (attr_read(f, "format_version", H5T_NATIVE_INT, &in->format_version) != VES_OK ||
+      attr_read_buf(f, "program", prog, sizeof prog) != VES_OK || strcmp(prog, "vesica"))
+    return VES_ERR_CONFIG;
+  if (in->format_version != VES_IO_FORMAT) return VES_ERR_CONFIG;
+  VES_CALL(attr_read_buf(f, "version", in->version, sizeof in->version));
+  VES_CALL(attr_read_buf(f, "backend", in->backend, sizeof in->backend));
+  VES_CALL(attr_read_buf(f, "status", in->status, sizeof in->status));
+  VES_CALL(attr_read(f, "nodes", H5T_NATIVE_INT, &in->n));
+  VES_CALL(attr_read_str(f, "problem", &in->problem));
+  VES_CALL(attr_read_str(f, "source", &in->source));
+  VES_CALL(attr_read_double(f, "E0", &in->E0));
+  VES_CALL(attr_read_double(f, "A0", &in->A0));
+  VES_CALL(attr_read_double(f, "V0", &in->V0));
+  VES_CALL(attr_read_double(f, "setup_seconds", &in->setup_seconds));
+  hid_t d = H5Dopen2(f, "mesh/triangles", H5P_DEFAULT);
+  if (d < 0) return VES_ERR_CONFIG;
+  hsize_t dims[2] = {0, 0};
+  hid_t sp = H5Dget_space(d);
+  int ok = sp >= 0 && H5Sget_simple_extent_ndims(sp) == 2 &&
+           H5Sget_simple_extent_dims(sp, dims, NULL) >= 0 && dims[1] == 3 && dims[0] <= INT_MAX;
+  if (sp >= 0) H5Sclose(sp);
+  H5Dclose(d);
+  if (!ok || in->n <= 0) return VES_ERR_CONFIG;
+  in->ntri = (int)dims[0];
+  for (int i = 0; i < NSERIES; i++) {
+    char name[64];
+    snprintf(name, sizeof name, "series/%s", SERIES[i].name);
+    io->series[i] = H5Dopen2(f, name, H5P_DEFAULT);
+    if (io->series[i] < 0) return VES_ERR_CONFIG;
+  }
+  return read_snapshot_times(io);
+}
+
+ves_status ves_io_open(const char *path, int writable, ves_io **out, char *err, size_t errlen) {
+  VES_CHECK(path && out, VES_ERR_ARG);
+  *out = NULL;
+  quiet_hdf5();
+  FILE *probe = fopen(path, writable ? "r+" : "r");
+  if (!probe) {
+    say(err, errlen, "%s: cannot open%s: %s", path, writable ? " for writing" : "",
+        strerror(errno));
+    return VES_ERR_IO;
+  }
+  fclose(probe);
+  if (H5Fis_hdf5(path) <= 0) {
+    say(err, errlen, "%s: not an HDF5 file", path);
+    return VES_ERR_IO;
+  }
+  ves_io *io = io_alloc(path, writable);
+  if (!io) return VES_ERR_ALLOC;
+  hid_t fapl = H5Pcreate(H5P_FILE_ACCESS);
+  /* readers take no lock: `vesica info` works on the file of a running run */
+  if (fapl >= 0 && !writable) H5Pset_file_locking(fapl, 0, 1);
+  io->file = H5Fopen(path, writable ? H5F_ACC_RDWR : H5F_ACC_RDONLY, fapl);
+  if (fapl >= 0) H5Pclose(fapl);
+  if (io->file < 0) {
+    say(err, errlen, "%s: cannot open the HDF5 file%s", path,
+        writable ? " for writing (in use by a running vesica?)" : "");
+    ves_io_close(&io);
+    return VES_ERR_IO;
+  }
+  ves_status st = read_header(io);
+  if (st != VES_OK) {
+    if (st == VES_ERR_CONFIG && io->info.format_version > VES_IO_FORMAT)
+      say(err, errlen, "%s: format_version %d: this vesica reads format_version %d", path,
+          io->info.format_version, VES_IO_FORMAT);
+    else if (st == VES_ERR_CONFIG)
+      say(err, errlen, "%s: not a vesica output file (missing or malformed layout)", path);
+    else
+      say(err, errlen, "%s: cannot read the header: %s", path, ves_status_str(st));
+    ves_io_close(&io);
+    return st;
+  }
+  *out = io;
+  return VES_OK;
+}
+
+const ves_io_info *ves_io_get_info(const ves_io *io) { return &io->info; }
+
+/* ---- series ----------------------------------------------------------------- */
+
+ves_status ves_io_append(ves_io *io, const ves_io_row *row) {
+  VES_CHECK(io && row && io->writable, VES_ERR_ARG);
+  for (int i = 0; i < NSERIES; i++) {
+    hid_t d = io->series[i];
+    hsize_t len = dset_len(d), one = 1, next = len + 1;
+    if (H5Dset_extent(d, &next) < 0) return VES_ERR_IO;
+    hid_t fs = H5Dget_space(d), ms = H5Screate_simple(1, &one, NULL);
+    herr_t e =
+        fs < 0 || ms < 0 ? -1 : H5Sselect_hyperslab(fs, H5S_SELECT_SET, &len, NULL, &one, NULL);
+    if (e >= 0)
+      e = H5Dwrite(d, col_mem_type(SERIES[i].type), ms, fs, H5P_DEFAULT,
+                   (const char *)row + SERIES[i].offset);
+    if (ms >= 0) H5Sclose(ms);
+    if (fs >= 0) H5Sclose(fs);
+    if (e < 0) return VES_ERR_IO;
+  }
+  return H5Fflush(io->file, H5F_SCOPE_LOCAL) < 0 ? VES_ERR_IO : VES_OK;
+}
+
+long ves_io_rows(const ves_io *io) {
+  hsize_t rows = 0, one = 1;
+  for (int i = 0; i < NSERIES; i++) {
+    hsize_t l = dset_len(io->series[i]);
+    if (i == 0 || l < rows) rows = l;
+  }
+  /* a writer killed between extending "step" and writing it leaves the
+   * fill value 0 there: that row is not complete */
+  long step = 0;
+  if (rows > 0) {
+    hsize_t last = rows - 1;
+    hid_t d = io->series[NSERIES - 1], fs = H5Dget_space(d), ms = H5Screate_simple(1, &one, NULL);
+    if (fs >= 0 && ms >= 0 && H5Sselect_hyperslab(fs, H5S_SELECT_SET, &last, NULL, &one, NULL) >= 0)
+      H5Dread(d, H5T_NATIVE_LONG, ms, fs, H5P_DEFAULT, &step);
+    if (ms >= 0) H5Sclose(ms);
+    if (fs >= 0) H5Sclose(fs);
+    if (step != (long)rows) rows--;
+  }
+  return (long)rows;
+}
+
+ves_status ves_io_truncate(ves_io *io, long rows) {
+  VES_CHECK(io && io->writable && rows >= 0, VES_ERR_ARG);
+  hsize_t r = (hsize_t)rows;
+  for (int i = 0; i < NSERIES; i++) {
+    if (dset_len(io->series[i]) < r) return VES_ERR_ARG;
+    if (H5Dset_extent(io->series[i], &r) < 0) return VES_ERR_IO;
+  }
+  return H5Fflush(io->file, H5F_SCOPE_LOCAL) < 0 ? VES_ERR_IO : VES_OK;
+}
+
+ves_status ves_io_read_series(ves_io *io, const char *name, double *out) {
+  VES_CHECK(io && name && out, VES_ERR_ARG);
+  int i = 0;
+  while (i < NSERIES && strcmp(SERIES[i].name, name)) i++;
+  VES_CHECK(i < NSERIES, VES_ERR_ARG);
+  hsize_t rows = (hsize_t)ves_io_rows(io), zero = 0;
+  if (rows == 0) return VES_OK;
+  hid_t fs = H5Dget_space(io->series[i]), ms = H5Screate_simple(1, &rows, NULL);
+  herr_t e =
+      fs < 0 || ms < 0 ? -1 : H5Sselect_hyperslab(fs, H5S_SELECT_SET, &zero, NULL, &rows, NULL);
+  if (e >= 0) e = H5Dread(io->series[i], H5T_NATIVE_DOUBLE, ms, fs, H5P_DEFAULT, out);
+  if (ms >= 0) H5Sclose(ms);
+  if (fs >= 0) H5Sclose(fs);
+  return e < 0 ? VES_ERR_IO : VES_OK;
+}
+
+/* ---- snapshots -------------------------------------------------------------- */
+
+int ves_io_snapshots(const ves_io *io) { return io->nsnap; }
+
+static ves_status snapshot_attrs(hid_t g, const ves_io_snapinfo *si) {
+  const ves_sim_state *s = &si->state;
+  VES_CALL(attr_double(g, "t", s->t));
+  VES_CALL(attr_long(g, "step", s->nstep));
+  VES_CALL(attr_long(g, "rows", si->rows));
+  VES_CALL(attr_double(g, "dt", s->dt));
+  VES_CALL(attr_double(g, "E", s->E));
+  VES_CALL(attr_double(g, "A", s->A));
+  VES_CALL(attr_double(g, "V", s->V));
+  VES_CALL(attr_double(g, "E0", s->E0));
+  VES_CALL(attr_double(g, "A0", s->A0));
+  VES_CALL(attr_double(g, "V0", s->V0));
+  VES_CALL(attr_double(g, "lambda_A", s->lambda[0]));
+  VES_CALL(attr_double(g, "lambda_V", s->lambda[1]));
+  VES_CALL(attr_double(g, "c0", s->c0));
+  VES_CALL(attr_double(g, "wall_seconds", si->wall_seconds));
+  return attr_int(g, "reconnections", si->reconnections);
+}
+
+ves_status ves_io_snapshot(ves_io *io, const double *y, const double *phi,
+                           const ves_io_snapinfo *si) {
+  VES_CHECK(io && y && phi && si && io->writable, VES_ERR_ARG);
+  if (io->nsnap == io->snap_cap) {
+    int cap = io->snap_cap ? 2 * io->snap_cap : 16;
+    double *t = realloc(io->snap_t, (size_t)cap * sizeof *t);
+    if (!t) return VES_ERR_ALLOC;
+    io->snap_t = t, io->snap_cap = cap;
+  }
+  hid_t s = H5Gopen2(io->file, "snapshots", H5P_DEFAULT);
+  if (s < 0) return VES_ERR_IO;
+  char name[32];
+  snprintf(name, sizeof name, "%d", io->nsnap);
+  /* a run killed while writing this snapshot left an incomplete group */
+  if (H5Lexists(s, name, H5P_DEFAULT) > 0) H5Ldelete(s, name, H5P_DEFAULT);
+  hid_t g = H5Gcreate2(s, name, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+  ves_status st = g < 0 ? VES_ERR_IO : VES_OK;
+  hsize_t n = (hsize_t)io->info.n;
+  if (st == VES_OK) st = dset_write(g, "y", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, n, 2, y);
+  if (st == VES_OK) st = dset_write(g, "phi", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, n, 0, phi);
+  if (st == VES_OK) st = snapshot_attrs(g, si);
+  if (g >= 0) H5Gclose(g);
+  /* the count last: a snapshot is complete once it is counted */
+  if (st == VES_OK) st = attr_int(s, "count", io->nsnap + 1);
+  H5Gclose(s);
+  VES_CALL(st);
+  if (H5Fflush(io->file, H5F_SCOPE_LOCAL) < 0) return VES_ERR_IO;
+  io->snap_t[io->nsnap++] = si->state.t;
+  return xdmf_write(io);
+}
+
+ves_status ves_io_read_snapshot(ves_io *io, int k, double *y, double *phi, ves_io_snapinfo *si) {
+  VES_CHECK(io && k >= 0 && k < io->nsnap, VES_ERR_ARG);
+  char name[48];
+  snprintf(name, sizeof name, "snapshots/%d", k);
+  hid_t g = H5Gopen2(io->file, name, H5P_DEFAULT);
+  if (g < 0) return VES_ERR_IO;
+  hsize_t n = (hsize_t)io->info.n;
+  ves_status st = VES_OK;
+  if (y) st = dset_read(g, "y", H5T_NATIVE_DOUBLE, 2 * n, y);
+  if (st == VES_OK && phi) st = dset_read(g, "phi", H5T_NATIVE_DOUBLE, n, phi);
+  if (st == VES_OK && si) {
+    ves_sim_state *s = &si->state;
+    memset(si, 0, sizeof *si);
+    const struct {
+      const char *name;
+      double *v;
+    } d[] = {{"t", &s->t},
+             {"dt", &s->dt},
+             {"E", &s->E},
+             {"A", &s->A},
+             {"V", &s->V},
+             {"E0", &s->E0},
+             {"A0", &s->A0},
+             {"V0", &s->V0},
+             {"lambda_A", &s->lambda[0]},
+             {"lambda_V", &s->lambda[1]},
+             {"c0", &s->c0},
+             {"wall_seconds", &si->wall_seconds}};
+    for (size_t i = 0; i < sizeof d / sizeof d[0] && st == VES_OK; i++)
+      st = attr_read_double(g, d[i].name, d[i].v);
+    if (st == VES_OK) st = attr_read(g, "step", H5T_NATIVE_LONG, &s->nstep);
+    if (st == VES_OK) st = attr_read(g, "rows", H5T_NATIVE_LONG, &si->rows);
+    if (st == VES_OK) st = attr_read(g, "reconnections", H5T_NATIVE_INT, &si->reconnections);
+  }
+  H5Gclose(g);
+  return st;
+}
+
+ves_status ves_io_read_mesh(ves_io *io, double *X, int *tri) {
+  VES_CHECK(io, VES_ERR_ARG);
+  if (X) VES_CALL(dset_read(io->file, "mesh/X", H5T_NATIVE_DOUBLE, 2 * (hsize_t)io->info.n, X));
+  if (tri)
+    VES_CALL(
+        dset_read(io->file, "mesh/triangles", H5T_NATIVE_INT, 3 * (hsize_t)io->info.ntri, tri));
+  return VES_OK;
+}
+
+ves_status ves_io_set_status(ves_io *io, const char *status) {
+  VES_CHECK(io && status && io->writable && strlen(status) < sizeof io->info.status, VES_ERR_ARG);
+  VES_CALL(attr_str(io->file, "status", status));
+  snprintf(io->info.status, sizeof io->info.status, "%s", status);
+  return H5Fflush(io->file, H5F_SCOPE_LOCAL) < 0 ? VES_ERR_IO : VES_OK;
+}
+
+ves_status ves_io_set_setup_seconds(ves_io *io, double seconds) {
+  VES_CHECK(io && io->writable, VES_ERR_ARG);
+  VES_CALL(attr_double(io->file, "setup_seconds", seconds));
+  io->info.setup_seconds = seconds;
+  return VES_OK;
+}
+
+/* ---- phi at the nodes ---------------------------------------------------- */
+
+ves_status ves_io_nodal_phi(const ves_nodes *nodes, const double *phi0c, const ves_lme_params *par,
+                            double *phi) {
+  VES_CHECK(nodes && phi0c && par && phi, VES_ERR_ARG);
+  int n = nodes->n, ne = nodes->n + nodes->ng, cap = 256;
+  ves_status st = VES_ERR_ALLOC;
+  ves_geom_search *search = NULL;
+  double *xe = malloc(2 * (size_t)ne * sizeof *xe), *rad = malloc((size_t)ne * sizeof *rad);
+  double *beta_e = malloc((size_t)ne * sizeof *beta_e);
+  int *idx = malloc((size_t)cap * sizeof *idx);
+  double *xa = malloc(2 * (size_t)cap * sizeof *xa), *beta = malloc((size_t)cap * sizeof *beta);
+  double *tab = malloc(6 * (size_t)cap * sizeof *tab);
+  double *work = malloc((size_t)ves_lme_work_size(cap) * sizeof *work);
+  if (!xe || !rad || !beta_e || !idx || !xa || !beta || !tab || !work) goto done;
+  ves_nodes_extended(nodes, xe);
+  for (int a = 0; a < ne; a++) {
+    double h = nodes->h[a < n ? a : nodes->ghost_of[a - n]];
+    rad[a] = ves_lme_radius(par, h);
+    beta_e[a] = par->gamma / (h * h);
+  }
+  if ((st = ves_geom_search_create(ne, xe, rad, &search)) != VES_OK) goto done;
+  for (int a = 0; a < n; a++) {
+    double X[2] = {nodes->x[2 * a], nodes->x[2 * a + 1]}, d = 1e-3 * nodes->h[a];
+    if (nodes->flag[a] & VES_NODE_WALL) { /* off the hull, inwards */
+      if (X[0] >= nodes->LR - d) X[0] = nodes->LR - d;
+      if (X[1] >= nodes->LZ - d) X[1] = nodes->LZ - d;
+      if (X[1] <= -nodes->LZ + d) X[1] = -nodes->LZ + d;
+    }
+    int m;
+    if ((st = ves_geom_search_query(search, X, cap, idx, &m)) != VES_OK) goto done;
+    if (m > cap) { /* rare: grow every per-neighbour buffer, ask again */
+      cap = 2 * m;
+      int *i2 = realloc(idx, (size_t)cap * sizeof *i2);
+      if (i2) idx = i2;
+      double *x2 = realloc(xa, 2 * (size_t)cap * sizeof *x2);
+      if (x2) xa = x2;
+      double *b2 = realloc(beta, (size_t)cap * sizeof *b2);
+      if (b2) beta = b2;
+      double *t2 = realloc(tab, 6 * (size_t)cap * sizeof *t2);
+      if (t2) tab = t2;
+      double *w2 = realloc(work, (size_t)ves_lme_work_size(cap) * sizeof *w2);
+      if (w2) work = w2;
+      if (!i2 || !x2 || !b2 || !t2 || !w2) {
+        st = VES_ERR_ALLOC;
+        goto done;
+      }
+      if ((st = ves_geom_search_query(search, X, cap, idx, &m)) != VES_OK) goto done;
+    }
+    for (int k = 0; k < m; k++) {
+      xa[2 * k] = xe[2 * idx[k]], xa[2 * k + 1] = xe[2 * idx[k] + 1];
+      beta[k] = beta_e[idx[k]];
+    }
+    double lambda[2] = {0.0, 0.0}, s = 0.0;
+    if ((st = ves_lme_eval(par, X, m, xa, beta, lambda, 0, tab, work, NULL)) != VES_OK) goto done;
+    for (int k = 0; k < m; k++)
+      s += tab[k] * phi0c[idx[k] < n ? idx[k] : nodes->ghost_of[idx[k] - n]];
+    phi[a] = s; /* phi0 is even in R: a ghost carries its real node's coefficient */
+  }
+  st = VES_OK;
+done:
+  ves_geom_search_destroy(&search);
+  free(xe), free(rad), free(beta_e), free(idx), free(xa), free(beta), free(tab), free(work);
+  return st;
+}

@@ -1,0 +1,275 @@
+/* vesica — figures of a run: the series and snapshots of an output file
+ * turned into one gnuplot script (data inline as datablocks), run by gnuplot. */
+#include "ves/plot.h"
+
+#include <errno.h>
+#include <limits.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+const char *const ves_plot_figures[VES_PLOT_NFIG] = {"energy", "snapshots", "constraints"};
+
+#define PLOT_AUTO 4        /* automatic snapshot panels */
+#define PLOT_FLOOR 1e-17   /* drift values below this are drawn at it (log axis) */
+#define PLOT_PANEL 560     /* pixels per snapshot panel */
+#define PLOT_INTERFACE 0.1 /* |phi| below this marks an interface node */
+
+static void say(char *err, size_t errlen, const char *fmt, ...) {
+  if (!err || !errlen) return;
+  va_list ap;
+  va_start(ap, fmt);
+  vsnprintf(err, errlen, fmt, ap);
+  va_end(ap);
+}
+
+/* A gnuplot single-quoted string ('' stands for '). */
+static void gp_quote(FILE *f, const char *s) {
+  fputc('\'', f);
+  for (; *s; s++) {
+    if (*s == '\'') fputc('\'', f);
+    fputc(*s, f);
+  }
+  fputc('\'', f);
+}
+
+static void gp_output(FILE *f, const ves_plot_params *p, int fig) {
+  char path[PATH_MAX];
+  snprintf(path, sizeof path, "%s/%s_%s.png", p->outdir, p->stem, ves_plot_figures[fig]);
+  fputs("set output ", f);
+  gp_quote(f, path);
+  fputc('\n', f);
+}
+
+/* The snapshots to draw, sel[*nsel] in increasing order without repeats:
+ * the nearest to each chosen time, or (automatic) the first, the last and
+ * PLOT_AUTO - 2 between them at log-spaced times. */
+static int select_snapshots(const double *T, int S, const ves_plot_params *p, int *sel) {
+  double want[VES_PLOT_MAXTIMES];
+  int nw = 0;
+  if (p->ntimes > 0) {
+    for (int i = 0; i < p->ntimes; i++) want[nw++] = p->times[i];
+  } else if (S <= PLOT_AUTO) {
+    for (int k = 0; k < S; k++) want[nw++] = T[k];
+  } else {
+    double t1 = T[1] > 0 ? T[1] : T[S - 1] * 1e-3, tl = T[S - 1];
+    want[nw++] = T[0];
+    for (int j = 1; j < PLOT_AUTO - 1; j++)
+      want[nw++] = t1 * pow(tl / t1, (double)j / (PLOT_AUTO - 1));
+    want[nw++] = tl;
+  }
+  int nsel = 0;
+  for (int i = 0; i < nw; i++) {
+    int best = 0;
+    for (int k = 1; k < S; k++)
+      if (fabs(T[k] - want[i]) < fabs(T[best] - want[i])) best = k;
+    int seen = 0;
+    for (int j = 0; j < nsel; j++) seen |= sel[j] == best;
+    if (!seen) sel[nsel++] = best;
+  }
+  for (int i = 1; i < nsel; i++) /* insertion sort: a handful of entries */
+    for (int j = i; j > 0 && sel[j - 1] > sel[j]; j--) {
+      int tmp = sel[j];
+      sel[j] = sel[j - 1], sel[j - 1] = tmp;
+    }
+  return nsel;
+}
+
+/* E* and dt* against t* (log time), as the paper's Fig. 4. */
+static void fig_energy(FILE *f, const ves_plot_params *p, const ves_io_info *in, long R,
+                       const double *t, const double *dt, const double *E) {
+  fprintf(f, "$series << EOD\n");
+  for (long i = 0; i < R; i++) fprintf(f, "%.10g %.10g %.12g\n", t[i], dt[i], E[i]);
+  fprintf(f, "EOD\n");
+  fprintf(f, "reset\nset terminal pngcairo size 900,900 font ',12'\n");
+  gp_output(f, p, 0);
+  fprintf(f, "set multiplot layout 2,1 title ");
+  char title[256];
+  snprintf(title, sizeof title, "%s: %d nodes, %s backend, %ld steps", p->stem, in->n, in->backend,
+           R);
+  gp_quote(f, title);
+  fprintf(f,
+          "\nset logscale x\nset format x '10^{%%L}'\nset grid\nset key top right\n"
+          "set lmargin 12\nset ylabel 'E* = E/k'\n"
+          "plot $series using 1:3 with linespoints pt 7 ps 0.6 lw 2 lc rgb '#b40426' "
+          "title 'E*'\n"
+          "set logscale y\nset format y '10^{%%L}'\nset xlabel 't* = t k / ({/Symbol m} R_0^3)'\n"
+          "set ylabel '{/Symbol D}t*'\n"
+          "plot $series using 1:2 with linespoints pt 7 ps 0.6 lw 2 lc rgb '#3b4cc0' "
+          "title '{/Symbol D}t*'\n"
+          "unset multiplot\n");
+}
+
+/* Node snapshots coloured by phi, mirrored across the axis. */
+static ves_status fig_snapshots(FILE *f, ves_io *io, const ves_plot_params *p, const int *sel,
+                                int nsel) {
+  const ves_io_info *in = ves_io_get_info(io);
+  int n = in->n;
+  double *y = malloc(2 * (size_t)n * sizeof *y), *phi = malloc((size_t)n * sizeof *phi);
+  double *X = malloc(2 * (size_t)n * sizeof *X);
+  ves_status st = y && phi && X ? ves_io_read_mesh(io, X, NULL) : VES_ERR_ALLOC;
+  double LR = 0, LZ = 0, ts[VES_PLOT_MAXTIMES];
+  for (int a = 0; st == VES_OK && a < n; a++)
+    LR = fmax(LR, X[2 * a]), LZ = fmax(LZ, fabs(X[2 * a + 1]));
+  for (int j = 0; j < nsel && st == VES_OK; j++) {
+    ves_io_snapinfo si;
+    if ((st = ves_io_read_snapshot(io, sel[j], y, phi, &si)) != VES_OK) break;
+    ts[j] = si.state.t;
+    fprintf(f, "$snap%d << EOD\n", j);
+    for (int a = 0; a < n; a++) fprintf(f, "%.7g %.7g %.5g\n", y[2 * a], y[2 * a + 1], phi[a]);
+    fprintf(f, "EOD\n");
+    if (j == 0) { /* the first panel's interface nodes, drawn over the later ones */
+      fprintf(f, "$ref << EOD\n");
+      for (int a = 0; a < n; a++)
+        if (fabs(phi[a]) < PLOT_INTERFACE) fprintf(f, "%.7g %.7g\n", y[2 * a], y[2 * a + 1]);
+      fprintf(f, "EOD\n");
+    }
+  }
+  free(y), free(phi), free(X);
+  VES_CALL(st);
+  int cols = nsel <= 2 ? nsel : nsel <= 4 ? 2 : (nsel + 1) / 2, rows = (nsel + cols - 1) / cols;
+  double ps = fmin(0.6, 0.35 * sqrt(1500.0 / n)); /* points shrink as nodes multiply */
+  fprintf(f, "reset\nset terminal pngcairo size %d,%d font ',11'\n",
+          (int)(PLOT_PANEL * cols * LR / LZ) + 120, PLOT_PANEL * rows + 60);
+  gp_output(f, p, 1);
+  fprintf(f, "set multiplot layout %d,%d title ", rows, cols);
+  char title[256];
+  snprintf(title, sizeof title,
+           "%s: nodes y^a(t) coloured by {/Symbol f} (%d nodes, mirrored at r = 0)", p->stem, n);
+  gp_quote(f, title);
+  fprintf(f,
+          "\nset size ratio -1\nset xrange [%g:%g]\nset yrange [%g:%g]\n"
+          "set palette defined (-1 '#3b4cc0', 0 '#dddddd', 1 '#b40426')\nset cbrange [-1:1]\n"
+          "set cblabel '{/Symbol f}'\nset xlabel 'r / R_0'\nset ylabel 'z / R_0'\n"
+          "unset key\n",
+          -LR, LR, -LZ, LZ);
+  for (int j = 0; j < nsel; j++) {
+    if (j == 0)
+      fprintf(f, "set title 't* = %.4g'\n", ts[j]);
+    else
+      fprintf(f, "set title 't* = %.4g   (black: interface nodes at t* = %.4g)'\n", ts[j], ts[0]);
+    fprintf(f,
+            "plot $snap%d using 1:2:3 with points pt 7 ps %.3f lc palette, "
+            "$snap%d using (-$1):2:3 with points pt 7 ps %.3f lc palette",
+            j, ps, j, ps);
+    if (j > 0)
+      fprintf(f,
+              ", $ref using 1:2 with points pt 7 ps %.3f lc rgb 'black', "
+              "$ref using (-$1):2 with points pt 7 ps %.3f lc rgb 'black'",
+              0.5 * ps, 0.5 * ps);
+    fputc('\n', f);
+  }
+  fprintf(f, "unset multiplot\n");
+  return VES_OK;
+}
+
+/* Constraint drift and the volume protocol against t*. */
+static void fig_constraints(FILE *f, const ves_plot_params *p, const ves_io_info *in, long R,
+                            const double *t, const double *A, const double *V, const double *Vt) {
+  fprintf(f, "$drift << EOD\n");
+  for (long i = 0; i < R; i++)
+    fprintf(f, "%.10g %.6e %.6e %.12g %.12g\n", t[i], fmax(fabs(A[i] / in->A0 - 1), PLOT_FLOOR),
+            fmax(fabs(V[i] / Vt[i] - 1), PLOT_FLOOR), V[i] / in->V0, Vt[i] / in->V0);
+  fprintf(f, "EOD\n");
+  fprintf(f, "reset\nset terminal pngcairo size 900,900 font ',12'\n");
+  gp_output(f, p, 2);
+  fprintf(f, "set multiplot layout 2,1 title ");
+  char title[256];
+  snprintf(title, sizeof title, "%s: constraints (values below %g drawn at %g)", p->stem,
+           PLOT_FLOOR, PLOT_FLOOR);
+  gp_quote(f, title);
+  fprintf(f, "\nset logscale x\nset format x '10^{%%L}'\nset grid\nset lmargin 12\n"
+             "set logscale y\nset format y '10^{%%L}'\nset ylabel 'relative drift'\n"
+             "set key top left\n"
+             "plot $drift using 1:2 with linespoints pt 7 ps 0.5 lc rgb '#b40426' "
+             "title '|A/A_0 - 1|', "
+             "$drift using 1:3 with linespoints pt 5 ps 0.5 lc rgb '#3b4cc0' "
+             "title '|V/V_{target} - 1|'\n"
+             "unset logscale y\nset format y '%%g'\nset ylabel 'V / V_0'\n"
+             "set xlabel 't* = t k / ({/Symbol m} R_0^3)'\nset key bottom left\n"
+             "plot $drift using 1:4 with linespoints pt 7 ps 0.5 lc rgb '#3b4cc0' title 'V/V_0', "
+             "$drift using 1:5 with lines dt 2 lw 2 lc rgb 'black' title 'target'\n"
+             "unset multiplot\n");
+}
+
+ves_status ves_plot_write(ves_io *io, const ves_plot_params *p, char *err, size_t errlen) {
+  VES_CHECK(io && p && p->outdir && p->stem && p->ntimes >= 0 && p->ntimes <= VES_PLOT_MAXTIMES,
+            VES_ERR_ARG);
+  const ves_io_info *in = ves_io_get_info(io);
+  long R = ves_io_rows(io);
+  int S = ves_io_snapshots(io);
+  if (R < 1 || S < 1) {
+    say(err, errlen, "nothing to plot: %ld steps, %d snapshots", R, S);
+    return VES_ERR_ARG;
+  }
+  ves_status st = VES_ERR_ALLOC;
+  double *buf = malloc(6 * (size_t)R * sizeof *buf), *T = malloc((size_t)S * sizeof *T);
+  FILE *f = NULL;
+  char script[PATH_MAX] = "";
+  if (!buf || !T) goto done;
+  double *t = buf, *dt = buf + R, *E = buf + 2 * R, *A = buf + 3 * R, *V = buf + 4 * R,
+         *Vt = buf + 5 * R;
+  const char *names[6] = {"t", "dt", "E", "A", "V", "V_target"};
+  for (int i = 0; i < 6; i++)
+    if ((st = ves_io_read_series(io, names[i], buf + i * R)) != VES_OK) goto done;
+  for (int k = 0; k < S; k++) {
+    ves_io_snapinfo si;
+    if ((st = ves_io_read_snapshot(io, k, NULL, NULL, &si)) != VES_OK) goto done;
+    T[k] = si.state.t;
+  }
+  int sel[VES_PLOT_MAXTIMES], nsel = select_snapshots(T, S, p, sel);
+
+  const char *dir = getenv("TMPDIR");
+  snprintf(script, sizeof script, "%s/vesica_plot_XXXXXX", dir && *dir ? dir : "/tmp");
+  int fd = mkstemp(script);
+  if (fd < 0 || !(f = fdopen(fd, "w"))) {
+    if (fd >= 0) close(fd);
+    say(err, errlen, "cannot create a temporary file %s: %s", script, strerror(errno));
+    script[0] = 0;
+    st = VES_ERR_IO;
+    goto done;
+  }
+  fig_energy(f, p, in, R, t, dt, E);
+  if ((st = fig_snapshots(f, io, p, sel, nsel)) != VES_OK) goto done;
+  fig_constraints(f, p, in, R, t, A, V, Vt);
+  int bad = ferror(f);
+  bad |= fclose(f) != 0;
+  f = NULL;
+  if (bad) {
+    say(err, errlen, "cannot write the gnuplot script %s", script);
+    st = VES_ERR_IO;
+    goto done;
+  }
+  /* gnuplot's own messages are read back, not printed */
+  char cmd[PATH_MAX + 32], msg[512] = "";
+  snprintf(cmd, sizeof cmd, "gnuplot %s 2>&1", script);
+  FILE *g = popen(cmd, "r");
+  if (!g) {
+    say(err, errlen, "cannot run gnuplot: %s", strerror(errno));
+    st = VES_ERR_IO;
+    goto done;
+  }
+  char line[512];
+  while (fgets(line, sizeof line, g)) /* keep the last message line: gnuplot's reason */
+    if (strspn(line, " \t\n^") < strlen(line)) snprintf(msg, sizeof msg, "%s", line);
+  int rc = pclose(g), code = rc != -1 && WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
+  if (code != 0) {
+    msg[strcspn(msg, "\n")] = 0;
+    if (msg[0])
+      say(err, errlen, "gnuplot failed (exit status %d): %s", code, msg);
+    else
+      say(err, errlen, "gnuplot failed (exit status %d)", code);
+    st = VES_ERR_IO;
+    goto done;
+  }
+  st = VES_OK;
+done:
+  if (f) fclose(f);
+  if (script[0]) unlink(script);
+  free(buf), free(T);
+  return st;
+}

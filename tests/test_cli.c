@@ -1,0 +1,617 @@
+/* vesica — tests of the program (build/vesica, run as a child process):
+ * every problem file passes `check`; malformed input of every kind exits with
+ * code 2, a message naming the cause and no output left behind; a restarted
+ * run repeats the uninterrupted one bit for bit; a run killed with SIGKILL
+ * leaves a readable file holding every completed step (and can be
+ * continued); info and plot on a real file. Run from the repository root
+ * (make test does); the program is found next to this test's folder. */
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <setjmp.h>
+#include <cmocka.h>
+
+#include <dirent.h>
+#include <errno.h>
+#include <fcntl.h>
+#include <hdf5.h>
+#include <limits.h>
+#include <math.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "ves/io.h"
+#include "ves/plot.h"
+
+static char vesica[PATH_MAX]; /* the program under test */
+static char tmpdir[64];       /* this test's scratch folder */
+
+/* A small out-of-equilibrium vesicle that steps fast (331 nodes, ~0.3 s a
+ * step): sphere with a P2 bump at eps = 0.2, coarse band and far field. */
+#define TINY                                                                                       \
+  "--set", "geometry.epsilon=0.2", "--set", "geometry.box_r=2", "--set", "geometry.box_z=2",       \
+      "--set", "geometry.band=2", "--set", "geometry.h_band=0.7", "--set", "geometry.h_far=0.3",   \
+      "--set", "shape.mode=2", "--set", "shape.delta=0.15", "--set", "time.dt_initial=5e-3",       \
+      "--set", "time.dE_target=0.05"
+
+/* Output of a child: exit code, stdout and stderr (NUL-terminated). */
+typedef struct {
+  int code;
+  char out[16384], err[4096];
+} result;
+
+static void slurp(const char *path, char *buf, size_t len) {
+  FILE *f = fopen(path, "r");
+  size_t k = f ? fread(buf, 1, len - 1, f) : 0;
+  buf[k] = 0;
+  if (f) fclose(f);
+}
+
+/* Start vesica with args (NULL-terminated), stdout and stderr to the files
+ * tmpdir/<tag>.out and .err; path_env replaces PATH when not NULL. Returns
+ * the child's pid. */
+static pid_t spawn_tag(char *const *args, const char *path_env, const char *tag) {
+  char o[128], e[128];
+  snprintf(o, sizeof o, "%s/%s.out", tmpdir, tag);
+  snprintf(e, sizeof e, "%s/%s.err", tmpdir, tag);
+  pid_t pid = fork();
+  assert_true(pid >= 0);
+  if (pid == 0) {
+    int fo = open(o, O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    int fe = open(e, O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    if (fo < 0 || fe < 0) _exit(127);
+    dup2(fo, 1), dup2(fe, 2);
+    if (path_env) setenv("PATH", path_env, 1);
+    char *argv[64];
+    int n = 0;
+    argv[n++] = vesica;
+    for (; args[n - 1] && n < 63; n++) argv[n] = args[n - 1];
+    argv[n] = NULL;
+    execv(vesica, argv);
+    _exit(127);
+  }
+  return pid;
+}
+
+static pid_t spawn(char *const *args, const char *path_env) {
+  return spawn_tag(args, path_env, "child");
+}
+
+/* Wait for pid and read what it wrote under tag. */
+static void collect_tag(pid_t pid, result *r, const char *tag) {
+  int status;
+  assert_int_equal(waitpid(pid, &status, 0), pid);
+  r->code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  char o[128], e[128];
+  snprintf(o, sizeof o, "%s/%s.out", tmpdir, tag);
+  snprintf(e, sizeof e, "%s/%s.err", tmpdir, tag);
+  slurp(o, r->out, sizeof r->out);
+  slurp(e, r->err, sizeof r->err);
+  unlink(o), unlink(e);
+}
+
+static void collect(pid_t pid, result *r) { collect_tag(pid, r, "child"); }
+
+/* Run vesica with the given arguments (a NULL-terminated list). */
+static void run(result *r, ...) {
+  char *args[64];
+  int n = 0;
+  va_list ap;
+  va_start(ap, r);
+  while (n < 63 && (args[n] = va_arg(ap, char *))) n++;
+  va_end(ap);
+  args[n] = NULL;
+  collect(spawn(args, NULL), r);
+}
+
+static char *tmp_path(char *buf, size_t len, const char *name) {
+  snprintf(buf, len, "%s/%s", tmpdir, name);
+  return buf;
+}
+
+static void write_file(const char *path, const char *text) {
+  FILE *f = fopen(path, "w");
+  assert_non_null(f);
+  fputs(text, f);
+  fclose(f);
+}
+
+static int exists(const char *path) {
+  struct stat sb;
+  return stat(path, &sb) == 0;
+}
+
+static int setup_all(void **state) {
+  (void)state;
+  snprintf(tmpdir, sizeof tmpdir, "/tmp/vesica_cli_XXXXXX");
+  return mkdtemp(tmpdir) ? 0 : -1;
+}
+
+static int teardown_all(void **state) {
+  (void)state;
+  DIR *d = opendir(tmpdir);
+  struct dirent *e;
+  while (d && (e = readdir(d))) {
+    char p[PATH_MAX];
+    if (e->d_name[0] == '.') continue;
+    snprintf(p, sizeof p, "%s/%s", tmpdir, e->d_name);
+    unlink(p);
+  }
+  if (d) closedir(d);
+  rmdir(tmpdir);
+  return 0;
+}
+
+/* ---- every problem file passes check ------------------------------------- */
+
+/* The value of "key = " in key-value output, up to the end of its line. */
+static void value_of(const char *out, const char *key, char *buf, size_t len) {
+  const char *p = strstr(out, key);
+  snprintf(buf, len, "%.*s", p ? (int)strcspn(p + strlen(key), "\n") : 1,
+           p ? p + strlen(key) : "?");
+}
+
+/* Every problems/NAME.ini at its own resolution, two checks at a time (the
+ * setup is mostly single-threaded). */
+static void test_problem_files_check(void **state) {
+  (void)state;
+  DIR *d = opendir("problems");
+  if (!d) fail_msg("run from the repository root: no problems/ folder here");
+  char paths[64][PATH_MAX];
+  int count = 0;
+  struct dirent *e;
+  while ((e = readdir(d)) && count < 64) {
+    size_t l = strlen(e->d_name);
+    if (l > 4 && !strcmp(e->d_name + l - 4, ".ini"))
+      snprintf(paths[count++], sizeof paths[0], "problems/%.*s", (int)(PATH_MAX - 16), e->d_name);
+  }
+  closedir(d);
+  for (int i = 0; i < count; i += 2) {
+    pid_t pid[2];
+    char tag[2][16];
+    for (int j = 0; j < 2 && i + j < count; j++) {
+      char *args[] = {"check", paths[i + j], NULL};
+      snprintf(tag[j], sizeof tag[j], "check%d", j);
+      pid[j] = spawn_tag(args, NULL, tag[j]);
+    }
+    for (int j = 0; j < 2 && i + j < count; j++) {
+      result r;
+      char nodes[32], energy[32];
+      collect_tag(pid[j], &r, tag[j]);
+      value_of(r.out, "nodes = ", nodes, sizeof nodes);
+      value_of(r.out, "energy = ", energy, sizeof energy);
+      printf("# check %-28s exit %d  nodes %s  E* %s\n", paths[i + j], r.code, nodes, energy);
+      if (r.code != 0) fail_msg("vesica check %s: exit %d: %s", paths[i + j], r.code, r.err);
+      assert_non_null(strstr(r.out, "nodes = "));
+      assert_non_null(strstr(r.out, "energy = "));
+    }
+  }
+  assert_true(count >= 8); /* sphere, oblate, prolate, cup, prolate_c0, 3 deflations */
+}
+
+/* ---- malformed input: exit 2, the cause named, nothing written ------------ */
+
+/* One bad problem file (text, or NULL for none) with extra arguments: `run`
+ * must exit 2 with every fragment in its message and leave no output. */
+static void expect_bad_run(const char *text, const char *const *extra, int nextra,
+                           const char *frag1, const char *frag2) {
+  char ini[128], out[128], xdmf[128];
+  tmp_path(ini, sizeof ini, "bad.ini");
+  tmp_path(out, sizeof out, "bad.h5");
+  tmp_path(xdmf, sizeof xdmf, "bad.xdmf");
+  unlink(out), unlink(xdmf);
+  if (text) write_file(ini, text);
+  char *args[32];
+  int n = 0;
+  args[n++] = "run";
+  if (text) args[n++] = ini;
+  for (int i = 0; i < nextra; i++) args[n++] = (char *)extra[i];
+  args[n++] = "--out", args[n++] = out, args[n++] = "--quiet";
+  args[n] = NULL;
+  result r;
+  collect(spawn(args, NULL), &r);
+  printf("# bad run -> %d: %s", r.code, r.err);
+  if (r.code != 2 || !strstr(r.err, frag1) || (frag2 && !strstr(r.err, frag2)))
+    fail_msg("input [%s]: exit %d, message '%s' (want 2 and '%s'%s%s)", text ? text : "(none)",
+             r.code, r.err, frag1, frag2 ? ", " : "", frag2 ? frag2 : "");
+  assert_false(exists(out)); /* no partial output */
+  assert_false(exists(xdmf));
+  unlink(ini);
+}
+
+static void test_malformed_input(void **state) {
+  (void)state;
+  char ini[128];
+  tmp_path(ini, sizeof ini, "bad.ini");
+  int cases = 0;
+#define BAD(text, frag1, frag2) (expect_bad_run(text, NULL, 0, frag1, frag2), cases++)
+#define BADX(text, frag1, frag2, ...)                                                              \
+  do {                                                                                             \
+    const char *x_[] = {__VA_ARGS__};                                                              \
+    expect_bad_run(text, x_, (int)(sizeof x_ / sizeof x_[0]), frag1, frag2);                       \
+    cases++;                                                                                       \
+  } while (0)
+  /* the problem file itself: the message names the file, the key, the reason */
+  BAD("[geometri]\nepsilon = 0.1\n", "[geometri]: unknown section", ini);
+  BAD("[geometry]\nepsilom = 0.1\n", "epsilom: unknown key", ini);
+  BAD("[geometry]\nepsilon = abc\n", "epsilon", "not a number");
+  BAD("[geometry]\nepsilon = 0.9\n", "epsilon", "out of range");
+  BAD("[shape]\nmode = 2.5\n", "mode", "not an integer");
+  BAD("[shape]\ntype = spheroid\nreduced_volume = 1.2\n", "reduced_volume", "out of range");
+  BAD("[geometry]\nepsilon = 0.3\n", "epsilon", "too large for the box");
+  BAD("[geometry]\nbox_r = 0.5\n", "box_r", "do not fit");
+  BAD("[shape]\ntype = spheroid\n[geometry]\nbox_z = 0.85\n", "box_z = 0.85", "does not fit");
+  BAD("[time]\ndt_initial = 1\ndt_max = 0.1\n", "dt_initial", "dt_min, dt_max");
+  BAD("[solver]\nbackend = cg\n", "backend", "ipopt|nlopt|newton|euler");
+  BAD("[protocol]\nvolume_rate = -1\nvolume_final = 0.8\n[constraints]\nvolume = 0\n",
+      "volume_rate", "volume = 1");
+  BAD("[protocol]\nvolume_rate = -1\nvolume_final = 1.2\n", "volume_final", "below 1");
+  BAD("[protocol]\nc0_after = 5\n", "c0_after", "c0_time");
+  BAD("[protocol]\nc0_time = 5\nc0_after = 2\n[time]\nt_end = 1\n", "c0_time", "t_end");
+  BAD("epsilon = 0.1\n[geometry]\n", "epsilon", "outside a section");
+  BAD("[geometry\nepsilon = 0.1\n", ini, "not a readable INI file");
+  BAD("[shape]\ntype = curve\n", "points", "needs a points file");
+  BAD("[shape]\ntype = curve\npoints = nowhere.txt\n", "nowhere.txt", "cannot open");
+  /* arguments */
+  BAD(NULL, "usage", NULL);
+  BADX(NULL, "/nonexistent/problem.ini", "cannot open", "/nonexistent/problem.ini");
+  BADX("[geometry]\n", "--backend 'cg'", "not one of", "--backend", "cg");
+  BADX("[geometry]\n", "--set", "section.key=value", "--set", "geometry.epsilon");
+  BADX("[geometry]\n", "[geometry] nope", "unknown key", "--set", "geometry.nope=1");
+  BADX("[geometry]\n", "--set", "out of range", "--set", "geometry.epsilon=-1");
+  BADX("[geometry]\n", "--max-steps '0'", "positive integer", "--max-steps", "0");
+  BADX("[geometry]\n", "--frobnicate", "unknown option", "--frobnicate");
+  BADX("[geometry]\n", "--restart", "no CONFIG.ini", "--restart", "x.h5");
+  printf("# %d malformed runs\n", cases);
+
+  /* --out into a missing folder: named, exit 2 */
+  write_file(ini, "[geometry]\n");
+  result r;
+  run(&r, "run", ini, "--out", "/nonexistent/folder/x.h5", NULL);
+  assert_int_equal(r.code, 2);
+  assert_non_null(strstr(r.err, "/nonexistent/folder"));
+  assert_non_null(strstr(r.err, "does not exist"));
+  cases++;
+
+  /* files that are not output files: info, plot and restart refuse them */
+  char h5[128], text[128];
+  tmp_path(text, sizeof text, "text.h5");
+  write_file(text, "not hdf5\n");
+  tmp_path(h5, sizeof h5, "foreign.h5");
+  hid_t f = H5Fcreate(h5, H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
+  assert_true(f >= 0);
+  H5Fclose(f);
+  struct {
+    const char *cmd, *file, *frag;
+  } files[] = {
+      {"info", "/nonexistent.h5", "cannot open"}, {"info", text, "not an HDF5 file"},
+      {"info", h5, "not a vesica output file"},   {"plot", "/nonexistent.h5", "cannot open"},
+      {"plot", text, "not an HDF5 file"},         {"run", text, "not an HDF5 file"},
+      {"run", h5, "not a vesica output file"}};
+  for (size_t i = 0; i < sizeof files / sizeof files[0]; i++) {
+    if (!strcmp(files[i].cmd, "run"))
+      run(&r, "run", "--restart", files[i].file, NULL);
+    else
+      run(&r, files[i].cmd, files[i].file, NULL);
+    printf("# %s %s -> %d: %s", files[i].cmd, files[i].file, r.code, r.err);
+    assert_int_equal(r.code, 2);
+    assert_non_null(strstr(r.err, files[i].frag));
+    assert_non_null(strstr(r.err, files[i].file));
+    cases++;
+  }
+  /* commands */
+  run(&r, "frobnicate", NULL);
+  assert_int_equal(r.code, 2);
+  assert_non_null(strstr(r.err, "unknown command 'frobnicate'"));
+  run(&r, "check", ini, "--phi0", "exact", NULL);
+  assert_int_equal(r.code, 2);
+  assert_non_null(strstr(r.err, "--phi0"));
+  run(&r, "plot", text, "--times", "1,x", NULL);
+  assert_int_equal(r.code, 2);
+  assert_non_null(strstr(r.err, "--times"));
+  cases += 3;
+  printf("# %d malformed inputs in all\n", cases);
+  assert_true(cases >= 20);
+  unlink(ini), unlink(text), unlink(h5);
+}
+
+/* ---- --help on every command ---------------------------------------------- */
+
+static void test_help(void **state) {
+  (void)state;
+  const char *cmds[] = {"run", "check", "info", "plot", "keys"};
+  result r;
+  for (size_t i = 0; i < sizeof cmds / sizeof cmds[0]; i++) {
+    run(&r, cmds[i], "--help", NULL);
+    assert_int_equal(r.code, 0);
+    assert_non_null(strstr(r.out, "usage: vesica"));
+  }
+  run(&r, "--help", NULL);
+  assert_int_equal(r.code, 0);
+  assert_non_null(strstr(r.out, "info FILE.h5"));
+}
+
+/* ---- restart: bit for bit -------------------------------------------------- */
+
+/* Series name of a file, rows entries. */
+static double *series(ves_io *io, const char *name) {
+  long R = ves_io_rows(io);
+  double *v = malloc((size_t)(R > 0 ? R : 1) * sizeof *v);
+  assert_non_null(v);
+  assert_int_equal(ves_io_read_series(io, name, v), VES_OK);
+  return v;
+}
+
+static ves_io *open_ro(const char *path) {
+  char err[512];
+  ves_io *io = NULL;
+  if (ves_io_open(path, 0, &io, err, sizeof err) != VES_OK) fail_msg("%s", err);
+  return io;
+}
+
+/* Rows [0, rows) of t, dt, E, A, V identical, bit for bit. */
+static void same_series(ves_io *a, ves_io *b, long rows) {
+  const char *names[] = {"step", "t", "dt", "E", "A", "V", "lambda_A", "lambda_V"};
+  for (size_t i = 0; i < sizeof names / sizeof names[0]; i++) {
+    double *x = series(a, names[i]), *y = series(b, names[i]);
+    if (memcmp(x, y, (size_t)rows * sizeof *x))
+      fail_msg("series %s differs between the runs", names[i]);
+    free(x), free(y);
+  }
+}
+
+static void test_restart_bitwise(void **state) {
+  (void)state;
+  char ini[128], full[128], part[128];
+  tmp_path(ini, sizeof ini, "tiny.ini");
+  tmp_path(full, sizeof full, "full.h5");
+  tmp_path(part, sizeof part, "part.h5");
+  write_file(ini, "[time]\nt_end = 0.1\n[output]\nsnapshot_every = 2\n");
+  result r;
+  run(&r, "run", ini, TINY, "--out", full, "--quiet", NULL);
+  assert_int_equal(r.code, 0);
+  run(&r, "run", ini, TINY, "--out", part, "--quiet", "--max-steps", "3", NULL);
+  assert_int_equal(r.code, 0);
+  ves_io *b = open_ro(part);
+  assert_int_equal(ves_io_rows(b), 3);
+  assert_string_equal(ves_io_get_info(b)->status, "stopped");
+  ves_io_close(&b);
+  run(&r, "run", "--restart", part, "--quiet", NULL);
+  if (r.code) fail_msg("restart: exit %d: %s", r.code, r.err);
+
+  ves_io *a = open_ro(full);
+  b = open_ro(part);
+  long R = ves_io_rows(a);
+  printf("# uninterrupted: %ld steps; interrupted at 3 and restarted: %ld steps\n", R,
+         ves_io_rows(b));
+  assert_true(R >= 5); /* the restart had steps to repeat */
+  assert_int_equal(ves_io_rows(b), R);
+  same_series(a, b, R);
+  int n = ves_io_get_info(a)->n;
+  double *ya = malloc(2 * (size_t)n * sizeof *ya), *yb = malloc(2 * (size_t)n * sizeof *yb);
+  ves_io_snapinfo sa, sb;
+  assert_int_equal(ves_io_read_snapshot(a, ves_io_snapshots(a) - 1, ya, NULL, &sa), VES_OK);
+  assert_int_equal(ves_io_read_snapshot(b, ves_io_snapshots(b) - 1, yb, NULL, &sb), VES_OK);
+  assert_int_equal(sa.state.nstep, R);
+  assert_int_equal(sb.state.nstep, R);
+  assert_memory_equal(ya, yb, 2 * (size_t)n * sizeof *ya); /* positions, bit for bit */
+  assert_true(sa.state.t == sb.state.t && sa.state.dt == sb.state.dt && sa.state.E == sb.state.E);
+  assert_string_equal(ves_io_get_info(b)->status, "finished");
+  free(ya), free(yb);
+  ves_io_close(&a), ves_io_close(&b);
+
+  /* info: the stable keys */
+  run(&r, "info", part, NULL);
+  assert_int_equal(r.code, 0);
+  const char *keys[] = {"backend = newton\n",  "steps = ",
+                        "t_final = 0.1\n",     "energy_initial = ",
+                        "energy_final = ",     "energy_monotone = yes\n",
+                        "area_drift_max = ",   "reduced_volume_final = ",
+                        "reconnections = 0\n", "newton_iterations = ",
+                        "wall_seconds = ",     "geometry.epsilon = 0.2\n",
+                        "time.t_end = 0.1\n"};
+  for (size_t i = 0; i < sizeof keys / sizeof keys[0]; i++)
+    if (!strstr(r.out, keys[i])) fail_msg("info lacks '%s':\n%s", keys[i], r.out);
+
+  /* plot: three PNG files; with gnuplot missing, exit 3 and the reason */
+  run(&r, "plot", part, "--outdir", tmpdir, NULL);
+  if (r.code) fail_msg("plot: exit %d: %s", r.code, r.err);
+  for (int k = 0; k < VES_PLOT_NFIG; k++) {
+    char png[256], sig[8] = {0};
+    snprintf(png, sizeof png, "%s/part_%s.png", tmpdir, ves_plot_figures[k]);
+    FILE *f = fopen(png, "rb");
+    assert_non_null(f);
+    assert_int_equal(fread(sig, 1, 8, f), 8);
+    fclose(f);
+    assert_memory_equal(sig, "\x89PNG\r\n\x1a\n", 8);
+    unlink(png);
+  }
+  char *args[] = {"plot", part, "--outdir", tmpdir, NULL};
+  collect(spawn(args, "/nonexistent"), &r);
+  printf("# plot without gnuplot -> %d: %s", r.code, r.err);
+  assert_int_equal(r.code, 3);
+  assert_non_null(strstr(r.err, "gnuplot failed"));
+  unlink(ini), unlink(full), unlink(part);
+  tmp_path(full, sizeof full, "full.xdmf"), unlink(full);
+  tmp_path(part, sizeof part, "part.xdmf"), unlink(part);
+}
+
+/* ---- numerical failure: exit 3, the file kept with the last good state ---- */
+
+static void test_numerical_failure(void **state) {
+  (void)state;
+  char ini[128], out[128];
+  tmp_path(ini, sizeof ini, "fail.ini");
+  tmp_path(out, sizeof out, "fail.h5");
+  /* one Newton iteration to tol = 1e-14 fails at every dt (as in
+   * test_integrate.c's forced failure) */
+  write_file(ini, "[solver]\nmax_iter = 1\ntol = 1e-14\n[time]\nt_end = 0.5\ndt_min = 1e-3\n");
+  result r;
+  run(&r, "run", ini, TINY, "--out", out, "--quiet", NULL);
+  printf("# forced failure -> %d: %s", r.code, r.err);
+  assert_int_equal(r.code, 3);
+  assert_non_null(strstr(r.err, "no acceptable step"));
+  assert_non_null(strstr(r.err, out));
+  ves_io *io = open_ro(out);
+  assert_string_equal(ves_io_get_info(io)->status, "failed");
+  assert_int_equal(ves_io_rows(io), 0);
+  ves_io_snapinfo si;
+  assert_int_equal(ves_io_read_snapshot(io, ves_io_snapshots(io) - 1, NULL, NULL, &si), VES_OK);
+  assert_true(si.state.nstep == 0 && si.state.t == 0.0); /* the last good state */
+  ves_io_close(&io);
+  unlink(ini), unlink(out);
+  tmp_path(out, sizeof out, "fail.xdmf"), unlink(out);
+}
+
+/* ---- SIGTERM: the current step finishes, the state is saved --------------- */
+
+/* Wait until the run writing path has at least `want` steps (up to 120 s). */
+static long wait_rows(const char *path, long want) {
+  long rows = 0;
+  struct timespec nap = {0, 50000000};
+  for (int i = 0; i < 2400 && rows < want; i++) {
+    nanosleep(&nap, NULL);
+    ves_io *io = NULL;
+    char err[512];
+    if (ves_io_open(path, 0, &io, err, sizeof err) == VES_OK) rows = ves_io_rows(io);
+    ves_io_close(&io);
+  }
+  return rows;
+}
+
+static void test_sigterm(void **state) {
+  (void)state;
+  char ini[128], out[128];
+  tmp_path(ini, sizeof ini, "term.ini");
+  tmp_path(out, sizeof out, "term.h5");
+  write_file(ini, "[time]\nt_end = 100\nadaptive = 0\ndt_max = 5e-3\n"
+                  "[output]\nsnapshot_every = 1000000\n");
+  char *args[] = {"run", ini, TINY, "--out", out, "--quiet", NULL};
+  pid_t pid = spawn(args, NULL);
+  assert_true(wait_rows(out, 2) >= 2);
+  /* the file of a running run is neither overwritten nor continued */
+  result r;
+  char *again[] = {"run", ini, TINY, "--out", out, "--quiet", NULL};
+  collect_tag(spawn_tag(again, NULL, "again"), &r, "again");
+  assert_int_equal(r.code, 2);
+  assert_non_null(strstr(r.err, "in use"));
+  char *cont[] = {"run", "--restart", out, NULL};
+  collect_tag(spawn_tag(cont, NULL, "again"), &r, "again");
+  assert_int_equal(r.code, 2);
+  assert_non_null(strstr(r.err, "in use"));
+  assert_int_equal(kill(pid, SIGTERM), 0);
+  collect(pid, &r);
+  printf("# SIGTERM -> %d: %s", r.code, r.err);
+  assert_int_equal(r.code, 128 + SIGTERM);
+  assert_non_null(strstr(r.err, "--restart"));
+  ves_io *io = open_ro(out);
+  long R = ves_io_rows(io);
+  ves_io_snapinfo si;
+  assert_string_equal(ves_io_get_info(io)->status, "stopped");
+  assert_int_equal(ves_io_snapshots(io), 2); /* t = 0 and the state at the signal */
+  assert_int_equal(ves_io_read_snapshot(io, 1, NULL, NULL, &si), VES_OK);
+  assert_int_equal(si.state.nstep, R); /* nothing lost: a restart continues from here */
+  ves_io_close(&io);
+  unlink(ini), unlink(out);
+  tmp_path(out, sizeof out, "term.xdmf"), unlink(out);
+}
+
+/* ---- SIGKILL mid-run --------------------------------------------------------- */
+
+static void test_sigkill(void **state) {
+  (void)state;
+  char ini[128], out[128];
+  tmp_path(ini, sizeof ini, "long.ini");
+  tmp_path(out, sizeof out, "killed.h5");
+  /* many small constant steps: the run is far from done when killed; the
+   * only snapshot is the initial one, so the restart below recomputes every
+   * step the killed run had completed */
+  write_file(ini, "[time]\nt_end = 100\nadaptive = 0\ndt_max = 5e-3\n"
+                  "[output]\nsnapshot_every = 1000000\n");
+  char *args[] = {"run", ini, TINY, "--out", out, "--quiet", NULL};
+  pid_t pid = spawn(args, NULL);
+  /* at least 5 completed steps, read from the file as it grows */
+  long rows = wait_rows(out, 5);
+  assert_int_equal(kill(pid, SIGKILL), 0);
+  result r;
+  collect(pid, &r);
+  assert_int_equal(r.code, 128 + SIGKILL);
+  assert_true(rows >= 5);
+
+  /* the file opens and holds every completed step */
+  ves_io *io = open_ro(out);
+  long R = ves_io_rows(io);
+  printf("# killed after >= %ld steps: the file holds %ld steps, %d snapshots, status %s\n", rows,
+         R, ves_io_snapshots(io), ves_io_get_info(io)->status);
+  assert_true(R >= rows);
+  assert_string_equal(ves_io_get_info(io)->status, "running");
+  double *step = series(io, "step"), *t = series(io, "t"), *E = series(io, "E");
+  for (long i = 0; i < R; i++) {
+    assert_true(step[i] == (double)(i + 1));
+    assert_true(fabs(t[i] - 5e-3 * (i + 1)) < 1e-12); /* constant steps */
+    double prev = i ? E[i - 1] : ves_io_get_info(io)->E0;
+    assert_true(isfinite(E[i]) && E[i] <= prev + 1e-10 * fabs(prev)); /* the integrator's test */
+  }
+  assert_int_equal(ves_io_snapshots(io), 1);
+  ves_io_snapinfo si;
+  assert_int_equal(ves_io_read_snapshot(io, 0, NULL, NULL, &si), VES_OK);
+  assert_true(si.state.nstep == 0 && si.state.t == 0.0);
+  ves_io_close(&io);
+  run(&r, "info", out, NULL);
+  assert_int_equal(r.code, 0);
+  assert_non_null(strstr(r.out, "status = running\n"));
+
+  /* continued from its last snapshot (t = 0), it recomputes the R steps
+   * exactly as the killed run had them */
+  char copy[128], cmd[512];
+  tmp_path(copy, sizeof copy, "killed_copy.h5");
+  snprintf(cmd, sizeof cmd, "cp %s %s", out, copy);
+  assert_int_equal(system(cmd), 0);
+  char max[32];
+  snprintf(max, sizeof max, "%ld", R);
+  run(&r, "run", "--restart", out, "--max-steps", max, "--quiet", NULL);
+  if (r.code) fail_msg("restart of the killed run: exit %d: %s", r.code, r.err);
+  ves_io *a = open_ro(copy), *b = open_ro(out);
+  assert_int_equal(ves_io_rows(b), R);
+  same_series(a, b, R);
+  ves_io_close(&a), ves_io_close(&b);
+  free(step), free(t), free(E);
+  unlink(ini), unlink(out), unlink(copy);
+  tmp_path(out, sizeof out, "killed.xdmf"), unlink(out);
+  tmp_path(copy, sizeof copy, "killed_copy.xdmf"), unlink(copy);
+}
+
+int main(int argc, char **argv) {
+  setvbuf(stdout, NULL, _IOLBF, 0); /* keep output in order with cmocka's stderr */
+  (void)argc;
+  /* BUILD/tests/test_cli -> BUILD/vesica */
+  char self[PATH_MAX - 16];
+  snprintf(self, sizeof self, "%s", argv[0]);
+  char *slash = strrchr(self, '/');
+  if (slash)
+    *slash = 0;
+  else
+    snprintf(self, sizeof self, ".");
+  snprintf(vesica, sizeof vesica, "%s/../vesica", self);
+  if (access(vesica, X_OK)) {
+    fprintf(stderr, "test_cli: %s: not found (build it first)\n", vesica);
+    return 1;
+  }
+  H5Eset_auto2(H5E_DEFAULT, NULL, NULL);
+  const struct CMUnitTest tests[] = {
+      cmocka_unit_test(test_help),
+      cmocka_unit_test(test_malformed_input),
+      cmocka_unit_test(test_restart_bitwise),
+      cmocka_unit_test(test_numerical_failure),
+      cmocka_unit_test(test_sigterm),
+      cmocka_unit_test(test_sigkill),
+      cmocka_unit_test(test_problem_files_check),
+  };
+  return cmocka_run_group_tests_name("cli", tests, setup_all, teardown_all);
+}
