@@ -41,6 +41,10 @@ LIB_C    = $(filter-out solver/cli.c,$(wildcard solver/*.c))
 LIB_OBJ  = $(LIB_C:solver/%.c=$(BUILD)/obj/%.o) $(BUILD)/obj/geom.o
 TESTS    = $(patsubst tests/%.c,$(BUILD)/tests/%,$(wildcard tests/test_*.c))
 BENCHES  = $(patsubst bench/%.c,$(BUILD)/bench/%,$(wildcard bench/bench_*.c))
+# make bench runs them all with their defaults (hours: bench_table1 and
+# bench_robust include explicit Euler and NLopt); bench/RESULTS.md gives the
+# command of every table, e.g. make bench BENCH_ONLY=bench_mode.
+BENCH_ONLY ?= 
 
 .PHONY: all deps test test-slow bench run clean format
 all: deps-quiet $(BUILD)/libvesica.a $(BUILD)/vesica
@@ -59,6 +63,10 @@ $(BUILD)/tests/%: tests/%.c $(BUILD)/libvesica.a | $(BUILD)/tests
 	$(CC) $(CFLAGS) -o $@ $< $(BUILD)/libvesica.a $(LDFLAGS) -lcmocka $(LDLIBS)
 $(BUILD)/bench/%: bench/%.c $(BUILD)/libvesica.a | $(BUILD)/bench
 	$(CC) $(CFLAGS) -o $@ $< $(BUILD)/libvesica.a $(LDFLAGS) $(LDLIBS)
+# the independent Stokes prediction of the shape-mode decay: self-contained
+# (no libvesica: it checks the solver's time scale from outside)
+$(BUILD)/bench/stokes_mode: bench/stokes_mode.c | $(BUILD)/bench
+	$(CC) -std=c11 $(OPT) -Wall -Wextra -Werror -o $@ $< -ldmumps_seq -llapacke -lopenblas -lm
 $(BUILD)/obj $(BUILD)/tests $(BUILD)/bench:
 	mkdir -p $@
 
@@ -89,8 +97,12 @@ test-slow:
 
 bench: deps
 	@$(MAKE) --no-print-directory $(BUILD)/libvesica.a $(BUILD)/vesica $(BENCHES)
-	@for b in $(BENCHES); do echo "== $$b"; $$b || exit 1; done
-	@echo "== bench/sphere_convergence.sh"; sh bench/sphere_convergence.sh $(BUILD)/vesica
+	@$(MAKE) --no-print-directory $(BUILD)/bench/stokes_mode
+	@for b in $(BENCHES) $(BUILD)/bench/stokes_mode; do \
+	  case "$$b" in *"$(BENCH_ONLY)"*) ;; *) continue;; esac; \
+	  echo "== $$b"; OPENBLAS_NUM_THREADS=1 $$b || exit 1; done
+	@case sphere_convergence in *"$(BENCH_ONLY)"*) \
+	  echo "== bench/sphere_convergence.sh"; sh bench/sphere_convergence.sh $(BUILD)/vesica;; esac
 
 # The default run: the oblate relaxation of problems/oblate.ini (paper
 # Figs. 3-4, ~1.5 min on 2 cores) to results/oblate.h5 (+ .xdmf) and its

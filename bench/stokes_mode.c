@@ -10,6 +10,14 @@
  *        default 16), --nq n (n x n collapsed Gauss rule per triangle, 5),
  *        --kout K (override the outer radial cell factor; checks mesh
  *        independence).
+ *        Inextensible membrane (section 4): --membrane inextensible (default
+ *        free) switches A-D to the locally inextensible membrane and adds
+ *        sections S (stability of the tension discretization, --nstab N,
+ *        default 32) and E (free vs inextensible, box 3, meshes nmax/4..nmax);
+ *        about 2.5 minutes in all, each section < 40 s. --tension p1|p2
+ *        (multiplier space, default p1; p2 is unstable, kept for section S),
+ *        --area auto|fixed|free (l = 0 tension, see 4(d)). --only takes
+ *        any of ABCDSE.
  *
  * Units: k = mu = R = 1, time t* = t k/(mu R^3). Setting: sphere r = 1,
  * membrane with bending energy only (no tension, no surface incompressibility,
@@ -118,8 +126,67 @@
  *    error O(h^4)). Section D extrapolates the box sequence 3..48 to an
  *    infinite box and recovers the analytic M_l.
  *
+ * 4. INEXTENSIBLE MEMBRANE (--membrane inextensible).  Same bending force,
+ *    plus the constraint of local surface incompressibility div_s u = 0 on
+ *    r = 1, enforced by a tension field sigma (Lagrange multiplier; zero base
+ *    tension, i.e. the linearization about the tensionless sphere of
+ *    Milner-Safran / Seifert).
+ *    (a) Surface divergence.  On a surface of revolution with meridian tangent
+ *    t and azimuthal e_phi, div_s u = t.(du/ds) + e_phi.(du/dphi)/rho =
+ *    t.du/ds + u_rho/rho (d e_rho/dphi = e_phi).  On the unit sphere, u =
+ *    u_n n + u_th e_th, dn/dth = e_th, de_th/dth = -n:  t.du/ds = u_n + du_th/dth,
+ *    u_rho/rho = u_n + u_th cot th, so div_s u = 2 u_n + (1/sin th) d/dth(sin th u_th).
+ *    For u_r = U P_l, u_th = V dP_l/dth: div_s u = (2U - L V) P_l.
+ *    The weak term \int sigma div_s w dA = -\int w.(grad_s sigma) dA + \int 2 sigma w_n dA
+ *    (unit sphere), so in  a(u,w) + \int sigma div_s w = \int f.w  the
+ *    membrane exerts the extra force grad_s sigma - 2 sigma n: sigma is the
+ *    physical tension perturbation (tangential Sig dP_l/dth, normal -2 Sig P_l).
+ *    (b) Unbounded, equal viscosities.  From the Lamb solution of 2(a), the
+ *    sphere's mobility for a force (f_n P_l n + f_t grad_s P_l), d = (2l+1)(4L-3):
+ *      U = L (2 f_n + 3 f_t)/d,   V = (3 f_n + (2L+3) f_t)/d
+ *    (symmetric: G_nt = L G_tn, L = |grad_s P_l|^2/|P_l|^2).  With f_n = 1 - 2 Sig,
+ *    f_t = Sig, the constraint 2U = L V gives f_n = (2L-3) f_t, hence
+ *      Sig_l = 1/(2L-1),   M_l = U = L/((2l+1)(2L-1)) = 1/Z_l,
+ *      Z_l = (2l+1)(2l^2+2l-1)/(l(l+1)),
+ *    and s_l = M_l kappa L(L-2) = kappa (l-1)(l+2) l(l+1)/(mu R^3 Z_l): the
+ *    Milner-Safran / Seifert rate at zero tension.  Ratio to the free membrane
+ *    (4L-3)/(4L-2): 21/22 (l=2), 45/46 (l=3).  Compressible fluid (lam/mu), from
+ *    the same 5x5 system solved symbolically:
+ *      M_l = L[(lam+3)^2 L + lam + 2] / ((2l+1)(lam+2) Q),  Sig_l = [(lam+5)L - 2]/Q,
+ *      Q = lam L(2L-1) + 6L^2 + 2L - 4   (-> the incompressible values as lam -> inf).
+ *    Section A6 checks lamb_solve_mem (5x5, numeric) against these.
+ *    (c) Discretization.  sigma is continuous P1 on the arc vertices (the
+ *    trace of the P2 velocity is quadratic on each arc edge: a 1-D Taylor-Hood
+ *    pair).  B_ij = \int psi_i div_s(phi_j) rho ds evaluated on the discrete
+ *    (isoparametric) arc as \int psi_i [rho (dX.dphi_j)/|dX| + (phi_j e_rho)|dX|] dt,
+ *    exact for rigid translations; symmetric saddle point (MUMPS SYM = 2).
+ *    Stability (section S): the generalized eigenvalues of the tension Schur
+ *    complement S = B A^-1 B^T against the tension mass (squared inf-sup
+ *    ratios) converge under refinement for P1 (THmix box 3: 0.012747 (l = 0),
+ *    0.40656, 0.62819, 0.88201, ... with smooth eigenvectors l = 1, 2, 3, ...;
+ *    unbounded incompressible values, from (b) with f_n = -2 Sig, f_t = Sig:
+ *    L(2L-1)/((2l+1)(4L-3)) = 0.400, 0.629, 0.876 for l = 1, 2, 3), and
+ *    lam_max h stays constant (order-1 operator).  Continuous P2 on all arc nodes
+ *    (equal order) is NOT stable: eigenvalues ~ 0.022 h with oscillating
+ *    eigenvectors (no Legendre content below l = 16); with it the velocity
+ *    still converges but the tension does not (section B, --tension p2).
+ *    With P1, section B shows u_l O(h^4), velocity L2 O(h^3), nodal tension O(h^2).
+ *    (d) The l = 0 tension.  A uniform tension only acts through the total area
+ *    change, 2 \oint u_n dA.  In TH the inside volume is conserved exactly, which
+ *    fixes the total area to O(h^4): the uniform tension is then nearly
+ *    redundant with the inside pressure (S has an l = 0 eigenvalue 5e-9 (N = 4)
+ *    ... 1.5e-13 (N = 32), section S) and is ill-determined (sig_0 = O(1), non-convergent, although the
+ *    velocity is unaffected).  --area auto therefore removes it for TH: the
+ *    multiplier space is {sigma: \oint sigma dA = 0}, imposed with one scalar
+ *    multiplier c (the discrete constraint becomes div_s u = -c; c is reported
+ *    as "div resid" in section B and is < 1e-9).  For THmix / P2pen (compressible
+ *    fluid) the total area is a real constraint and is kept (--area fixed;
+ *    --area free would let the area change uniformly: in box 3 it changes M_2
+ *    by 3e-7 and M_3 not at all).
+ *
  * Sections: A analytic checks; B verification; C box 3 mesh convergence
- * (TH, P2pen, THmix); D box size -> unbounded.
+ * (TH, P2pen, THmix); D box size -> unbounded; with --membrane inextensible
+ * also S (stability of the tension multiplier) and E (free vs inextensible).
  */
 #define _POSIX_C_SOURCE 200809L
 #include <stdio.h>
@@ -258,7 +325,7 @@ static void lamb_term(int type, double n, Fluid f, double r,
     *S = (f.inc ? -1.0 : -f.lam / (f.lam + f.mu)) * pow(r, n);
 }
 
-typedef struct { int l; Fluid fin, fout; double c[4]; double M; } Lamb;
+typedef struct { int l; Fluid fin, fout; double c[4]; double M; int inext; double Sig; } Lamb;
 
 /* Unit sphere carrying the normal force density F P_l(cos th) n (F = 1),
  * fluid fin inside and fout outside; continuity of velocity and of the
@@ -287,6 +354,54 @@ static Lamb lamb_solve(int l, Fluid fin, Fluid fout)
         exit(2);
     }
     memcpy(L.c, b, sizeof b);
+    double M = 0.0;
+    for (int k = 0; k < 2; k++) {
+        double U, dU, V, dV, S;
+        lamb_term(k + 1, (double)l, fin, 1.0, &U, &dU, &V, &dV, &S);
+        M += L.c[k] * U;
+    }
+    L.M = M;
+    L.inext = 0;
+    L.Sig = 0.0;
+    return L;
+}
+
+/* The same with an INEXTENSIBLE membrane (header, section 4): fifth unknown the
+ * tension perturbation Sig P_l(cos th); the membrane force on the fluid gains
+ * grad_s(sigma) - 2 sigma n, i.e. tangential Sig dP_l/dth, normal -2 Sig P_l, and
+ * the surface divergence 2 u_r + (1/sin th) d/dth(sin th u_th) = (2U - L V) P_l
+ * must vanish:
+ *   [U] = 0, [V] = 0, [mu (V' - V/r + U/r)] + Sig = 0, [S + 2 mu U'] - 2 Sig = -F,
+ *   2 U - L V = 0  (interior branch, r = 1). */
+static Lamb lamb_solve_mem(int l, Fluid fin, Fluid fout, int inext)
+{
+    if (!inext) return lamb_solve(l, fin, fout);
+    Lamb L;
+    L.l = l; L.fin = fin; L.fout = fout; L.inext = 1;
+    double A[25], b[5] = {0, 0, 0, -1.0, 0}, LL = l * (l + 1.0);
+    memset(A, 0, sizeof A);
+    for (int k = 0; k < 4; k++) {
+        int type = (k % 2) + 1, out = k >= 2;
+        double n = out ? -(double)l - 1.0 : (double)l, U, dU, V, dV, S;
+        Fluid f = out ? fout : fin;
+        lamb_term(type, n, f, 1.0, &U, &dU, &V, &dV, &S);
+        double sg = out ? 1.0 : -1.0;
+        A[0 * 5 + k] = sg * U;
+        A[1 * 5 + k] = sg * V;
+        A[2 * 5 + k] = sg * f.mu * (dV - V + U);
+        A[3 * 5 + k] = sg * (S + 2 * f.mu * dU);
+        A[4 * 5 + k] = out ? 0.0 : 2.0 * U - LL * V;
+    }
+    A[2 * 5 + 4] = 1.0;
+    A[3 * 5 + 4] = -2.0;
+    lapack_int ipiv[5];
+    lapack_int info = LAPACKE_dgesv(LAPACK_ROW_MAJOR, 5, 1, A, 5, ipiv, b, 1);
+    if (info != 0) {
+        fprintf(stderr, "lamb_solve_mem: dgesv info %d\n", (int)info);
+        exit(2);
+    }
+    memcpy(L.c, b, 4 * sizeof(double));
+    L.Sig = b[4];
     double M = 0.0;
     for (int k = 0; k < 2; k++) {
         double U, dU, V, dV, S;
@@ -329,6 +444,24 @@ static double M_closed_comp(int l, double lam) /* mu = 1 */
 {
     double D = (2.0 * l - 1) * (2.0 * l + 3);
     return ((lam + 3.0) * D + 3.0 * lam + 7.0) / (2.0 * (lam + 2.0) * (2.0 * l + 1) * D);
+}
+/* inextensible membrane (header, section 4): M_l = 1/Z_l (Milner-Safran / Seifert) */
+static double M_closed_inext(int l)
+{
+    double L = l * (l + 1.0);
+    return L / ((2.0 * l + 1) * (2.0 * L - 1));
+}
+static double M_closed_inext_comp(int l, double lam) /* mu = 1 */
+{
+    double L = l * (l + 1.0);
+    return L * ((lam + 3) * (lam + 3) * L + lam + 2)
+         / ((2.0 * l + 1) * (lam + 2) * (lam * L * (2 * L - 1) + 6 * L * L + 2 * L - 4));
+}
+static double Sig_closed_inext(int l, double lam) /* tension amplitude per unit normal force; lam = inf ok */
+{
+    double L = l * (l + 1.0);
+    if (isinf(lam)) return 1.0 / (2 * L - 1);
+    return ((lam + 5) * L - 2) / (lam * L * (2 * L - 1) + 6 * L * L + 2 * L - 4);
 }
 
 /* Direct quadrature of the Kelvin (nu < 1/2) / Oseen (nu = 1/2) tensor over
@@ -801,10 +934,103 @@ static void arc_load(const Mesh *M, int m, double *b)
     }
 }
 
+/* Membrane: inext = 0 free (bending force only); inext = 1 locally
+ * inextensible, tension multiplier of degree tdeg (1: continuous P1 on the arc
+ * vertices, 2: continuous P2 on all arc nodes); area_free = 1 removes the l = 0
+ * (uniform) tension from the multiplier space, i.e. the total area may change
+ * (header, section 4). Trailing members zero = the free membrane. */
 typedef struct {
     int form;
     double mu, lam;
+    int inext, tdeg, area_free;
 } Form;
+
+/* number of tension unknowns on the arc and the tension dof of arc position a
+ * (-1: none) */
+static int tension_count(const Mesh *M, int tdeg) { return tdeg == 2 ? M->narc : (M->narc + 1) / 2; }
+
+/* Arc edge j (arc positions 2j, 2j+1, 2j+2): local constraint matrix
+ *   Bl[i][2k+d] = \int psi_i (div_s phi_k e_d) rho ds,
+ *   div_s v = t.dv/ds + v_rho/rho  (surface divergence of an axisymmetric field
+ *   on the surface of revolution; on the unit sphere it equals
+ *   2 v_n + (1/sin th) d/dth(sin th v_th)),
+ * computed on the discrete (isoparametric quadratic) arc as
+ *   \int psi_i [rho (dX . dv)/|dX| + v_rho |dX|] dt  (no 1/rho singularity),
+ * and ml[i] = \int psi_i rho ds (tension mass, for the l = 0 treatment).
+ * td[i] = tension dofs, returns their number (2 for P1, 3 for P2). */
+static int arc_tension_edge(const Mesh *M, int j, int tdeg, double Bl[3][6], double ml[3], int td[3])
+{
+    double gx[8], gw[8];
+    gauleg(8, gx, gw);
+    int n3[3] = {M->arc[2 * j], M->arc[2 * j + 1], M->arc[2 * j + 2]};
+    int nt = tdeg == 2 ? 3 : 2;
+    if (tdeg == 2) { td[0] = 2 * j; td[1] = 2 * j + 1; td[2] = 2 * j + 2; }
+    else { td[0] = j; td[1] = j + 1; td[2] = -1; }
+    memset(Bl, 0, sizeof(double) * 18);
+    memset(ml, 0, sizeof(double) * 3);
+    for (int q = 0; q < 8; q++) {
+        double t = 0.5 * (gx[q] + 1), w = 0.5 * gw[q];
+        double phi[3] = {(1 - t) * (1 - 2 * t), 4 * t * (1 - t), t * (2 * t - 1)};
+        double dphi[3] = {4 * t - 3, 4 - 8 * t, 4 * t - 1};
+        double psi[3];
+        if (tdeg == 2) memcpy(psi, phi, sizeof psi);
+        else { psi[0] = 1 - t; psi[1] = t; psi[2] = 0; }
+        double X[2] = {0, 0}, dX[2] = {0, 0};
+        for (int k = 0; k < 3; k++)
+            for (int d = 0; d < 2; d++) {
+                X[d] += phi[k] * M->x[2 * n3[k] + d];
+                dX[d] += dphi[k] * M->x[2 * n3[k] + d];
+            }
+        double ds = hypot(dX[0], dX[1]);
+        for (int i = 0; i < nt; i++) {
+            ml[i] += w * psi[i] * X[0] * ds;
+            for (int k = 0; k < 3; k++)
+                for (int d = 0; d < 2; d++)
+                    Bl[i][2 * k + d] += w * psi[i] * (X[0] * dX[d] * dphi[k] / ds + (d == 0 ? phi[k] * ds : 0.0));
+        }
+    }
+    return nt;
+}
+
+/* Legendre components sig_m = (2m+1)/2 \int sigma P_m sin th dth, m = 0..lmax, of a
+ * tension field given by its dofs, and the relative L2 (sin th dth) norm of the
+ * remainder sigma - sum_m sig_m P_m (a measure of non-smooth content) */
+static void tension_components(const Mesh *M, int tdeg, const double *sg, int lmax, double *comp, double *resid)
+{
+    double gx[8], gw[8], P[64], dP[64], d2P[64];
+    gauleg(8, gx, gw);
+    for (int m = 0; m <= lmax; m++) comp[m] = 0;
+    for (int pass = 0; pass < 2; pass++) {
+        double num = 0, den = 0;
+        for (int j = 0; 2 * j + 2 < M->narc; j++) {
+            int n3[3] = {M->arc[2 * j], M->arc[2 * j + 1], M->arc[2 * j + 2]};
+            for (int q = 0; q < 8; q++) {
+                double t = 0.5 * (gx[q] + 1), w = 0.5 * gw[q];
+                double phi[3] = {(1 - t) * (1 - 2 * t), 4 * t * (1 - t), t * (2 * t - 1)};
+                double dphi[3] = {4 * t - 3, 4 - 8 * t, 4 * t - 1};
+                double X[2] = {0, 0}, dX[2] = {0, 0};
+                for (int k = 0; k < 3; k++)
+                    for (int d = 0; d < 2; d++) {
+                        X[d] += phi[k] * M->x[2 * n3[k] + d];
+                        dX[d] += dphi[k] * M->x[2 * n3[k] + d];
+                    }
+                double sv = tdeg == 2 ? phi[0] * sg[2 * j] + phi[1] * sg[2 * j + 1] + phi[2] * sg[2 * j + 2]
+                                      : (1 - t) * sg[j] + t * sg[j + 1];
+                double wt = w * X[0] * hypot(dX[0], dX[1]);
+                legendre_all(lmax, X[1] / hypot(X[0], X[1]), P, dP, d2P);
+                if (pass == 0) {
+                    for (int m = 0; m <= lmax; m++) comp[m] += 0.5 * (2 * m + 1) * wt * sv * P[m];
+                } else {
+                    double sm = 0;
+                    for (int m = 0; m <= lmax; m++) sm += comp[m] * P[m];
+                    num += wt * (sv - sm) * (sv - sm);
+                    den += wt * sv * sv;
+                }
+            }
+        }
+        if (pass == 1 && resid) *resid = den > 0 ? sqrt(num / den) : 0.0;
+    }
+}
 
 typedef struct {
     int nunk, nvel, npres;
@@ -813,10 +1039,14 @@ typedef struct {
 } SolveInfo;
 
 /* Solve for nrhs right-hand sides: load col c = membrane force P_{loads[c]}
- * (loads[c] < 0: none); Dirichlet data gD[c] (full velocity vector, walls and
- * axis) or NULL for no-slip. Output U[c]: full velocity vector (2 nn). */
-static int fe_solve(const Mesh *M, Form F, int nrhs, const int *loads, double **gD,
-                    double **U, SolveInfo *info)
+ * (loads[c] < 0: none) plus bext[c] (a load vector in the full velocity
+ * numbering, or NULL); Dirichlet data gD[c] (full velocity vector, walls and
+ * axis) or NULL for no-slip. Output U[c]: full velocity vector (2 nn); Sg[c]
+ * (if Sg and Sg[c]): the tension dofs (inextensible membrane). */
+static int fe_solve_ext(const Mesh *M, Form F, int nrhs, const int *loads, double **gD, double **bext,
+                        double **U, double **Sg, SolveInfo *info);
+static int fe_solve_ext(const Mesh *M, Form F, int nrhs, const int *loads, double **gD, double **bext,
+                        double **U, double **Sg, SolveInfo *info)
 {
     double t0 = now_sec();
     int nn = M->nn, nv = 2 * nn;
@@ -849,9 +1079,14 @@ static int fe_solve(const Mesh *M, Form F, int nrhs, const int *loads, double **
         }
         for (int p = 0; p < npres; p++) peq[p] = (p == pinned) ? -1 : nf++;
     }
+    /* tension multiplier on the arc (inextensible membrane), then the scalar
+     * multiplier of the zero-mean condition when the l = 0 tension is removed */
+    int ntens = F.inext ? tension_count(M, F.tdeg) : 0, t0eq = nf, ceq = -1;
+    nf += ntens;
+    if (F.inext && F.area_free) ceq = nf++;
     int n = nf;
     int nloc = haveP ? 15 : 12;
-    long long cap = (long long)M->ne * nloc * (nloc + 1) / 2;
+    long long cap = (long long)M->ne * nloc * (nloc + 1) / 2 + (long long)(M->narc / 2) * 21 + ntens + 16;
     MUMPS_INT *irn = xmalloc(sizeof(MUMPS_INT) * cap), *jcn = xmalloc(sizeof(MUMPS_INT) * cap);
     double *av = xmalloc(sizeof(double) * cap);
     long long nnz = 0;
@@ -918,18 +1153,47 @@ static int fe_solve(const Mesh *M, Form F, int nrhs, const int *loads, double **
             }
         }
     }
+    if (F.inext) {
+        for (int j = 0; 2 * j + 2 < M->narc; j++) {
+            double Bl[3][6], ml[3];
+            int td[3];
+            int nt = arc_tension_edge(M, j, F.tdeg, Bl, ml, td);
+            for (int i = 0; i < nt; i++) {
+                int ti = t0eq + td[i];
+                for (int k = 0; k < 3; k++)
+                    for (int d = 0; d < 2; d++) {
+                        int full = 2 * M->arc[2 * j + k] + d, gv = eq[full];
+                        if (gv >= 0) {
+                            irn[nnz] = gv + 1; jcn[nnz] = ti + 1; av[nnz] = Bl[i][2 * k + d];
+                            nnz++;
+                        } else {
+                            for (int c = 0; c < nrhs; c++)
+                                if (gD && gD[c]) rhs[(size_t)c * n + ti] -= Bl[i][2 * k + d] * gD[c][full];
+                        }
+                    }
+                if (ceq >= 0) {
+                    irn[nnz] = ti + 1; jcn[nnz] = ceq + 1; av[nnz] = ml[i];
+                    nnz++;
+                }
+            }
+        }
+    }
     double *bl = xmalloc(sizeof(double) * nv);
     for (int c = 0; c < nrhs; c++) {
-        if (loads[c] < 0) continue;
-        arc_load(M, loads[c], bl);
-        for (int i = 0; i < nv; i++)
-            if (eq[i] >= 0) rhs[(size_t)c * n + eq[i]] += bl[i];
+        if (loads[c] >= 0) {
+            arc_load(M, loads[c], bl);
+            for (int i = 0; i < nv; i++)
+                if (eq[i] >= 0) rhs[(size_t)c * n + eq[i]] += bl[i];
+        }
+        if (bext && bext[c])
+            for (int i = 0; i < nv; i++)
+                if (eq[i] >= 0) rhs[(size_t)c * n + eq[i]] += bext[c][i];
     }
     free(bl);
     double t1 = now_sec();
     DMUMPS_STRUC_C id;
     memset(&id, 0, sizeof id);
-    id.job = -1; id.par = 1; id.sym = F.form == FORM_PEN ? 1 : 2; id.comm_fortran = -987654;
+    id.job = -1; id.par = 1; id.sym = (F.form == FORM_PEN && !F.inext) ? 1 : 2; id.comm_fortran = -987654;
     dmumps_c(&id);
     id.icntl[0] = -1; id.icntl[1] = -1; id.icntl[2] = -1; id.icntl[3] = 0;
     id.icntl[13] = 60;
@@ -945,6 +1209,10 @@ static int fe_solve(const Mesh *M, Form F, int nrhs, const int *loads, double **
     for (int c = 0; c < nrhs; c++)
         for (int i = 0; i < nv; i++)
             U[c][i] = eq[i] >= 0 ? rhs[(size_t)c * n + eq[i]] : (gD && gD[c] ? gD[c][i] : 0.0);
+    if (Sg)
+        for (int c = 0; c < nrhs; c++)
+            if (Sg[c])
+                for (int i = 0; i < ntens; i++) Sg[c][i] = rhs[(size_t)c * n + t0eq + i];
     info->nunk = n; info->nvel = nvf; info->npres = haveP ? npres : 0;
     info->t_asm = t1 - t0; info->t_solve = t2 - t1; info->nnz = nnz;
     free(eq); free(pid); free(peq); free(irn); free(jcn); free(av); free(rhs);
@@ -1002,6 +1270,26 @@ static double stiff(int l) /* kappa L (L-2), the normal-force stiffness of mode 
 }
 
 static int g_kout = 0; /* override of the outer radial cell count factor (0: automatic) */
+/* membrane model: --membrane free|inextensible, --tension p1|p2, --area auto|fixed|free */
+static int g_inext = 0, g_tdeg = 1, g_area = -1;
+
+static Form make_form(int form, double lam)
+{
+    Form F;
+    memset(&F, 0, sizeof F);
+    F.form = form; F.mu = 1.0; F.lam = lam;
+    F.inext = g_inext; F.tdeg = g_tdeg;
+    /* auto: TH conserves the inside volume exactly, which already fixes the
+     * total area to O(h^4); the l = 0 tension is then (nearly) redundant with
+     * the inside pressure and is removed. THmix / P2pen: total area fixed. */
+    F.area_free = g_area >= 0 ? g_area : (form == FORM_TH);
+    return F;
+}
+static double M_unbounded(int inext, int form, int l)
+{
+    if (inext) return form == FORM_TH ? M_closed_inext(l) : M_closed_inext_comp(l, 100.0);
+    return form == FORM_TH ? M_closed_inc(l) : M_closed_comp(l, 100.0);
+}
 static int kout_for(double Rb)
 {
     if (g_kout > 0) return g_kout;
@@ -1090,50 +1378,100 @@ static void section_analytic(void)
         printf("  %2d %8s %14.10f %14.10f %14.10f\n", l, "inf", Mi, Mi * stiff(l), 2 * Mi * stiff(l));
         printf("  %2d %8s %14.10f %14.10f %14.10f\n", l, "100", Mc, Mc * stiff(l), 2 * Mc * stiff(l));
     }
+    if (!g_inext) return;
+    printf("\nA6. INEXTENSIBLE membrane (div_s u = 0 on r = 1, tension multiplier Sig P_l), Lamb 5x5 system vs closed forms\n");
+    printf("  inc: M_l = 1/Z_l = L/((2l+1)(2L-1)), Sig_l = 1/(2L-1);  lam: M_l = L[(lam+3)^2 L + lam + 2]/((2l+1)(lam+2)Q),\n");
+    printf("  Sig_l = [(lam+5)L - 2]/Q, Q = lam L(2L-1) + 6L^2 + 2L - 4;  rate s_l = M_l kappa L(L-2) = kappa (l-1)(l+2)L/(mu Z_l)\n");
+    printf("  %2s %6s %14s %14s %9s %12s %12s %9s %12s %12s %10s\n", "l", "lam/mu", "M_l Lamb", "M_l closed", "diff", "Sig Lamb",
+           "Sig closed", "diff", "s_l", "2 s_l", "inext/free");
+    for (int l = 1; l <= 6; l++)
+        for (int k = 0; k < 2; k++) {
+            Fluid f = k ? c100 : inc;
+            Lamb a = lamb_solve_mem(l, f, f, 1);
+            double Mc = k ? M_closed_inext_comp(l, 100.0) : M_closed_inext(l);
+            double Sc = Sig_closed_inext(l, k ? 100.0 : INFINITY);
+            double Mf = k ? M_closed_comp(l, 100.0) : M_closed_inc(l);
+            printf("  %2d %6s %14.10f %14.10f %9.1e %12.9f %12.9f %9.1e %12.8f %12.8f %10.7f\n", l, k ? "100" : "inf", a.M, Mc,
+                   a.M - Mc, a.Sig, Sc, a.Sig - Sc, Mc * stiff(l), 2 * Mc * stiff(l), Mc / Mf);
+        }
+    printf("  (l = 1 has zero stiffness; listed for the mobility only)\n");
 }
 
 /* B: solver verification against the exact unbounded solution imposed on the walls */
 static void section_verify(int nmax)
 {
     printf("\n## B. Verification: exact unbounded Lamb solution imposed as Dirichlet data on the box-3 walls\n");
-    printf("   (body: membrane force P_l n on r = 1; the FE functional u_l must converge to the unbounded M_l)\n\n");
-    printf("  %-6s %5s %2s %4s %8s %8s %16s %12s %6s %12s %6s\n", "form", "lam", "l", "N", "h_max", "unknowns",
+    printf("   (body: membrane force P_l n on r = 1; the FE functional u_l must converge to the unbounded M_l)\n");
+    if (g_inext)
+        printf("   membrane: INEXTENSIBLE, tension P%d on the arc, l = 0 tension %s; sig err = max nodal |sigma_h - Sig P_l| / Sig\n",
+               g_tdeg, g_area < 0 ? "auto (removed for TH, kept otherwise)" : g_area ? "removed" : "kept");
+    printf("\n");
+    printf("  %-6s %5s %2s %4s %8s %8s %16s %12s %6s %12s %6s", "form", "lam", "l", "N", "h_max", "unknowns",
            "u_l (FE)", "err u_l", "order", "L2 rel err", "order");
+    if (g_inext) printf(" %10s %6s %10s", "sig err", "order", "div resid");
+    printf("\n");
     Fluid inc = {1.0, 0.0, 1}, c100 = {1.0, 100.0, 0};
     int forms[3] = {FORM_TH, FORM_PEN, FORM_MIX};
     for (int fi = 0; fi < 3; fi++) {
-        Form F = {forms[fi], 1.0, forms[fi] == FORM_TH ? INFINITY : 100.0};
+        Form F = make_form(forms[fi], forms[fi] == FORM_TH ? INFINITY : 100.0);
         Fluid fl = forms[fi] == FORM_TH ? inc : c100;
-        Lamb La[2] = {lamb_solve(2, fl, fl), lamb_solve(3, fl, fl)};
-        double eu[2][8], el[2][8];
+        Lamb La[2] = {lamb_solve_mem(2, fl, fl, g_inext), lamb_solve_mem(3, fl, fl, g_inext)};
+        double eu[2][8], el[2][8], es[2][8];
         int k = 0;
         for (int N = 4; N <= nmax; N *= 2, k++) {
             Mesh M = mesh_build(3.0, N, kout_for(3.0));
-            double *gD[2], *U[2];
-            int loads[2] = {2, 3};
+            double *gD[2], *U[2], *Sg[2] = {NULL, NULL};
+            int loads[2] = {2, 3}, nt = F.inext ? tension_count(&M, F.tdeg) : 0;
             for (int c = 0; c < 2; c++) {
                 gD[c] = xcalloc((size_t)2 * M.nn, sizeof(double));
                 U[c] = xmalloc(sizeof(double) * 2 * M.nn);
+                if (nt) Sg[c] = xmalloc(sizeof(double) * nt);
                 for (int i = 0; i < M.nn; i++)
                     if (M.flag[i] & (F_WALL | F_AXIS))
                         lamb_field(&La[c], 1, M.x[2 * i], M.x[2 * i + 1], &gD[c][2 * i], &gD[c][2 * i + 1]);
             }
             SolveInfo si;
-            if (!fe_solve(&M, F, 2, loads, gD, U, &si)) exit(3);
+            if (!fe_solve_ext(&M, F, 2, loads, gD, NULL, U, Sg, &si)) exit(3);
             for (int c = 0; c < 2; c++) {
                 double um[LMAX_OUT + 1];
                 sphere_components(&M, U[c], um);
                 int l = loads[c];
                 eu[c][k] = um[l] - La[c].M;
                 el[c][k] = l2_error(&M, U[c], &La[c]);
-                char o1[16] = "", o2[16] = "";
+                char o1[16] = "", o2[16] = "", o3[16] = "";
                 if (k > 0) {
                     snprintf(o1, sizeof o1, "%.2f", log(fabs(eu[c][k - 1] / eu[c][k])) / log(2.0));
                     snprintf(o2, sizeof o2, "%.2f", log(el[c][k - 1] / el[c][k]) / log(2.0));
                 }
-                printf("  %-6s %5s %2d %4d %8.4f %8d %16.12f %12.3e %6s %12.3e %6s\n", form_name[F.form],
+                printf("  %-6s %5s %2d %4d %8.4f %8d %16.12f %12.3e %6s %12.3e %6s", form_name[F.form],
                        F.form == FORM_TH ? "inf" : "100", l, N, M.hmax, si.nunk, um[l], eu[c][k], o1, el[c][k], o2);
-                free(gD[c]); free(U[c]);
+                if (nt) {
+                    double e = 0;
+                    for (int i = 0; i < nt; i++) {
+                        int g = M.arc[F.tdeg == 2 ? i : 2 * i];
+                        double d = fabs(Sg[c][i] - La[c].Sig * legendre(l, M.x[2 * g + 1]));
+                        if (d > e) e = d;
+                    }
+                    es[c][k] = e / fabs(La[c].Sig);
+                    if (k > 0) snprintf(o3, sizeof o3, "%.2f", log(es[c][k - 1] / es[c][k]) / log(2.0));
+                    /* discrete constraint check: max_i |\int psi_i div_s u rho ds| / \int psi_i rho ds */
+                    double dr = 0, *rs = xcalloc((size_t)nt, sizeof(double)), *ms = xcalloc((size_t)nt, sizeof(double));
+                    for (int j = 0; 2 * j + 2 < M.narc; j++) {
+                        double Bl[3][6], ml[3];
+                        int td[3], ntl = arc_tension_edge(&M, j, F.tdeg, Bl, ml, td);
+                        for (int i = 0; i < ntl; i++) {
+                            for (int kk = 0; kk < 3; kk++)
+                                for (int d = 0; d < 2; d++) rs[td[i]] += Bl[i][2 * kk + d] * U[c][2 * M.arc[2 * j + kk] + d];
+                            ms[td[i]] += ml[i];
+                        }
+                    }
+                    for (int i = 0; i < nt; i++)
+                        if (fabs(rs[i]) / ms[i] > dr) dr = fabs(rs[i]) / ms[i];
+                    free(rs); free(ms);
+                    printf(" %10.3e %6s %10.1e", es[c][k], o3, dr);
+                }
+                printf("\n");
+                free(gD[c]); free(U[c]); free(Sg[c]);
             }
             mesh_free(&M);
         }
@@ -1142,6 +1480,8 @@ static void section_verify(int nmax)
 
 typedef struct {
     double mob[LMAX_OUT + 1][LMAX_OUT + 1]; /* mob[m][n]: u_m from unit P_n load, n = 2..LMAX_OUT */
+    double sig[LMAX_OUT + 1][LMAX_OUT + 1]; /* inextensible: tension component m from unit P_n load */
+    double sres[LMAX_OUT + 1];              /* inextensible: tension remainder beyond l = 16 (relative) */
     int nunk;
     double hmax, time;
 } BoxResult;
@@ -1151,20 +1491,26 @@ static BoxResult box_run(double Rb, int N, Form F)
     BoxResult R;
     memset(&R, 0, sizeof R);
     Mesh M = mesh_build(Rb, N, kout_for(Rb));
-    int nr = LMAX_OUT - 1, loads[LMAX_OUT];
-    double *U[LMAX_OUT];
+    int nr = LMAX_OUT - 1, loads[LMAX_OUT], nt = F.inext ? tension_count(&M, F.tdeg) : 0;
+    double *U[LMAX_OUT], *Sg[LMAX_OUT];
     for (int c = 0; c < nr; c++) {
         loads[c] = c + 2;
         U[c] = xmalloc(sizeof(double) * 2 * M.nn);
+        Sg[c] = nt ? xmalloc(sizeof(double) * nt) : NULL;
     }
     SolveInfo si;
     double t0 = now_sec();
-    if (!fe_solve(&M, F, nr, loads, NULL, U, &si)) exit(3);
+    if (!fe_solve_ext(&M, F, nr, loads, NULL, NULL, U, Sg, &si)) exit(3);
     for (int c = 0; c < nr; c++) {
         double um[LMAX_OUT + 1];
         sphere_components(&M, U[c], um);
         for (int m = 0; m <= LMAX_OUT; m++) R.mob[m][c + 2] = um[m];
-        free(U[c]);
+        if (nt) {
+            double comp[17];
+            tension_components(&M, F.tdeg, Sg[c], 16, comp, &R.sres[c + 2]);
+            for (int m = 0; m <= LMAX_OUT; m++) R.sig[m][c + 2] = comp[m];
+        }
+        free(U[c]); free(Sg[c]);
     }
     R.time = now_sec() - t0;
     R.nunk = si.nunk;
@@ -1197,26 +1543,34 @@ static double coupled_rate(const BoxResult *R, int l)
 
 static void print_box_header(void)
 {
-    printf("  %-6s %5s %5s %2s %4s %8s %8s %14s %12s %12s %10s %10s %10s %12s\n", "form", "box", "lam", "l", "N", "h_max",
+    printf("  %-6s %5s %5s %2s %4s %8s %8s %14s %12s %12s %10s %10s %10s %12s", "form", "box", "lam", "l", "N", "h_max",
            "unknowns", "M_l", "s_l", "2 s_l", "u_{l-2}/u_l", "u_{l+2}/u_l", "u_{l+4}/u_l", "coupled s");
+    if (g_inext) printf(" %12s %10s %9s", "sig_l", "sig_0", "sig rem");
+    printf("\n");
 }
 
 static void print_box_row(const char *fn, double Rb, const char *lam, int l, int N, const BoxResult *R)
 {
     double Ml = R->mob[l][l];
-    printf("  %-6s %5.1f %5s %2d %4d %8.4f %8d %14.10f %12.8f %12.8f %10.2e %10.2e %10.2e %12.8f\n", fn, Rb, lam, l, N,
+    printf("  %-6s %5.1f %5s %2d %4d %8.4f %8d %14.10f %12.8f %12.8f %10.2e %10.2e %10.2e %12.8f", fn, Rb, lam, l, N,
            R->hmax, R->nunk, Ml, Ml * stiff(l), 2 * Ml * stiff(l), R->mob[l - 2][l] / Ml, R->mob[l + 2][l] / Ml,
            l + 4 <= LMAX_OUT ? R->mob[l + 4][l] / Ml : NAN, coupled_rate(R, l));
+    if (g_inext) printf(" %12.9f %10.2e %9.1e", R->sig[l][l], R->sig[0][l], R->sres[l]);
+    printf("\n");
 }
 
 static void section_box(int nmax)
 {
     printf("\n## C. Box R in [0,3], Z in [-3,3], no-slip walls: mesh convergence\n");
     printf("   M_l = u_l from the unit force P_l n; u_m = (2m+1)/2 int u_n P_m dcos(th); coupled s = decay rate of the\n");
-    printf("   mode-l eigenvector of da_m/dt = -sum_n M_mn kappa L_n(L_n-2) a_n, m,n = 2..%d\n\n", LMAX_OUT);
+    printf("   mode-l eigenvector of da_m/dt = -sum_n M_mn kappa L_n(L_n-2) a_n, m,n = 2..%d\n", LMAX_OUT);
+    if (g_inext)
+        printf("   membrane: INEXTENSIBLE, tension P%d; sig_m = (2m+1)/2 int sigma P_m dcos(th) per unit P_l force,\n"
+               "   sig rem = relative L2 norm of sigma minus its l <= 16 Legendre part (spurious-mode indicator)\n", g_tdeg);
+    printf("\n");
     int forms[3] = {FORM_TH, FORM_PEN, FORM_MIX};
     for (int fi = 0; fi < 3; fi++) {
-        Form F = {forms[fi], 1.0, forms[fi] == FORM_TH ? INFINITY : 100.0};
+        Form F = make_form(forms[fi], forms[fi] == FORM_TH ? INFINITY : 100.0);
         const char *lam = forms[fi] == FORM_TH ? "inf" : "100";
         print_box_header();
         double Mv[2][8];
@@ -1268,10 +1622,12 @@ static void section_box(int nmax)
 static void section_bigbox(int N, int nbox, const double *boxes)
 {
     printf("\n## D. Box size: approach to the unbounded value (meshes N = %d and %d, Richardson with order 4)\n", N, 2 * N);
-    printf("   gap = M_l(box) - M_l(unbounded analytic); p = local decay exponent log(gap1/gap2)/log(R2/R1)\n\n");
+    printf("   gap = M_l(box) - M_l(unbounded analytic); p = local decay exponent log(gap1/gap2)/log(R2/R1)\n");
+    if (g_inext) printf("   membrane: INEXTENSIBLE (tension P%d); analytic = closed form of section A6\n", g_tdeg);
+    printf("\n");
     int forms[2] = {FORM_TH, FORM_MIX};
     for (int fi = 0; fi < 2; fi++) {
-        Form F = {forms[fi], 1.0, forms[fi] == FORM_TH ? INFINITY : 100.0};
+        Form F = make_form(forms[fi], forms[fi] == FORM_TH ? INFINITY : 100.0);
         const char *lam = forms[fi] == FORM_TH ? "inf" : "100";
         print_box_header();
         double Mr[2][16], dN[2][16];
@@ -1286,7 +1642,7 @@ static void section_bigbox(int N, int nbox, const double *boxes)
         printf("\n  %5s %2s %16s %10s %14s %12s %8s %12s\n", "box", "l", "M_l (Richardson)", "M(2N)-M(N)", "s_l", "gap",
                "p", "gap*box^p");
         for (int l = 2; l <= 3; l++) {
-            double Minf = forms[fi] == FORM_TH ? M_closed_inc(l) : M_closed_comp(l, 100.0);
+            double Minf = M_unbounded(g_inext, forms[fi], l);
             double pth = l == 2 ? 3.0 : 5.0;
             for (int b = 0; b < nbox; b++) {
                 double gap = Mr[l - 2][b] - Minf;
@@ -1313,29 +1669,225 @@ static void section_bigbox(int N, int nbox, const double *boxes)
     }
 }
 
+/* tension mass matrix (dense nt x nt): \int psi_i psi_j rho ds */
+static void tension_mass(const Mesh *M, int tdeg, double *Ms)
+{
+    int nt = tension_count(M, tdeg);
+    double gx[8], gw[8];
+    gauleg(8, gx, gw);
+    memset(Ms, 0, sizeof(double) * (size_t)nt * nt);
+    for (int j = 0; 2 * j + 2 < M->narc; j++) {
+        int n3[3] = {M->arc[2 * j], M->arc[2 * j + 1], M->arc[2 * j + 2]};
+        int td[3] = {tdeg == 2 ? 2 * j : j, tdeg == 2 ? 2 * j + 1 : j + 1, 2 * j + 2}, ntl = tdeg == 2 ? 3 : 2;
+        for (int q = 0; q < 8; q++) {
+            double t = 0.5 * (gx[q] + 1), w = 0.5 * gw[q];
+            double phi[3] = {(1 - t) * (1 - 2 * t), 4 * t * (1 - t), t * (2 * t - 1)};
+            double dphi[3] = {4 * t - 3, 4 - 8 * t, 4 * t - 1};
+            double psi[3] = {1 - t, t, 0};
+            if (tdeg == 2) memcpy(psi, phi, sizeof psi);
+            double X[2] = {0, 0}, dX[2] = {0, 0};
+            for (int k = 0; k < 3; k++)
+                for (int d = 0; d < 2; d++) {
+                    X[d] += phi[k] * M->x[2 * n3[k] + d];
+                    dX[d] += dphi[k] * M->x[2 * n3[k] + d];
+                }
+            double wt = w * X[0] * hypot(dX[0], dX[1]);
+            for (int a = 0; a < ntl; a++)
+                for (int b = 0; b < ntl; b++) Ms[(size_t)td[a] * nt + td[b]] += wt * psi[a] * psi[b];
+        }
+    }
+}
+
+/* S: discrete inf-sup / spurious-mode test of the velocity-tension pair.
+ * S = B A^-1 B^T (A^-1: the Stokes solve of the form, with its pressure, no
+ * tension), B_ij = \int psi_i div_s(phi_j) rho ds. The generalized eigenvalues
+ * of S x = lambda M_sigma x (M_sigma: tension mass) are the squared inf-sup
+ * ratios sup_v b(sigma,v)^2 / (a(v,v) |sigma|^2_L2) of the eigenvectors. A
+ * stable pair: the lowest eigenvalues converge under refinement to those of the
+ * continuous operator (smooth eigenvectors, dominant low l); a spurious tension
+ * mode: an eigenvalue -> 0 with an oscillating eigenvector. */
+static void section_stability(int nmax)
+{
+    printf("\n## S. Stability of the tension discretization: spectrum of the tension Schur complement S = B A^-1 B^T\n");
+    printf("   S x = lambda M_sigma x (L2 mass on the sphere); for the 6 lowest: lambda [dominant l of the eigenvector,\n");
+    printf("   relative L2 remainder beyond l = 16]; lam_max*h (h = pi/(4N) arc edge) ~ const for an order-1 operator\n\n");
+    int forms[2] = {FORM_MIX, FORM_TH};
+    for (int fi = 0; fi < 2; fi++)
+        for (int tdeg = 1; tdeg <= 2; tdeg++) {
+            printf("  %-6s %4s %3s %4s %5s", "form", "lam", "sig", "N", "n_sig");
+            for (int k = 0; k < 6; k++) printf("  lambda_%d [ l,    rem]", k + 1);
+            printf(" %10s %9s %8s\n", "lam_max", "lmax*h", "asym");
+            for (int N = 4; N <= nmax; N *= 2) {
+                Mesh M = mesh_build(3.0, N, kout_for(3.0));
+                Form F = make_form(forms[fi], forms[fi] == FORM_TH ? INFINITY : 100.0);
+                F.inext = 0;
+                int nt = tension_count(&M, tdeg), nv = 2 * M.nn;
+                /* rows of B in the full velocity numbering (<= 5 nodes x 2 comps each) */
+                int *ri = xmalloc(sizeof(int) * nt * 12), *rc = xcalloc((size_t)nt, sizeof(int));
+                double *rv = xmalloc(sizeof(double) * nt * 12);
+                for (int j = 0; 2 * j + 2 < M.narc; j++) {
+                    double Bl[3][6], ml[3];
+                    int td[3], ntl = arc_tension_edge(&M, j, tdeg, Bl, ml, td);
+                    for (int i = 0; i < ntl; i++)
+                        for (int k = 0; k < 3; k++)
+                            for (int d = 0; d < 2; d++) {
+                                int full = 2 * M.arc[2 * j + k] + d, r = td[i], m;
+                                for (m = 0; m < rc[r] && ri[r * 12 + m] != full; m++) {}
+                                if (m == rc[r]) { ri[r * 12 + m] = full; rv[r * 12 + m] = 0; rc[r]++; }
+                                rv[r * 12 + m] += Bl[i][2 * k + d];
+                            }
+                }
+                double *S = xcalloc((size_t)nt * nt, sizeof(double));
+                const int CH = 64;
+                double *bx[64], *U[64];
+                int loads[64];
+                for (int c = 0; c < CH; c++) {
+                    bx[c] = xmalloc(sizeof(double) * nv);
+                    U[c] = xmalloc(sizeof(double) * nv);
+                    loads[c] = -1;
+                }
+                for (int j0 = 0; j0 < nt; j0 += CH) {
+                    int nc = nt - j0 < CH ? nt - j0 : CH;
+                    for (int c = 0; c < nc; c++) {
+                        memset(bx[c], 0, sizeof(double) * nv);
+                        for (int m = 0; m < rc[j0 + c]; m++) bx[c][ri[(j0 + c) * 12 + m]] = rv[(j0 + c) * 12 + m];
+                    }
+                    SolveInfo si;
+                    if (!fe_solve_ext(&M, F, nc, loads, NULL, bx, U, NULL, &si)) exit(3);
+                    for (int c = 0; c < nc; c++)
+                        for (int i = 0; i < nt; i++) {
+                            double v = 0;
+                            for (int m = 0; m < rc[i]; m++) v += rv[i * 12 + m] * U[c][ri[i * 12 + m]];
+                            S[(size_t)i * nt + j0 + c] = v;
+                        }
+                }
+                double asym = 0, smax = 0;
+                for (int i = 0; i < nt; i++)
+                    for (int j = 0; j < nt; j++) {
+                        double a = S[(size_t)i * nt + j], b = S[(size_t)j * nt + i];
+                        if (fabs(a - b) > asym) asym = fabs(a - b);
+                        if (fabs(a) > smax) smax = fabs(a);
+                    }
+                for (int i = 0; i < nt; i++)
+                    for (int j = 0; j < i; j++)
+                        S[(size_t)i * nt + j] = S[(size_t)j * nt + i] = 0.5 * (S[(size_t)i * nt + j] + S[(size_t)j * nt + i]);
+                double *Ms = xmalloc(sizeof(double) * (size_t)nt * nt), *ev = xmalloc(sizeof(double) * nt);
+                tension_mass(&M, tdeg, Ms);
+                lapack_int info = LAPACKE_dsygv(LAPACK_ROW_MAJOR, 1, 'V', 'U', nt, S, nt, Ms, nt, ev);
+                printf("  %-6s %4s  P%d %4d %5d", form_name[F.form], F.form == FORM_TH ? "inf" : "100", tdeg, N, nt);
+                if (info != 0) printf("  dsygv info %d", (int)info);
+                else {
+                    double *x = xmalloc(sizeof(double) * nt);
+                    for (int k = 0; k < 6 && k < nt; k++) {
+                        for (int i = 0; i < nt; i++) x[i] = S[(size_t)i * nt + k];
+                        double comp[17], rem, best = -1;
+                        int lb = 0;
+                        tension_components(&M, tdeg, x, 16, comp, &rem);
+                        for (int m = 0; m <= 16; m++)
+                            if (comp[m] * comp[m] / (2 * m + 1) > best) { best = comp[m] * comp[m] / (2 * m + 1); lb = m; }
+                        printf("  %10.4e [%2d,%7.1e]", ev[k], lb, rem);
+                    }
+                    free(x);
+                    printf(" %10.3f %9.4f %8.1e", ev[nt - 1], ev[nt - 1] * M_PI / (4 * N), asym / smax);
+                }
+                printf("\n");
+                fflush(stdout);
+                for (int c = 0; c < CH; c++) { free(bx[c]); free(U[c]); }
+                free(ri); free(rc); free(rv); free(S); free(Ms); free(ev);
+                mesh_free(&M);
+            }
+            printf("\n");
+        }
+}
+
+/* E: free vs inextensible membrane in box 3, lam = inf (TH) and 100 (THmix) */
+static void section_compare(int nmax)
+{
+    printf("\n## E. Free vs inextensible membrane, box 3 (R in [0,3], Z in [-3,3], no-slip), meshes N = %d, %d, %d\n",
+           nmax / 4, nmax / 2, nmax);
+    printf("   M_l: Richardson from the two finest meshes with the observed order (dM = M(N) - M(N/2) on the finest);\n");
+    printf("   2s_l = 2 M_l kappa L(L-2) (energy rate); coupled 2s: modes 2..%d coupled by the box (finest mesh);\n", LMAX_OUT);
+    printf("   tension P%d, l = 0 tension: %s\n\n", g_tdeg, g_area < 0 ? "auto" : g_area ? "removed" : "kept");
+    printf("  %5s %2s %14s %9s %14s %9s %9s %11s %11s %11s %11s %9s %9s\n", "lam", "l", "M free", "dM", "M inext", "dM",
+           "ratio", "2s free", "2s inext", "2s_c free", "2s_c inext", "unb free", "unb inx");
+    int save = g_inext;
+    int forms[2] = {FORM_TH, FORM_MIX};
+    double Mx[2][2][2], dM[2][2][2], cs[2][2][2];
+    for (int fi = 0; fi < 2; fi++) {
+        for (int in = 0; in < 2; in++) {
+            g_inext = in;
+            Form F = make_form(forms[fi], forms[fi] == FORM_TH ? INFINITY : 100.0);
+            BoxResult R[3];
+            for (int k = 0; k < 3; k++) R[k] = box_run(3.0, nmax >> (2 - k), F);
+            for (int l = 2; l <= 3; l++) {
+                double a = R[0].mob[l][l], b = R[1].mob[l][l], c = R[2].mob[l][l], p = order3(a, b, c);
+                if (!isfinite(p) || p < 2) p = 4;
+                Mx[fi][in][l - 2] = c + (c - b) / (pow(2.0, p) - 1);
+                dM[fi][in][l - 2] = c - b;
+                cs[fi][in][l - 2] = coupled_rate(&R[2], l);
+            }
+        }
+        for (int l = 2; l <= 3; l++) {
+            double Mf = Mx[fi][0][l - 2], Mi = Mx[fi][1][l - 2];
+            printf("  %5s %2d %14.10f %9.1e %14.10f %9.1e %9.6f %11.7f %11.7f %11.7f %11.7f %9.6f %9.6f\n",
+                   forms[fi] == FORM_TH ? "inf" : "100", l, Mf, dM[fi][0][l - 2], Mi, dM[fi][1][l - 2], Mi / Mf,
+                   2 * Mf * stiff(l), 2 * Mi * stiff(l), 2 * cs[fi][0][l - 2], 2 * cs[fi][1][l - 2],
+                   2 * M_unbounded(0, forms[fi], l) * stiff(l), 2 * M_unbounded(1, forms[fi], l) * stiff(l));
+        }
+    }
+    g_inext = save;
+    printf("\n  ratio inext/free: box 3 as above; unbounded (4L-3)/(4L-2) for lam = inf: l=2 %.6f, l=3 %.6f;"
+           " lam = 100: l=2 %.6f, l=3 %.6f\n", M_closed_inext(2) / M_closed_inc(2), M_closed_inext(3) / M_closed_inc(3),
+           M_closed_inext_comp(2, 100) / M_closed_comp(2, 100), M_closed_inext_comp(3, 100) / M_closed_comp(3, 100));
+}
+
 int main(int argc, char **argv)
 {
-    int nmax = 64, nverify = 32, nbig = 16;
-    int do_a = 1, do_b = 1, do_c = 1, do_d = 1;
+    int nmax = 64, nverify = 32, nbig = 16, nstab = 32;
+    int do_a = 1, do_b = 1, do_c = 1, do_d = 1, do_s = -1, do_e = -1;
     for (int i = 1; i < argc; i++) {
         if (!strcmp(argv[i], "--nmax") && i + 1 < argc) nmax = atoi(argv[++i]);
         else if (!strcmp(argv[i], "--nverify") && i + 1 < argc) nverify = atoi(argv[++i]);
         else if (!strcmp(argv[i], "--nbig") && i + 1 < argc) nbig = atoi(argv[++i]);
         else if (!strcmp(argv[i], "--nq") && i + 1 < argc) g_nq = atoi(argv[++i]);
         else if (!strcmp(argv[i], "--kout") && i + 1 < argc) g_kout = atoi(argv[++i]);
-        else if (!strcmp(argv[i], "--only") && i + 1 < argc) {
+        else if (!strcmp(argv[i], "--nstab") && i + 1 < argc) nstab = atoi(argv[++i]);
+        else if (!strcmp(argv[i], "--membrane") && i + 1 < argc) {
+            const char *s = argv[++i];
+            if (!strcmp(s, "free")) g_inext = 0;
+            else if (!strncmp(s, "inext", 5)) g_inext = 1;
+            else { fprintf(stderr, "--membrane free|inextensible\n"); return 1; }
+        } else if (!strcmp(argv[i], "--tension") && i + 1 < argc) {
+            const char *s = argv[++i];
+            if (!strcmp(s, "p1") || !strcmp(s, "P1")) g_tdeg = 1;
+            else if (!strcmp(s, "p2") || !strcmp(s, "P2")) g_tdeg = 2;
+            else { fprintf(stderr, "--tension p1|p2\n"); return 1; }
+        } else if (!strcmp(argv[i], "--area") && i + 1 < argc) {
+            const char *s = argv[++i];
+            if (!strcmp(s, "auto")) g_area = -1;
+            else if (!strcmp(s, "fixed")) g_area = 0;
+            else if (!strcmp(s, "free")) g_area = 1;
+            else { fprintf(stderr, "--area auto|fixed|free\n"); return 1; }
+        } else if (!strcmp(argv[i], "--only") && i + 1 < argc) {
             const char *s = argv[++i];
             do_a = strchr(s, 'A') != NULL; do_b = strchr(s, 'B') != NULL;
             do_c = strchr(s, 'C') != NULL; do_d = strchr(s, 'D') != NULL;
+            do_s = strchr(s, 'S') != NULL; do_e = strchr(s, 'E') != NULL;
         } else {
-            fprintf(stderr, "usage: %s [--only ABCD] [--nmax N] [--nverify N] [--nbig N] [--nq n]\n", argv[0]);
+            fprintf(stderr, "usage: %s [--only ABCDSE] [--nmax N] [--nverify N] [--nbig N] [--nstab N] [--nq n] [--kout K]\n"
+                            "          [--membrane free|inextensible] [--tension p1|p2] [--area auto|fixed|free]\n", argv[0]);
             return 1;
         }
     }
+    if (do_s < 0) do_s = g_inext;
+    if (do_e < 0) do_e = g_inext;
     if (g_nq < 2 || g_nq > 16) g_nq = 5;
     double t0 = now_sec();
     printf("# stokes_mode: relaxation of P_l perturbations of a bending-only sphere (see the header of bench/stokes_mode.c)\n");
     printf("# units k = mu = R = 1 (kappa = k/4); s_l = M_l kappa L(L-2), L = l(l+1); triangle rule %dx%d collapsed Gauss\n", g_nq, g_nq);
+    if (g_inext)
+        printf("# membrane: INEXTENSIBLE (div_s u = 0 on r = 1), tension multiplier P%d on the arc, l = 0 tension %s\n", g_tdeg,
+               g_area < 0 ? "auto (removed for TH, kept for THmix/P2pen)" : g_area ? "removed (area free)" : "kept (area fixed)");
     if (do_a) section_analytic();
     if (do_b) section_verify(nverify);
     if (do_c) section_box(nmax);
@@ -1343,6 +1895,8 @@ int main(int argc, char **argv)
         double boxes[6] = {3.0, 6.0, 12.0, 15.0, 24.0, 48.0};
         section_bigbox(nbig, 6, boxes);
     }
+    if (do_s) section_stability(nstab);
+    if (do_e) section_compare(nmax);
     printf("# total time %.1f s\n", now_sec() - t0);
     return 0;
 }

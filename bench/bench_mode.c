@@ -1,0 +1,185 @@
+/* vesica — the hydrodynamic time scale (issue 4): relaxation of a P_l shape
+ * mode of a sphere with bending alone (problems/mode2.ini, mode3.ini), timed
+ * through the shape itself rather than the energy.
+ *
+ * Observable: the multipole moment of the interior indicator chi = (1 + phi)/2,
+ *   Q_l(t) = 2 pi sum_alpha w_alpha r det F chi (rho^l P_l(cos theta))
+ * about the current centroid (rho, theta: polar coordinates of the point's
+ * current position y(X_alpha) relative to it). For r = 1 + delta P_l,
+ * Q_l = 4 pi delta / (2l + 1) + O(delta^2, eps^2): linear in the amplitude,
+ * and free of the energy's discretization offset, so log Q_l is a straight
+ * line of slope -s_l (the amplitude rate) once faster transients are gone.
+ * The variational step is backward Euler for a linear gradient flow with K
+ * frozen at y^n: the amplitude shrinks by 1/(1 + s dt) a step, so the
+ * continuous rate is s = (exp(r dt) - 1) / dt with r the fitted slope.
+ *
+ * Prints a header, then "t E* Q_l" per step (with --print), then one line
+ *   l eps h_band lambda_ratio dt nodes s_raw s 2s
+ * fitted over [--from, --to]. Threads: OMP_NUM_THREADS.
+ * Usage: bench_mode [CONFIG] [--set section.key=value]... [--dt DT]
+ *        [--from T] [--to T] [--print]
+ * (default: problems/mode2.ini, dt 0.04, window [0.4, 1.6]). */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "ves/backend.h"
+#include "ves/config.h"
+#include "ves/integrate.h"
+#include "ves/setup.h"
+
+#define MAX_SET 32
+
+/* P_l(x) for l <= 4. */
+static double legendre(int l, double x) {
+  switch (l) {
+  case 0:
+    return 1;
+  case 1:
+    return x;
+  case 2:
+    return 0.5 * (3 * x * x - 1);
+  case 3:
+    return 0.5 * (5 * x * x * x - 3 * x);
+  default:
+    return (35 * x * x * x * x - 30 * x * x + 3) / 8;
+  }
+}
+
+/* Current r, z, det F and chi at every point: out[4 nq]. */
+static void point_state(const ves_setup *s, const double *phi, const double *y, double *out) {
+  const ves_quad *q = s->quad;
+  for (int al = 0; al < q->nq; al++) {
+    double r = 0, rR = 0, rZ = 0, z = 0, zR = 0, zZ = 0;
+    const int m = q->ptr[al + 1] - q->ptr[al];
+    const double *T = q->tab + 6 * (size_t)q->ptr[al];
+    for (int k = 0; k < m; k++) {
+      const int a = q->nbr[q->ptr[al] + k];
+      const double sr = q->mirror[q->ptr[al] + k] ? -1.0 : 1.0; /* ghost: (-r, z) */
+      const double ya = sr * y[2 * a], za = y[2 * a + 1];
+      r += T[k] * ya, rR += T[m + k] * ya, rZ += T[2 * m + k] * ya;
+      z += T[k] * za, zR += T[m + k] * za, zZ += T[2 * m + k] * za;
+    }
+    out[4 * al] = r, out[4 * al + 1] = z, out[4 * al + 2] = rR * zZ - rZ * zR;
+    out[4 * al + 3] = 0.5 * (1 + phi[6 * al]);
+  }
+}
+
+/* Q_l about the centroid of chi. */
+static double moment(const ves_setup *s, const double *ps, int l) {
+  const ves_quad *q = s->quad;
+  double m0 = 0, m1 = 0, Q = 0;
+  for (int al = 0; al < q->nq; al++) {
+    const double *p = ps + 4 * al, dv = 2 * M_PI * q->w[al] * p[0] * p[2] * p[3];
+    m0 += dv, m1 += dv * p[1];
+  }
+  const double zc = m1 / m0;
+  for (int al = 0; al < q->nq; al++) {
+    const double *p = ps + 4 * al, dv = 2 * M_PI * q->w[al] * p[0] * p[2] * p[3];
+    const double dz = p[1] - zc, rho = hypot(p[0], dz);
+    if (rho > 0) Q += dv * pow(rho, l) * legendre(l, dz / rho);
+  }
+  return Q;
+}
+
+int main(int argc, char **argv) {
+  setvbuf(stdout, NULL, _IOLBF, 0);
+  const char *path = "problems/mode2.ini", *set[MAX_SET];
+  int nset = 0, print = 0;
+  double dt = 0.04, from = 0.4, to = 1.6;
+  for (int i = 1; i < argc; i++) {
+    const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
+    if (!strcmp(a, "--set") && v && nset < MAX_SET)
+      set[nset++] = v, i++;
+    else if (!strcmp(a, "--dt") && v)
+      dt = atof(v), i++;
+    else if (!strcmp(a, "--from") && v)
+      from = atof(v), i++;
+    else if (!strcmp(a, "--to") && v)
+      to = atof(v), i++;
+    else if (!strcmp(a, "--print"))
+      print = 1;
+    else if (a[0] != '-')
+      path = a;
+    else {
+      fprintf(stderr, "bench_mode: bad argument '%s' (see bench/bench_mode.c)\n", a);
+      return 2;
+    }
+  }
+  if (!(dt > 0 && to > from && from >= 0)) {
+    fprintf(stderr, "bench_mode: need dt > 0 and 0 <= from < to\n");
+    return 2;
+  }
+  ves_config cfg;
+  char err[1024] = "";
+  if (ves_config_load(path, nset, set, &cfg, err, sizeof err) != VES_OK) {
+    fprintf(stderr, "bench_mode: %s\n", err);
+    return 2;
+  }
+  if (cfg.mode < 1 || cfg.mode > 4) {
+    fprintf(stderr, "bench_mode: %s: [shape] mode must be 1 to 4\n", path);
+    return 2;
+  }
+  ves_setup *s = NULL;
+  if (ves_setup_create(&cfg, VES_PHI0_L2, &s, err, sizeof err) != VES_OK) {
+    fprintf(stderr, "bench_mode: %s: %s\n", path, err);
+    return 3;
+  }
+  const int nq = s->quad->nq, l = cfg.mode;
+  double *phi = malloc(6 * (size_t)nq * sizeof *phi), *ps = malloc(4 * (size_t)nq * sizeof *ps);
+  if (!phi || !ps) return 3;
+  ves_quad_field(s->quad, s->phi0c, 0, phi);
+  ves_integrate_params ip;
+  ves_integrate_params_default(&ip);
+  ip.t_end = to, ip.dt_initial = dt, ip.dt_max = dt, ip.dt_min = dt * (1 - 1e-12), ip.adaptive = 0;
+  ip.hold_area = cfg.area, ip.hold_volume = cfg.volume;
+  ves_backend_options bo;
+  ves_backend_options_default(&bo);
+  bo.tol = cfg.tol, bo.ctol = cfg.ctol, bo.max_iter = cfg.max_iter;
+  bo.freeze_hessian = cfg.freeze_hessian;
+  ves_sim *sim = NULL;
+  ves_status st = ves_sim_create(s->model, ves_backend_find(cfg.backend), &bo, &ip, &sim);
+  if (st != VES_OK) {
+    fprintf(stderr, "bench_mode: %s\n", ves_status_str(st));
+    return 3;
+  }
+  double E0;
+  ves_sim_initial(sim, &E0, NULL, NULL);
+  point_state(s, phi, ves_sim_y(sim), ps);
+  const double Q0 = moment(s, ps, l);
+  printf("# %s l %d eps %g h_band %g lambda/mu %g dt %g: %d nodes; Q_l(0) = %.6e "
+         "(sharp 4 pi delta/(2l+1) = %.6e)\n",
+         path, l, cfg.epsilon, cfg.h_band, cfg.lambda_ratio, dt, s->nodes->n, Q0,
+         4 * M_PI * cfg.delta / (2 * l + 1));
+  if (print) printf("%.6f %.12f %.9e\n", 0.0, E0, Q0);
+  /* least squares of log|Q| against t over the window */
+  double n = 0, sx = 0, sy = 0, sxx = 0, sxy = 0;
+  ves_step_report rep;
+  while ((st = ves_sim_step(sim, &rep)) == VES_OK) {
+    point_state(s, phi, ves_sim_y(sim), ps);
+    const double Q = moment(s, ps, l);
+    if (print) printf("%.6f %.12f %.9e\n", rep.t, rep.E, Q);
+    if (rep.t >= from - 1e-12 && rep.t <= to + 1e-12) {
+      const double x = rep.t, yv = log(fabs(Q));
+      n++, sx += x, sy += yv, sxx += x * x, sxy += x * yv;
+    }
+  }
+  if (st < 0) {
+    fprintf(stderr, "bench_mode: step failed at t* = %g: %s\n", ves_sim_time(sim),
+            ves_status_str(st));
+    return 3;
+  }
+  if (n < 3) {
+    fprintf(stderr, "bench_mode: fewer than 3 steps in the window\n");
+    return 2;
+  }
+  const double r = -(n * sxy - sx * sy) / (n * sxx - sx * sx), sl = (exp(r * dt) - 1) / dt;
+  printf("l %d eps %g h_band %g lambda_ratio %g dt %g nodes %d s_raw %.5f s %.5f 2s %.5f\n", l,
+         cfg.epsilon, cfg.h_band, cfg.lambda_ratio, dt, s->nodes->n, r, sl, 2 * sl);
+  ves_sim_destroy(&sim);
+  free(phi);
+  free(ps);
+  ves_setup_destroy(&s);
+  return 0;
+}
