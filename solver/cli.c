@@ -281,6 +281,9 @@ static int build(run_ctx *r) {
   ip.hold_area = c->area, ip.hold_volume = c->volume;
   ip.volume_rate = c->volume_rate, ip.volume_final = c->volume_final;
   ip.c0_time = c->c0_time, ip.c0_after = c->c0_after;
+  ip.reconnect_every = c->reconnect_every, ip.reconnect_cond_max = c->reconnect_cond_max;
+  ip.reconnect_det_min = c->reconnect_det_min;
+  ip.lme = lp; /* the setup's tables were built with these */
   if ((st = ves_sim_create(r->setup->model, r->bk, &bo, &ip, &r->sim)) != VES_OK) {
     fprintf(stderr, "vesica run: %s: cannot start the time loop: %s\n", r->label,
             ves_status_str(st));
@@ -291,7 +294,9 @@ static int build(run_ctx *r) {
 
 /* A snapshot of the current state. */
 static ves_status snapshot(run_ctx *r, double wall) {
-  ves_io_snapinfo si = {.wall_seconds = wall, .reconnections = 0, .rows = ves_io_rows(r->io)};
+  ves_io_snapinfo si = {.wall_seconds = wall,
+                        .reconnections = ves_sim_reconnections(r->sim),
+                        .rows = ves_io_rows(r->io)};
   ves_sim_get_state(r->sim, &si.state, r->y);
   r->last_snapshot_step = si.state.nstep;
   return ves_io_snapshot(r->io, r->y, r->phi, &si);
@@ -376,7 +381,7 @@ static int loop(run_ctx *r) {
                       .wall_seconds = wall,
                       .retries = rep.retries,
                       .status = rep.solve_status,
-                      .reconnections = 0};
+                      .reconnections = ves_sim_reconnections(r->sim)};
     if ((wst = ves_io_append(r->io, &row)) != VES_OK) break;
     if (rep.step % r->cfg.snapshot_every == 0 && (wst = snapshot(r, wall)) != VES_OK) break;
     if (r->series) {
@@ -542,6 +547,22 @@ static int run_restart(run_ctx *r, const char *file) {
   }
   if (ves_config_load_text(in->problem, in->source, &r->cfg, err, sizeof err) != VES_OK) {
     fprintf(stderr, "vesica run: --restart %s: the stored problem: %s\n", file, err);
+    return 2;
+  }
+  /* the snapshot holds y, not the reference configuration a reset made: a
+   * restart would continue on the initial reference, another trajectory */
+  ves_io_snapinfo si0;
+  if ((st = ves_io_read_snapshot(r->io, S - 1, NULL, NULL, &si0)) != VES_OK) {
+    fprintf(stderr, "vesica run: --restart %s: snapshot %d is unreadable: %s\n", file, S - 1,
+            ves_status_str(st));
+    return 2;
+  }
+  if (si0.reconnections > 0) {
+    fprintf(stderr,
+            "vesica run: --restart %s: the run reset its reference configuration %d time(s) "
+            "before its last snapshot (step %ld); snapshots do not hold the reference, so it "
+            "cannot be continued: rerun the problem\n",
+            file, si0.reconnections, si0.state.nstep);
     return 2;
   }
   if (!(r->bk = ves_backend_find(in->backend))) {

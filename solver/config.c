@@ -106,6 +106,15 @@ static const key_spec KEYS[] = {
     {"solver", "max_iter", KEY_INT, OFF(max_iter), "100", 1, 100000, NULL, "iterations per step"},
     {"solver", "freeze_hessian", KEY_INT, OFF(freeze_hessian), "1", 0, 1, NULL,
      "newton: assemble the Hessian once per step (paper)"},
+    {"reconnect", "every", KEY_INT, OFF(reconnect_every), "0", 0, 1000000, NULL,
+     "reset the reference configuration to the current positions every this many accepted "
+     "steps (paper Fig. 5: 20; 0: off)"},
+    {"reconnect", "cond_max", KEY_DOUBLE, OFF(reconnect_cond_max), "0", 0, 1e12, NULL,
+     "reset when max cond_2 F (distortion of the meridian motion since the last reset, "
+     "dimensionless, >= 1) exceeds this; 0: off, else > 1"},
+    {"reconnect", "det_min", KEY_DOUBLE, OFF(reconnect_det_min), "0", 0, 1, NULL,
+     "reset when min det F (meridian area ratio since the last reset) drops below this; 0: "
+     "off, else below 1"},
     {"output", "snapshot_every", KEY_INT, OFF(snapshot_every), "10", 1, 1000000, NULL,
      "accepted steps between snapshots of nodes and phi"},
 };
@@ -360,6 +369,16 @@ ves_status ves_config_validate(const ves_config *cfg, char *err, size_t errlen) 
   if (cfg->c0_time < 0 && cfg->c0_after != 0) {
     say(err, errlen, "%s: [protocol] c0_after = %g: has no effect without c0_time >= 0", src,
         cfg->c0_after);
+    return VES_ERR_CONFIG;
+  }
+  if (cfg->reconnect_cond_max > 0 && cfg->reconnect_cond_max <= 1) {
+    say(err, errlen, "%s: [reconnect] cond_max = %g: must be 0 (off) or above 1 (cond F >= 1)", src,
+        cfg->reconnect_cond_max);
+    return VES_ERR_CONFIG;
+  }
+  if (cfg->reconnect_det_min >= 1) {
+    say(err, errlen, "%s: [reconnect] det_min = %g: must be below 1 (0: off)", src,
+        cfg->reconnect_det_min);
     return VES_ERR_CONFIG;
   }
   if (cfg->c0_time > cfg->t_end) {

@@ -10,15 +10,30 @@
  *
  * Adaptivity (paper Sec. 4, Fig. 4): dt_next = dt * clamp(dE_target / |dE|,
  * 1/2, growth_max), not grown when the backend needed more than iter_target
- * iterations, capped by dt_max and by the next protocol event. */
+ * iterations, capped by dt_max and by the next protocol event.
+ *
+ * Reconnection (paper Sec. 3.3; DESIGN.md §4): after an accepted step, when
+ * ves_reconnect_due says so, the current y becomes the new reference
+ * (ves_reconnect_create). The sparsity pattern changes with the neighbour
+ * lists, so the step problem and the backend state (Newton/Euler hold a
+ * MUMPS analysis, Ipopt asks for the structure once) are rebuilt on the new
+ * model. They are built before the old ones are freed, so that a failure at
+ * any point leaves the simulation on its old reference, untouched. The
+ * number of free dofs does not change (same nodes, same fixed dofs). */
 #include "ves/integrate.h"
 
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "ves/reconnect.h"
+
 struct ves_sim {
-  ves_model *model;                 /* borrowed */
+  ves_model *model;                 /* in use: the creation model (borrowed) or ref's */
+  ves_reconnect *ref;               /* the last reset's reference (owned; NULL before one) */
+  ves_reconnect_params rp;          /* when to reset (from ip) */
+  long since;                       /* accepted steps since the last reset (or t = 0) */
+  int reconnections;                /* resets so far */
   const ves_backend_type *backend;  /* borrowed (static table entry) */
   ves_backend_options bopt;         /* copied */
   ves_integrate_params ip;          /* copied */
@@ -52,6 +67,10 @@ void ves_integrate_params_default(ves_integrate_params *p) {
   p->c0_time = -1.0;
   p->c0_after = 0.0;
   p->check_energy = 1;
+  p->reconnect_every = 0;
+  p->reconnect_cond_max = 0.0;
+  p->reconnect_det_min = 0.0;
+  ves_lme_params_default(&p->lme);
 }
 
 void ves_sim_destroy(ves_sim **s) {
@@ -59,6 +78,7 @@ void ves_sim_destroy(ves_sim **s) {
   ves_sim *p = *s;
   if (p->backend && p->bstate) p->backend->destroy(&p->bstate);
   ves_step_destroy(&p->step);
+  ves_reconnect_destroy(&p->ref); /* after the step problem and backend built on it */
   free(p->y);
   free(p->ynew);
   free(p->x);
@@ -75,10 +95,18 @@ ves_status ves_sim_create(ves_model *model, const ves_backend_type *backend,
                 ip->dt_min > 0 && ip->dt_min <= ip->dt_initial && ip->growth_max >= 1 &&
                 ip->dE_target > 0 && ip->volume_final > 0,
             VES_ERR_ARG);
+  VES_CHECK(ip->reconnect_every >= 0 &&
+                (ip->reconnect_cond_max == 0 || ip->reconnect_cond_max > 1) &&
+                ip->reconnect_det_min >= 0 && ip->reconnect_det_min < 1,
+            VES_ERR_ARG);
+  VES_CHECK(ip->lme.gamma > 0 && ip->lme.tol0 > 0 && ip->lme.tol0 < 1, VES_ERR_ARG);
   ves_status st = VES_ERR_ALLOC;
   ves_sim *s = calloc(1, sizeof *s);
   if (!s) return VES_ERR_ALLOC;
   s->model = model, s->backend = backend, s->bopt = *bopt, s->ip = *ip;
+  s->rp.every = ip->reconnect_every;
+  s->rp.cond_max = ip->reconnect_cond_max;
+  s->rp.det_min = ip->reconnect_det_min;
   s->n = ves_model_pattern(model)->n;
   s->y = malloc(2 * (size_t)s->n * sizeof *s->y);
   s->ynew = malloc(2 * (size_t)s->n * sizeof *s->ynew);
@@ -107,6 +135,39 @@ ves_status ves_sim_create(ves_model *model, const ves_backend_type *backend,
 fail:
   ves_sim_destroy(&s);
   return st;
+}
+
+/* Reset the reference to s->y (ves_reconnect.h): a new model, step problem
+ * and backend state are made first, the old ones freed only once all three
+ * exist. E, A, V are re-evaluated on the new model (equal up to rounding).
+ * On failure everything made is freed and s is unchanged. */
+static ves_status reconnect(ves_sim *s, const ves_step_params *sp) {
+  ves_reconnect *nr = NULL;
+  ves_step *step = NULL;
+  void *bstate = NULL;
+  double E, A, V;
+  ves_status st = ves_reconnect_create(s->model, s->y, &s->ip.lme, &nr);
+  ves_model *m = st == VES_OK ? ves_reconnect_model(nr) : NULL;
+  if (st == VES_OK) st = ves_step_create(m, &step);
+  if (st == VES_OK && ves_step_nvar(step) != s->nvar) st = VES_ERR_INTERNAL; /* same dofs */
+  if (st == VES_OK) st = ves_step_set(step, s->y, sp); /* the backend needs a set problem */
+  if (st == VES_OK) st = s->backend->create(&s->bopt, step, &bstate);
+  if (st == VES_OK)
+    st = ves_model_eval(m, s->y, VES_F_E | VES_F_A | VES_F_V, &E, &A, &V, NULL, NULL, NULL);
+  if (st != VES_OK) {
+    if (bstate) s->backend->destroy(&bstate);
+    ves_step_destroy(&step);
+    ves_reconnect_destroy(&nr);
+    return st;
+  }
+  s->backend->destroy(&s->bstate); /* the old pattern's objects, then their model */
+  ves_step_destroy(&s->step);
+  ves_reconnect_destroy(&s->ref);
+  s->ref = nr, s->model = m, s->step = step, s->bstate = bstate;
+  s->E = E, s->A = A, s->V = V;
+  s->since = 0;
+  s->reconnections++;
+  return VES_OK;
 }
 
 /* Volume target at time t: V0 (1 + rate t), stopped at V0 * final. */
@@ -174,6 +235,23 @@ ves_status ves_sim_step(ves_sim *s, ves_step_report *rep) {
         if (retries) next = fmin(next, dt); /* just halved: do not jump back at once */
       }
       s->dt = fmin(fmax(next, s->ip.dt_min), s->ip.dt_max);
+      /* reconnection: the step stands whatever happens here */
+      if (s->rp.every > 0 || s->rp.cond_max > 0 || s->rp.det_min > 0) {
+        int due = 0;
+        s->since++;
+        rep->reconnect_status = ves_reconnect_due(&s->rp, s->model, s->y, s->since, &due,
+                                                  &rep->cond, &rep->det_min);
+        if (rep->reconnect_status == VES_OK && due) {
+          ves_reconnect_info info;
+          rep->reconnect_status = reconnect(s, &sp);
+          if (rep->reconnect_status == VES_OK) {
+            ves_reconnect_get_info(s->ref, &info);
+            rep->reconnected = 1;
+            rep->cond = info.cond_max, rep->det_min = info.det_min;
+            rep->E_reset = s->E / ves_model_get_k(s->model);
+          }
+        }
+      }
       return VES_OK;
     }
     rep->solve_status = st;
@@ -194,6 +272,7 @@ ves_status ves_sim_step(ves_sim *s, ves_step_report *rep) {
 double ves_sim_time(const ves_sim *s) { return s->t; }
 double ves_sim_dt(const ves_sim *s) { return s->dt; }
 const double *ves_sim_y(const ves_sim *s) { return s->y; }
+int ves_sim_reconnections(const ves_sim *s) { return s->reconnections; }
 
 void ves_sim_initial(const ves_sim *s, double *E, double *A, double *V) {
   if (E) *E = s->E0 / ves_model_get_k(s->model);
@@ -212,6 +291,7 @@ void ves_sim_get_state(const ves_sim *s, ves_sim_state *st, double *y) {
 
 ves_status ves_sim_set_state(ves_sim *s, const ves_sim_state *st, const double *y) {
   VES_CHECK(s && st && y, VES_ERR_ARG);
+  VES_CHECK(!s->ref, VES_ERR_ARG); /* y would be taken on the creation model's reference */
   const double v[] = {st->t,  st->dt, st->E,         st->A,         st->V, st->E0,
                       st->A0, st->V0, st->lambda[0], st->lambda[1], st->c0};
   for (size_t i = 0; i < sizeof v / sizeof v[0]; i++) VES_CHECK(isfinite(v[i]), VES_ERR_ARG);
@@ -220,6 +300,7 @@ ves_status ves_sim_set_state(ves_sim *s, const ves_sim_state *st, const double *
   VES_CALL(ves_model_set_c0(s->model, st->c0));
   memcpy(s->y, y, 2 * (size_t)s->n * sizeof *s->y);
   s->t = st->t, s->dt = st->dt, s->nstep = st->nstep;
+  s->since = st->nstep; /* no reset before: steps since the start */
   s->E = st->E, s->A = st->A, s->V = st->V;
   s->E0 = st->E0, s->A0 = st->A0, s->V0 = st->V0;
   s->lambda[0] = st->lambda[0], s->lambda[1] = st->lambda[1];

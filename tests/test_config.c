@@ -37,6 +37,12 @@ static void test_defaults_and_overrides(void **state) {
   assert_string_equal(c.shape_type, "spheroid");
   assert_string_equal(c.orientation, "prolate");
   assert_true(c.gamma == 0.6 && c.band_layers == 1); /* defaults untouched */
+  assert_true(c.reconnect_every == 0 && c.reconnect_cond_max == 0 && c.reconnect_det_min == 0);
+  const char *rc[] = {"reconnect.every=20", "reconnect.cond_max=1.5", "reconnect.det_min=0.5"};
+  ves_config c2;
+  assert_int_equal(ves_config_load(NULL, 3, rc, &c2, err, sizeof err), VES_OK);
+  assert_true(c2.reconnect_every == 20 && c2.reconnect_cond_max == 1.5 &&
+              c2.reconnect_det_min == 0.5);
   unlink(path);
 }
 
@@ -87,6 +93,9 @@ static void test_errors(void **state) {
   expect_error("[protocol]\nvolume_rate = 1\nvolume_final = 0.5\n", 0, NULL, VES_ERR_CONFIG,
                "must be above 1");
   expect_error("[protocol]\nc0_after = 3\n", 0, NULL, VES_ERR_CONFIG, "c0_after");
+  expect_error("[reconnect]\ncond_max = 1\n", 0, NULL, VES_ERR_CONFIG, "above 1");
+  expect_error("[reconnect]\ndet_min = 1\n", 0, NULL, VES_ERR_CONFIG, "below 1");
+  expect_error("[reconnect]\nevery = -1\n", 0, NULL, VES_ERR_CONFIG, "out of range");
   expect_error("[protocol]\nc0_time = 2\nc0_after = 3\n", 0, NULL, VES_ERR_CONFIG,
                "after [time] t_end");
   const char *s1[] = {"geometry.epsilon"};

@@ -1,6 +1,8 @@
 /* vesica — tests of the time loop: energy stability and constraints at every
- * accepted step, adaptive dt growth, the C0 and volume protocols, and the
- * failure path (no step down to dt_min keeps the last good state). */
+ * accepted step, adaptive dt growth, the C0 and volume protocols, the
+ * failure path (no step down to dt_min keeps the last good state), and the
+ * resets of the reference configuration (periodic, by threshold, failed,
+ * off by default). */
 #include <stdarg.h>
 #include <stddef.h>
 #include <stdint.h>
@@ -174,13 +176,179 @@ static void test_failure_keeps_state(void **state) {
   ves_setup_destroy(&s);
 }
 
+/* The relaxation of test_relaxation with the given reconnection policy; the
+ * LME parameters those of the setup (the configuration's defaults). */
+static void relax_params(ves_integrate_params *ip, int every, double cond_max, double det_min) {
+  ves_config cfg;
+  ves_config_default(&cfg);
+  ves_integrate_params_default(ip);
+  ip->t_end = 0.2, ip->dt_initial = 2e-3, ip->dt_max = 0.1, ip->dE_target = 0.05;
+  ip->reconnect_every = every, ip->reconnect_cond_max = cond_max, ip->reconnect_det_min = det_min;
+  ip->lme.gamma = cfg.gamma, ip->lme.tol0 = cfg.support_tol;
+}
+
+/* Periodic resets (every 2 steps, 6 steps): constraints and energy stability
+ * hold across them, the reset itself preserves E, and the counter counts. */
+static void test_reconnect_every(void **state) {
+  (void)state;
+  ves_setup *s = small_setup();
+  ves_integrate_params ip;
+  relax_params(&ip, 2, 0, 0);
+  ves_sim *sim = make_sim(s, "newton", &ip);
+  double E0, A0, V0, Eprev;
+  ves_sim_initial(sim, &E0, &A0, &V0);
+  Eprev = E0;
+  ves_step_report rep;
+  int n = 0;
+  while (n < 6 && ves_sim_step(sim, &rep) == VES_OK) {
+    n++;
+    printf("# step %ld t %.4f E* %.12f iter %d |A/A0-1| %.1e |V/V0-1| %.1e reset %d cond %.6f "
+           "det %.6f E_reset/E-1 %.1e\n",
+           rep.step, rep.t, rep.E, rep.stats.iterations, fabs(rep.A / A0 - 1), fabs(rep.V / V0 - 1),
+           rep.reconnected, rep.cond, rep.det_min, rep.reconnected ? rep.E_reset / rep.E - 1 : 0.0);
+    assert_int_equal(rep.reconnect_status, VES_OK);
+    assert_int_equal(rep.reconnected, n % 2 == 0);     /* after steps 2, 4, 6 */
+    assert_true(rep.E <= Eprev + 1e-10 * fabs(Eprev)); /* VTI energy stability, as above */
+    assert_true(fabs(rep.A / A0 - 1) <= 1e-8);         /* ctol = 1e-10 (backend default) */
+    assert_true(fabs(rep.V / V0 - 1) <= 1e-8);
+    Eprev = rep.E;
+    if (rep.reconnected) {
+      /* E, A, V are sums of the same point terms before and after (ves/reconnect.h):
+       * rounding and the LME reproduction residual only (tests/test_reconnect.c) */
+      assert_true(fabs(rep.E_reset / rep.E - 1) <= 1e-12);
+      assert_true(rep.cond >= 1 && rep.det_min > 0); /* measured by the reset */
+      Eprev = rep.E_reset; /* the next step starts from E on the new reference */
+    }
+    assert_int_equal(ves_sim_reconnections(sim), n / 2);
+  }
+  assert_int_equal(n, 6);
+  assert_int_equal(ves_sim_reconnections(sim), 3);
+  /* a reconnected simulation refuses a state taken on the creation reference */
+  ves_sim_state st;
+  ves_sim_get_state(sim, &st, NULL);
+  assert_int_equal(ves_sim_set_state(sim, &st, ves_sim_y(sim)), VES_ERR_ARG);
+  ves_sim_destroy(&sim);
+  ves_setup_destroy(&s);
+}
+
+/* A threshold-driven reset: cond_max just above 1 fires as soon as the
+ * measured distortion passes it, and not before. */
+static void test_reconnect_threshold(void **state) {
+  (void)state;
+  ves_setup *s = small_setup();
+  ves_integrate_params ip;
+  const double cmax = 1.001;
+  relax_params(&ip, 0, cmax, 0);
+  ves_sim *sim = make_sim(s, "newton", &ip);
+  ves_step_report rep;
+  int n = 0, resets = 0;
+  while (n < 4 && ves_sim_step(sim, &rep) == VES_OK) {
+    n++;
+    printf("# step %ld t %.4f cond %.6f det %.6f reset %d\n", rep.step, rep.t, rep.cond,
+           rep.det_min, rep.reconnected);
+    assert_int_equal(rep.reconnect_status, VES_OK);
+    assert_int_equal(rep.reconnected, rep.cond > cmax); /* exactly when the threshold passes */
+    resets += rep.reconnected;
+  }
+  assert_int_equal(n, 4);
+  assert_true(resets >= 1);
+  assert_int_equal(ves_sim_reconnections(sim), resets);
+  ves_sim_destroy(&sim);
+  /* invalid policies */
+  ves_backend_options bo;
+  ves_backend_options_default(&bo);
+  const ves_backend_type *bk = ves_backend_find("newton");
+  relax_params(&ip, 0, 1.0, 0); /* cond_2 F >= 1 always: must be > 1 */
+  assert_int_equal(ves_sim_create(s->model, bk, &bo, &ip, &sim), VES_ERR_ARG);
+  relax_params(&ip, 0, 0, 1.0); /* det_min in [0, 1) */
+  assert_int_equal(ves_sim_create(s->model, bk, &bo, &ip, &sim), VES_ERR_ARG);
+  relax_params(&ip, -1, 0, 0);
+  assert_int_equal(ves_sim_create(s->model, bk, &bo, &ip, &sim), VES_ERR_ARG);
+  relax_params(&ip, 1, 0, 0);
+  ip.lme.gamma = 0;
+  assert_int_equal(ves_sim_create(s->model, bk, &bo, &ip, &sim), VES_ERR_ARG);
+  assert_null(sim);
+  ves_setup_destroy(&s);
+}
+
+/* A reset that fails (LME tables allowed one Newton iteration: they cannot
+ * converge) leaves the step accepted and the simulation on its old reference,
+ * able to go on. */
+static void test_reconnect_failure(void **state) {
+  (void)state;
+  ves_setup *s = small_setup();
+  ves_integrate_params ip;
+  relax_params(&ip, 1, 0, 0);
+  ip.lme.max_iter = 1;
+  ves_sim *sim = make_sim(s, "newton", &ip);
+  ves_step_report rep;
+  double Eprev;
+  ves_sim_initial(sim, &Eprev, NULL, NULL);
+  for (int n = 1; n <= 2; n++) {
+    assert_int_equal(ves_sim_step(sim, &rep), VES_OK);
+    printf("# step %d E* %.12f reset %d: %s\n", n, rep.E, rep.reconnected,
+           ves_status_str(rep.reconnect_status));
+    assert_int_equal(rep.step, n);
+    assert_true(rep.reconnect_status < 0);
+    assert_int_equal(rep.reconnected, 0);
+    assert_true(rep.E <= Eprev + 1e-10 * fabs(Eprev));
+    Eprev = rep.E;
+  }
+  assert_int_equal(ves_sim_reconnections(sim), 0);
+  ves_sim_destroy(&sim);
+  ves_setup_destroy(&s);
+}
+
+/* Defaults: reconnection off, and the trajectory that of the code before
+ * reconnection existed. The values were printed (%a) by that code, this
+ * problem and parameters (t, dt, E*, sum_i y_i (1 + i mod 7)); compared to
+ * 1e-13 relative: the same arithmetic, so equal unless the rounding differs
+ * (measured: identical as the first test of the process, with 1 and 2
+ * threads; 5e-14 after the other tests of this file in the same process). */
+static void test_reconnect_off(void **state) {
+  (void)state;
+  static const double want[6][4] = {
+      {0x1.0624dd2f1a9fcp-9, 0x1.0624dd2f1a9fcp-9, 0x1.9cd30a3f78448p+2, 0x1.810e968e722e3p+11},
+      {0x1.89374bc6a7efap-8, 0x1.0624dd2f1a9fcp-8, 0x1.9cd1a52090a04p+2, 0x1.810e5775fc9a6p+11},
+      {0x1.cac083126e979p-7, 0x1.0624dd2f1a9fcp-7, 0x1.9ccf112c50e9dp+2, 0x1.810de9db08f38p+11},
+      {0x1.eb851eb851eb8p-6, 0x1.0624dd2f1a9fcp-6, 0x1.9cca8af9bf19ap+2, 0x1.810d312b01288p+11},
+      {0x1.fbe76c8b43958p-5, 0x1.0624dd2f1a9fcp-5, 0x1.9cc32148d7596p+2, 0x1.810bfb325b5e9p+11},
+      {0x1.020c49ba5e354p-3, 0x1.0624dd2f1a9fcp-4, 0x1.9cb7e6a61433dp+2, 0x1.8109f049b7b14p+11}};
+  ves_setup *s = small_setup();
+  ves_integrate_params ip, def;
+  ves_integrate_params_default(&def);
+  assert_int_equal(def.reconnect_every, 0);
+  assert_true(def.reconnect_cond_max == 0 && def.reconnect_det_min == 0);
+  ves_integrate_params_default(&ip);
+  ip.t_end = 0.2, ip.dt_initial = 2e-3, ip.dt_max = 0.1, ip.dE_target = 0.05;
+  ves_sim *sim = make_sim(s, "newton", &ip);
+  ves_step_report rep;
+  double worst = 0;
+  for (int n = 0; n < 6; n++) {
+    assert_int_equal(ves_sim_step(sim, &rep), VES_OK);
+    const double *y = ves_sim_y(sim);
+    double sum = 0;
+    for (int a = 0; a < 2 * s->nodes->n; a++) sum += y[a] * (1 + a % 7);
+    const double got[4] = {rep.t, rep.dt, rep.E, sum};
+    for (int j = 0; j < 4; j++) worst = fmax(worst, fabs(got[j] / want[n][j] - 1));
+    assert_int_equal(rep.reconnected, 0);
+    assert_true(rep.cond == 0 && rep.det_min == 0); /* nothing measured */
+  }
+  printf("# defaults: max relative difference to the stored trajectory %.1e\n", worst);
+  assert_true(worst <= 1e-13);
+  assert_int_equal(ves_sim_reconnections(sim), 0);
+  ves_sim_destroy(&sim);
+  ves_setup_destroy(&s);
+}
+
 int main(void) {
   setvbuf(stdout, NULL, _IOLBF, 0); /* keep output in order with cmocka's stderr */
   const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_relaxation),
-      cmocka_unit_test(test_near_equilibrium),
-      cmocka_unit_test(test_protocols),
-      cmocka_unit_test(test_failure_keeps_state),
+      /* first in the process: see there */
+      cmocka_unit_test(test_reconnect_off),       cmocka_unit_test(test_relaxation),
+      cmocka_unit_test(test_near_equilibrium),    cmocka_unit_test(test_protocols),
+      cmocka_unit_test(test_failure_keeps_state), cmocka_unit_test(test_reconnect_every),
+      cmocka_unit_test(test_reconnect_threshold), cmocka_unit_test(test_reconnect_failure),
   };
   return cmocka_run_group_tests_name("integrate", tests, NULL, NULL);
 }

@@ -60,6 +60,10 @@ typedef struct {
   double tol, ctol;             /* optimality and constraint tolerances */
   int max_iter;                 /* iterations per step */
   int freeze_hessian;           /* newton: Hessian once per step */
+  /* [reconnect] reference-configuration resets (all 0: none) */
+  int reconnect_every;       /* accepted steps between resets (0: off) */
+  double reconnect_cond_max; /* reset when max cond_2 F exceeds this (0: off, else > 1) */
+  double reconnect_det_min;  /* reset when min det F drops below this (0: off, else < 1) */
   /* [output] */
   int snapshot_every; /* accepted steps between snapshots */
 } ves_config;

@@ -1,11 +1,13 @@
 /* vesica — the time loop of the variational integrator (DESIGN.md §3): one
  * accepted step at a time, adaptive dt, rejected steps retried with dt/2,
- * protocols (spontaneous curvature steps, volume ramps). The driver (the
+ * protocols (spontaneous curvature steps, volume ramps), resets of the
+ * reference configuration (DESIGN.md §4, ves/reconnect.h). The driver (the
  * program) owns the loop, the output and the stopping decisions. */
 #ifndef VES_INTEGRATE_H
 #define VES_INTEGRATE_H
 
 #include "ves/backend.h"
+#include "ves/lme.h"
 #include "ves/model.h"
 #include "ves/status.h"
 #include "ves/step.h"
@@ -27,6 +29,13 @@ typedef struct {
   double c0_time;      /* protocol: time of a step change of C0 (< 0: none) */
   double c0_after;     /* protocol: C0 R0 from c0_time on */
   int check_energy;    /* 1: reject a VTI step whose energy rises while the targets are fixed */
+  /* reference-configuration reset after an accepted step when any enabled
+   * criterion holds (ves_reconnect_due; all three 0: never, the default) */
+  int reconnect_every;       /* accepted steps between resets (>= 0; 0: off) */
+  double reconnect_cond_max; /* reset when max cond_2 F exceeds this (0: off; else > 1) */
+  double reconnect_det_min;  /* reset when min det F drops below this (0: off; else in (0, 1)) */
+  ves_lme_params lme;        /* LME parameters of the new tables: those the model's
+                                tables were built with (config gamma, support_tol) */
 } ves_integrate_params;
 
 /* What one accepted step did. */
@@ -40,6 +49,14 @@ typedef struct {
   int retries;             /* halvings before acceptance */
   ves_backend_stats stats; /* the backend's statistics of the accepted solve */
   ves_status solve_status; /* the accepted solve's status */
+  /* reconnection after the step (all zero when reconnection is off) */
+  int reconnected;             /* 1: the reference was reset to the new y */
+  double cond, det_min;        /* distortion of y relative to the reference the step was
+                                  taken on: max cond_2 F and min det F (measured when a
+                                  threshold is on or a reset was made; else 1 and 1) */
+  double E_reset;              /* reconnected: E* at y evaluated on the new reference */
+  ves_status reconnect_status; /* VES_OK, or why a due reset failed (the step stands and
+                                  the old reference stays in use; tried again next step) */
 } ves_step_report;
 
 typedef struct ves_sim ves_sim;
@@ -48,13 +65,20 @@ typedef struct ves_sim ves_sim;
 void ves_integrate_params_default(ves_integrate_params *p);
 
 /* A simulation from the model's reference state: model borrowed (must
- * outlive the simulation), backend type borrowed (static), options copied. */
+ * outlive the simulation; its C0 is set by the protocol; after a reset the
+ * simulation works on a model of its own and leaves this one alone),
+ * backend type borrowed (static), options copied. */
 ves_status ves_sim_create(ves_model *model, const ves_backend_type *backend,
                           const ves_backend_options *bopt, const ves_integrate_params *ip,
                           ves_sim **out);
 void ves_sim_destroy(ves_sim **s);
 
-/* Take one accepted step (retrying with dt/2 on failure or energy rise).
+/* Take one accepted step (retrying with dt/2 on failure or energy rise),
+ * then reset the reference configuration to the new y if one is due
+ * (ves_reconnect_create; the step problem and the backend state are rebuilt
+ * on the new model, y, t, dt, A0, V0, E0 and the multipliers are kept, E, A,
+ * V re-evaluated on it). A reset allocates (~ the setup's LME tables); until
+ * it has succeeded in full the old reference stays in use.
  * VES_OK: a step was taken (rep filled); VES_MAXITER: t_end already reached,
  * nothing done; < 0: no acceptable step down to dt_min — the state is the
  * last accepted one and rep describes the last attempt. */
@@ -78,13 +102,18 @@ typedef struct {
 void ves_sim_get_state(const ves_sim *s, ves_sim_state *st, double *y);
 
 /* Continue from state st and positions y (2n); both copied. Sets the
- * model's C0 to st->c0. VES_ERR_ARG for non-finite or inconsistent values
- * (t < 0, dt <= 0, nstep < 0, A0 or V0 <= 0); then nothing changes. */
+ * model's C0 to st->c0. The state must be one reached without a reset (y
+ * relative to the creation model's reference; the reset count then starts
+ * at st->nstep steps since the start, as in the uninterrupted run).
+ * VES_ERR_ARG for non-finite or inconsistent values (t < 0, dt <= 0,
+ * nstep < 0, A0 or V0 <= 0) or a simulation that has already reset its
+ * reference; then nothing changes. */
 ves_status ves_sim_set_state(ves_sim *s, const ves_sim_state *st, const double *y);
 
 double ves_sim_time(const ves_sim *s);
-double ves_sim_dt(const ves_sim *s);            /* the next step's dt */
-const double *ves_sim_y(const ves_sim *s);      /* current positions, 2n */
+double ves_sim_dt(const ves_sim *s);         /* the next step's dt */
+const double *ves_sim_y(const ves_sim *s);   /* current positions, 2n */
+int ves_sim_reconnections(const ves_sim *s); /* reference resets so far */
 void ves_sim_initial(const ves_sim *s, double *E, double *A, double *V); /* at t = 0 */
 
 #endif
