@@ -109,6 +109,38 @@ static void test_near_equilibrium(void **state) {
   ves_setup_destroy(&s);
 }
 
+/* Explicit Euler under the adaptive controller: dt grows until a step
+ * raises E (the explicit instability), which is rejected and halved, so the
+ * run stays at its stability limit with E never rising. Before Euler's steps
+ * were checked, this run's E rose (measured on problems/oblate.ini: E* 7.94
+ * -> 175 by t* = 0.013). */
+static void test_euler_adaptive(void **state) {
+  (void)state;
+  ves_setup *s = small_setup();
+  ves_integrate_params ip;
+  ves_integrate_params_default(&ip);
+  ip.t_end = 1.0, ip.dt_initial = 1e-4, ip.dt_max = 1.0, ip.dE_target = 0.05;
+  ves_sim *sim = make_sim(s, "euler", &ip);
+  double E0, Eprev;
+  ves_sim_initial(sim, &E0, NULL, NULL);
+  Eprev = E0;
+  ves_step_report rep;
+  int n = 0, retried = 0;
+  while (n < 40 && ves_sim_step(sim, &rep) == VES_OK) {
+    n++;
+    retried += rep.retries > 0;
+    assert_true(rep.E <= Eprev + 1e-10 * fabs(Eprev)); /* the check's own rounding margin */
+    Eprev = rep.E;
+  }
+  printf("# euler adaptive: %d steps to t* %.4g, dt* %.3g, %d with retries, E* %.6f -> %.6f\n", n,
+         rep.t, rep.dt, retried, E0, Eprev);
+  assert_int_equal(n, 40);  /* it keeps going */
+  assert_true(retried > 0); /* the controller did reach Euler's limit */
+  assert_true(Eprev < E0);
+  ves_sim_destroy(&sim);
+  ves_setup_destroy(&s);
+}
+
 /* Protocols: a C0 step change at t = 0.01 raises the target curvature (E jumps
  * up at the switch, then decreases again); a volume ramp reaches its target. */
 static void test_protocols(void **state) {
@@ -346,7 +378,8 @@ int main(void) {
   const struct CMUnitTest tests[] = {
       /* first in the process: see there */
       cmocka_unit_test(test_reconnect_off),       cmocka_unit_test(test_relaxation),
-      cmocka_unit_test(test_near_equilibrium),    cmocka_unit_test(test_protocols),
+      cmocka_unit_test(test_near_equilibrium),
+      cmocka_unit_test(test_euler_adaptive),    cmocka_unit_test(test_protocols),
       cmocka_unit_test(test_failure_keeps_state), cmocka_unit_test(test_reconnect_every),
       cmocka_unit_test(test_reconnect_threshold), cmocka_unit_test(test_reconnect_failure),
   };

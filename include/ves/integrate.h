@@ -28,7 +28,8 @@ typedef struct {
   double volume_final; /* protocol: V / V0 at which the ramp stops and V is held */
   double c0_time;      /* protocol: time of a step change of C0 (< 0: none) */
   double c0_after;     /* protocol: C0 R0 from c0_time on */
-  int check_energy;    /* 1: reject a VTI step whose energy rises while the targets are fixed */
+  int check_energy;    /* 1: reject a step whose energy rises while the targets are fixed
+                          (any backend: for Euler a rise is its instability) */
   /* reference-configuration reset after an accepted step when any enabled
    * criterion holds (ves_reconnect_due; all three 0: never, the default) */
   int reconnect_every;       /* accepted steps between resets (>= 0; 0: off) */
