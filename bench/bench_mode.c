@@ -28,6 +28,7 @@
 #include "ves/config.h"
 #include "ves/integrate.h"
 #include "ves/setup.h"
+#include "bench_common.h"
 
 #define MAX_SET 32
 
@@ -131,13 +132,9 @@ int main(int argc, char **argv) {
   if (!phi || !ps) return 3;
   ves_quad_field(s->quad, s->phi0c, 0, phi);
   ves_integrate_params ip;
-  ves_integrate_params_default(&ip);
-  ip.t_end = to, ip.dt_initial = dt, ip.dt_max = dt, ip.dt_min = dt * (1 - 1e-12), ip.adaptive = 0;
-  ip.hold_area = cfg.area, ip.hold_volume = cfg.volume;
+  bench_constant_params(&cfg, dt, to, &ip);
   ves_backend_options bo;
-  ves_backend_options_default(&bo);
-  bo.tol = cfg.tol, bo.ctol = cfg.ctol, bo.max_iter = cfg.max_iter;
-  bo.freeze_hessian = cfg.freeze_hessian;
+  bench_backend_options(&cfg, &bo);
   ves_sim *sim = NULL;
   ves_status st = ves_sim_create(s->model, ves_backend_find(cfg.backend), &bo, &ip, &sim);
   if (st != VES_OK) {

@@ -20,6 +20,7 @@
 #include "ves/config.h"
 #include "ves/integrate.h"
 #include "ves/setup.h"
+#include "bench_common.h"
 #include "clock_impl.h"
 
 #define MAX_LIST 32
@@ -41,14 +42,7 @@ int main(int argc, char **argv) {
     else if (!strcmp(a, "--backends") && v)
       snprintf(blist, sizeof blist, "%s", v), i++;
     else if (!strcmp(a, "--dts") && v) {
-      char *end;
-      const char *p = v;
-      ndt = 0;
-      while (*p && ndt < MAX_LIST) {
-        dts[ndt++] = strtod(p, &end);
-        if (end == p) return 2;
-        p = *end == ',' ? end + 1 : end;
-      }
+      if ((ndt = bench_parse_list(v, dts, MAX_LIST)) < 0) return 2;
       i++;
     } else if (a[0] != '-')
       path = a;
@@ -82,14 +76,9 @@ int main(int argc, char **argv) {
     double largest = 0;
     for (int i = 0; i < ndt; i++) {
       ves_integrate_params ip;
-      ves_integrate_params_default(&ip);
-      ip.t_end = dts[i], ip.dt_initial = dts[i], ip.dt_max = dts[i];
-      ip.dt_min = dts[i] * (1 - 1e-12), ip.adaptive = 0;
-      ip.hold_area = cfg.area, ip.hold_volume = cfg.volume;
+      bench_constant_params(&cfg, dts[i], dts[i], &ip);
       ves_backend_options bo;
-      ves_backend_options_default(&bo);
-      bo.tol = cfg.tol, bo.ctol = cfg.ctol, bo.max_iter = cfg.max_iter;
-      bo.freeze_hessian = cfg.freeze_hessian;
+      bench_backend_options(&cfg, &bo);
       ves_sim *sim = NULL;
       ves_status st = ves_sim_create(s->model, bk, &bo, &ip, &sim);
       if (st != VES_OK) {

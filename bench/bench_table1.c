@@ -11,7 +11,9 @@
  * in a step (the exact dynamics dissipates: a rise is the explicit scheme's
  * instability, which grows from there) and the first stable dt is reported
  * as FE's largest stable step (the rows of the unstable ones are printed
- * too, marked). With --fe-watch N an FE run does not stop at the first rise
+ * too, marked; the integrator rejects an energy-raising step, so an unstable
+ * run usually ends as "step failed" at dt_min). With --fe-watch N (which
+ * turns the integrator's energy check off for FE) an FE run does not stop at the first rise
  * but goes on for at most N steps, printing E* at every step, to tell a
  * growing instability from a rounding-level rise.
  *
@@ -34,37 +36,11 @@
 #include "ves/config.h"
 #include "ves/integrate.h"
 #include "ves/setup.h"
+#include "bench_common.h"
 #include "clock_impl.h"
 
 #define MAX_LIST 16
 #define MAX_SET 32
-
-/* Parse "a,b,c" into v (at most MAX_LIST); returns the count. */
-static int parse_list(const char *s, double *v) {
-  int n = 0;
-  char *end;
-  while (*s && n < MAX_LIST) {
-    v[n++] = strtod(s, &end);
-    if (end == s) return -1;
-    s = *end == ',' ? end + 1 : end;
-  }
-  return n;
-}
-
-/* Integrator parameters of a constant-step run to t_end (no halving). */
-static void constant_params(const ves_config *cfg, double dt, double t_end,
-                            ves_integrate_params *ip) {
-  ves_integrate_params_default(ip);
-  ip->t_end = t_end, ip->dt_initial = dt, ip->dt_max = dt, ip->dt_min = dt;
-  ip->adaptive = 0;
-  ip->hold_area = cfg->area, ip->hold_volume = cfg->volume;
-}
-
-static void backend_options(const ves_config *cfg, ves_backend_options *bo) {
-  ves_backend_options_default(bo);
-  bo->tol = cfg->tol, bo->ctol = cfg->ctol, bo->max_iter = cfg->max_iter;
-  bo->freeze_hessian = cfg->freeze_hessian;
-}
 
 /* One row of the table. */
 typedef struct {
@@ -82,9 +58,9 @@ static ves_status run_row(ves_setup *s, const ves_config *cfg, const char *backe
                           row *r) {
   ves_integrate_params ip;
   ves_backend_options bo;
-  constant_params(cfg, dt, t2, &ip);
-  ip.dt_min = dt * (1 - 1e-12);
-  backend_options(cfg, &bo);
+  bench_constant_params(cfg, dt, t2, &ip);
+  bench_backend_options(cfg, &bo);
+  if (watch) ip.check_energy = 0; /* follow the rise instead of rejecting it */
   ves_sim *sim = NULL;
   ves_status st = ves_sim_create(s->model, ves_backend_find(backend), &bo, &ip, &sim);
   if (st != VES_OK) return st;
@@ -152,9 +128,9 @@ int main(int argc, char **argv) {
     else if (!strcmp(a, "--t2") && v)
       t2 = atof(v), i++;
     else if (!strcmp(a, "--vti") && v)
-      nvti = parse_list(v, vti), i++;
+      nvti = bench_parse_list(v, vti, MAX_LIST), i++;
     else if (!strcmp(a, "--fe") && v)
-      nfe = parse_list(v, fe), i++;
+      nfe = bench_parse_list(v, fe, MAX_LIST), i++;
     else if (!strcmp(a, "--fe-watch") && v)
       watch = atol(v), i++;
     else if (!strcmp(a, "--backends") && v)
@@ -198,9 +174,9 @@ int main(int argc, char **argv) {
   /* the common start: VTI (newton), constant dt = t1/10, from 0 to t1 */
   ves_integrate_params ip;
   ves_backend_options bo;
-  constant_params(&cfg, t1 / 10, t1, &ip);
+  bench_constant_params(&cfg, t1 / 10, t1, &ip);
   ip.dt_min = 1e-12;
-  backend_options(&cfg, &bo);
+  bench_backend_options(&cfg, &bo);
   ves_sim *sim = NULL;
   ves_status st = ves_sim_create(s->model, &ves_backend_newton, &bo, &ip, &sim);
   double E0 = 0, *y1 = malloc(2 * (size_t)s->nodes->n * sizeof *y1);
