@@ -280,7 +280,7 @@ static int build(run_ctx *r) {
   ip.growth_max = c->growth_max, ip.iter_target = c->iter_target;
   ip.hold_area = c->area, ip.hold_volume = c->volume;
   ip.volume_rate = c->volume_rate, ip.volume_final = c->volume_final;
-  ip.c0_time = c->c0_time, ip.c0_after = c->c0_after;
+  ip.c0_time = c->c0_time, ip.c0_after = c->c0_after, ip.c0_until = c->c0_until;
   ip.reconnect_every = c->reconnect_every, ip.reconnect_cond_max = c->reconnect_cond_max;
   ip.reconnect_det_min = c->reconnect_det_min;
   ip.lme = lp; /* the setup's tables were built with these */

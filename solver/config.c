@@ -97,6 +97,8 @@ static const key_spec KEYS[] = {
      "time of a step change of C0 (t*; -1: none)"},
     {"protocol", "c0_after", KEY_DOUBLE, OFF(c0_after), "0", -100, 100, NULL,
      "C0 R0 from c0_time on"},
+    {"protocol", "c0_until", KEY_DOUBLE, OFF(c0_until), "-1", -1, 1e12, NULL,
+     "time C0 returns to [material] c0, ending a pulse (t*; -1: never)"},
     {"solver", "backend", KEY_STRING, OFF(backend), "newton", 0, 0, "ipopt|nlopt|newton|euler",
      "step solver (euler: explicit, the paper's comparison)"},
     {"solver", "tol", KEY_DOUBLE, OFF(tol), "1e-9", 1e-16, 1e-2, NULL,
@@ -369,6 +371,11 @@ ves_status ves_config_validate(const ves_config *cfg, char *err, size_t errlen) 
   if (cfg->c0_time < 0 && cfg->c0_after != 0) {
     say(err, errlen, "%s: [protocol] c0_after = %g: has no effect without c0_time >= 0", src,
         cfg->c0_after);
+    return VES_ERR_CONFIG;
+  }
+  if (cfg->c0_until >= 0 && !(cfg->c0_time >= 0 && cfg->c0_until > cfg->c0_time)) {
+    say(err, errlen, "%s: [protocol] c0_until = %g: needs c0_time >= 0 before it (c0_time = %g)",
+        src, cfg->c0_until, cfg->c0_time);
     return VES_ERR_CONFIG;
   }
   if (cfg->reconnect_cond_max > 0 && cfg->reconnect_cond_max <= 1) {

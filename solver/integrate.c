@@ -53,6 +53,7 @@ struct ves_sim {
   double E0, A0, V0;                /* at t = 0 */
   double lambda[2];                 /* multipliers of the last accepted step */
   double c0;                        /* C0 in force */
+  double c0_base;                   /* the model's C0 before and after the protocol */
 };
 
 void ves_integrate_params_default(ves_integrate_params *p) {
@@ -70,6 +71,7 @@ void ves_integrate_params_default(ves_integrate_params *p) {
   p->volume_final = 1.0;
   p->c0_time = -1.0;
   p->c0_after = 0.0;
+  p->c0_until = -1.0;
   p->check_energy = 1;
   p->reconnect_every = 0;
   p->reconnect_cond_max = 0.0;
@@ -103,6 +105,7 @@ ves_status ves_sim_create(ves_model *model, const ves_backend_type *backend,
                 (ip->reconnect_cond_max == 0 || ip->reconnect_cond_max > 1) &&
                 ip->reconnect_det_min >= 0 && ip->reconnect_det_min < 1,
             VES_ERR_ARG);
+  VES_CHECK(ip->c0_until < 0 || (ip->c0_time >= 0 && ip->c0_until > ip->c0_time), VES_ERR_ARG);
   VES_CHECK(ip->lme.gamma > 0 && ip->lme.tol0 > 0 && ip->lme.tol0 < 1, VES_ERR_ARG);
   ves_status st = VES_ERR_ALLOC;
   ves_sim *s = calloc(1, sizeof *s);
@@ -123,7 +126,7 @@ ves_status ves_sim_create(ves_model *model, const ves_backend_type *backend,
     st = VES_ERR_ALLOC;
     goto fail;
   }
-  s->c0 = ves_model_get_c0(model);
+  s->c0 = s->c0_base = ves_model_get_c0(model);
   if ((st = ves_model_eval(model, s->y, VES_F_E | VES_F_A | VES_F_V, &s->E, &s->A, &s->V, NULL,
                            NULL, NULL)) != VES_OK)
     goto fail;
@@ -187,14 +190,19 @@ ves_status ves_sim_step(ves_sim *s, ves_step_report *rep) {
   memset(rep, 0, sizeof *rep);
   const double tiny = 1e-12 * (1.0 + fabs(s->t));
   if (s->t >= s->ip.t_end - tiny) return VES_MAXITER;
-  /* protocol: C0 switches when its time is reached (the step ends on it) */
-  if (s->ip.c0_time >= 0 && s->t >= s->ip.c0_time - tiny && s->c0 != s->ip.c0_after) {
-    s->c0 = s->ip.c0_after;
+  /* protocol: C0 switches when its time is reached (steps end on the events) */
+  double c0 = s->c0_base;
+  if (s->ip.c0_time >= 0 && s->t >= s->ip.c0_time - tiny &&
+      !(s->ip.c0_until >= 0 && s->t >= s->ip.c0_until - tiny))
+    c0 = s->ip.c0_after;
+  if (c0 != s->c0) {
+    s->c0 = c0;
     VES_CALL(ves_model_set_c0(s->model, s->c0));
     VES_CALL(ves_model_eval(s->model, s->y, VES_F_E, &s->E, NULL, NULL, NULL, NULL, NULL));
   }
   double dt = fmin(s->dt, s->ip.t_end - s->t);
   if (s->ip.c0_time > s->t + tiny) dt = fmin(dt, s->ip.c0_time - s->t); /* land on the event */
+  if (s->ip.c0_until > s->t + tiny) dt = fmin(dt, s->ip.c0_until - s->t);
   ves_status st = VES_ERR_NOCONV;
   int retries = 0;
   for (;;) {

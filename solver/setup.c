@@ -89,7 +89,9 @@ ves_status ves_setup_create(const ves_config *cfg, ves_phi0_method method, ves_s
   t = ves_wall_seconds();
   if (cfg->band_layers) {
     if ((st = ves_shape_band_nodes(s->shape, hb, halfwidth, &np.nfixed, &bx, &bflag)) != VES_OK)
-      FAIL(st,
+      /* a fold of the offset curves is bad input (the band is too wide for
+       * the shape), not a failure of the numerics: exit code 2 */
+      FAIL(st == VES_ERR_GEOM ? VES_ERR_CONFIG : st,
            "band layers: %s: band*epsilon = %g exceeds a radius of curvature of the shape "
            "(set a smaller [geometry] band, or band_layers = 0)",
            ves_status_str(st), halfwidth);

@@ -254,6 +254,11 @@ static void test_malformed_input(void **state) {
   BAD("[protocol]\nvolume_rate = -1\nvolume_final = 1.2\n", "volume_final", "below 1");
   BAD("[protocol]\nc0_after = 5\n", "c0_after", "c0_time");
   BAD("[protocol]\nc0_time = 5\nc0_after = 2\n[time]\nt_end = 1\n", "c0_time", "t_end");
+  BAD("[protocol]\nc0_until = 0.5\n", "c0_until", "c0_time");
+  /* a band too wide for the shape's curvature is bad input, found in the setup */
+  BAD("[shape]\ntype = spheroid\nreduced_volume = 0.8\norientation = prolate\n"
+      "[geometry]\nepsilon = 0.08\nband = 5.5\nbox_z = 2.5\n",
+      "band*epsilon = 0.44", "radius of curvature");
   BAD("epsilon = 0.1\n[geometry]\n", "epsilon", "outside a section");
   BAD("[geometry\nepsilon = 0.1\n", ini, "not a readable INI file");
   BAD("[shape]\ntype = curve\n", "points", "needs a points file");
@@ -364,6 +369,36 @@ static void same_series(ves_io *a, ves_io *b, long rows) {
       fail_msg("series %s differs between the runs", names[i]);
     free(x), free(y);
   }
+}
+
+/* A run that reset its reference configuration before its last snapshot
+ * cannot be continued (the snapshot holds y, not the reference): --restart
+ * refuses with exit 2 and leaves the file as it was. */
+static void test_restart_after_reset(void **state) {
+  (void)state;
+  char ini[128], part[128];
+  tmp_path(ini, sizeof ini, "reset.ini");
+  tmp_path(part, sizeof part, "reset.h5");
+  write_file(ini, "[time]\nt_end = 0.1\n[output]\nsnapshot_every = 2\n[reconnect]\nevery = 2\n");
+  result r;
+  run(&r, "run", ini, TINY, "--out", part, "--quiet", "--max-steps", "3", NULL);
+  if (r.code) fail_msg("run: exit %d: %s", r.code, r.err);
+  ves_io *b = open_ro(part);
+  assert_int_equal(ves_io_rows(b), 3);
+  int S = ves_io_snapshots(b);
+  ves_io_snapinfo si;
+  assert_int_equal(ves_io_read_snapshot(b, S - 1, NULL, NULL, &si), VES_OK);
+  assert_int_equal(si.reconnections, 1); /* the reset after step 2 */
+  ves_io_close(&b);
+  run(&r, "run", "--restart", part, "--quiet", NULL);
+  printf("# restart after a reset -> %d: %s", r.code, r.err);
+  assert_int_equal(r.code, 2);
+  assert_non_null(strstr(r.err, "reset its reference configuration 1 time(s)"));
+  b = open_ro(part);
+  assert_int_equal(ves_io_rows(b), 3); /* untouched */
+  assert_int_equal(ves_io_snapshots(b), S);
+  ves_io_close(&b);
+  unlink(ini), unlink(part);
 }
 
 static void test_restart_bitwise(void **state) {
@@ -608,6 +643,7 @@ int main(int argc, char **argv) {
       cmocka_unit_test(test_help),
       cmocka_unit_test(test_malformed_input),
       cmocka_unit_test(test_restart_bitwise),
+      cmocka_unit_test(test_restart_after_reset),
       cmocka_unit_test(test_numerical_failure),
       cmocka_unit_test(test_sigterm),
       cmocka_unit_test(test_sigkill),

@@ -93,6 +93,9 @@ static void test_errors(void **state) {
   expect_error("[protocol]\nvolume_rate = 1\nvolume_final = 0.5\n", 0, NULL, VES_ERR_CONFIG,
                "must be above 1");
   expect_error("[protocol]\nc0_after = 3\n", 0, NULL, VES_ERR_CONFIG, "c0_after");
+  expect_error("[protocol]\nc0_until = 3\n", 0, NULL, VES_ERR_CONFIG, "c0_until");
+  expect_error("[protocol]\nc0_time = 0.5\nc0_after = 1\nc0_until = 0.5\n", 0, NULL,
+               VES_ERR_CONFIG, "c0_until");
   expect_error("[reconnect]\ncond_max = 1\n", 0, NULL, VES_ERR_CONFIG, "above 1");
   expect_error("[reconnect]\ndet_min = 1\n", 0, NULL, VES_ERR_CONFIG, "below 1");
   expect_error("[reconnect]\nevery = -1\n", 0, NULL, VES_ERR_CONFIG, "out of range");

@@ -141,32 +141,37 @@ static void test_euler_adaptive(void **state) {
   ves_setup_destroy(&s);
 }
 
-/* Protocols: a C0 step change at t = 0.01 raises the target curvature (E jumps
- * up at the switch, then decreases again); a volume ramp reaches its target. */
+/* Protocols: a C0 pulse from t = 0.01 to 0.0175 raises the target curvature
+ * (E jumps up at the switch, then decreases again; C0 returns to 0 at the end
+ * of the pulse, which falls inside a step: the step is cut to land on it); a
+ * volume ramp reaches its target. */
 static void test_protocols(void **state) {
   (void)state;
   ves_setup *s = small_setup();
   ves_integrate_params ip;
   ves_integrate_params_default(&ip);
   ip.t_end = 0.03, ip.dt_initial = 5e-3, ip.dt_max = 5e-3, ip.adaptive = 0;
-  ip.c0_time = 0.01, ip.c0_after = 2.0;
+  ip.c0_time = 0.01, ip.c0_after = 2.0, ip.c0_until = 0.0175;
   ip.volume_rate = -1.0, ip.volume_final = 0.99; /* -1% in t* = 0.01, then held */
   ves_sim *sim = make_sim(s, "newton", &ip);
   double E0, A0, V0;
   ves_sim_initial(sim, &E0, &A0, &V0);
   ves_step_report rep;
-  int n = 0, saw_c0 = 0;
+  int n = 0, saw_c0 = 0, saw_end = 0;
   while (ves_sim_step(sim, &rep) == VES_OK) {
     n++;
     double want = V0 * fmax(1.0 - rep.t, 0.99);
     printf("# t %.4f c0 %.1f E* %.5f V/V0 %.6f\n", rep.t, rep.c0, rep.E, rep.V / V0);
     assert_true(fabs(rep.V / want - 1) <= 1e-8); /* the ramp's target, to ctol */
     assert_true(fabs(rep.A / A0 - 1) <= 1e-8);
-    if (rep.t > 0.01 + 1e-12) assert_true(rep.c0 == 2.0), saw_c0 = 1;
+    if (rep.t > 0.01 + 1e-12 && rep.t <= 0.0175 + 1e-12) assert_true(rep.c0 == 2.0), saw_c0 = 1;
     else assert_true(rep.c0 == 0.0);
+    if (fabs(rep.t - 0.0175) < 1e-12) saw_end = 1; /* a step ends on the pulse's end */
   }
-  assert_int_equal(n, 6); /* constant dt = 5e-3 to t = 0.03: the C0 event lies on a step end */
-  assert_true(saw_c0);
+  /* constant dt = 5e-3 to t = 0.03, one step cut to end at 0.0175:
+   * 0.005 0.01 0.015 0.0175 0.0225 0.0275 0.03 */
+  assert_int_equal(n, 7);
+  assert_true(saw_c0 && saw_end);
   assert_true(fabs(ves_sim_time(sim) - 0.03) < 1e-12);
   /* at t_end: nothing more to do */
   assert_int_equal(ves_sim_step(sim, &rep), VES_MAXITER);

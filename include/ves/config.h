@@ -55,6 +55,7 @@ typedef struct {
   double volume_final; /* V/V0 where the ramp stops */
   double c0_time;      /* time of a step change of C0 (< 0: none) */
   double c0_after;     /* C0 R0 after it */
+  double c0_until;     /* time C0 returns to c0 (< 0: never) */
   /* [solver] */
   char backend[VES_CONFIG_STR]; /* ipopt | nlopt | newton | euler */
   double tol, ctol;             /* optimality and constraint tolerances */

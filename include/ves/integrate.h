@@ -28,6 +28,8 @@ typedef struct {
   double volume_final; /* protocol: V / V0 at which the ramp stops and V is held */
   double c0_time;      /* protocol: time of a step change of C0 (< 0: none) */
   double c0_after;     /* protocol: C0 R0 from c0_time on */
+  double c0_until;     /* protocol: time C0 returns to the model's C0 (< 0: never; else
+                          > c0_time): a pulse that can push a shape past a barrier */
   int check_energy;    /* 1: reject a step whose energy rises while the targets are fixed
                           (any backend: for Euler a rise is its instability) */
   /* reference-configuration reset after an accepted step when any enabled
