@@ -207,7 +207,7 @@ static void usage_run(FILE *f) {
           "  --max-steps N     stop (with a snapshot, exit 0) once N steps are accepted in all\n"
           "  --series FILE.tsv also one tab-separated line per accepted step: step t dt E\n"
           "                    A/A0-1 V/Vtarget-1 lambda_A lambda_V iterations f_evals g_evals\n"
-          "                    h_evals seconds retries\n"
+          "                    h_evals seconds retries resets (reference resets so far)\n"
           "  --quiet           no progress line (otherwise one line on stderr: step, t*, dt*,\n"
           "                    E*, iterations, ETA; updated in place on a terminal)\n"
           "Exit 0 at t_end (or --max-steps), 2 on bad input (nothing written), 3 when a step\n"
@@ -388,10 +388,11 @@ static int loop(run_ctx *r) {
       double A0, V0;
       ves_sim_initial(r->sim, NULL, &A0, &V0);
       fprintf(r->series,
-              "%ld\t%.9g\t%.6g\t%.12g\t%.3e\t%.3e\t%.9g\t%.9g\t%d\t%d\t%d\t%d\t%.3f\t%d\n",
+              "%ld\t%.9g\t%.6g\t%.12g\t%.3e\t%.3e\t%.9g\t%.9g\t%d\t%d\t%d\t%d\t%.3f\t%d\t%d\n",
               rep.step, rep.t, rep.dt, rep.E, rep.A / A0 - 1, rep.V / rep.V_target - 1,
               rep.lambda[0], rep.lambda[1], rep.stats.iterations, rep.stats.f_evals,
-              rep.stats.g_evals, rep.stats.h_evals, rep.stats.seconds, rep.retries);
+              rep.stats.g_evals, rep.stats.h_evals, rep.stats.seconds, rep.retries,
+              ves_sim_reconnections(r->sim));
       fflush(r->series);
     }
     if (!r->quiet && (tty || rep.step % 10 == 0)) {
@@ -401,6 +402,17 @@ static int loop(run_ctx *r) {
               tty ? "\r" : "", rep.step, rep.t, tend, rep.dt, rep.E, rep.stats.iterations, eta,
               tty ? "   " : "\n");
     }
+    if (rep.reconnected && !r->quiet)
+      fprintf(stderr,
+              "%sstep %ld: reference reset #%d (max cond F %.3g, min det F %.3g, %d node(s) "
+              "mirrored across the axis, E* %.9g -> %.9g)\n",
+              tty ? "\n" : "", rep.step, ves_sim_reconnections(r->sim), rep.cond, rep.det_min,
+              rep.mirrored, rep.E, rep.E_reset);
+    if (rep.reconnect_status != VES_OK) /* a warning even with --quiet: a reset was skipped */
+      fprintf(stderr,
+              "%svesica run: warning: step %ld: the reference reset that was due failed (%s); "
+              "continuing on the old reference, retried after the next step\n",
+              tty ? "\n" : "", rep.step, ves_status_str(rep.reconnect_status));
   }
   if (tty && !r->quiet && steps) fputc('\n', stderr);
   signal(SIGINT, SIG_DFL);
@@ -519,7 +531,7 @@ static int run_new(run_ctx *r, const char *path, const char *out, const char *ba
     fprintf(r->series,
             "# vesica %s run %s backend %s nodes %d E0 %.12g A0 %.12g V0 %.12g\n"
             "# step\tt\tdt\tE\tA/A0-1\tV/Vt-1\tlambda_A\tlambda_V\titer\tf\tg\th\tseconds\t"
-            "retries\n",
+            "retries\tresets\n",
             VES_VERSION, path, r->bk->name, r->setup->nodes->n, E0, A0, V0);
   }
   return loop(r);

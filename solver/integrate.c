@@ -146,8 +146,10 @@ fail:
 
 /* Reset the reference to s->y (ves_reconnect.h): a new model, step problem
  * and backend state are made first, the old ones freed only once all three
- * exist. E, A, V are re-evaluated on the new model (equal up to rounding).
- * On failure everything made is freed and s is unchanged. */
+ * exist. The positions continue from the new reference nodes (y with the
+ * nodes that crossed the axis mirrored: the same motion). E, A, V are
+ * re-evaluated on the new model (equal up to rounding). On failure
+ * everything made is freed and s is unchanged. */
 static ves_status reconnect(ves_sim *s, const ves_step_params *sp) {
   ves_reconnect *nr = NULL;
   ves_step *step = NULL;
@@ -155,12 +157,13 @@ static ves_status reconnect(ves_sim *s, const ves_step_params *sp) {
   double E, A, V;
   ves_status st = ves_reconnect_create(s->model, s->y, &s->ip.lme, &nr);
   ves_model *m = st == VES_OK ? ves_reconnect_model(nr) : NULL;
+  const double *y = st == VES_OK ? ves_reconnect_nodes(nr)->x : NULL;
   if (st == VES_OK) st = ves_step_create(m, &step);
   if (st == VES_OK && ves_step_nvar(step) != s->nvar) st = VES_ERR_INTERNAL; /* same dofs */
-  if (st == VES_OK) st = ves_step_set(step, s->y, sp); /* the backend needs a set problem */
+  if (st == VES_OK) st = ves_step_set(step, y, sp); /* the backend needs a set problem */
   if (st == VES_OK) st = s->backend->create(&s->bopt, step, &bstate);
   if (st == VES_OK)
-    st = ves_model_eval(m, s->y, VES_F_E | VES_F_A | VES_F_V, &E, &A, &V, NULL, NULL, NULL);
+    st = ves_model_eval(m, y, VES_F_E | VES_F_A | VES_F_V, &E, &A, &V, NULL, NULL, NULL);
   if (st != VES_OK) {
     if (bstate) s->backend->destroy(&bstate);
     ves_step_destroy(&step);
@@ -171,6 +174,7 @@ static ves_status reconnect(ves_sim *s, const ves_step_params *sp) {
   ves_step_destroy(&s->step);
   ves_reconnect_destroy(&s->ref);
   s->ref = nr, s->model = m, s->step = step, s->bstate = bstate;
+  memcpy(s->y, y, 2 * (size_t)s->n * sizeof *s->y);
   s->E = E, s->A = A, s->V = V;
   s->since = 0;
   s->reconnections++;
@@ -261,6 +265,7 @@ ves_status ves_sim_step(ves_sim *s, ves_step_report *rep) {
             rep->reconnected = 1;
             rep->cond = info.cond_max, rep->det_min = info.det_min;
             rep->E_reset = s->E / ves_model_get_k(s->model);
+            rep->mirrored = info.mirrored;
           }
         }
       }

@@ -135,10 +135,12 @@ ves_status ves_reconnect_push_forward(const double F[4], const double G[6], cons
 }
 
 /* The new node set: X'_a = y^a, flags and box copied, a ghost (-r_a, z_a)
- * for every node with r_a > 0 (every non-axis node), h'_a measured on real
- * and ghost nodes together (as ves_nodes_generate does). The struct is
- * allocated with malloc like geom.cpp's, so ves_nodes_destroy frees it. */
-static ves_status new_nodes(const ves_nodes *old, const double *y, ves_nodes **out) {
+ * for every non-axis node (a node with r_a < 0 is mirrored: X'_a = (|r_a|,
+ * z_a), the same point set; see the header), h'_a measured on real and ghost
+ * nodes together (as ves_nodes_generate does). The struct is allocated with
+ * malloc like geom.cpp's, so ves_nodes_destroy frees it. */
+static ves_status new_nodes(const ves_nodes *old, const double *y, ves_nodes **out,
+                            int *mirrored) {
   const int n = old->n;
   ves_status s = VES_ERR_ALLOC;
   double *xe = NULL, *he = NULL;
@@ -160,16 +162,17 @@ static ves_status new_nodes(const ves_nodes *old, const double *y, ves_nodes **o
       s = VES_ERR_ARG; /* an axis node must keep r = 0 (its r is a fixed dof) */
       goto fail;
     }
-    if (!(old->flag[a] & VES_NODE_AXIS) && !(r > 0.0)) {
-      s = VES_ERR_DOMAIN; /* a node reached or crossed the axis */
+    if (!(old->flag[a] & VES_NODE_AXIS) && !(r != 0.0)) {
+      s = VES_ERR_DOMAIN; /* a node on its own ghost */
       goto fail;
     }
-    if (r > 0.0) nd->ghost_of[nd->ng++] = a;
+    if (r < 0.0) nd->x[2 * a] = -r, ++*mirrored;
+    if (r != 0.0) nd->ghost_of[nd->ng++] = a;
   }
-  memcpy(xe, y, 2 * (size_t)n * sizeof *xe);
+  memcpy(xe, nd->x, 2 * (size_t)n * sizeof *xe);
   for (int k = 0; k < nd->ng; k++) {
     const int a = nd->ghost_of[k];
-    xe[2 * (n + k)] = -y[2 * a], xe[2 * (n + k) + 1] = y[2 * a + 1];
+    xe[2 * (n + k)] = -nd->x[2 * a], xe[2 * (n + k) + 1] = nd->x[2 * a + 1];
   }
   if ((s = ves_geom_spacing(n + nd->ng, xe, he)) != VES_OK) goto fail;
   memcpy(nd->h, he, (size_t)n * sizeof *nd->h);
@@ -218,7 +221,7 @@ ves_status ves_reconnect_create(const ves_model *m, const double *y, const ves_l
     wq[al] = q->w[al] * J;                      /* w' = w det F */
   }
 
-  if ((s = new_nodes(nodes, y, &r->nodes)) != VES_OK) goto fail;
+  if ((s = new_nodes(nodes, y, &r->nodes, &r->info.mirrored)) != VES_OK) goto fail;
   if ((s = ves_quad_create_points(nq, xq, wq, q->ntri, q->tri, &r->quad)) != VES_OK) goto fail;
   if ((s = ves_quad_tables(r->quad, r->nodes, lme, &r->info.qinfo)) != VES_OK) goto fail;
   ves_model_params par;

@@ -926,7 +926,8 @@ static void test_errors(void **state) {
   for (int a = 0; a < P->n; a++) y[2 * a] = P->X[2 * a], y[2 * a + 1] = -P->X[2 * a + 1];
   assert_int_equal(ves_reconnect_create(m, y, &P->lme, &r), VES_ERR_DOMAIN);
   /* a node pushed through the axis: its points keep r > 0 and det F > 0
-   * (the basis is smooth), but the node has no admissible ghost */
+   * (the basis is smooth); the node is mirrored (it and its ghost swap
+   * roles: the same point set), and E, A, V are preserved as by any reset */
   memcpy(y, P->X, n2 * sizeof *y);
   int near = -1;
   for (int a = 0; a < P->n && near < 0; a++)
@@ -946,8 +947,28 @@ static void test_errors(void **state) {
   printf("# node %d at R = %.4f moved to r = %.4f: det F >= %.3f, r >= %.1e at the points, reset: "
          "%s\n",
          near, P->X[2 * near], y[2 * near], dmin, rmin, ves_status_str(st));
-  assert_true(dmin > 0 && rmin > 0); /* so the node check is what refuses it */
-  assert_int_equal(st, VES_ERR_DOMAIN);
+  assert_true(dmin > 0 && rmin > 0); /* an admissible motion */
+  assert_int_equal(st, VES_OK);
+  {
+    ves_reconnect_info info;
+    ves_reconnect_get_info(r, &info);
+    assert_int_equal(info.mirrored, 1);
+    const double *xn = ves_reconnect_nodes(r)->x;
+    assert_true(xn[2 * near] == -y[2 * near] && xn[2 * near + 1] == y[2 * near + 1]);
+    for (int a = 0; a < P->n; a++)
+      if (a != near) assert_true(xn[2 * a] == y[2 * a] && xn[2 * a + 1] == y[2 * a + 1]);
+    double v0[3], v1[3];
+    eav(m, y, v0);
+    eav(ves_reconnect_model(r), xn, v1);
+    printf("# mirrored node: E, A, V relative change %.1e %.1e %.1e\n", v1[0] / v0[0] - 1,
+           v1[1] / v0[1] - 1, v1[2] / v0[2] - 1);
+    for (int k = 0; k < 3; k++) assert_true(fabs(v1[k] / v0[k] - 1) <= 1e-12); /* as a reset */
+    ves_reconnect_destroy(&r);
+  }
+  /* a node on the axis itself (on its own ghost): refused */
+  y[2 * near] = 0.0;
+  assert_int_equal(ves_reconnect_create(m, y, &P->lme, &r), VES_ERR_DOMAIN);
+  assert_null(r);
   /* two nodes at the same place, the map still admissible at the points */
   memcpy(y, P->X, n2 * sizeof *y);
   int a0 = -1, b0 = -1;

@@ -58,6 +58,7 @@ typedef struct {
                                   taken on: max cond_2 F and min det F (measured when a
                                   threshold is on or a reset was made; else 1 and 1) */
   double E_reset;              /* reconnected: E* at y evaluated on the new reference */
+  int mirrored;                /* reconnected: nodes mirrored across the axis (ves_reconnect.h) */
   ves_status reconnect_status; /* VES_OK, or why a due reset failed (the step stands and
                                   the old reference stays in use; tried again next step) */
 } ves_step_report;

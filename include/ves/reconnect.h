@@ -27,7 +27,18 @@
  * it differ from those without it at the level of the discretization error,
  * not of rounding; the nodal values y^a, coefficients of a smoothing basis,
  * differ more than the motion of the material does (tests/test_reconnect.c
- * measures all of it). */
+ * measures all of it).
+ *
+ * Nodes across the axis. The y^a are coefficients, not values of the motion
+ * (LME does not interpolate): where the material is squeezed against the
+ * axis, the r coefficient of a node near it can turn negative while the
+ * motion itself stays admissible (r(Xh) > 0, det F > 0 at every point;
+ * measured: a cup relaxing at eps = 0.04 had 2 such nodes after 20 steps,
+ * 20 after 30). The pair {node at (r_a, z_a), ghost at (-r_a, z_a)} is the
+ * same point set whichever of the two is called real, and the motion is odd
+ * in r, so such a node is mirrored: X'_a = (-r_a, z_a), its ghost at (r_a,
+ * z_a). The motion is unchanged; its new coefficients are X' (not y), so
+ * after a reset continue from ves_reconnect_nodes(r)->x. */
 #ifndef VES_RECONNECT_H
 #define VES_RECONNECT_H
 
@@ -51,6 +62,7 @@ typedef struct {
                           max over the points of cond_2 F (>= 1) */
   double det_min;      /* min over the points of det F */
   double h_min, h_max; /* range of the new spacings h'_a (units R0) */
+  int mirrored;        /* nodes with r_a < 0 in y, mirrored into r > 0 */
   ves_quad_info qinfo; /* the table build of the new reference */
   double seconds;      /* wall time of the whole reset */
 } ves_reconnect_info;
@@ -59,16 +71,18 @@ typedef struct {
  *   m     the current model (borrowed; read only); its nodes, quadrature
  *         (with tables), point data and parameters (c0 as in force) are used
  *   y     2n current positions (r_a, z_a) of the real nodes (borrowed); axis
- *         nodes must have r_a = 0 exactly, every other node r_a > 0 (it gets
- *         a ghost); wall nodes keep their flag and stay fixed at y^a
+ *         nodes must have r_a = 0 exactly, every other node r_a != 0 (it gets
+ *         a ghost; r_a < 0 is mirrored, above); wall nodes keep their flag
+ *         and stay fixed at y^a
  *   lme   LME parameters of the new tables (borrowed; those of the setup)
  *   out   the new reference, taken by the caller (ves_reconnect_destroy)
- * The new model's reference positions (ves_model_reference) are y, its
+ * The new model's reference positions (ves_model_reference) are y with the
+ * mirrored nodes' r negated (= ves_reconnect_nodes(out)->x), its
  * fixed dofs those of the old one, its parameters copied from m.
  * Allocates (a once-per-reset operation: ~ the cost of the setup's tables).
  * Returns VES_OK; VES_ERR_ARG (NULL, non-finite y, an axis node with
  * r != 0, invalid lme); VES_ERR_DOMAIN (det F <= 0 or r <= 0 at a point, or
- * a non-axis node with r <= 0: y is not admissible); VES_ERR_GEOM (two nodes
+ * a non-axis node with r = 0, on its own ghost: y is not admissible); VES_ERR_GEOM (two nodes
  * at the same position); VES_ERR_NOCONV / VES_ERR_ARG from the LME tables
  * (a point outside the hull of its new neighbours); VES_ERR_ALLOC. */
 ves_status ves_reconnect_create(const ves_model *m, const double *y, const ves_lme_params *lme,
