@@ -37,6 +37,17 @@ static void gp_quote(FILE *f, const char *s) {
   fputc('\'', f);
 }
 
+/* A file name for a title in gnuplot's enhanced text: its control
+ * characters escaped ("run_1" would print "run" with a subscript 1). */
+static void gp_escape(char *out, size_t n, const char *s) {
+  size_t k = 0;
+  for (; *s && k + 2 < n; s++) {
+    if (strchr("_^@&~{}\\", *s)) out[k++] = '\\';
+    out[k++] = *s;
+  }
+  out[k] = 0;
+}
+
 static void gp_output(FILE *f, const ves_plot_params *p, int fig) {
   char path[PATH_MAX];
   snprintf(path, sizeof path, "%s/%s_%s.png", p->outdir, p->stem, ves_plot_figures[fig]);
@@ -89,7 +100,9 @@ static void fig_energy(FILE *f, const ves_plot_params *p, const ves_io_info *in,
   gp_output(f, p, 0);
   fprintf(f, "set multiplot layout 2,1 title ");
   char title[256];
-  snprintf(title, sizeof title, "%s: %d nodes, %s backend, %ld steps", p->stem, in->n, in->backend,
+  char stem[96]; /* a long name is cut: it is a title */
+  gp_escape(stem, sizeof stem, p->stem);
+  snprintf(title, sizeof title, "%s: %d nodes, %s backend, %ld steps", stem, in->n, in->backend,
            R);
   gp_quote(f, title);
   fprintf(f,
@@ -138,8 +151,10 @@ static ves_status fig_snapshots(FILE *f, ves_io *io, const ves_plot_params *p, c
   gp_output(f, p, 1);
   fprintf(f, "set multiplot layout %d,%d title ", rows, cols);
   char title[256];
+  char stem[96]; /* a long name is cut: it is a title */
+  gp_escape(stem, sizeof stem, p->stem);
   snprintf(title, sizeof title,
-           "%s: nodes y^a(t) coloured by {/Symbol f} (%d nodes, mirrored at r = 0)", p->stem, n);
+           "%s: nodes y^a(t) coloured by {/Symbol f} (%d nodes, mirrored at r = 0)", stem, n);
   gp_quote(f, title);
   fprintf(f,
           "\nset size ratio -1\nset xrange [%g:%g]\nset yrange [%g:%g]\n"
@@ -179,7 +194,9 @@ static void fig_constraints(FILE *f, const ves_plot_params *p, const ves_io_info
   gp_output(f, p, 2);
   fprintf(f, "set multiplot layout 2,1 title ");
   char title[256];
-  snprintf(title, sizeof title, "%s: constraints (values below %g drawn at %g)", p->stem,
+  char stem[96]; /* a long name is cut: it is a title */
+  gp_escape(stem, sizeof stem, p->stem);
+  snprintf(title, sizeof title, "%s: constraints (values below %g drawn at %g)", stem,
            PLOT_FLOOR, PLOT_FLOOR);
   gp_quote(f, title);
   fprintf(f, "\nset logscale x\nset format x '10^{%%L}'\nset grid\nset lmargin 12\n"
