@@ -14,7 +14,11 @@
  *
  * Adaptivity (paper Sec. 4, Fig. 4): dt_next = dt * clamp(dE_target / |dE|,
  * 1/2, growth_max), not grown when the backend needed more than iter_target
- * iterations, capped by dt_max and by the next protocol event.
+ * iterations, capped by dt_max and by the next protocol event. When C0
+ * switches, dt starts again from dt_initial (no larger than it was): the
+ * step grown on the old landscape is far too large for the new one (measured:
+ * a stomatocyte relaxed to dt* = 0.48, then a C0 pulse; Newton failed at
+ * 0.48 and the halvings cost ~100 s each, 100 iterations apiece).
  *
  * Reconnection (paper Sec. 3.3; DESIGN.md §4): after an accepted step, when
  * ves_reconnect_due says so, the current y becomes the new reference
@@ -199,8 +203,9 @@ ves_status ves_sim_step(ves_sim *s, ves_step_report *rep) {
   if (s->ip.c0_time >= 0 && s->t >= s->ip.c0_time - tiny &&
       !(s->ip.c0_until >= 0 && s->t >= s->ip.c0_until - tiny))
     c0 = s->ip.c0_after;
-  if (c0 != s->c0) {
+  if (c0 != s->c0) { /* a new energy landscape: dt starts again from dt_initial */
     s->c0 = c0;
+    s->dt = fmin(s->dt, s->ip.dt_initial);
     VES_CALL(ves_model_set_c0(s->model, s->c0));
     VES_CALL(ves_model_eval(s->model, s->y, VES_F_E, &s->E, NULL, NULL, NULL, NULL, NULL));
   }

@@ -179,6 +179,29 @@ static void test_protocols(void **state) {
   ves_setup_destroy(&s);
 }
 
+/* A C0 switch restarts the adaptive dt from dt_initial: the step grown on
+ * the old landscape is not trusted on the new one. */
+static void test_c0_switch_restarts_dt(void **state) {
+  (void)state;
+  ves_setup *s = small_setup();
+  ves_integrate_params ip;
+  ves_integrate_params_default(&ip);
+  ip.t_end = 0.05, ip.dt_initial = 1e-3, ip.dt_max = 1.0, ip.dE_target = 10.0; /* dt doubles */
+  ip.c0_time = 0.02, ip.c0_after = 1.0;
+  ves_sim *sim = make_sim(s, "newton", &ip);
+  ves_step_report rep;
+  double before = 0, after = 0;
+  while (ves_sim_step(sim, &rep) == VES_OK) {
+    if (rep.c0 == 0.0) before = rep.dt;
+    else if (after == 0) after = rep.dt; /* the first step on the new C0 */
+  }
+  printf("# last dt* before the switch %.4g, first after %.4g\n", before, after);
+  assert_true(before > 2 * ip.dt_initial); /* it had grown */
+  assert_true(after == ip.dt_initial);
+  ves_sim_destroy(&sim);
+  ves_setup_destroy(&s);
+}
+
 /* No acceptable step: a solver allowed a single iteration fails at every dt;
  * the run stops below dt_min with an error and the state untouched. */
 static void test_failure_keeps_state(void **state) {
@@ -385,6 +408,7 @@ int main(void) {
       cmocka_unit_test(test_reconnect_off),       cmocka_unit_test(test_relaxation),
       cmocka_unit_test(test_near_equilibrium),
       cmocka_unit_test(test_euler_adaptive),    cmocka_unit_test(test_protocols),
+      cmocka_unit_test(test_c0_switch_restarts_dt),
       cmocka_unit_test(test_failure_keeps_state), cmocka_unit_test(test_reconnect_every),
       cmocka_unit_test(test_reconnect_threshold), cmocka_unit_test(test_reconnect_failure),
   };
