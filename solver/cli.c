@@ -215,9 +215,19 @@ static void usage_run(FILE *f) {
           "SIGINT/SIGTERM after the current step (state saved; a second signal kills).\n");
 }
 
-/* Set by SIGINT/SIGTERM: stop after the current step. */
+/* Set by SIGINT/SIGTERM: stop after the current step (which can take
+ * minutes: up to max_iter iterations and its halvings). The handler then
+ * restores the default action, so a second signal ends the run at once;
+ * the file keeps every step written before it (flushed per step). */
 static volatile sig_atomic_t stop_signal = 0;
-static void on_signal(int sig) { stop_signal = sig; }
+static void on_signal(int sig) {
+  static const char msg[] = "\nvesica run: stopping after the current step (signal again to "
+                            "stop at once)\n";
+  stop_signal = sig;
+  signal(sig, SIG_DFL);
+  ssize_t w = write(2, msg, sizeof msg - 1);
+  (void)w;
+}
 
 /* Everything a run holds. */
 typedef struct {
