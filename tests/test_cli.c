@@ -373,13 +373,17 @@ static void same_series(ves_io *a, ves_io *b, long rows) {
 
 /* A run that reset its reference configuration before its last snapshot
  * cannot be continued (the snapshot holds y, not the reference): --restart
- * refuses with exit 2 and leaves the file as it was. */
+ * refuses with exit 2 and leaves the file as it was. The same run carries a
+ * C0 pulse over its second step: E* jumps up and down with C0, and `info`
+ * still calls the energy monotone (rises across a switch do not count). */
 static void test_restart_after_reset(void **state) {
   (void)state;
   char ini[128], part[128];
   tmp_path(ini, sizeof ini, "reset.ini");
   tmp_path(part, sizeof part, "reset.h5");
-  write_file(ini, "[time]\nt_end = 0.1\n[output]\nsnapshot_every = 2\n[reconnect]\nevery = 2\n");
+  write_file(ini, "[time]\nt_end = 0.1\nadaptive = 0\n[output]\nsnapshot_every = 2\n"
+                  "[reconnect]\nevery = 2\n"
+                  "[protocol]\nc0_time = 0.005\nc0_after = 3\nc0_until = 0.01\n");
   result r;
   run(&r, "run", ini, TINY, "--out", part, "--quiet", "--max-steps", "3", NULL);
   if (r.code) fail_msg("run: exit %d: %s", r.code, r.err);
@@ -389,7 +393,16 @@ static void test_restart_after_reset(void **state) {
   ves_io_snapinfo si;
   assert_int_equal(ves_io_read_snapshot(b, S - 1, NULL, NULL, &si), VES_OK);
   assert_int_equal(si.reconnections, 1); /* the reset after step 2 */
+  double E[3], c0[3];
+  assert_int_equal(ves_io_read_series(b, "E", E), VES_OK);
+  assert_int_equal(ves_io_read_series(b, "c0", c0), VES_OK);
+  printf("# pulse: c0 %g %g %g, E* %.6f %.6f %.6f\n", c0[0], c0[1], c0[2], E[0], E[1], E[2]);
+  assert_true(c0[0] == 0 && c0[1] == 3 && c0[2] == 0);
+  assert_true(E[1] > E[0] && E[2] < E[1]); /* the jumps that must not count */
   ves_io_close(&b);
+  run(&r, "info", part, NULL);
+  assert_int_equal(r.code, 0);
+  assert_non_null(strstr(r.out, "energy_monotone = yes\n"));
   run(&r, "run", "--restart", part, "--quiet", NULL);
   printf("# restart after a reset -> %d: %s", r.code, r.err);
   assert_int_equal(r.code, 2);
