@@ -103,6 +103,9 @@ bench: deps
 	  echo "== $$b"; OPENBLAS_NUM_THREADS=1 $$b || exit 1; done
 	@case sphere_convergence in *"$(BENCH_ONLY)"*) \
 	  echo "== bench/sphere_convergence.sh"; sh bench/sphere_convergence.sh $(BUILD)/vesica;; esac
+	@case reconnect_table in *"$(BENCH_ONLY)"*) \
+	  echo "== bench/reconnect_table.sh"; OPENBLAS_NUM_THREADS=1 VESICA=$(BUILD)/vesica \
+	  sh bench/reconnect_table.sh;; esac
 
 # The default run: the oblate relaxation of problems/oblate.ini (paper
 # Figs. 3-4, ~1.5 min on 2 cores) to results/oblate.h5 (+ .xdmf) and its
