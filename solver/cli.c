@@ -20,6 +20,7 @@
 #include "ves/integrate.h"
 #include "ves/io.h"
 #include "ves/plot.h"
+#include "ves/reconnect.h"
 #include "ves/setup.h"
 #include "clock_impl.h"
 
@@ -293,6 +294,8 @@ static int build(run_ctx *r) {
   ip.c0_time = c->c0_time, ip.c0_after = c->c0_after, ip.c0_until = c->c0_until;
   ip.reconnect_every = c->reconnect_every, ip.reconnect_cond_max = c->reconnect_cond_max;
   ip.reconnect_det_min = c->reconnect_det_min;
+  ip.reconnect_nodes =
+      strcmp(c->reconnect_nodes, "motion") ? VES_RESET_NODES_COEF : VES_RESET_NODES_MOTION;
   ip.lme = lp; /* the setup's tables were built with these */
   if ((st = ves_sim_create(r->setup->model, r->bk, &bo, &ip, &r->sim)) != VES_OK) {
     fprintf(stderr, "vesica run: %s: cannot start the time loop: %s\n", r->label,
@@ -414,10 +417,10 @@ static int loop(run_ctx *r) {
     }
     if (rep.reconnected && !r->quiet)
       fprintf(stderr,
-              "%sstep %ld: reference reset #%d (max cond F %.3g, min det F %.3g, %d node(s) "
-              "mirrored across the axis, E* %.9g -> %.9g)\n",
+              "%sstep %ld: reference reset #%d (max cond F %.3g, min det F %.3g, max "
+              "|y^a - y(X_a)|/h_a %.3g, %d node(s) mirrored across the axis, E* %.9g -> %.9g)\n",
               tty ? "\n" : "", rep.step, ves_sim_reconnections(r->sim), rep.cond, rep.det_min,
-              rep.mirrored, rep.E, rep.E_reset);
+              rep.shift, rep.mirrored, rep.E, rep.E_reset);
     if (rep.reconnect_status != VES_OK) /* a warning even with --quiet: a reset was skipped */
       fprintf(stderr,
               "%svesica run: warning: step %ld: the reference reset that was due failed (%s); "

@@ -117,6 +117,10 @@ static const key_spec KEYS[] = {
     {"reconnect", "det_min", KEY_DOUBLE, OFF(reconnect_det_min), "0", 0, 1, NULL,
      "reset when min det F (meridian area ratio since the last reset) drops below this; 0: "
      "off, else below 1"},
+    {"reconnect", "nodes", KEY_STRING, OFF(reconnect_nodes), "coefficients", 0, 0,
+     "coefficients|motion",
+     "new reference nodes: the nodal coefficients y^a (paper) or the motion y(X_a) of the "
+     "old nodes"},
     {"output", "snapshot_every", KEY_INT, OFF(snapshot_every), "10", 1, 1000000, NULL,
      "accepted steps between snapshots of nodes and phi"},
 };

@@ -80,6 +80,7 @@ void ves_integrate_params_default(ves_integrate_params *p) {
   p->reconnect_every = 0;
   p->reconnect_cond_max = 0.0;
   p->reconnect_det_min = 0.0;
+  p->reconnect_nodes = VES_RESET_NODES_COEF;
   ves_lme_params_default(&p->lme);
 }
 
@@ -107,7 +108,9 @@ ves_status ves_sim_create(ves_model *model, const ves_backend_type *backend,
             VES_ERR_ARG);
   VES_CHECK(ip->reconnect_every >= 0 &&
                 (ip->reconnect_cond_max == 0 || ip->reconnect_cond_max > 1) &&
-                ip->reconnect_det_min >= 0 && ip->reconnect_det_min < 1,
+                ip->reconnect_det_min >= 0 && ip->reconnect_det_min < 1 &&
+                (ip->reconnect_nodes == VES_RESET_NODES_COEF ||
+                 ip->reconnect_nodes == VES_RESET_NODES_MOTION),
             VES_ERR_ARG);
   VES_CHECK(ip->c0_until < 0 || (ip->c0_time >= 0 && ip->c0_until > ip->c0_time), VES_ERR_ARG);
   VES_CHECK(ip->lme.gamma > 0 && ip->lme.tol0 > 0 && ip->lme.tol0 < 1, VES_ERR_ARG);
@@ -159,7 +162,8 @@ static ves_status reconnect(ves_sim *s, const ves_step_params *sp) {
   ves_step *step = NULL;
   void *bstate = NULL;
   double E, A, V;
-  ves_status st = ves_reconnect_create(s->model, s->y, &s->ip.lme, &nr);
+  ves_status st = ves_reconnect_create(s->model, s->y, &s->ip.lme,
+                                       (ves_reset_nodes)s->ip.reconnect_nodes, &nr);
   ves_model *m = st == VES_OK ? ves_reconnect_model(nr) : NULL;
   const double *y = st == VES_OK ? ves_reconnect_nodes(nr)->x : NULL;
   if (st == VES_OK) st = ves_step_create(m, &step);
@@ -271,6 +275,7 @@ ves_status ves_sim_step(ves_sim *s, ves_step_report *rep) {
             rep->cond = info.cond_max, rep->det_min = info.det_min;
             rep->E_reset = s->E / ves_model_get_k(s->model);
             rep->mirrored = info.mirrored;
+            rep->shift = info.shift_max;
           }
         }
       }

@@ -1,6 +1,6 @@
 /* vesica — reset of the reference configuration (paper Sec. 3.3, Fig. 2):
- * new nodes X' = y^a, new LME tables at the moved points y(Xh), weights
- * w det F, point data of phi0 pushed forward (Eqs. 2-3), model rebuilt.
+ * new nodes X' = y^a (or y(X_a), ves_reset_nodes), new LME tables at the moved points y(Xh),
+ * weights w det F, point data of phi0 pushed forward (Eqs. 2-3), model rebuilt.
  *
  * Why E, A, V are preserved. Each is 2 pi sum_alpha w_alpha e(q_alpha),
  * e = f(phi0 data, F, G, r) det F r, and f depends on the point data and on
@@ -134,13 +134,52 @@ ves_status ves_reconnect_push_forward(const double F[4], const double G[6], cons
   return VES_OK;
 }
 
-/* The new node set: X'_a = y^a, flags and box copied, a ghost (-r_a, z_a)
+/* The motion at the real nodes, y(X_a) (into xm[2n]), and max_a |y^a -
+ * y(X_a)| / h_a. A point set at the nodes gets its own tables on the old
+ * basis (the cost of ~n/nq of a table build). Wall nodes keep y^a (fixed
+ * dofs; they are evaluated just off the hull, as in ves_io_nodal_phi, only so
+ * the point set is valid) and do not count in the shift; axis nodes get r = 0
+ * exactly (the motion is odd in R: rounding otherwise). */
+static ves_status node_motion(const ves_nodes *nodes, const double *y, const ves_lme_params *lme,
+                              double *xm, double *shift_max) {
+  const int n = nodes->n;
+  ves_status s = VES_ERR_ALLOC;
+  ves_quad *pq = NULL;
+  double *x = malloc(2 * (size_t)n * sizeof *x), *w = malloc((size_t)n * sizeof *w);
+  if (!x || !w) goto done;
+  for (int a = 0; a < n; a++) {
+    double d = 1e-3 * nodes->h[a];
+    x[2 * a] = nodes->x[2 * a], x[2 * a + 1] = nodes->x[2 * a + 1], w[a] = 1.0;
+    if (nodes->flag[a] & VES_NODE_WALL) {
+      if (x[2 * a] >= nodes->LR - d) x[2 * a] = nodes->LR - d;
+      if (x[2 * a + 1] >= nodes->LZ - d) x[2 * a + 1] = nodes->LZ - d;
+      if (x[2 * a + 1] <= -nodes->LZ + d) x[2 * a + 1] = -nodes->LZ + d;
+    }
+  }
+  if ((s = ves_quad_create_points(n, x, w, 0, NULL, &pq)) != VES_OK) goto done;
+  if ((s = ves_quad_tables(pq, nodes, lme, NULL)) != VES_OK) goto done;
+  *shift_max = 0.0;
+  for (int a = 0; a < n; a++) {
+    double mo[12];
+    ves_quad_motion(pq, y, a, 0, mo);
+    if (nodes->flag[a] & VES_NODE_AXIS) mo[0] = 0.0;
+    if (nodes->flag[a] & VES_NODE_WALL) mo[0] = y[2 * a], mo[6] = y[2 * a + 1];
+    *shift_max = fmax(*shift_max, hypot(mo[0] - y[2 * a], mo[6] - y[2 * a + 1]) / nodes->h[a]);
+    xm[2 * a] = mo[0], xm[2 * a + 1] = mo[6];
+  }
+  s = VES_OK;
+done:
+  ves_quad_destroy(&pq);
+  free(x), free(w);
+  return s;
+}
+
+/* The new node set: X'_a = y[a] (y^a or y(X_a)), flags and box copied, a ghost (-r_a, z_a)
  * for every non-axis node (a node with r_a < 0 is mirrored: X'_a = (|r_a|,
  * z_a), the same point set; see the header), h'_a measured on real and ghost
  * nodes together (as ves_nodes_generate does). The struct is allocated with
  * malloc like geom.cpp's, so ves_nodes_destroy frees it. */
-static ves_status new_nodes(const ves_nodes *old, const double *y, ves_nodes **out,
-                            int *mirrored) {
+static ves_status new_nodes(const ves_nodes *old, const double *y, ves_nodes **out, int *mirrored) {
   const int n = old->n;
   ves_status s = VES_ERR_ALLOC;
   double *xe = NULL, *he = NULL;
@@ -186,10 +225,11 @@ fail:
 }
 
 ves_status ves_reconnect_create(const ves_model *m, const double *y, const ves_lme_params *lme,
-                                ves_reconnect **out) {
+                                ves_reset_nodes where, ves_reconnect **out) {
   VES_CHECK(out, VES_ERR_ARG);
   *out = NULL;
   VES_CHECK(m && y && lme, VES_ERR_ARG);
+  VES_CHECK(where == VES_RESET_NODES_COEF || where == VES_RESET_NODES_MOTION, VES_ERR_ARG);
   VES_CHECK(isfinite(ves_lme_radius(lme, 1.0)), VES_ERR_ARG);
   const double t0 = ves_wall_seconds();
   const ves_nodes *nodes = ves_model_nodes(m);
@@ -198,9 +238,9 @@ ves_status ves_reconnect_create(const ves_model *m, const double *y, const ves_l
   VES_CHECK(finite_vec(2 * (size_t)n, y), VES_ERR_ARG);
   ves_status s = VES_ERR_ALLOC;
   double *pd = malloc(6 * (size_t)nq * sizeof *pd), *xq = malloc(2 * (size_t)nq * sizeof *xq);
-  double *wq = malloc((size_t)nq * sizeof *wq);
+  double *wq = malloc((size_t)nq * sizeof *wq), *xn = malloc(2 * (size_t)n * sizeof *xn);
   ves_reconnect *r = calloc(1, sizeof *r);
-  if (!pd || !xq || !wq || !r) goto fail;
+  if (!pd || !xq || !wq || !xn || !r) goto fail;
   r->info.cond_max = 1.0, r->info.det_min = INFINITY;
 
   /* the moved points, their weights and pushed-forward data (Eqs. 2-3) */
@@ -221,7 +261,10 @@ ves_status ves_reconnect_create(const ves_model *m, const double *y, const ves_l
     wq[al] = q->w[al] * J;                      /* w' = w det F */
   }
 
-  if ((s = new_nodes(nodes, y, &r->nodes, &r->info.mirrored)) != VES_OK) goto fail;
+  /* the motion at the nodes: the new nodes, or only the measured shift */
+  if ((s = node_motion(nodes, y, lme, xn, &r->info.shift_max)) != VES_OK) goto fail;
+  if (where == VES_RESET_NODES_COEF) memcpy(xn, y, 2 * (size_t)n * sizeof *xn);
+  if ((s = new_nodes(nodes, xn, &r->nodes, &r->info.mirrored)) != VES_OK) goto fail;
   if ((s = ves_quad_create_points(nq, xq, wq, q->ntri, q->tri, &r->quad)) != VES_OK) goto fail;
   if ((s = ves_quad_tables(r->quad, r->nodes, lme, &r->info.qinfo)) != VES_OK) goto fail;
   ves_model_params par;
@@ -232,11 +275,11 @@ ves_status ves_reconnect_create(const ves_model *m, const double *y, const ves_l
     r->info.h_min = fmin(r->info.h_min, r->nodes->h[a]),
     r->info.h_max = fmax(r->info.h_max, r->nodes->h[a]);
   r->info.seconds = ves_wall_seconds() - t0;
-  free(pd), free(xq), free(wq);
+  free(pd), free(xq), free(wq), free(xn);
   *out = r;
   return VES_OK;
 fail:
-  free(pd), free(xq), free(wq);
+  free(pd), free(xq), free(wq), free(xn);
   ves_reconnect_destroy(&r);
   return s;
 }

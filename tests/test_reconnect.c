@@ -19,6 +19,7 @@
 #include <string.h>
 
 #include "ves/backend.h"
+#include "ves/io.h"
 #include "ves/reconnect.h"
 #include "ves/setup.h"
 #include "ves/step.h"
@@ -103,7 +104,7 @@ static int group_teardown(void **state) {
 
 static ves_reconnect *reset(const ves_model *m, const double *y) {
   ves_reconnect *r = NULL;
-  ves_status st = ves_reconnect_create(m, y, &P->lme, &r);
+  ves_status st = ves_reconnect_create(m, y, &P->lme, VES_RESET_NODES_COEF, &r);
   if (st != VES_OK) fail_msg("reset: %s", ves_status_str(st));
   return r;
 }
@@ -703,6 +704,93 @@ static void test_next_step_deformed(void **state) {
 }
 
 /* ------------------------------------------------------------------------ */
+/* New nodes at the motion of the old ones                                   */
+/* ------------------------------------------------------------------------ */
+
+/* VES_RESET_NODES_MOTION: X'_a = y(X_a). Checked: z(X_a) of the non-wall
+ * nodes against ves_io_nodal_phi (an independent evaluation of an even field,
+ * its own neighbour search) to 1e-13 (rounding of a sum of ~20 terms of size
+ * 2); axis nodes at r = 0 exactly, every other r > 0; wall nodes at y^a;
+ * the shift max |y^a - y(X_a)| / h_a the same in both modes, and 0 to
+ * rounding (1e-12) on a stretch y = (1.2 R, 0.9 Z + 0.05), which the basis
+ * reproduces exactly. E, A, V are preserved as with the paper's nodes
+ * (1e-12), and the next step agrees with the step without a reset as
+ * test_next_step_deformed requires of the paper's nodes (same bounds). */
+static void test_motion_nodes(void **state) {
+  (void)state;
+  const int n = P->n, n2 = 2 * n;
+  const ves_nodes *n0 = P->su->nodes;
+  ves_model *m0 = P->su->model;
+  ves_reconnect *rc = reset(m0, P->yd), *r = NULL;
+  assert_int_equal(ves_reconnect_create(m0, P->yd, &P->lme, VES_RESET_NODES_MOTION, &r), VES_OK);
+  ves_reconnect_info ic, im;
+  ves_reconnect_get_info(rc, &ic);
+  ves_reconnect_get_info(r, &im);
+  const ves_nodes *nn = ves_reconnect_nodes(r);
+  double *zc = xmalloc(n), *zx = xmalloc(n), ez = 0;
+  for (int a = 0; a < n; a++) zc[a] = P->yd[2 * a + 1];
+  assert_int_equal(ves_io_nodal_phi(n0, zc, &P->lme, zx), VES_OK);
+  int wall = 0, axis = 0;
+  for (int a = 0; a < n; a++) {
+    if (n0->flag[a] & VES_NODE_WALL) {
+      assert_true(nn->x[2 * a] == P->yd[2 * a] && nn->x[2 * a + 1] == P->yd[2 * a + 1]);
+      wall++;
+      continue;
+    }
+    if (n0->flag[a] & VES_NODE_AXIS)
+      assert_true(nn->x[2 * a] == 0.0), axis++;
+    else
+      assert_true(nn->x[2 * a] > 0.0);
+    ez = fmax(ez, fabs(nn->x[2 * a + 1] - zx[a]));
+  }
+  printf("# motion nodes at yd: shift max |y^a - y(X_a)|/h_a = %.3e (paper's nodes: %.3e), "
+         "%d mirrored / %d; z(X_a) vs ves_io_nodal_phi %.1e (%d wall, %d axis nodes)\n",
+         im.shift_max, ic.shift_max, im.mirrored, ic.mirrored, ez, wall, axis);
+  assert_true(ez <= 1e-13);
+  assert_true(im.shift_max == ic.shift_max && im.shift_max > 0);
+  assert_true(wall > 0 && axis > 0);
+
+  /* invariance: y on the old model, the new nodes on the new one */
+  ves_model *m1 = ves_reconnect_model(r);
+  double v0[3], v1[3], va[3], vb[3], la[2], lb[2];
+  eav(m0, P->yd, v0);
+  eav(m1, nn->x, v1);
+  printf("# motion nodes: E, A, V relative change %.1e %.1e %.1e\n", v1[0] / v0[0] - 1,
+         v1[1] / v0[1] - 1, v1[2] / v0[2] - 1);
+  for (int k = 0; k < 3; k++) assert_true(fabs(v1[k] / v0[k] - 1) <= 1e-12);
+
+  /* the next step, as test_next_step_deformed */
+  double *ya = xmalloc(n2), *yb = xmalloc(n2);
+  ves_backend_stats sa, sb;
+  newton_step(m0, P->yd, 1e-2, v0[1], v0[2], ya, la, &sa);
+  newton_step(m1, nn->x, 1e-2, v0[1], v0[2], yb, lb, &sb);
+  eav(m0, ya, va);
+  eav(m1, yb, vb);
+  const step_diff sd = compare_steps(m0, m1, P->yd, ya, yb);
+  const double dE = fabs(vb[0] - va[0]) / (v0[0] - va[0]);
+  printf("# motion nodes, dt = 1e-2: %d / %d Newton iterations; E* -> %.10f / %.10f (difference "
+         "%.1e of the decrement); material points: max %.1e of a motion %.1e, L2 %.1e\n",
+         sa.iterations, sb.iterations, va[0], vb[0], dE, sd.pt_max, sd.pt_step, sd.pt_l2);
+  assert_true(dE <= 1e-3);
+  for (int k = 1; k < 3; k++) assert_true(fabs(vb[k] / v0[k] - 1) <= 1e-10);
+  assert_true(sd.pt_l2 <= 1e-2);
+  assert_true(sd.pt_max <= 2e-2 * sd.pt_step);
+  ves_reconnect_destroy(&r);
+  ves_reconnect_destroy(&rc);
+
+  /* a stretch: y(X_a) = y^a to rounding */
+  double *ys = xmalloc(n2);
+  for (int a = 0; a < n; a++)
+    ys[2 * a] = 1.2 * P->X[2 * a], ys[2 * a + 1] = 0.9 * P->X[2 * a + 1] + 0.05;
+  assert_int_equal(ves_reconnect_create(m0, ys, &P->lme, VES_RESET_NODES_MOTION, &r), VES_OK);
+  ves_reconnect_get_info(r, &im);
+  printf("# stretch: shift %.1e\n", im.shift_max);
+  assert_true(im.shift_max <= 1e-12);
+  ves_reconnect_destroy(&r);
+  free(zc), free(zx), free(ya), free(yb), free(ys);
+}
+
+/* ------------------------------------------------------------------------ */
 /* Distortion, policy, constructors, errors                                  */
 /* ------------------------------------------------------------------------ */
 
@@ -897,17 +985,21 @@ static void test_errors(void **state) {
   double *y = xmalloc(n2), c, d;
   ves_reconnect *r = (ves_reconnect *)1;
   /* arguments */
-  assert_int_equal(ves_reconnect_create(NULL, P->yd, &P->lme, &r), VES_ERR_ARG);
+  assert_int_equal(ves_reconnect_create(NULL, P->yd, &P->lme, VES_RESET_NODES_COEF, &r),
+                   VES_ERR_ARG);
   assert_null(r);
-  assert_int_equal(ves_reconnect_create(m, NULL, &P->lme, &r), VES_ERR_ARG);
-  assert_int_equal(ves_reconnect_create(m, P->yd, NULL, &r), VES_ERR_ARG);
-  assert_int_equal(ves_reconnect_create(m, P->yd, &P->lme, NULL), VES_ERR_ARG);
+  assert_int_equal(ves_reconnect_create(m, NULL, &P->lme, VES_RESET_NODES_COEF, &r), VES_ERR_ARG);
+  assert_int_equal(ves_reconnect_create(m, P->yd, NULL, VES_RESET_NODES_COEF, &r), VES_ERR_ARG);
+  assert_int_equal(ves_reconnect_create(m, P->yd, &P->lme, VES_RESET_NODES_COEF, NULL),
+                   VES_ERR_ARG);
   ves_lme_params bad = P->lme;
   bad.gamma = 0;
-  assert_int_equal(ves_reconnect_create(m, P->yd, &bad, &r), VES_ERR_ARG);
+  assert_int_equal(ves_reconnect_create(m, P->yd, &bad, VES_RESET_NODES_COEF, &r), VES_ERR_ARG);
+  assert_int_equal(ves_reconnect_create(m, P->yd, &P->lme, (ves_reset_nodes)2, &r), VES_ERR_ARG);
+  assert_null(r);
   memcpy(y, P->yd, n2 * sizeof *y);
   y[7] = NAN;
-  assert_int_equal(ves_reconnect_create(m, y, &P->lme, &r), VES_ERR_ARG);
+  assert_int_equal(ves_reconnect_create(m, y, &P->lme, VES_RESET_NODES_COEF, &r), VES_ERR_ARG);
   assert_int_equal(ves_reconnect_distortion(m, y, &c, &d), VES_ERR_ARG);
   assert_int_equal(ves_reconnect_distortion_points(m, y, NULL, NULL), VES_ERR_ARG);
   assert_int_equal(ves_reconnect_distortion(NULL, P->yd, &c, &d), VES_ERR_ARG);
@@ -920,11 +1012,11 @@ static void test_errors(void **state) {
       axis = a;
   assert_true(axis >= 0);
   y[2 * axis] = 1e-3;
-  assert_int_equal(ves_reconnect_create(m, y, &P->lme, &r), VES_ERR_ARG);
+  assert_int_equal(ves_reconnect_create(m, y, &P->lme, VES_RESET_NODES_COEF, &r), VES_ERR_ARG);
   assert_null(r);
   /* a fold (y_z = -Z): det F = -1 at every point */
   for (int a = 0; a < P->n; a++) y[2 * a] = P->X[2 * a], y[2 * a + 1] = -P->X[2 * a + 1];
-  assert_int_equal(ves_reconnect_create(m, y, &P->lme, &r), VES_ERR_DOMAIN);
+  assert_int_equal(ves_reconnect_create(m, y, &P->lme, VES_RESET_NODES_COEF, &r), VES_ERR_DOMAIN);
   /* a node pushed through the axis: its points keep r > 0 and det F > 0
    * (the basis is smooth); the node is mirrored (it and its ghost swap
    * roles: the same point set), and E, A, V are preserved as by any reset */
@@ -943,7 +1035,7 @@ static void test_errors(void **state) {
     ves_quad_motion(P->su->quad, y, al, 0, mo);
     rmin = fmin(rmin, mo[0]);
   }
-  ves_status st = ves_reconnect_create(m, y, &P->lme, &r);
+  ves_status st = ves_reconnect_create(m, y, &P->lme, VES_RESET_NODES_COEF, &r);
   printf("# node %d at R = %.4f moved to r = %.4f: det F >= %.3f, r >= %.1e at the points, reset: "
          "%s\n",
          near, P->X[2 * near], y[2 * near], dmin, rmin, ves_status_str(st));
@@ -967,7 +1059,7 @@ static void test_errors(void **state) {
   }
   /* a node on the axis itself (on its own ghost): refused */
   y[2 * near] = 0.0;
-  assert_int_equal(ves_reconnect_create(m, y, &P->lme, &r), VES_ERR_DOMAIN);
+  assert_int_equal(ves_reconnect_create(m, y, &P->lme, VES_RESET_NODES_COEF, &r), VES_ERR_DOMAIN);
   assert_null(r);
   /* two nodes at the same place, the map still admissible at the points */
   memcpy(y, P->X, n2 * sizeof *y);
@@ -983,7 +1075,7 @@ static void test_errors(void **state) {
   }
   y[2 * a0] = P->X[2 * b0], y[2 * a0 + 1] = P->X[2 * b0 + 1];
   assert_int_equal(ves_reconnect_distortion(m, y, NULL, &dmin), VES_OK);
-  st = ves_reconnect_create(m, y, &P->lme, &r);
+  st = ves_reconnect_create(m, y, &P->lme, VES_RESET_NODES_COEF, &r);
   printf("# node %d moved onto node %d (%.4f away): det F >= %.3f, reset: %s\n", a0, b0, best, dmin,
          ves_status_str(st));
   assert_true(dmin > 0);
@@ -1003,6 +1095,7 @@ int main(void) {
       cmocka_unit_test(test_chain),
       cmocka_unit_test(test_next_step_similarity),
       cmocka_unit_test(test_next_step_deformed),
+      cmocka_unit_test(test_motion_nodes),
       cmocka_unit_test(test_distortion_affine),
       cmocka_unit_test(test_due),
       cmocka_unit_test(test_constructors),

@@ -65,6 +65,8 @@ typedef struct {
   int reconnect_every;       /* accepted steps between resets (0: off) */
   double reconnect_cond_max; /* reset when max cond_2 F exceeds this (0: off, else > 1) */
   double reconnect_det_min;  /* reset when min det F drops below this (0: off, else < 1) */
+  char reconnect_nodes[VES_CONFIG_STR]; /* new nodes: "coefficients" (y^a, paper) or "motion"
+                                           (y(X_a)) */
   /* [output] */
   int snapshot_every; /* accepted steps between snapshots */
 } ves_config;

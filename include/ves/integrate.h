@@ -37,6 +37,8 @@ typedef struct {
   int reconnect_every;       /* accepted steps between resets (>= 0; 0: off) */
   double reconnect_cond_max; /* reset when max cond_2 F exceeds this (0: off; else > 1) */
   double reconnect_det_min;  /* reset when min det F drops below this (0: off; else in (0, 1)) */
+  int reconnect_nodes;       /* where the new nodes go: a ves_reset_nodes (reconnect.h);
+                                default VES_RESET_NODES_COEF, the paper's y^a */
   ves_lme_params lme;        /* LME parameters of the new tables: those the model's
                                 tables were built with (config gamma, support_tol) */
 } ves_integrate_params;
@@ -59,6 +61,7 @@ typedef struct {
                                   threshold is on or a reset was made; else 1 and 1) */
   double E_reset;              /* reconnected: E* at y evaluated on the new reference */
   int mirrored;                /* reconnected: nodes mirrored across the axis (ves_reconnect.h) */
+  double shift;                /* reconnected: max_a |y^a - y(X_a)| / h_a (ves_reconnect.h) */
   ves_status reconnect_status; /* VES_OK, or why a due reset failed (the step stands and
                                   the old reference stays in use; tried again next step) */
 } ves_step_report;

@@ -38,7 +38,18 @@
  * same point set whichever of the two is called real, and the motion is odd
  * in r, so such a node is mirrored: X'_a = (-r_a, z_a), its ghost at (r_a,
  * z_a). The motion is unchanged; its new coefficients are X' (not y), so
- * after a reset continue from ves_reconnect_nodes(r)->x. */
+ * after a reset continue from ves_reconnect_nodes(r)->x.
+ *
+ * Where the new nodes go. The paper takes X'_a = y^a. The invariance above
+ * holds for any new node set whose hull holds the moved points (the identity
+ * is reproduced on any node set), so X'_a = y(X_a), the motion of the
+ * material point the node was at, is as valid (VES_RESET_NODES_MOTION). The
+ * two differ by the coefficients' departure from the motion, reported as
+ * shift_max = max_a |y^a - y(X_a)| / h_a: small on a smooth motion, but the
+ * smoothing basis leaves oscillatory coefficient modes nearly free (they
+ * barely move the points), and where they grow the paper's choice builds
+ * the new basis on a scattered node set (bench/RESULTS.md measures both).
+ * Wall nodes keep y^a (fixed dofs); axis nodes keep r = 0. */
 #ifndef VES_RECONNECT_H
 #define VES_RECONNECT_H
 
@@ -63,9 +74,16 @@ typedef struct {
   double det_min;      /* min over the points of det F */
   double h_min, h_max; /* range of the new spacings h'_a (units R0) */
   int mirrored;        /* nodes with r_a < 0 in y, mirrored into r > 0 */
+  double shift_max;    /* max over the non-wall nodes of |y^a - y(X_a)| / h_a (old h_a) */
   ves_quad_info qinfo; /* the table build of the new reference */
   double seconds;      /* wall time of the whole reset */
 } ves_reconnect_info;
+
+/* Where the new reference nodes go (header comment). */
+typedef enum {
+  VES_RESET_NODES_COEF = 0,  /* X'_a = y^a, the nodal coefficients (paper Sec. 3.3) */
+  VES_RESET_NODES_MOTION = 1 /* X'_a = y(X_a), the motion at the old nodes */
+} ves_reset_nodes;
 
 /* Reset the reference configuration of model m to the positions y.
  *   m     the current model (borrowed; read only); its nodes, quadrature
@@ -75,9 +93,10 @@ typedef struct {
  *         a ghost; r_a < 0 is mirrored, above); wall nodes keep their flag
  *         and stay fixed at y^a
  *   lme   LME parameters of the new tables (borrowed; those of the setup)
+ *   where the new node positions: y^a or y(X_a) (above)
  *   out   the new reference, taken by the caller (ves_reconnect_destroy)
- * The new model's reference positions (ves_model_reference) are y with the
- * mirrored nodes' r negated (= ves_reconnect_nodes(out)->x), its
+ * The new model's reference positions (ves_model_reference) are the new
+ * nodes, mirrored ones with r negated (= ves_reconnect_nodes(out)->x), its
  * fixed dofs those of the old one, its parameters copied from m.
  * Allocates (a once-per-reset operation: ~ the cost of the setup's tables).
  * Returns VES_OK; VES_ERR_ARG (NULL, non-finite y, an axis node with
@@ -86,7 +105,7 @@ typedef struct {
  * at the same position); VES_ERR_NOCONV / VES_ERR_ARG from the LME tables
  * (a point outside the hull of its new neighbours); VES_ERR_ALLOC. */
 ves_status ves_reconnect_create(const ves_model *m, const double *y, const ves_lme_params *lme,
-                                ves_reconnect **out);
+                                ves_reset_nodes where, ves_reconnect **out);
 
 /* Free the model, quadrature and nodes; accepts NULL and sets *r to NULL.
  * The model must no longer be in use (step problems and backends on it
