@@ -1,8 +1,9 @@
 #!/bin/sh
 # The effect of the reconnection frequency (issue 6): one problem run with
 # the reference reset every N = 5, 20, 100 steps, by the distortion
-# threshold (max cond F > 2 or min det F < 0.5: reconnect.c's defaults), and
-# never; one table of resets, steps, E* on the way and at the end, the
+# threshold (max cond F > 2 or min det F < 0.5: reconnect.c's defaults), all
+# with the paper's new nodes (y^a), every 20 steps with the new nodes at
+# y(X_a) (m20), and never; one table of resets, steps, E* on the way and at the end, the
 # energy's monotonicity, the cost, and how each run ended.
 #
 #   bench/reconnect_table.sh                 all five runs, one after another
@@ -19,17 +20,18 @@ PROBLEM=${PROBLEM:-problems/stomatocyte_discocyte.ini}
 OUT=${OUT:-results/reconnect}
 TMARK=${TMARK:-5}
 SET=${SET:-}
-ALL="none n5 n20 n100 thr"
+ALL="none n5 n20 n100 thr m20"
 ONLY=${ONLY:-$ALL}
 mkdir -p "$OUT"
 
 args_of() {
   case $1 in
     none) echo "--set reconnect.every=0" ;;
-    n5) echo "--set reconnect.every=5" ;;
-    n20) echo "--set reconnect.every=20" ;;
-    n100) echo "--set reconnect.every=100" ;;
-    thr) echo "--set reconnect.every=0 --set reconnect.cond_max=2 --set reconnect.det_min=0.5" ;;
+    n5) echo "--set reconnect.every=5 --set reconnect.nodes=coefficients" ;;
+    n20) echo "--set reconnect.every=20 --set reconnect.nodes=coefficients" ;;
+    n100) echo "--set reconnect.every=100 --set reconnect.nodes=coefficients" ;;
+    thr) echo "--set reconnect.every=0 --set reconnect.cond_max=2 --set reconnect.det_min=0.5 --set reconnect.nodes=coefficients" ;;
+    m20) echo "--set reconnect.every=20 --set reconnect.nodes=motion" ;;
   esac
 }
 
