@@ -2,6 +2,7 @@
  * mesh, per-step series appended and flushed step by step, snapshots with the
  * integrator state for restart. Layout: include/ves/io.h. */
 #include "ves/io.h"
+#include "ves/quad.h"
 
 #include <errno.h>
 #include <hdf5.h>
@@ -750,63 +751,15 @@ ves_status ves_io_set_setup_seconds(ves_io *io, double seconds) {
 ves_status ves_io_nodal_phi(const ves_nodes *nodes, const double *phi0c, const ves_lme_params *par,
                             double *phi) {
   VES_CHECK(nodes && phi0c && par && phi, VES_ERR_ARG);
-  int n = nodes->n, ne = nodes->n + nodes->ng, cap = 256;
-  ves_status st = VES_ERR_ALLOC;
-  ves_geom_search *search = NULL;
-  double *xe = malloc(2 * (size_t)ne * sizeof *xe), *rad = malloc((size_t)ne * sizeof *rad);
-  double *beta_e = malloc((size_t)ne * sizeof *beta_e);
-  int *idx = malloc((size_t)cap * sizeof *idx);
-  double *xa = malloc(2 * (size_t)cap * sizeof *xa), *beta = malloc((size_t)cap * sizeof *beta);
-  double *tab = malloc(6 * (size_t)cap * sizeof *tab);
-  double *work = malloc((size_t)ves_lme_work_size(cap) * sizeof *work);
-  if (!xe || !rad || !beta_e || !idx || !xa || !beta || !tab || !work) goto done;
-  ves_nodes_extended(nodes, xe);
-  for (int a = 0; a < ne; a++) {
-    double h = nodes->h[a < n ? a : nodes->ghost_of[a - n]];
-    rad[a] = ves_lme_radius(par, h);
-    beta_e[a] = par->gamma / (h * h);
+  ves_quad *pq = NULL;
+  double *f = malloc(6 * (size_t)nodes->n * sizeof *f); /* ves_quad_field's 6 rows a point */
+  ves_status st = f ? ves_quad_create_at_nodes(nodes, &pq) : VES_ERR_ALLOC;
+  if (st == VES_OK) st = ves_quad_tables(pq, nodes, par, NULL);
+  if (st == VES_OK) {
+    ves_quad_field(pq, phi0c, 0, f); /* phi0 is even in R: ghosts carry their node's value */
+    for (int a = 0; a < nodes->n; a++) phi[a] = f[6 * a];
   }
-  if ((st = ves_geom_search_create(ne, xe, rad, &search)) != VES_OK) goto done;
-  for (int a = 0; a < n; a++) {
-    double X[2] = {nodes->x[2 * a], nodes->x[2 * a + 1]}, d = 1e-3 * nodes->h[a];
-    if (nodes->flag[a] & VES_NODE_WALL) { /* off the hull, inwards */
-      if (X[0] >= nodes->LR - d) X[0] = nodes->LR - d;
-      if (X[1] >= nodes->LZ - d) X[1] = nodes->LZ - d;
-      if (X[1] <= -nodes->LZ + d) X[1] = -nodes->LZ + d;
-    }
-    int m;
-    if ((st = ves_geom_search_query(search, X, cap, idx, &m)) != VES_OK) goto done;
-    if (m > cap) { /* rare: grow every per-neighbour buffer, ask again */
-      cap = 2 * m;
-      int *i2 = realloc(idx, (size_t)cap * sizeof *i2);
-      if (i2) idx = i2;
-      double *x2 = realloc(xa, 2 * (size_t)cap * sizeof *x2);
-      if (x2) xa = x2;
-      double *b2 = realloc(beta, (size_t)cap * sizeof *b2);
-      if (b2) beta = b2;
-      double *t2 = realloc(tab, 6 * (size_t)cap * sizeof *t2);
-      if (t2) tab = t2;
-      double *w2 = realloc(work, (size_t)ves_lme_work_size(cap) * sizeof *w2);
-      if (w2) work = w2;
-      if (!i2 || !x2 || !b2 || !t2 || !w2) {
-        st = VES_ERR_ALLOC;
-        goto done;
-      }
-      if ((st = ves_geom_search_query(search, X, cap, idx, &m)) != VES_OK) goto done;
-    }
-    for (int k = 0; k < m; k++) {
-      xa[2 * k] = xe[2 * idx[k]], xa[2 * k + 1] = xe[2 * idx[k] + 1];
-      beta[k] = beta_e[idx[k]];
-    }
-    double lambda[2] = {0.0, 0.0}, s = 0.0;
-    if ((st = ves_lme_eval(par, X, m, xa, beta, lambda, 0, tab, work, NULL)) != VES_OK) goto done;
-    for (int k = 0; k < m; k++)
-      s += tab[k] * phi0c[idx[k] < n ? idx[k] : nodes->ghost_of[idx[k] - n]];
-    phi[a] = s; /* phi0 is even in R: a ghost carries its real node's coefficient */
-  }
-  st = VES_OK;
-done:
-  ves_geom_search_destroy(&search);
-  free(xe), free(rad), free(beta_e), free(idx), free(xa), free(beta), free(tab), free(work);
+  ves_quad_destroy(&pq);
+  free(f);
   return st;
 }

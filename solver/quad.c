@@ -120,6 +120,30 @@ ves_status ves_quad_create_points(int nq, const double *x, const double *w, int 
   return VES_OK;
 }
 
+ves_status ves_quad_create_at_nodes(const ves_nodes *nodes, ves_quad **out) {
+  VES_CHECK(out, VES_ERR_ARG);
+  *out = NULL;
+  VES_CHECK(nodes && nodes->n >= 1, VES_ERR_ARG);
+  const int n = nodes->n;
+  double *x = malloc(2 * (size_t)n * sizeof *x), *w = malloc((size_t)n * sizeof *w);
+  ves_status s = VES_ERR_ALLOC;
+  if (x && w) {
+    for (int a = 0; a < n; a++) {
+      const double d = 1e-3 * nodes->h[a];
+      double R = nodes->x[2 * a], Z = nodes->x[2 * a + 1];
+      if (nodes->flag[a] & VES_NODE_WALL) { /* off the hull, inwards */
+        if (R >= nodes->LR - d) R = nodes->LR - d;
+        if (Z >= nodes->LZ - d) Z = nodes->LZ - d;
+        if (Z <= -nodes->LZ + d) Z = -nodes->LZ + d;
+      }
+      x[2 * a] = R, x[2 * a + 1] = Z, w[a] = 1.0;
+    }
+    s = ves_quad_create_points(n, x, w, 0, NULL, out);
+  }
+  free(x), free(w);
+  return s;
+}
+
 /* Grow *buf to hold at least need elements of size sz (capacity in *cap). */
 static int grow(void **buf, size_t *cap, size_t need, size_t sz) {
   if (need <= *cap) return 0;

@@ -137,40 +137,26 @@ ves_status ves_reconnect_push_forward(const double F[4], const double G[6], cons
 /* The motion at the real nodes, y(X_a) (into xm[2n]), and max_a |y^a -
  * y(X_a)| / h_a. A point set at the nodes gets its own tables on the old
  * basis (the cost of ~n/nq of a table build). Wall nodes keep y^a (fixed
- * dofs; they are evaluated just off the hull, as in ves_io_nodal_phi, only so
- * the point set is valid) and do not count in the shift; axis nodes get r = 0
+ * dofs; their points sit just off the hull, ves_quad_create_at_nodes, only
+ * so the point set is valid) and do not count in the shift; axis nodes get r = 0
  * exactly (the motion is odd in R: rounding otherwise). */
 static ves_status node_motion(const ves_nodes *nodes, const double *y, const ves_lme_params *lme,
                               double *xm, double *shift_max) {
-  const int n = nodes->n;
-  ves_status s = VES_ERR_ALLOC;
   ves_quad *pq = NULL;
-  double *x = malloc(2 * (size_t)n * sizeof *x), *w = malloc((size_t)n * sizeof *w);
-  if (!x || !w) goto done;
-  for (int a = 0; a < n; a++) {
-    double d = 1e-3 * nodes->h[a];
-    x[2 * a] = nodes->x[2 * a], x[2 * a + 1] = nodes->x[2 * a + 1], w[a] = 1.0;
-    if (nodes->flag[a] & VES_NODE_WALL) {
-      if (x[2 * a] >= nodes->LR - d) x[2 * a] = nodes->LR - d;
-      if (x[2 * a + 1] >= nodes->LZ - d) x[2 * a + 1] = nodes->LZ - d;
-      if (x[2 * a + 1] <= -nodes->LZ + d) x[2 * a + 1] = -nodes->LZ + d;
+  ves_status s = ves_quad_create_at_nodes(nodes, &pq);
+  if (s == VES_OK) s = ves_quad_tables(pq, nodes, lme, NULL);
+  if (s == VES_OK) {
+    *shift_max = 0.0;
+    for (int a = 0; a < nodes->n; a++) {
+      double mo[12];
+      ves_quad_motion(pq, y, a, 0, mo);
+      if (nodes->flag[a] & VES_NODE_AXIS) mo[0] = 0.0;
+      if (nodes->flag[a] & VES_NODE_WALL) mo[0] = y[2 * a], mo[6] = y[2 * a + 1];
+      *shift_max = fmax(*shift_max, hypot(mo[0] - y[2 * a], mo[6] - y[2 * a + 1]) / nodes->h[a]);
+      xm[2 * a] = mo[0], xm[2 * a + 1] = mo[6];
     }
   }
-  if ((s = ves_quad_create_points(n, x, w, 0, NULL, &pq)) != VES_OK) goto done;
-  if ((s = ves_quad_tables(pq, nodes, lme, NULL)) != VES_OK) goto done;
-  *shift_max = 0.0;
-  for (int a = 0; a < n; a++) {
-    double mo[12];
-    ves_quad_motion(pq, y, a, 0, mo);
-    if (nodes->flag[a] & VES_NODE_AXIS) mo[0] = 0.0;
-    if (nodes->flag[a] & VES_NODE_WALL) mo[0] = y[2 * a], mo[6] = y[2 * a + 1];
-    *shift_max = fmax(*shift_max, hypot(mo[0] - y[2 * a], mo[6] - y[2 * a + 1]) / nodes->h[a]);
-    xm[2 * a] = mo[0], xm[2 * a + 1] = mo[6];
-  }
-  s = VES_OK;
-done:
   ves_quad_destroy(&pq);
-  free(x), free(w);
   return s;
 }
 

@@ -717,9 +717,9 @@ static void test_next_step_deformed(void **state) {
 /* ------------------------------------------------------------------------ */
 
 /* VES_RESET_NODES_MOTION: X'_a = y(X_a). Checked: z(X_a) of the non-wall
- * nodes against ves_io_nodal_phi (an independent evaluation of an even field,
- * its own neighbour search) to 1e-13 (rounding of a sum of ~20 terms of size
- * 2); axis nodes at r = 0 exactly, every other r > 0; wall nodes at y^a;
+ * nodes against ves_io_nodal_phi (the even-field path, ves_quad_field, on
+ * the same point set; the motion goes through ves_quad_motion) to 1e-13
+ * (rounding of a sum of ~20 terms of size 2); axis nodes at r = 0 exactly, every other r > 0; wall nodes at y^a;
  * the shift max |y^a - y(X_a)| / h_a the same in both modes, and 0 to
  * rounding (1e-12) on a stretch y = (1.2 R, 0.9 Z + 0.05), which the basis
  * reproduces exactly. E, A, V are preserved as with the paper's nodes

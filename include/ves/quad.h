@@ -57,6 +57,13 @@ ves_status ves_quad_create(const ves_nodes *nodes, ves_quad **out);
 ves_status ves_quad_create_points(int nq, const double *x, const double *w, int ntri,
                                   const int *tri, ves_quad **out);
 
+/* A point set at the real nodes, for evaluating fields and motions there
+ * (ves_quad_tables, then ves_quad_field or ves_quad_motion): point a at X_a,
+ * weight 1, no triangles. Wall nodes lie on the hull, where LME is not
+ * evaluated: their points are moved 1e-3 h_a inwards. nodes borrowed; *out
+ * taken by the caller. */
+ves_status ves_quad_create_at_nodes(const ves_nodes *nodes, ves_quad **out);
+
 /* Build the tables for the current points against the current nodes (real +
  * ghost), with support radii ves_lme_radius(lme, h_a) and beta_a = gamma/h_a^2.
  * Replaces previous tables. info may be NULL. */
