@@ -239,8 +239,9 @@ typedef struct {
   ves_setup *setup;           /* initial discrete state */
   ves_sim *sim;               /* the integrator */
   ves_io *io;                 /* the output file */
-  double *phi;                /* n phi at the nodes */
-  double *y;                  /* 2n scratch */
+  double *phi;                /* n scratch: phi at the nodes */
+  double *y;                  /* 2n scratch: coefficients */
+  double *x;                  /* 2n scratch: material positions at the nodes */
   FILE *series;               /* --series file or NULL */
   int quiet;                  /* --quiet */
   long max_steps;             /* --max-steps (0: none) */
@@ -254,6 +255,7 @@ static void run_free(run_ctx *r) {
   ves_setup_destroy(&r->setup);
   free(r->phi);
   free(r->y);
+  free(r->x);
   if (r->series) fclose(r->series);
 }
 
@@ -268,17 +270,14 @@ static int build(run_ctx *r) {
   int n = r->setup->nodes->n;
   r->phi = malloc((size_t)n * sizeof *r->phi);
   r->y = malloc(2 * (size_t)n * sizeof *r->y);
-  if (!r->phi || !r->y) {
+  r->x = malloc(2 * (size_t)n * sizeof *r->x);
+  if (!r->phi || !r->y || !r->x) {
     fprintf(stderr, "vesica run: out of memory\n");
     return 3;
   }
   ves_lme_params lp;
   ves_lme_params_default(&lp);
   lp.gamma = r->cfg.gamma, lp.tol0 = r->cfg.support_tol;
-  if ((st = ves_io_nodal_phi(r->setup->nodes, r->setup->phi0c, &lp, r->phi)) != VES_OK) {
-    fprintf(stderr, "vesica run: %s: phi at the nodes: %s\n", r->label, ves_status_str(st));
-    return 3;
-  }
   ves_backend_options bo;
   ves_backend_options_default(&bo);
   bo.tol = r->cfg.tol, bo.ctol = r->cfg.ctol, bo.max_iter = r->cfg.max_iter;
@@ -312,7 +311,8 @@ static ves_status snapshot(run_ctx *r, double wall) {
                         .rows = ves_io_rows(r->io)};
   ves_sim_get_state(r->sim, &si.state, r->y);
   r->last_snapshot_step = si.state.nstep;
-  return ves_io_snapshot(r->io, r->y, r->phi, &si);
+  ves_status st = ves_sim_node_material(r->sim, r->x, r->phi);
+  return st == VES_OK ? ves_io_snapshot(r->io, r->y, r->x, r->phi, &si) : st;
 }
 
 /* The folder of path must exist and be writable, path must not be a folder. */
@@ -577,7 +577,7 @@ static int run_restart(run_ctx *r, const char *file) {
   /* the snapshot holds y, not the reference configuration a reset made: a
    * restart would continue on the initial reference, another trajectory */
   ves_io_snapinfo si0;
-  if ((st = ves_io_read_snapshot(r->io, S - 1, NULL, NULL, &si0)) != VES_OK) {
+  if ((st = ves_io_read_snapshot(r->io, S - 1, NULL, NULL, NULL, &si0)) != VES_OK) {
     fprintf(stderr, "vesica run: --restart %s: snapshot %d is unreadable: %s\n", file, S - 1,
             ves_status_str(st));
     return 2;
@@ -617,7 +617,7 @@ static int run_restart(run_ctx *r, const char *file) {
     return 2;
   }
   ves_io_snapinfo si;
-  if ((st = ves_io_read_snapshot(r->io, S - 1, r->y, NULL, &si)) != VES_OK ||
+  if ((st = ves_io_read_snapshot(r->io, S - 1, r->y, NULL, NULL, &si)) != VES_OK ||
       si.rows > ves_io_rows(r->io) || si.rows != si.state.nstep) {
     fprintf(stderr, "vesica run: --restart %s: snapshot %d is unreadable or inconsistent\n", file,
             S - 1);

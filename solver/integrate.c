@@ -34,7 +34,9 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "ves/quad.h"
 #include "ves/reconnect.h"
+#include "ves/sparse.h"
 
 struct ves_sim {
   ves_model *model;                 /* in use: the creation model (borrowed) or ref's */
@@ -58,6 +60,10 @@ struct ves_sim {
   double lambda[2];                 /* multipliers of the last accepted step */
   double c0;                        /* C0 in force */
   double c0_base;                   /* the model's C0 before and after the protocol */
+  ves_quad *at_nodes;               /* points at the reference's nodes, with tables (lazy;
+                                       dropped at a reset) */
+  double *node_phi;                 /* n: phi of the material at those nodes */
+  int node_phi_ok;                  /* node_phi holds the current reference's values */
 };
 
 void ves_integrate_params_default(ves_integrate_params *p) {
@@ -90,6 +96,8 @@ void ves_sim_destroy(ves_sim **s) {
   if (p->backend && p->bstate) p->backend->destroy(&p->bstate);
   ves_step_destroy(&p->step);
   ves_reconnect_destroy(&p->ref); /* after the step problem and backend built on it */
+  ves_quad_destroy(&p->at_nodes);
+  free(p->node_phi);
   free(p->y);
   free(p->ynew);
   free(p->x);
@@ -151,6 +159,8 @@ fail:
   return st;
 }
 
+static ves_status node_phi_fit(ves_sim *s); /* phi at the reference's nodes (below) */
+
 /* Reset the reference to s->y (ves_reconnect.h): a new model, step problem
  * and backend state are made first, the old ones freed only once all three
  * exist. The positions continue from the new reference nodes (y with the
@@ -158,6 +168,10 @@ fail:
  * re-evaluated on the new model (equal up to rounding). On failure
  * everything made is freed and s is unchanged. */
 static ves_status reconnect(ves_sim *s, const ves_step_params *sp) {
+  /* nodes at y(X_a) keep their material, so phi there is carried over: fit
+   * it on the old reference if it never was (failure only means a refit on
+   * the new one, ves_sim_node_material) */
+  if (s->ip.reconnect_nodes == VES_RESET_NODES_MOTION && !s->node_phi_ok) (void)node_phi_fit(s);
   ves_reconnect *nr = NULL;
   ves_step *step = NULL;
   void *bstate = NULL;
@@ -186,6 +200,9 @@ static ves_status reconnect(ves_sim *s, const ves_step_params *sp) {
   s->E = E, s->A = A, s->V = V;
   s->since = 0;
   s->reconnections++;
+  ves_quad_destroy(&s->at_nodes); /* built on the old nodes */
+  /* the new nodes at y(X_a) are the old nodes' material: phi stays */
+  if (s->ip.reconnect_nodes != VES_RESET_NODES_MOTION) s->node_phi_ok = 0;
   return VES_OK;
 }
 
@@ -332,5 +349,59 @@ ves_status ves_sim_set_state(ves_sim *s, const ves_sim_state *st, const double *
   s->E0 = st->E0, s->A0 = st->A0, s->V0 = st->V0;
   s->lambda[0] = st->lambda[0], s->lambda[1] = st->lambda[1];
   s->c0 = st->c0;
+  return VES_OK;
+}
+
+/* The point set at the reference's nodes with its tables (once per
+ * reference: ~n/nq of a table build). */
+static ves_status node_points(ves_sim *s) {
+  if (s->at_nodes) return VES_OK;
+  const ves_nodes *nd = ves_model_nodes(s->model);
+  ves_status st = ves_quad_create_at_nodes(nd, &s->at_nodes);
+  if (st == VES_OK) st = ves_quad_tables(s->at_nodes, nd, &s->ip.lme, NULL);
+  if (st != VES_OK) ves_quad_destroy(&s->at_nodes);
+  return st;
+}
+
+/* phi at the reference's nodes into s->node_phi: the L2 projection of the
+ * model's point values of phi0 onto the reference's basis
+ * (ves_sparse_project_l2, as the setup fits phi0), evaluated at the nodes.
+ * On the creation model this is the setup's field again; after a reset the
+ * pushed-forward one (the model has no nodal coefficients then). */
+static ves_status node_phi_fit(ves_sim *s) {
+  const ves_quad *q = ves_model_quad(s->model);
+  const int n = s->n;
+  ves_status st = node_points(s);
+  if (st != VES_OK) return st;
+  if (!s->node_phi && !(s->node_phi = malloc((size_t)n * sizeof *s->node_phi)))
+    return VES_ERR_ALLOC;
+  double *pd = malloc(6 * (size_t)q->nq * sizeof *pd);
+  double *fld = malloc(6 * (size_t)n * sizeof *fld);
+  double *c = malloc((size_t)n * sizeof *c);
+  st = pd && fld && c ? VES_OK : VES_ERR_ALLOC;
+  if (st == VES_OK) {
+    ves_model_point_data(s->model, pd);
+    for (int al = 0; al < q->nq; al++) pd[al] = pd[6 * (size_t)al]; /* phi0 row, in place */
+    /* the setup's tolerance: the fit error far below the discretization's */
+    st = ves_sparse_project_l2(q, n, pd, c, 1e-12, 3, NULL, NULL);
+    if (st == VES_MAXITER) st = VES_OK; /* the best iterate: ample for output */
+  }
+  if (st == VES_OK) {
+    ves_quad_field(s->at_nodes, c, 0, fld);
+    for (int a = 0; a < n; a++) s->node_phi[a] = fld[6 * (size_t)a];
+    s->node_phi_ok = 1;
+  }
+  free(pd), free(fld), free(c);
+  return st;
+}
+
+ves_status ves_sim_node_material(ves_sim *s, double *x, double *phi) {
+  VES_CHECK(s, VES_ERR_ARG);
+  ves_status st = node_points(s);
+  if (st != VES_OK) return st;
+  if (x) ves_reconnect_motion_at_nodes(ves_model_nodes(s->model), s->at_nodes, s->y, x, NULL);
+  if (!phi) return VES_OK;
+  if (!s->node_phi_ok && (st = node_phi_fit(s)) != VES_OK) return st;
+  memcpy(phi, s->node_phi, (size_t)s->n * sizeof *phi);
   return VES_OK;
 }

@@ -2,7 +2,6 @@
  * mesh, per-step series appended and flushed step by step, snapshots with the
  * integrator state for restart. Layout: include/ves/io.h. */
 #include "ves/io.h"
-#include "ves/quad.h"
 
 #include <errno.h>
 #include <hdf5.h>
@@ -235,8 +234,9 @@ static void xdmf_item(FILE *f, const char *h5, const char *dims, const char *num
   fprintf(f, ":%s</DataItem>\n", dset);
 }
 
-/* Two temporal collections over the snapshots: the deformed reference
- * triangles with phi at the nodes, and the nodes alone as points. Written to
+/* Two temporal collections over the snapshots: the reference triangles at
+ * the material positions x of their nodes, with phi, and the nodes alone as
+ * points. Written to
  * a temporary name and renamed, so a reader never sees half a file. */
 static ves_status xdmf_write(const ves_io *io) {
   const char *slash = strrchr(io->path, '/');
@@ -253,7 +253,7 @@ static ves_status xdmf_write(const ves_io *io) {
             pass ? "nodes" : "mesh");
     for (int k = 0; k < io->nsnap; k++) {
       char y[64], phi[64];
-      snprintf(y, sizeof y, "/snapshots/%d/y", k);
+      snprintf(y, sizeof y, "/snapshots/%d/x", k);
       snprintf(phi, sizeof phi, "/snapshots/%d/phi", k);
       fprintf(f, "   <Grid Name=\"%s_%d\" GridType=\"Uniform\">\n    <Time Value=\"%.17g\"/>\n",
               pass ? "nodes" : "mesh", k, io->snap_t[k]);
@@ -487,7 +487,9 @@ static ves_status read_header(ves_io *io) {
   if (attr_read(f, "format_version", H5T_NATIVE_INT, &in->format_version) != VES_OK ||
       attr_read_buf(f, "program", prog, sizeof prog) != VES_OK || strcmp(prog, "vesica"))
     return VES_ERR_CONFIG;
-  if (in->format_version != VES_IO_FORMAT) return VES_ERR_CONFIG;
+  if (in->format_version < 1 || in->format_version > VES_IO_FORMAT) return VES_ERR_CONFIG;
+  /* format 1 snapshots have no x: read-only (a restart would mix formats) */
+  if (io->writable && in->format_version != VES_IO_FORMAT) return VES_ERR_CONFIG;
   VES_CALL(attr_read_buf(f, "version", in->version, sizeof in->version));
   VES_CALL(attr_read_buf(f, "backend", in->backend, sizeof in->backend));
   VES_CALL(attr_read_buf(f, "status", in->status, sizeof in->status));
@@ -548,8 +550,13 @@ ves_status ves_io_open(const char *path, int writable, ves_io **out, char *err, 
   ves_status st = read_header(io);
   if (st != VES_OK) {
     if (st == VES_ERR_CONFIG && io->info.format_version > VES_IO_FORMAT)
-      say(err, errlen, "%s: format_version %d: this vesica reads format_version %d", path,
+      say(err, errlen, "%s: format_version %d: this vesica reads format_version 1 to %d", path,
           io->info.format_version, VES_IO_FORMAT);
+    else if (st == VES_ERR_CONFIG && writable && io->info.format_version >= 1 &&
+             io->info.format_version < VES_IO_FORMAT)
+      say(err, errlen,
+          "%s: format_version %d (an older vesica) is read-only: it cannot be continued", path,
+          io->info.format_version);
     else if (st == VES_ERR_CONFIG)
       say(err, errlen, "%s: not a vesica output file (missing or malformed layout)", path);
     else
@@ -654,9 +661,9 @@ static ves_status snapshot_attrs(hid_t g, const ves_io_snapinfo *si) {
   return attr_int(g, "reconnections", si->reconnections);
 }
 
-ves_status ves_io_snapshot(ves_io *io, const double *y, const double *phi,
+ves_status ves_io_snapshot(ves_io *io, const double *y, const double *x, const double *phi,
                            const ves_io_snapinfo *si) {
-  VES_CHECK(io && y && phi && si && io->writable, VES_ERR_ARG);
+  VES_CHECK(io && y && x && phi && si && io->writable, VES_ERR_ARG);
   if (io->nsnap == io->snap_cap) {
     int cap = io->snap_cap ? 2 * io->snap_cap : 16;
     double *t = realloc(io->snap_t, (size_t)cap * sizeof *t);
@@ -673,6 +680,7 @@ ves_status ves_io_snapshot(ves_io *io, const double *y, const double *phi,
   ves_status st = g < 0 ? VES_ERR_IO : VES_OK;
   hsize_t n = (hsize_t)io->info.n;
   if (st == VES_OK) st = dset_write(g, "y", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, n, 2, y);
+  if (st == VES_OK) st = dset_write(g, "x", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, n, 2, x);
   if (st == VES_OK) st = dset_write(g, "phi", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, n, 0, phi);
   if (st == VES_OK) st = snapshot_attrs(g, si);
   if (g >= 0) H5Gclose(g);
@@ -685,7 +693,8 @@ ves_status ves_io_snapshot(ves_io *io, const double *y, const double *phi,
   return xdmf_write(io);
 }
 
-ves_status ves_io_read_snapshot(ves_io *io, int k, double *y, double *phi, ves_io_snapinfo *si) {
+ves_status ves_io_read_snapshot(ves_io *io, int k, double *y, double *x, double *phi,
+                                ves_io_snapinfo *si) {
   VES_CHECK(io && k >= 0 && k < io->nsnap, VES_ERR_ARG);
   char name[48];
   snprintf(name, sizeof name, "snapshots/%d", k);
@@ -694,6 +703,9 @@ ves_status ves_io_read_snapshot(ves_io *io, int k, double *y, double *phi, ves_i
   hsize_t n = (hsize_t)io->info.n;
   ves_status st = VES_OK;
   if (y) st = dset_read(g, "y", H5T_NATIVE_DOUBLE, 2 * n, y);
+  /* format 1 has no x: its snapshots showed the coefficients */
+  if (st == VES_OK && x)
+    st = dset_read(g, io->info.format_version >= 2 ? "x" : "y", H5T_NATIVE_DOUBLE, 2 * n, x);
   if (st == VES_OK && phi) st = dset_read(g, "phi", H5T_NATIVE_DOUBLE, n, phi);
   if (st == VES_OK && si) {
     ves_sim_state *s = &si->state;
@@ -746,20 +758,3 @@ ves_status ves_io_set_setup_seconds(ves_io *io, double seconds) {
   return VES_OK;
 }
 
-/* ---- phi at the nodes ---------------------------------------------------- */
-
-ves_status ves_io_nodal_phi(const ves_nodes *nodes, const double *phi0c, const ves_lme_params *par,
-                            double *phi) {
-  VES_CHECK(nodes && phi0c && par && phi, VES_ERR_ARG);
-  ves_quad *pq = NULL;
-  double *f = malloc(6 * (size_t)nodes->n * sizeof *f); /* ves_quad_field's 6 rows a point */
-  ves_status st = f ? ves_quad_create_at_nodes(nodes, &pq) : VES_ERR_ALLOC;
-  if (st == VES_OK) st = ves_quad_tables(pq, nodes, par, NULL);
-  if (st == VES_OK) {
-    ves_quad_field(pq, phi0c, 0, f); /* phi0 is even in R: ghosts carry their node's value */
-    for (int a = 0; a < nodes->n; a++) phi[a] = f[6 * a];
-  }
-  ves_quad_destroy(&pq);
-  free(f);
-  return st;
-}

@@ -130,7 +130,8 @@ static ves_status fig_snapshots(FILE *f, ves_io *io, const ves_plot_params *p, c
     LR = fmax(LR, X[2 * a]), LZ = fmax(LZ, fabs(X[2 * a + 1]));
   for (int j = 0; j < nsel && st == VES_OK; j++) {
     ves_io_snapinfo si;
-    if ((st = ves_io_read_snapshot(io, sel[j], y, phi, &si)) != VES_OK) break;
+    /* x: where the material at the nodes is (format 1 files: the coefficients) */
+    if ((st = ves_io_read_snapshot(io, sel[j], NULL, y, phi, &si)) != VES_OK) break;
     ts[j] = si.state.t;
     fprintf(f, "$snap%d << EOD\n", j);
     for (int a = 0; a < n; a++) fprintf(f, "%.7g %.7g %.5g\n", y[2 * a], y[2 * a + 1], phi[a]);
@@ -153,8 +154,11 @@ static ves_status fig_snapshots(FILE *f, ves_io *io, const ves_plot_params *p, c
   char title[256];
   char stem[96]; /* a long name is cut: it is a title */
   gp_escape(stem, sizeof stem, p->stem);
-  snprintf(title, sizeof title,
-           "%s: nodes y^a(t) coloured by {/Symbol f} (%d nodes, mirrored at r = 0)", stem, n);
+  snprintf(title, sizeof title, "%s: %s coloured by {/Symbol f} (%d nodes, mirrored at r = 0)",
+           stem,
+           in->format_version >= 2 ? "material at the nodes, y(X_a, t),"
+                                   : "nodal coefficients y^a(t)",
+           n);
   gp_quote(f, title);
   fprintf(f,
           "\nset size ratio -1\nset xrange [%g:%g]\nset yrange [%g:%g]\n"
@@ -235,7 +239,7 @@ ves_status ves_plot_write(ves_io *io, const ves_plot_params *p, char *err, size_
     if ((st = ves_io_read_series(io, names[i], buf + i * R)) != VES_OK) goto done;
   for (int k = 0; k < S; k++) {
     ves_io_snapinfo si;
-    if ((st = ves_io_read_snapshot(io, k, NULL, NULL, &si)) != VES_OK) goto done;
+    if ((st = ves_io_read_snapshot(io, k, NULL, NULL, NULL, &si)) != VES_OK) goto done;
     T[k] = si.state.t;
   }
   int sel[VES_PLOT_MAXTIMES], nsel = select_snapshots(T, S, p, sel);

@@ -134,28 +134,29 @@ ves_status ves_reconnect_push_forward(const double F[4], const double G[6], cons
   return VES_OK;
 }
 
+void ves_reconnect_motion_at_nodes(const ves_nodes *nodes, const ves_quad *pq, const double *y,
+                                   double *xm, double *shift_max) {
+  double smax = 0.0;
+  for (int a = 0; a < nodes->n; a++) {
+    double mo[12];
+    ves_quad_motion(pq, y, a, 0, mo);
+    if (nodes->flag[a] & VES_NODE_AXIS) mo[0] = 0.0;
+    if (nodes->flag[a] & VES_NODE_WALL) mo[0] = y[2 * a], mo[6] = y[2 * a + 1];
+    smax = fmax(smax, hypot(mo[0] - y[2 * a], mo[6] - y[2 * a + 1]) / nodes->h[a]);
+    xm[2 * a] = mo[0], xm[2 * a + 1] = mo[6];
+  }
+  if (shift_max) *shift_max = smax;
+}
+
 /* The motion at the real nodes, y(X_a) (into xm[2n]), and max_a |y^a -
- * y(X_a)| / h_a. A point set at the nodes gets its own tables on the old
- * basis (the cost of ~n/nq of a table build). Wall nodes keep y^a (fixed
- * dofs; their points sit just off the hull, ves_quad_create_at_nodes, only
- * so the point set is valid) and do not count in the shift; axis nodes get r = 0
- * exactly (the motion is odd in R: rounding otherwise). */
+ * y(X_a)| / h_a, on a point set at the nodes with its own tables on the old
+ * basis (the cost of ~n/nq of a table build). */
 static ves_status node_motion(const ves_nodes *nodes, const double *y, const ves_lme_params *lme,
                               double *xm, double *shift_max) {
   ves_quad *pq = NULL;
   ves_status s = ves_quad_create_at_nodes(nodes, &pq);
   if (s == VES_OK) s = ves_quad_tables(pq, nodes, lme, NULL);
-  if (s == VES_OK) {
-    *shift_max = 0.0;
-    for (int a = 0; a < nodes->n; a++) {
-      double mo[12];
-      ves_quad_motion(pq, y, a, 0, mo);
-      if (nodes->flag[a] & VES_NODE_AXIS) mo[0] = 0.0;
-      if (nodes->flag[a] & VES_NODE_WALL) mo[0] = y[2 * a], mo[6] = y[2 * a + 1];
-      *shift_max = fmax(*shift_max, hypot(mo[0] - y[2 * a], mo[6] - y[2 * a + 1]) / nodes->h[a]);
-      xm[2 * a] = mo[0], xm[2 * a + 1] = mo[6];
-    }
-  }
+  if (s == VES_OK) ves_reconnect_motion_at_nodes(nodes, pq, y, xm, shift_max);
   ves_quad_destroy(&pq);
   return s;
 }

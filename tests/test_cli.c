@@ -391,7 +391,7 @@ static void test_restart_after_reset(void **state) {
   assert_int_equal(ves_io_rows(b), 3);
   int S = ves_io_snapshots(b);
   ves_io_snapinfo si;
-  assert_int_equal(ves_io_read_snapshot(b, S - 1, NULL, NULL, &si), VES_OK);
+  assert_int_equal(ves_io_read_snapshot(b, S - 1, NULL, NULL, NULL, &si), VES_OK);
   assert_int_equal(si.reconnections, 1); /* the reset after step 2 */
   double E[3], c0[3];
   assert_int_equal(ves_io_read_series(b, "E", E), VES_OK);
@@ -444,8 +444,8 @@ static void test_restart_bitwise(void **state) {
   int n = ves_io_get_info(a)->n;
   double *ya = malloc(2 * (size_t)n * sizeof *ya), *yb = malloc(2 * (size_t)n * sizeof *yb);
   ves_io_snapinfo sa, sb;
-  assert_int_equal(ves_io_read_snapshot(a, ves_io_snapshots(a) - 1, ya, NULL, &sa), VES_OK);
-  assert_int_equal(ves_io_read_snapshot(b, ves_io_snapshots(b) - 1, yb, NULL, &sb), VES_OK);
+  assert_int_equal(ves_io_read_snapshot(a, ves_io_snapshots(a) - 1, ya, NULL, NULL, &sa), VES_OK);
+  assert_int_equal(ves_io_read_snapshot(b, ves_io_snapshots(b) - 1, yb, NULL, NULL, &sb), VES_OK);
   assert_int_equal(sa.state.nstep, R);
   assert_int_equal(sb.state.nstep, R);
   assert_memory_equal(ya, yb, 2 * (size_t)n * sizeof *ya); /* positions, bit for bit */
@@ -510,7 +510,7 @@ static void test_numerical_failure(void **state) {
   assert_string_equal(ves_io_get_info(io)->status, "failed");
   assert_int_equal(ves_io_rows(io), 0);
   ves_io_snapinfo si;
-  assert_int_equal(ves_io_read_snapshot(io, ves_io_snapshots(io) - 1, NULL, NULL, &si), VES_OK);
+  assert_int_equal(ves_io_read_snapshot(io, ves_io_snapshots(io) - 1, NULL, NULL, NULL, &si), VES_OK);
   assert_true(si.state.nstep == 0 && si.state.t == 0.0); /* the last good state */
   ves_io_close(&io);
   unlink(ini), unlink(out);
@@ -563,7 +563,7 @@ static void test_sigterm(void **state) {
   ves_io_snapinfo si;
   assert_string_equal(ves_io_get_info(io)->status, "stopped");
   assert_int_equal(ves_io_snapshots(io), 2); /* t = 0 and the state at the signal */
-  assert_int_equal(ves_io_read_snapshot(io, 1, NULL, NULL, &si), VES_OK);
+  assert_int_equal(ves_io_read_snapshot(io, 1, NULL, NULL, NULL, &si), VES_OK);
   assert_int_equal(si.state.nstep, R); /* nothing lost: a restart continues from here */
   ves_io_close(&io);
   unlink(ini), unlink(out);
@@ -608,7 +608,7 @@ static void test_sigkill(void **state) {
   }
   assert_int_equal(ves_io_snapshots(io), 1);
   ves_io_snapinfo si;
-  assert_int_equal(ves_io_read_snapshot(io, 0, NULL, NULL, &si), VES_OK);
+  assert_int_equal(ves_io_read_snapshot(io, 0, NULL, NULL, NULL, &si), VES_OK);
   assert_true(si.state.nstep == 0 && si.state.t == 0.0);
   ves_io_close(&io);
   run(&r, "info", out, NULL);

@@ -17,6 +17,7 @@
 #include <unistd.h>
 
 #include "ves/io.h"
+#include "ves/reconnect.h"
 #include "ves/setup.h"
 
 static char dir[64]; /* scratch folder */
@@ -151,15 +152,15 @@ static void test_roundtrip(void **state) {
   path_in(path, sizeof path, "rt.h5");
   ves_io *io = NULL;
   assert_int_equal(ves_io_create(path, &f.h, &io, err, sizeof err), VES_OK);
-  double y[8], phi[4] = {1, 0.5, -0.25, -1};
+  double y[8], x[8], phi[4] = {1, 0.5, -0.25, -1};
   for (long i = 0; i < 3; i++) {
     ves_io_row r = row_of(i);
     assert_int_equal(ves_io_append(io, &r), VES_OK);
   }
   for (int k = 0; k < 2; k++) {
-    for (int j = 0; j < 8; j++) y[j] = f.X[j] * (1 + 0.125 * k) + 1.0 / 3;
+    for (int j = 0; j < 8; j++) y[j] = f.X[j] * (1 + 0.125 * k) + 1.0 / 3, x[j] = y[j] - 0.0625;
     ves_io_snapinfo si = snap_of(k * 3);
-    assert_int_equal(ves_io_snapshot(io, y, phi, &si), VES_OK);
+    assert_int_equal(ves_io_snapshot(io, y, x, phi, &si), VES_OK);
   }
   assert_int_equal(ves_io_set_status(io, "finished"), VES_OK);
   ves_io_close(&io);
@@ -178,11 +179,12 @@ static void test_roundtrip(void **state) {
   assert_true(in->E0 == 7.5 && in->A0 == 12.5 && in->V0 == 4.25 && in->setup_seconds == 1.25);
   check_rows(io, 3);
   assert_int_equal(ves_io_snapshots(io), 2);
-  double y2[8], phi2[4], X2[8];
+  double y2[8], x2[8], phi2[4], X2[8];
   int tri2[6];
   ves_io_snapinfo si;
-  assert_int_equal(ves_io_read_snapshot(io, 1, y2, phi2, &si), VES_OK);
+  assert_int_equal(ves_io_read_snapshot(io, 1, y2, x2, phi2, &si), VES_OK);
   assert_memory_equal(y, y2, sizeof y);
+  assert_memory_equal(x, x2, sizeof x);
   assert_memory_equal(phi, phi2, sizeof phi);
   ves_io_snapinfo want = snap_of(3);
   assert_memory_equal(&want.state, &si.state, sizeof si.state); /* every field, bit for bit */
@@ -202,7 +204,7 @@ static void test_roundtrip(void **state) {
   }
   /* misuse */
   assert_int_equal(ves_io_read_series(io, "nope", y2), VES_ERR_ARG);
-  assert_int_equal(ves_io_read_snapshot(io, 2, y2, NULL, NULL), VES_ERR_ARG);
+  assert_int_equal(ves_io_read_snapshot(io, 2, y2, NULL, NULL, NULL), VES_ERR_ARG);
   ves_io_row r = row_of(0);
   assert_int_equal(ves_io_append(io, &r), VES_ERR_ARG); /* read-only */
   ves_io_close(&io);
@@ -233,13 +235,14 @@ static void test_roundtrip(void **state) {
   char xpath[160], text[16384];
   ves_io_xdmf_path(path, xpath, sizeof xpath);
   assert_string_equal(xpath + strlen(xpath) - 8, "/rt.xdmf");
-  FILE *x = fopen(xpath, "r");
-  assert_non_null(x);
-  size_t len = fread(text, 1, sizeof text - 1, x);
+  FILE *xf = fopen(xpath, "r");
+  assert_non_null(xf);
+  size_t len = fread(text, 1, sizeof text - 1, xf);
   text[len] = 0;
-  fclose(x);
+  fclose(xf);
   assert_non_null(strstr(text, "CollectionType=\"Temporal\""));
-  assert_non_null(strstr(text, "rt.h5:/snapshots/1/y"));
+  assert_non_null(strstr(text, "rt.h5:/snapshots/1/x")); /* the material, not y^a */
+  assert_null(strstr(text, "/snapshots/1/y"));
   assert_non_null(strstr(text, "rt.h5:/snapshots/1/phi"));
   assert_non_null(strstr(text, "rt.h5:/mesh/triangles"));
   assert_non_null(strstr(text, "TopologyType=\"Polyvertex\""));
@@ -267,7 +270,7 @@ static void test_truncate_continue(void **state) {
   double y[8] = {0}, phi[4] = {0};
   assert_int_equal(ves_io_create(path, &f.h, &io, err, sizeof err), VES_OK);
   ves_io_snapinfo s0 = snap_of(0);
-  assert_int_equal(ves_io_snapshot(io, y, phi, &s0), VES_OK);
+  assert_int_equal(ves_io_snapshot(io, y, y, phi, &s0), VES_OK);
   for (long i = 0; i < 5; i++) {
     ves_io_row r = row_of(i);
     assert_int_equal(ves_io_append(io, &r), VES_OK);
@@ -281,13 +284,13 @@ static void test_truncate_continue(void **state) {
   ves_io_row r = row_of(2);
   assert_int_equal(ves_io_append(io, &r), VES_OK);
   ves_io_snapinfo s3 = snap_of(3);
-  assert_int_equal(ves_io_snapshot(io, y, phi, &s3), VES_OK);
+  assert_int_equal(ves_io_snapshot(io, y, y, phi, &s3), VES_OK);
   assert_int_equal(ves_io_snapshots(io), 2);
   ves_io_close(&io);
   assert_int_equal(ves_io_open(path, 0, &io, err, sizeof err), VES_OK);
   check_rows(io, 3);
   ves_io_snapinfo si;
-  assert_int_equal(ves_io_read_snapshot(io, 1, NULL, NULL, &si), VES_OK);
+  assert_int_equal(ves_io_read_snapshot(io, 1, NULL, NULL, NULL, &si), VES_OK);
   assert_int_equal(si.state.nstep, 3);
   ves_io_close(&io);
   free(f.problem);
@@ -306,7 +309,7 @@ static void test_killed_writer(void **state) {
   double y[8] = {0}, phi[4] = {0};
   assert_int_equal(ves_io_create(path, &f.h, &io, err, sizeof err), VES_OK);
   ves_io_snapinfo s0 = snap_of(0);
-  assert_int_equal(ves_io_snapshot(io, y, phi, &s0), VES_OK);
+  assert_int_equal(ves_io_snapshot(io, y, y, phi, &s0), VES_OK);
   for (long i = 0; i < 2; i++) {
     ves_io_row r = row_of(i);
     assert_int_equal(ves_io_append(io, &r), VES_OK);
@@ -345,13 +348,13 @@ static void test_killed_writer(void **state) {
   assert_int_equal(ves_io_snapshots(io), 1);
   ves_io_snapinfo s2 = snap_of(2);
   y[3] = 0.75;
-  assert_int_equal(ves_io_snapshot(io, y, phi, &s2), VES_OK);
+  assert_int_equal(ves_io_snapshot(io, y, y, phi, &s2), VES_OK);
   ves_io_close(&io);
   assert_int_equal(ves_io_open(path, 0, &io, err, sizeof err), VES_OK);
   double y2[8];
   ves_io_snapinfo si;
   assert_int_equal(ves_io_snapshots(io), 2);
-  assert_int_equal(ves_io_read_snapshot(io, 1, y2, NULL, &si), VES_OK);
+  assert_int_equal(ves_io_read_snapshot(io, 1, y2, NULL, NULL, &si), VES_OK);
   assert_true(y2[3] == 0.75 && si.state.nstep == 2);
   ves_io_close(&io);
   free(f.problem);
@@ -391,6 +394,30 @@ static void test_refusals(void **state) {
   assert_int_equal(ves_io_open(path, 0, &io, err, sizeof err), VES_ERR_CONFIG);
   assert_non_null(strstr(err, "format_version 99"));
   assert_null(io);
+  /* format 1 (no snapshot x): read, x given as y; not continued */
+  path_in(path, sizeof path, "format1.h5");
+  assert_int_equal(ves_io_create(path, &f.h, &io, err, sizeof err), VES_OK);
+  double y[8], x[8], phi[4] = {0};
+  for (int j = 0; j < 8; j++) y[j] = j + 0.5, x[j] = -j;
+  ves_io_snapinfo s0 = snap_of(0);
+  assert_int_equal(ves_io_snapshot(io, y, x, phi, &s0), VES_OK);
+  ves_io_close(&io);
+  h = H5Fopen(path, H5F_ACC_RDWR, H5P_DEFAULT);
+  v = 1;
+  a = H5Aopen(h, "format_version", H5P_DEFAULT);
+  H5Awrite(a, H5T_NATIVE_INT, &v);
+  H5Aclose(a);
+  assert_true(H5Ldelete(h, "snapshots/0/x", H5P_DEFAULT) >= 0);
+  H5Fclose(h);
+  assert_int_equal(ves_io_open(path, 0, &io, err, sizeof err), VES_OK);
+  assert_int_equal(ves_io_get_info(io)->format_version, 1);
+  assert_int_equal(ves_io_read_snapshot(io, 0, NULL, x, NULL, NULL), VES_OK);
+  assert_memory_equal(x, y, sizeof y);
+  ves_io_close(&io);
+  assert_int_equal(ves_io_open(path, 1, &io, err, sizeof err), VES_ERR_CONFIG);
+  assert_non_null(strstr(err, "format_version 1"));
+  assert_non_null(strstr(err, "read-only"));
+  assert_null(io);
   /* cannot create */
   assert_int_equal(ves_io_create("/nonexistent/dir/x.h5", &f.h, &io, err, sizeof err), VES_ERR_IO);
   assert_non_null(strstr(err, "/nonexistent/dir/x.h5"));
@@ -414,29 +441,108 @@ static ves_setup *tiny_setup(int bump) {
   return s;
 }
 
-/* phi at the nodes against the exact profile phi0 = tanh((1 - |X|)/(sqrt2 eps)). */
-static void test_nodal_phi(void **state) {
+/* The material at the nodes (ves_sim_node_material), what the snapshots
+ * hold. Sphere of radius 1, eps 0.2 (300 nodes), newton, dt 5e-3.
+ *  - t = 0: x = X (the motion is the identity, reproduced by LME to its
+ *    Newton tolerance 1e-14 h: bound 1e-12), axis r = 0 and wall nodes
+ *    exactly; phi against the exact profile tanh((1 - |X|)/(sqrt2 eps)) to
+ *    1e-3 (the least-squares fit at h = 0.7 eps: measured 2.9e-4, 2.2e-4 at
+ *    the wall nodes, moved 1e-3 h inwards), and against the setup's own
+ *    field sum_b p_b(X_a) phi0c_b to 1e-10 (a refit of that field gives
+ *    back phi0c to the projection's 1e-12);
+ *  - after 2 steps: phi bit for bit the same (no reset: the same material),
+ *    x moved, axis and walls as above;
+ *  - a reset after 2 steps with nodes at y(X_a): x as after the same 2
+ *    steps without it (the new nodes are where the material went; LME's
+ *    identity to 1e-12), phi carried over bit for bit; with nodes at y^a,
+ *    other material: phi refitted on the new reference, within 1e-2 of the
+ *    values at t = 0 (the node sets differ by the coefficients' shift, a
+ *    small fraction of eps on this smooth motion; measured below). */
+static void test_node_material(void **state) {
   (void)state;
   ves_setup *s = tiny_setup(0);
-  int n = s->nodes->n, walls = 0;
-  double *phi = malloc((size_t)n * sizeof *phi), worst = 0, worst_wall = 0;
-  ves_lme_params lp;
-  ves_lme_params_default(&lp);
-  lp.gamma = 0.6;
-  assert_int_equal(ves_io_nodal_phi(s->nodes, s->phi0c, &lp, phi), VES_OK);
+  const ves_nodes *nd = s->nodes;
+  const int n = nd->n;
+  ves_backend_options bo;
+  ves_backend_options_default(&bo);
+  ves_integrate_params ip;
+  ves_integrate_params_default(&ip);
+  ip.t_end = 1, ip.dt_initial = 5e-3, ip.dE_target = 0.05;
+  ip.lme.gamma = 0.6; /* the setup's ([geometry] gamma default) */
+  const ves_backend_type *bk = ves_backend_find("newton");
+  double *x = malloc(2 * (size_t)n * sizeof *x), *x2 = malloc(2 * (size_t)n * sizeof *x2);
+  double *phi = malloc((size_t)n * sizeof *phi), *phi2 = malloc((size_t)n * sizeof *phi2);
+  double *f = malloc(6 * (size_t)n * sizeof *f);
+  ves_sim *sim = NULL;
+  ves_step_report rep;
+  assert_int_equal(ves_sim_create(s->model, bk, &bo, &ip, &sim), VES_OK);
+  assert_int_equal(ves_sim_node_material(sim, x, phi), VES_OK);
+  ves_quad *pq = NULL;
+  assert_int_equal(ves_quad_create_at_nodes(nd, &pq), VES_OK);
+  assert_int_equal(ves_quad_tables(pq, nd, &ip.lme, NULL), VES_OK);
+  ves_quad_field(pq, s->phi0c, 0, f);
+  ves_quad_destroy(&pq);
+  int walls = 0, axis = 0;
+  double ex = 0, worst = 0, worst_wall = 0, efit = 0;
   for (int a = 0; a < n; a++) {
-    double R = s->nodes->x[2 * a], Z = s->nodes->x[2 * a + 1];
+    double R = nd->x[2 * a], Z = nd->x[2 * a + 1];
     double exact = tanh((1 - sqrt(R * R + Z * Z)) / (M_SQRT2 * 0.2)), e = fabs(phi[a] - exact);
     worst = fmax(worst, e);
-    if (s->nodes->flag[a] & VES_NODE_WALL) walls++, worst_wall = fmax(worst_wall, e);
+    efit = fmax(efit, fabs(phi[a] - f[6 * a]));
+    ex = fmax(ex, hypot(x[2 * a] - R, x[2 * a + 1] - Z));
+    if (nd->flag[a] & VES_NODE_WALL) {
+      walls++, worst_wall = fmax(worst_wall, e);
+      assert_true(x[2 * a] == R && x[2 * a + 1] == Z);
+    }
+    if (nd->flag[a] & VES_NODE_AXIS) axis++, assert_true(x[2 * a] == 0.0);
   }
-  printf("# %d nodes (%d on the wall): max |phi - phi0| = %.2e (wall %.2e)\n", n, walls, worst,
-         worst_wall);
-  /* the least-squares fit at h = 0.7 eps: measured 2.9e-4 at the nodes,
-   * 2.2e-4 at the wall nodes (moved 1e-3 h inwards); tolerance 1e-3 */
+  printf("# %d nodes (%d wall, %d axis): t = 0: max |x - X| = %.1e; max |phi - phi0| = %.2e "
+         "(wall %.2e); against the setup's field %.1e\n",
+         n, walls, axis, ex, worst, worst_wall, efit);
+  assert_true(ex < 1e-12);
   assert_true(worst < 1e-3);
-  assert_true(walls > 0 && worst_wall < 1e-3);
-  free(phi);
+  assert_true(walls > 0 && axis > 0 && worst_wall < 1e-3);
+  assert_true(efit < 1e-10);
+  for (int i = 0; i < 2; i++) assert_int_equal(ves_sim_step(sim, &rep), VES_OK);
+  assert_int_equal(ves_sim_node_material(sim, x2, phi2), VES_OK);
+  assert_memory_equal(phi, phi2, (size_t)n * sizeof *phi);
+  double moved = 0;
+  for (int a = 0; a < n; a++) {
+    moved = fmax(moved, hypot(x2[2 * a] - x[2 * a], x2[2 * a + 1] - x[2 * a + 1]));
+    if (nd->flag[a] & VES_NODE_WALL) assert_true(x2[2 * a] == x[2 * a]);
+    if (nd->flag[a] & VES_NODE_AXIS) assert_true(x2[2 * a] == 0.0);
+  }
+  printf("# after 2 steps: the material at the nodes moved up to %.2e R0\n", moved);
+  assert_true(moved > 1e-6);
+  ves_sim_destroy(&sim);
+
+  /* a reset after 2 steps: x (against x2, the same 2 steps without a reset)
+   * and phi (carried or refitted) */
+  for (int mode = 0; mode < 2; mode++) {
+    ip.reconnect_every = 2;
+    ip.reconnect_nodes = mode ? VES_RESET_NODES_COEF : VES_RESET_NODES_MOTION;
+    assert_int_equal(ves_sim_create(s->model, bk, &bo, &ip, &sim), VES_OK);
+    for (int i = 0; i < 2; i++) assert_int_equal(ves_sim_step(sim, &rep), VES_OK);
+    assert_int_equal(ves_sim_reconnections(sim), 1);
+    double *phir = mode ? phi2 : x; /* x is free scratch here (2n >= n) */
+    assert_int_equal(ves_sim_node_material(sim, f, phir), VES_OK);
+    double dx = 0, dphi = 0;
+    for (int a = 0; a < n; a++) {
+      dx = fmax(dx, hypot(f[2 * a] - x2[2 * a], f[2 * a + 1] - x2[2 * a + 1]));
+      dphi = fmax(dphi, fabs(phir[a] - phi[a]));
+    }
+    printf("# reset, nodes at %s: max |x - x(no reset)| = %.2e, max |phi - phi(t = 0)| = %.2e\n",
+           mode ? "y^a" : "y(X_a)", dx, dphi);
+    if (mode == 0) {
+      assert_true(dx < 1e-12); /* the nodes are where the material went */
+      assert_memory_equal(phi, phir, (size_t)n * sizeof *phi);
+    } else {
+      assert_true(dx > 0); /* new nodes at the coefficients: other material */
+      assert_true(dphi > 0 && dphi < 1e-2);
+    }
+    ves_sim_destroy(&sim);
+  }
+  free(x), free(x2), free(phi), free(phi2), free(f);
   ves_setup_destroy(&s);
 }
 
@@ -488,13 +594,13 @@ static void test_restart_chain(void **state) {
                      .V0 = 1};
   ves_io *io = NULL;
   assert_int_equal(ves_io_create(path, &h, &io, err, sizeof err), VES_OK);
-  assert_int_equal(ves_io_snapshot(io, yb, phi, &si), VES_OK);
+  assert_int_equal(ves_io_snapshot(io, yb, yb, phi, &si), VES_OK);
   ves_io_close(&io);
   memset(yb, 0, 2 * (size_t)n * sizeof *yb);
 
   assert_int_equal(ves_io_open(path, 0, &io, err, sizeof err), VES_OK);
   ves_io_snapinfo back;
-  assert_int_equal(ves_io_read_snapshot(io, 0, yb, NULL, &back), VES_OK);
+  assert_int_equal(ves_io_read_snapshot(io, 0, yb, NULL, NULL, &back), VES_OK);
   ves_io_close(&io);
   assert_int_equal(ves_sim_create(s->model, bk, &bo, &ip, &b), VES_OK);
   assert_int_equal(ves_sim_set_state(b, &back.state, yb), VES_OK);
@@ -528,7 +634,7 @@ int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_roundtrip),     cmocka_unit_test(test_truncate_continue),
       cmocka_unit_test(test_killed_writer), cmocka_unit_test(test_refusals),
-      cmocka_unit_test(test_nodal_phi),     cmocka_unit_test(test_restart_chain),
+      cmocka_unit_test(test_node_material),     cmocka_unit_test(test_restart_chain),
   };
   return cmocka_run_group_tests_name("io", tests, setup_all, teardown_all);
 }

@@ -123,4 +123,22 @@ const double *ves_sim_y(const ves_sim *s);   /* current positions, 2n */
 int ves_sim_reconnections(const ves_sim *s); /* reference resets so far */
 void ves_sim_initial(const ves_sim *s, double *E, double *A, double *V); /* at t = 0 */
 
+/* The material at the nodes of the reference in use, for output:
+ *   x[2n]   (may be NULL) its current positions y(X_a) (r, z), the motion
+ *           evaluated at the nodes, not the coefficients y^a (LME does not
+ *           interpolate; near a squeezed axis the two part by many spacings,
+ *           bench/RESULTS.md); wall nodes at y^a, axis nodes at r = 0
+ *   phi[n]  (may be NULL) the phase field it carries: phi0 of the reference
+ *           at X_a, from the L2 fit of the model's point values of phi0 onto
+ *           the reference's basis (on the creation model, the setup's field);
+ *           after a reset with nodes at y(X_a) the values are carried over
+ *           (the same material), after one at y^a refitted on the new
+ *           reference
+ * The first call after a reset builds a point set at the nodes with its
+ * tables (~n/nq of the setup's table build) and, for phi, the fit (a sparse
+ * factorization); later calls evaluate only. VES_ERR_ARG, VES_ERR_ALLOC, or
+ * the errors of ves_quad_tables and ves_sparse_project_l2; the simulation
+ * state is never changed. */
+ves_status ves_sim_node_material(ves_sim *s, double *x, double *phi);
+
 #endif

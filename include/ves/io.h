@@ -3,11 +3,11 @@
  * ParaView opens the snapshots as a time series. The module writes files and
  * never prints.
  *
- * Layout (format_version 1; HDF5 1.10, default (earliest) format bounds, so a
+ * Layout (format_version 2; HDF5 1.10, default (earliest) format bounds, so a
  * killed writer leaves no "file open for writing" flag behind):
  *
  *   /                    attributes
- *     format_version     int 1
+ *     format_version     int 2 (1: the same without snapshot x; read-only)
  *     program, version   "vesica", the program version
  *     backend            step solver of the run
  *     nodes              int n (real nodes; y has 2n entries)
@@ -34,8 +34,16 @@
  *                        status, reconnections and last step (row i holds
  *                        step i + 1; the table SERIES in io.c)
  *   /snapshots           attribute count; groups "0", "1", ... each with
- *     y                  n x 2 node positions (r, z)
- *     phi                n, phi at the nodes (material: phi0 at X_a)
+ *     y                  n x 2 nodal coefficients y^a (r, z) of the motion:
+ *                        the state a restart continues from
+ *     x                  n x 2 positions y(X_a) of the material at the nodes
+ *                        of the reference in use (ves_sim_node_material):
+ *                        what the XDMF file and `vesica plot` show (the
+ *                        coefficients, LME not interpolating, stray from the
+ *                        material by many spacings near a squeezed axis)
+ *                        (format 1 has no x; its readers get y)
+ *     phi                n, phi of that material (phi0 of the reference at
+ *                        X_a)
  *     attributes         t, step, rows (series rows at the snapshot), and the
  *                        integrator state (ves_sim_state: dt, E, A, V, E0, A0,
  *                        V0 in model units, E* = E / k; lambda_A, lambda_V,
@@ -46,7 +54,7 @@
  * continues from the last snapshot and drops the series rows after it.
  * Reference-configuration resets (reconnection) will need the reference of
  * each snapshot (nodes, quadrature points, weights, point data of phi0) for
- * a restart: that is format_version 2. */
+ * a restart: a format_version still to come. */
 #ifndef VES_IO_H
 #define VES_IO_H
 
@@ -58,7 +66,7 @@
 #include "ves/lme.h"
 #include "ves/status.h"
 
-#define VES_IO_FORMAT 1 /* format_version written and understood */
+#define VES_IO_FORMAT 2 /* format_version written; 1 is read too (read-only) */
 
 /* What a new file starts with (everything borrowed for the call). */
 typedef struct {
@@ -124,7 +132,8 @@ ves_status ves_io_create(const char *path, const ves_io_header *h, ves_io **out,
 
 /* Open an existing output file, read-only or (writable) to continue it.
  * VES_ERR_IO: cannot open / not HDF5; VES_ERR_CONFIG: HDF5 but not a vesica
- * file of a known format_version (message in err, naming the file). */
+ * file of a known format_version, or a format 1 file opened writable
+ * (message in err, naming the file). */
 ves_status ves_io_open(const char *path, int writable, ves_io **out, char *err, size_t errlen);
 
 /* Flush and close; accepts NULL and sets *io to NULL. */
@@ -135,9 +144,10 @@ const ves_io_info *ves_io_get_info(const ves_io *io);
 /* Append one row to every series and flush the file. */
 ves_status ves_io_append(ves_io *io, const ves_io_row *row);
 
-/* Write snapshot number ves_io_snapshots(io) — positions y (2n), phi (n),
- * and si — flush, and rewrite the XDMF file. */
-ves_status ves_io_snapshot(ves_io *io, const double *y, const double *phi,
+/* Write snapshot number ves_io_snapshots(io) — coefficients y (2n),
+ * material positions x (2n), phi (n), and si — flush, and rewrite the XDMF
+ * file. */
+ves_status ves_io_snapshot(ves_io *io, const double *y, const double *x, const double *phi,
                            const ves_io_snapinfo *si);
 
 /* Set the root attribute status (at most 15 characters) and flush. */
@@ -163,19 +173,13 @@ ves_status ves_io_read_series(ves_io *io, const char *name, double *out);
  * not counted). */
 int ves_io_snapshots(const ves_io *io);
 
-/* Snapshot k: y (2n) and phi (n) unless NULL, si unless NULL. */
-ves_status ves_io_read_snapshot(ves_io *io, int k, double *y, double *phi, ves_io_snapinfo *si);
+/* Snapshot k: y (2n), x (2n; y for a format 1 file) and phi (n) unless
+ * NULL, si unless NULL. */
+ves_status ves_io_read_snapshot(ves_io *io, int k, double *y, double *x, double *phi,
+                                ves_io_snapinfo *si);
 
 /* The reference mesh: X (2n) and tri (3 ntri), either may be NULL. */
 ves_status ves_io_read_mesh(ves_io *io, double *X, int *tri);
-
-/* phi at the reference node positions from the nodal coefficients phi0c (n)
- * of the LME basis: phi[a] = sum_b p_b(X_a) phi0c_b over real and ghost
- * neighbours (the material value of node a, constant in time). Wall nodes
- * lie on the hull, where LME is not evaluated: they are moved 1e-3 h_a
- * inwards (phi there is flat to the tanh tail). nodes, phi0c, par borrowed. */
-ves_status ves_io_nodal_phi(const ves_nodes *nodes, const double *phi0c, const ves_lme_params *par,
-                            double *phi);
 
 /* The XDMF path for an HDF5 path: ".h5" replaced by ".xdmf" (or appended). */
 void ves_io_xdmf_path(const char *h5path, char *out, size_t len);

@@ -120,6 +120,17 @@ const ves_quad *ves_reconnect_quad(const ves_reconnect *r);
 /* Statistics of the reset. */
 void ves_reconnect_get_info(const ves_reconnect *r, ves_reconnect_info *info);
 
+/* The motion at the real nodes of a reference, xm[2n] = y(X_a) (the current
+ * position of the material at node a), from a point set at the nodes with
+ * tables on that reference (ves_quad_create_at_nodes + ves_quad_tables) and
+ * the positions y[2n]. Wall nodes keep y^a (fixed dofs: their points sit
+ * just off the hull only so the point set is valid), axis nodes get r = 0
+ * exactly (the motion is odd in R: rounding otherwise). shift_max (may be
+ * NULL) receives max over the non-wall nodes of |y^a - y(X_a)| / h_a.
+ * No allocation. */
+void ves_reconnect_motion_at_nodes(const ves_nodes *nodes, const ves_quad *pq, const double *y,
+                                   double *xm, double *shift_max);
+
 /* The distortion of the motion y relative to the model's reference
  * configuration, over the quadrature points:
  *   *cond_max = max_alpha cond_2 F(Xh_alpha) = sigma_max / sigma_min of the
