@@ -247,6 +247,7 @@ typedef struct {
   long max_steps;             /* --max-steps (0: none) */
   double wall_offset;         /* wall time of the time loop before this process */
   long last_snapshot_step;    /* step of the last snapshot written */
+  ves_lme_params lme;         /* the setup's LME parameters */
 } run_ctx;
 
 static void run_free(run_ctx *r) {
@@ -275,9 +276,8 @@ static int build(run_ctx *r) {
     fprintf(stderr, "vesica run: out of memory\n");
     return 3;
   }
-  ves_lme_params lp;
-  ves_lme_params_default(&lp);
-  lp.gamma = r->cfg.gamma, lp.tol0 = r->cfg.support_tol;
+  ves_lme_params_default(&r->lme);
+  r->lme.gamma = r->cfg.gamma, r->lme.tol0 = r->cfg.support_tol;
   ves_backend_options bo;
   ves_backend_options_default(&bo);
   bo.tol = r->cfg.tol, bo.ctol = r->cfg.ctol, bo.max_iter = r->cfg.max_iter;
@@ -295,7 +295,7 @@ static int build(run_ctx *r) {
   ip.reconnect_det_min = c->reconnect_det_min;
   ip.reconnect_nodes =
       strcmp(c->reconnect_nodes, "motion") ? VES_RESET_NODES_COEF : VES_RESET_NODES_MOTION;
-  ip.lme = lp; /* the setup's tables were built with these */
+  ip.lme = r->lme; /* the setup's tables were built with these */
   if ((st = ves_sim_create(r->setup->model, r->bk, &bo, &ip, &r->sim)) != VES_OK) {
     fprintf(stderr, "vesica run: %s: cannot start the time loop: %s\n", r->label,
             ves_status_str(st));
@@ -313,6 +313,40 @@ static ves_status snapshot(run_ctx *r, double wall) {
   r->last_snapshot_step = si.state.nstep;
   ves_status st = ves_sim_node_material(r->sim, r->x, r->phi);
   return st == VES_OK ? ves_io_snapshot(r->io, r->y, r->x, r->phi, &si) : st;
+}
+
+/* The reference the last reset made, for a restart (io.h). */
+static ves_status write_reference(run_ctx *r, long step) {
+  const ves_reconnect *ref = ves_sim_reference(r->sim);
+  const ves_nodes *nd = ves_reconnect_nodes(ref);
+  const ves_quad *q = ves_reconnect_quad(ref);
+  double *pd = malloc(6 * (size_t)q->nq * sizeof *pd);
+  if (!pd) return VES_ERR_ALLOC;
+  ves_model_point_data(ves_reconnect_model_const(ref), pd);
+  ves_io_reference io_ref = {
+      .step = step, .nq = q->nq, .x = nd->x, .h = nd->h, .xq = q->x, .wq = q->w, .pd = pd};
+  ves_status st = ves_io_write_reference(r->io, &io_ref);
+  free(pd);
+  return st;
+}
+
+/* A restart after resets: reference k of the file rebuilt and adopted, with
+ * phi of the snapshot (its material at the reference's nodes). */
+static ves_status restore_reference(run_ctx *r, int k, int reconnections, const double *phi) {
+  const ves_quad *q0 = r->setup->quad;
+  const int n = r->setup->nodes->n, nq = q0->nq;
+  ves_io_reference_buf b = {.nq = nq};
+  b.x = malloc(2 * (size_t)n * sizeof *b.x), b.h = malloc((size_t)n * sizeof *b.h);
+  b.xq = malloc(2 * (size_t)nq * sizeof *b.xq), b.wq = malloc((size_t)nq * sizeof *b.wq);
+  b.pd = malloc(6 * (size_t)nq * sizeof *b.pd);
+  ves_status st = b.x && b.h && b.xq && b.wq && b.pd ? VES_OK : VES_ERR_ALLOC;
+  ves_reconnect *ref = NULL;
+  if (st == VES_OK) st = ves_io_read_reference(r->io, k, &b);
+  if (st == VES_OK)
+    st = ves_reconnect_restore(r->setup->model, b.x, b.h, nq, b.xq, b.wq, b.pd, &r->lme, &ref);
+  if (st == VES_OK) st = ves_sim_adopt_reference(r->sim, ref, reconnections, b.step, phi);
+  free(b.x), free(b.h), free(b.xq), free(b.wq), free(b.pd);
+  return st;
 }
 
 /* The folder of path must exist and be writable, path must not be a folder. */
@@ -396,6 +430,7 @@ static int loop(run_ctx *r) {
                       .status = rep.solve_status,
                       .reconnections = ves_sim_reconnections(r->sim)};
     if ((wst = ves_io_append(r->io, &row)) != VES_OK) break;
+    if (rep.reconnected && (wst = write_reference(r, rep.step)) != VES_OK) break;
     if (rep.step % r->cfg.snapshot_every == 0 && (wst = snapshot(r, wall)) != VES_OK) break;
     if (r->series) {
       double A0, V0;
@@ -574,20 +609,20 @@ static int run_restart(run_ctx *r, const char *file) {
     fprintf(stderr, "vesica run: --restart %s: the stored problem: %s\n", file, err);
     return 2;
   }
-  /* the snapshot holds y, not the reference configuration a reset made: a
-   * restart would continue on the initial reference, another trajectory */
+  /* after resets the snapshot's y is relative to the last reference made
+   * before it, which the file must hold */
   ves_io_snapinfo si0;
   if ((st = ves_io_read_snapshot(r->io, S - 1, NULL, NULL, NULL, &si0)) != VES_OK) {
     fprintf(stderr, "vesica run: --restart %s: snapshot %d is unreadable: %s\n", file, S - 1,
             ves_status_str(st));
     return 2;
   }
-  if (si0.reconnections > 0) {
+  if (si0.reconnections > ves_io_references(r->io)) {
     fprintf(stderr,
             "vesica run: --restart %s: the run reset its reference configuration %d time(s) "
-            "before its last snapshot (step %ld); snapshots do not hold the reference, so it "
-            "cannot be continued: rerun the problem\n",
-            file, si0.reconnections, si0.state.nstep);
+            "before its last snapshot (step %ld) but the file holds %d reference(s) (written "
+            "by a vesica that did not store them): it cannot be continued, rerun the problem\n",
+            file, si0.reconnections, si0.state.nstep, ves_io_references(r->io));
     return 2;
   }
   if (!(r->bk = ves_backend_find(in->backend))) {
@@ -617,10 +652,16 @@ static int run_restart(run_ctx *r, const char *file) {
     return 2;
   }
   ves_io_snapinfo si;
-  if ((st = ves_io_read_snapshot(r->io, S - 1, r->y, NULL, NULL, &si)) != VES_OK ||
+  if ((st = ves_io_read_snapshot(r->io, S - 1, r->y, NULL, r->phi, &si)) != VES_OK ||
       si.rows > ves_io_rows(r->io) || si.rows != si.state.nstep) {
     fprintf(stderr, "vesica run: --restart %s: snapshot %d is unreadable or inconsistent\n", file,
             S - 1);
+    return 2;
+  }
+  if (si.reconnections > 0 &&
+      (st = restore_reference(r, si.reconnections - 1, si.reconnections, r->phi)) != VES_OK) {
+    fprintf(stderr, "vesica run: --restart %s: reference %d (reset #%d) cannot be rebuilt: %s\n",
+            file, si.reconnections - 1, si.reconnections, ves_status_str(st));
     return 2;
   }
   if ((st = ves_sim_set_state(r->sim, &si.state, r->y)) != VES_OK) {
@@ -628,6 +669,7 @@ static int run_restart(run_ctx *r, const char *file) {
     return 2;
   }
   if ((st = ves_io_truncate(r->io, si.rows)) != VES_OK ||
+      (st = ves_io_truncate_references(r->io, si.reconnections)) != VES_OK ||
       (st = ves_io_set_setup_seconds(r->io, r->setup->seconds_total)) != VES_OK ||
       (st = ves_io_set_status(r->io, "running")) != VES_OK) {
     fprintf(stderr, "vesica run: --restart %s: cannot write: %s\n", file, ves_status_str(st));

@@ -93,36 +93,38 @@ ves_status build_dt(int n, const double *x, DT &dt) {
 const int SPACING_PASSES = 2; /* smoothing passes of the measured spacing */
 
 /* h_a = mean |x_a - x_b| over the Delaunay edges ab of a finished triangulation,
- * then smoothed over the Delaunay neighbours. */
+ * then smoothed over the Delaunay neighbours. Every sum runs over the neighbours
+ * in increasing index order, not in CGAL's edge order: that order depends on the
+ * process's history (measured: h differing by 1 ulp between the same reset made
+ * in a run and in its restart), and the spacing must be a function of the nodes
+ * alone, bit for bit (a restart rebuilds the same reference). */
 ves_status spacing_of_dt(const DT &dt, int n, const double *x, double *h) {
-  std::vector<int> deg((std::size_t)n, 0);
-  for (int i = 0; i < n; i++) h[i] = 0.0;
+  std::vector<std::vector<int>> nb((std::size_t)n);
   for (auto e = dt.finite_edges_begin(); e != dt.finite_edges_end(); ++e) {
     int a = e->first->vertex(DT::cw(e->second))->info();
     int b = e->first->vertex(DT::ccw(e->second))->info();
-    double L = std::hypot(x[2 * a] - x[2 * b], x[2 * a + 1] - x[2 * b + 1]);
-    h[a] += L, h[b] += L;
-    deg[a]++, deg[b]++;
+    nb[a].push_back(b), nb[b].push_back(a);
   }
   for (int i = 0; i < n; i++) {
-    if (deg[i] == 0) return VES_ERR_GEOM;
-    h[i] /= deg[i]; /* h_a = (1/deg a) sum_b |x_a - x_b| */
+    if (nb[i].empty()) return VES_ERR_GEOM;
+    std::sort(nb[i].begin(), nb[i].end());
+    double s = 0.0;
+    for (int b : nb[i]) s += std::hypot(x[2 * i] - x[2 * b], x[2 * i + 1] - x[2 * b + 1]);
+    h[i] = s / (double)nb[i].size(); /* h_a = (1/deg a) sum_b |x_a - x_b| */
   }
   /* SPACING_PASSES passes of h_a <- (h_a + (1/2) sum_b h_b) / (1 + deg_a / 2) over
    * the Delaunay neighbours b: the raw mean edge length jitters by ~+-10% from
    * node to node where lattices meet, and that jitter in beta_a = gamma/h_a^2
    * alone multiplied the sphere's energy error by 7 (4.2e-4 vs 6.6e-5 at
    * eps = 0.04, bench/RESULTS.md). A uniform lattice keeps h_a exact. */
-  std::vector<double> acc((std::size_t)n), w((std::size_t)n);
+  std::vector<double> next((std::size_t)n);
   for (int pass = 0; pass < SPACING_PASSES; pass++) {
-    for (int i = 0; i < n; i++) acc[i] = h[i], w[i] = 1.0;
-    for (auto e = dt.finite_edges_begin(); e != dt.finite_edges_end(); ++e) {
-      int a = e->first->vertex(DT::cw(e->second))->info();
-      int b = e->first->vertex(DT::ccw(e->second))->info();
-      acc[a] += 0.5 * h[b], acc[b] += 0.5 * h[a];
-      w[a] += 0.5, w[b] += 0.5;
+    for (int i = 0; i < n; i++) {
+      double acc = h[i];
+      for (int b : nb[i]) acc += 0.5 * h[b];
+      next[i] = acc / (1.0 + 0.5 * (double)nb[i].size());
     }
-    for (int i = 0; i < n; i++) h[i] = acc[i] / w[i];
+    for (int i = 0; i < n; i++) h[i] = next[i];
   }
   return VES_OK;
 }

@@ -64,6 +64,7 @@ struct ves_sim {
                                        dropped at a reset) */
   double *node_phi;                 /* n: phi of the material at those nodes */
   int node_phi_ok;                  /* node_phi holds the current reference's values */
+  long reset_step;                  /* the step of the last reset (0: none) */
 };
 
 void ves_integrate_params_default(ves_integrate_params *p) {
@@ -160,6 +161,7 @@ fail:
 }
 
 static ves_status node_phi_fit(ves_sim *s); /* phi at the reference's nodes (below) */
+static double volume_target(const ves_sim *s, double t);
 
 /* Reset the reference to s->y (ves_reconnect.h): a new model, step problem
  * and backend state are made first, the old ones freed only once all three
@@ -167,23 +169,22 @@ static ves_status node_phi_fit(ves_sim *s); /* phi at the reference's nodes (bel
  * nodes that crossed the axis mirrored: the same motion). E, A, V are
  * re-evaluated on the new model (equal up to rounding). On failure
  * everything made is freed and s is unchanged. */
-static ves_status reconnect(ves_sim *s, const ves_step_params *sp) {
-  /* nodes at y(X_a) keep their material, so phi there is carried over: fit
-   * it on the old reference if it never was (failure only means a refit on
-   * the new one, ves_sim_node_material) */
-  if (s->ip.reconnect_nodes == VES_RESET_NODES_MOTION && !s->node_phi_ok) (void)node_phi_fit(s);
-  ves_reconnect *nr = NULL;
+/* Put the simulation on the reference nr (taken on success): a new step
+ * problem and backend state on its model are made first, the old ones freed
+ * only once all exist; y continues from the new reference nodes. E, A, V
+ * re-evaluated on the new model. On failure nr and everything made are
+ * freed and s is unchanged. */
+static ves_status switch_reference(ves_sim *s, ves_reconnect *nr, const ves_step_params *sp) {
   ves_step *step = NULL;
   void *bstate = NULL;
   double E, A, V;
-  ves_status st = ves_reconnect_create(s->model, s->y, &s->ip.lme,
-                                       (ves_reset_nodes)s->ip.reconnect_nodes, &nr);
-  ves_model *m = st == VES_OK ? ves_reconnect_model(nr) : NULL;
-  const double *y = st == VES_OK ? ves_reconnect_nodes(nr)->x : NULL;
-  if (st == VES_OK) st = ves_step_create(m, &step);
+  ves_model *m = ves_reconnect_model(nr);
+  const double *y = ves_reconnect_nodes(nr)->x;
+  ves_status st = ves_step_create(m, &step);
   if (st == VES_OK && ves_step_nvar(step) != s->nvar) st = VES_ERR_INTERNAL; /* same dofs */
   if (st == VES_OK) st = ves_step_set(step, y, sp); /* the backend needs a set problem */
   if (st == VES_OK) st = s->backend->create(&s->bopt, step, &bstate);
+  if (st == VES_OK) st = ves_model_set_c0(m, s->c0);
   if (st == VES_OK)
     st = ves_model_eval(m, y, VES_F_E | VES_F_A | VES_F_V, &E, &A, &V, NULL, NULL, NULL);
   if (st != VES_OK) {
@@ -198,11 +199,42 @@ static ves_status reconnect(ves_sim *s, const ves_step_params *sp) {
   s->ref = nr, s->model = m, s->step = step, s->bstate = bstate;
   memcpy(s->y, y, 2 * (size_t)s->n * sizeof *s->y);
   s->E = E, s->A = A, s->V = V;
-  s->since = 0;
-  s->reconnections++;
   ves_quad_destroy(&s->at_nodes); /* built on the old nodes */
-  /* the new nodes at y(X_a) are the old nodes' material: phi stays */
+  return VES_OK;
+}
+
+static ves_status reconnect(ves_sim *s, const ves_step_params *sp) {
+  /* nodes at y(X_a) keep their material, so phi there is carried over: fit
+   * it on the old reference if it never was (failure only means a refit on
+   * the new one, ves_sim_node_material) */
+  if (s->ip.reconnect_nodes == VES_RESET_NODES_MOTION && !s->node_phi_ok) (void)node_phi_fit(s);
+  ves_reconnect *nr = NULL;
+  ves_status st = ves_reconnect_create(s->model, s->y, &s->ip.lme,
+                                       (ves_reset_nodes)s->ip.reconnect_nodes, &nr);
+  if (st == VES_OK) st = switch_reference(s, nr, sp);
+  if (st != VES_OK) return st;
+  s->since = 0;
+  s->reset_step = s->nstep;
+  s->reconnections++;
   if (s->ip.reconnect_nodes != VES_RESET_NODES_MOTION) s->node_phi_ok = 0;
+  return VES_OK;
+}
+
+ves_status ves_sim_adopt_reference(ves_sim *s, ves_reconnect *ref, int reconnections,
+                                   long reset_step, const double *node_phi) {
+  VES_CHECK(s && ref && reconnections > 0 && reset_step >= 0, VES_ERR_ARG);
+  if (node_phi)
+    for (int a = 0; a < s->n; a++) VES_CHECK(isfinite(node_phi[a]), VES_ERR_ARG);
+  ves_step_params sp = {.dt = s->dt, .hold_area = s->ip.hold_area, .A0 = s->A0,
+                        .hold_volume = s->ip.hold_volume, .V_target = volume_target(s, s->t)};
+  VES_CALL(switch_reference(s, ref, &sp));
+  s->reconnections = reconnections, s->reset_step = reset_step;
+  s->since = s->nstep >= reset_step ? s->nstep - reset_step : 0;
+  s->node_phi_ok = 0;
+  if (node_phi && (s->node_phi || (s->node_phi = malloc((size_t)s->n * sizeof *s->node_phi)))) {
+    memcpy(s->node_phi, node_phi, (size_t)s->n * sizeof *s->node_phi);
+    s->node_phi_ok = 1;
+  }
   return VES_OK;
 }
 
@@ -317,6 +349,7 @@ double ves_sim_time(const ves_sim *s) { return s->t; }
 double ves_sim_dt(const ves_sim *s) { return s->dt; }
 const double *ves_sim_y(const ves_sim *s) { return s->y; }
 int ves_sim_reconnections(const ves_sim *s) { return s->reconnections; }
+const ves_reconnect *ves_sim_reference(const ves_sim *s) { return s->ref; }
 
 void ves_sim_initial(const ves_sim *s, double *E, double *A, double *V) {
   if (E) *E = s->E0 / ves_model_get_k(s->model);
@@ -335,16 +368,16 @@ void ves_sim_get_state(const ves_sim *s, ves_sim_state *st, double *y) {
 
 ves_status ves_sim_set_state(ves_sim *s, const ves_sim_state *st, const double *y) {
   VES_CHECK(s && st && y, VES_ERR_ARG);
-  VES_CHECK(!s->ref, VES_ERR_ARG); /* y would be taken on the creation model's reference */
   const double v[] = {st->t,  st->dt, st->E,         st->A,         st->V, st->E0,
                       st->A0, st->V0, st->lambda[0], st->lambda[1], st->c0};
   for (size_t i = 0; i < sizeof v / sizeof v[0]; i++) VES_CHECK(isfinite(v[i]), VES_ERR_ARG);
   VES_CHECK(st->t >= 0 && st->dt > 0 && st->nstep >= 0 && st->A0 > 0 && st->V0 > 0, VES_ERR_ARG);
   for (int i = 0; i < 2 * s->n; i++) VES_CHECK(isfinite(y[i]), VES_ERR_ARG);
+  VES_CHECK(st->nstep >= s->reset_step, VES_ERR_ARG); /* not before the reference's reset */
   VES_CALL(ves_model_set_c0(s->model, st->c0));
   memcpy(s->y, y, 2 * (size_t)s->n * sizeof *s->y);
   s->t = st->t, s->dt = st->dt, s->nstep = st->nstep;
-  s->since = st->nstep; /* no reset before: steps since the start */
+  s->since = st->nstep - s->reset_step; /* as in the uninterrupted run */
   s->E = st->E, s->A = st->A, s->V = st->V;
   s->E0 = st->E0, s->A0 = st->A0, s->V0 = st->V0;
   s->lambda[0] = st->lambda[0], s->lambda[1] = st->lambda[1];

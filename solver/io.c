@@ -744,6 +744,85 @@ ves_status ves_io_read_mesh(ves_io *io, double *X, int *tri) {
   return VES_OK;
 }
 
+/* ---- references (resets of the reference configuration) ----------------- */
+
+/* The complete references: /references attribute count (0 without the group). */
+int ves_io_references(const ves_io *io) {
+  if (!io || H5Lexists(io->file, "references", H5P_DEFAULT) <= 0) return 0;
+  hid_t g = H5Gopen2(io->file, "references", H5P_DEFAULT);
+  int count = 0;
+  if (g >= 0 && attr_read(g, "count", H5T_NATIVE_INT, &count) != VES_OK) count = 0;
+  if (g >= 0) H5Gclose(g);
+  return count;
+}
+
+ves_status ves_io_write_reference(ves_io *io, const ves_io_reference *ref) {
+  VES_CHECK(io && ref && io->writable && ref->x && ref->h && ref->xq && ref->wq && ref->pd,
+            VES_ERR_ARG);
+  VES_CHECK(ref->nq > 0 && ref->step >= 0, VES_ERR_ARG);
+  const int k = ves_io_references(io);
+  hid_t s = H5Lexists(io->file, "references", H5P_DEFAULT) > 0
+                ? H5Gopen2(io->file, "references", H5P_DEFAULT)
+                : H5Gcreate2(io->file, "references", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+  if (s < 0) return VES_ERR_IO;
+  char name[32];
+  snprintf(name, sizeof name, "%d", k);
+  /* a run killed while writing this reference left an incomplete group */
+  if (H5Lexists(s, name, H5P_DEFAULT) > 0) H5Ldelete(s, name, H5P_DEFAULT);
+  hid_t g = H5Gcreate2(s, name, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+  ves_status st = g < 0 ? VES_ERR_IO : VES_OK;
+  const hsize_t n = (hsize_t)io->info.n, nq = (hsize_t)ref->nq;
+  const hid_t F = H5T_IEEE_F64LE, M = H5T_NATIVE_DOUBLE;
+  if (st == VES_OK) st = dset_write(g, "x", F, M, n, 2, ref->x);
+  if (st == VES_OK) st = dset_write(g, "h", F, M, n, 0, ref->h);
+  if (st == VES_OK) st = dset_write(g, "points", F, M, nq, 2, ref->xq);
+  if (st == VES_OK) st = dset_write(g, "weights", F, M, nq, 0, ref->wq);
+  if (st == VES_OK) st = dset_write(g, "phi0", F, M, nq, 6, ref->pd);
+  if (st == VES_OK) st = attr_long(g, "step", ref->step);
+  if (g >= 0) H5Gclose(g);
+  if (st == VES_OK) st = attr_int(s, "count", k + 1); /* complete once counted */
+  H5Gclose(s);
+  VES_CALL(st);
+  return H5Fflush(io->file, H5F_SCOPE_LOCAL) < 0 ? VES_ERR_IO : VES_OK;
+}
+
+ves_status ves_io_read_reference(ves_io *io, int k, ves_io_reference_buf *out) {
+  VES_CHECK(io && out && out->x && out->h && out->xq && out->wq && out->pd, VES_ERR_ARG);
+  VES_CHECK(k >= 0 && k < ves_io_references(io) && out->nq > 0, VES_ERR_ARG);
+  char name[48];
+  snprintf(name, sizeof name, "references/%d", k);
+  hid_t g = H5Gopen2(io->file, name, H5P_DEFAULT);
+  if (g < 0) return VES_ERR_IO;
+  const hsize_t n = (hsize_t)io->info.n, nq = (hsize_t)out->nq;
+  const hid_t M = H5T_NATIVE_DOUBLE;
+  ves_status st = dset_read(g, "x", M, 2 * n, out->x);
+  if (st == VES_OK) st = dset_read(g, "h", M, n, out->h);
+  if (st == VES_OK) st = dset_read(g, "points", M, 2 * nq, out->xq);
+  if (st == VES_OK) st = dset_read(g, "weights", M, nq, out->wq);
+  if (st == VES_OK) st = dset_read(g, "phi0", M, 6 * nq, out->pd);
+  if (st == VES_OK) st = attr_read(g, "step", H5T_NATIVE_LONG, &out->step);
+  H5Gclose(g);
+  return st;
+}
+
+ves_status ves_io_truncate_references(ves_io *io, int count) {
+  VES_CHECK(io && io->writable && count >= 0, VES_ERR_ARG);
+  const int have = ves_io_references(io);
+  VES_CHECK(count <= have, VES_ERR_ARG);
+  if (count == have) return VES_OK;
+  hid_t s = H5Gopen2(io->file, "references", H5P_DEFAULT);
+  if (s < 0) return VES_ERR_IO;
+  ves_status st = attr_int(s, "count", count); /* first: the rest is then stray */
+  for (int k = count; k < have && st == VES_OK; k++) {
+    char name[32];
+    snprintf(name, sizeof name, "%d", k);
+    if (H5Ldelete(s, name, H5P_DEFAULT) < 0) st = VES_ERR_IO;
+  }
+  H5Gclose(s);
+  VES_CALL(st);
+  return H5Fflush(io->file, H5F_SCOPE_LOCAL) < 0 ? VES_ERR_IO : VES_OK;
+}
+
 ves_status ves_io_set_status(ves_io *io, const char *status) {
   VES_CHECK(io && status && io->writable && strlen(status) < sizeof io->info.status, VES_ERR_ARG);
   VES_CALL(attr_str(io->file, "status", status));

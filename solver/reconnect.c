@@ -45,6 +45,8 @@ void ves_reconnect_destroy(ves_reconnect **r) {
 }
 
 ves_model *ves_reconnect_model(ves_reconnect *r) { return r->model; }
+
+const ves_model *ves_reconnect_model_const(const ves_reconnect *r) { return r->model; }
 const ves_nodes *ves_reconnect_nodes(const ves_reconnect *r) { return r->nodes; }
 const ves_quad *ves_reconnect_quad(const ves_reconnect *r) { return r->quad; }
 void ves_reconnect_get_info(const ves_reconnect *r, ves_reconnect_info *info) { *info = r->info; }
@@ -166,7 +168,8 @@ static ves_status node_motion(const ves_nodes *nodes, const double *y, const ves
  * z_a), the same point set; see the header), h'_a measured on real and ghost
  * nodes together (as ves_nodes_generate does). The struct is allocated with
  * malloc like geom.cpp's, so ves_nodes_destroy frees it. */
-static ves_status new_nodes(const ves_nodes *old, const double *y, ves_nodes **out, int *mirrored) {
+static ves_status new_nodes(const ves_nodes *old, const double *y, const double *h,
+                           ves_nodes **out, int *mirrored) {
   const int n = old->n;
   ves_status s = VES_ERR_ALLOC;
   double *xe = NULL, *he = NULL;
@@ -200,8 +203,12 @@ static ves_status new_nodes(const ves_nodes *old, const double *y, ves_nodes **o
     const int a = nd->ghost_of[k];
     xe[2 * (n + k)] = -nd->x[2 * a], xe[2 * (n + k) + 1] = nd->x[2 * a + 1];
   }
-  if ((s = ves_geom_spacing(n + nd->ng, xe, he)) != VES_OK) goto fail;
-  memcpy(nd->h, he, (size_t)n * sizeof *nd->h);
+  if (h) { /* given (a restored reference): no measurement */
+    memcpy(nd->h, h, (size_t)n * sizeof *nd->h);
+  } else {
+    if ((s = ves_geom_spacing(n + nd->ng, xe, he)) != VES_OK) goto fail;
+    memcpy(nd->h, he, (size_t)n * sizeof *nd->h);
+  }
   free(xe), free(he);
   *out = nd;
   return VES_OK;
@@ -251,7 +258,7 @@ ves_status ves_reconnect_create(const ves_model *m, const double *y, const ves_l
   /* the motion at the nodes: the new nodes, or only the measured shift */
   if ((s = node_motion(nodes, y, lme, xn, &r->info.shift_max)) != VES_OK) goto fail;
   if (where == VES_RESET_NODES_COEF) memcpy(xn, y, 2 * (size_t)n * sizeof *xn);
-  if ((s = new_nodes(nodes, xn, &r->nodes, &r->info.mirrored)) != VES_OK) goto fail;
+  if ((s = new_nodes(nodes, xn, NULL, &r->nodes, &r->info.mirrored)) != VES_OK) goto fail;
   if ((s = ves_quad_create_points(nq, xq, wq, q->ntri, q->tri, &r->quad)) != VES_OK) goto fail;
   if ((s = ves_quad_tables(r->quad, r->nodes, lme, &r->info.qinfo)) != VES_OK) goto fail;
   ves_model_params par;
@@ -269,6 +276,41 @@ fail:
   free(pd), free(xq), free(wq), free(xn);
   ves_reconnect_destroy(&r);
   return s;
+}
+
+ves_status ves_reconnect_restore(const ves_model *m, const double *x, const double *h, int nq,
+                                 const double *xq, const double *wq, const double *pd,
+                                 const ves_lme_params *lme, ves_reconnect **out) {
+  VES_CHECK(out, VES_ERR_ARG);
+  *out = NULL;
+  VES_CHECK(m && x && h && xq && wq && pd && lme, VES_ERR_ARG);
+  VES_CHECK(isfinite(ves_lme_radius(lme, 1.0)), VES_ERR_ARG);
+  const double t0 = ves_wall_seconds();
+  const ves_nodes *nodes = ves_model_nodes(m);
+  const ves_quad *q = ves_model_quad(m);
+  const int n = nodes->n;
+  VES_CHECK(nq == q->nq, VES_ERR_ARG);
+  VES_CHECK(finite_vec(2 * (size_t)n, x) && finite_vec((size_t)n, h), VES_ERR_ARG);
+  for (int a = 0; a < n; a++) VES_CHECK(h[a] > 0 && x[2 * a] >= 0, VES_ERR_ARG);
+  ves_reconnect *r = calloc(1, sizeof *r);
+  if (!r) return VES_ERR_ALLOC;
+  r->info.cond_max = 1.0, r->info.det_min = 1.0; /* no motion measured */
+  ves_status s = new_nodes(nodes, x, h, &r->nodes, &r->info.mirrored);
+  if (s == VES_OK) s = ves_quad_create_points(nq, xq, wq, q->ntri, q->tri, &r->quad);
+  if (s == VES_OK) s = ves_quad_tables(r->quad, r->nodes, lme, &r->info.qinfo);
+  ves_model_params par;
+  ves_model_get_params(m, &par);
+  if (s == VES_OK) s = ves_model_create_points(r->nodes, r->quad, pd, &par, &r->model);
+  if (s != VES_OK) {
+    ves_reconnect_destroy(&r);
+    return s;
+  }
+  r->info.h_min = INFINITY, r->info.h_max = 0.0;
+  for (int a = 0; a < n; a++)
+    r->info.h_min = fmin(r->info.h_min, h[a]), r->info.h_max = fmax(r->info.h_max, h[a]);
+  r->info.seconds = ves_wall_seconds() - t0;
+  *out = r;
+  return VES_OK;
 }
 
 /* Defaults. A motion with singular values sigma_1 >= sigma_2 seen from the

@@ -365,26 +365,35 @@ static void same_series(ves_io *a, ves_io *b, long rows) {
   const char *names[] = {"step", "t", "dt", "E", "A", "V", "lambda_A", "lambda_V"};
   for (size_t i = 0; i < sizeof names / sizeof names[0]; i++) {
     double *x = series(a, names[i]), *y = series(b, names[i]);
-    if (memcmp(x, y, (size_t)rows * sizeof *x))
-      fail_msg("series %s differs between the runs", names[i]);
+    for (long k = 0; k < rows; k++)
+      if (memcmp(x + k, y + k, sizeof *x))
+        fail_msg("series %s differs between the runs at row %ld: %.17g against %.17g", names[i],
+                 k, x[k], y[k]);
     free(x), free(y);
   }
 }
 
-/* A run that reset its reference configuration before its last snapshot
- * cannot be continued (the snapshot holds y, not the reference): --restart
- * refuses with exit 2 and leaves the file as it was. The same run carries a
- * C0 pulse over its second step: E* jumps up and down with C0, and `info`
- * still calls the energy monotone (rises across a switch do not count). */
+/* A run that reset its reference configuration continues on the reference
+ * the file stores (io.h /references): resets every 2 steps, stopped after 3
+ * (last snapshot: step 3, one reset behind it, on reference 0) and
+ * restarted, against the same run uninterrupted: the series, the resets,
+ * the last y, x and phi bit for bit. The run carries a C0 pulse over its
+ * second step: E* jumps up and down with C0, and `info` still calls the
+ * energy monotone (rises across a switch do not count). A file whose
+ * snapshot has more resets behind it than references stored (a format 1
+ * run, or references lost) is refused with exit 2 and left as it was. */
 static void test_restart_after_reset(void **state) {
   (void)state;
-  char ini[128], part[128];
+  char ini[128], part[128], full[128];
   tmp_path(ini, sizeof ini, "reset.ini");
   tmp_path(part, sizeof part, "reset.h5");
-  write_file(ini, "[time]\nt_end = 0.1\nadaptive = 0\n[output]\nsnapshot_every = 2\n"
-                  "[reconnect]\nevery = 2\n"
+  tmp_path(full, sizeof full, "reset_full.h5");
+  write_file(ini, "[time]\nt_end = 0.04\nadaptive = 0\n[output]\nsnapshot_every = 2\n"
+                  "[reconnect]\nevery = 2\nnodes = motion\n"
                   "[protocol]\nc0_time = 0.005\nc0_after = 3\nc0_until = 0.01\n");
   result r;
+  run(&r, "run", ini, TINY, "--out", full, "--quiet", NULL);
+  if (r.code) fail_msg("run: exit %d: %s", r.code, r.err);
   run(&r, "run", ini, TINY, "--out", part, "--quiet", "--max-steps", "3", NULL);
   if (r.code) fail_msg("run: exit %d: %s", r.code, r.err);
   ves_io *b = open_ro(part);
@@ -393,6 +402,7 @@ static void test_restart_after_reset(void **state) {
   ves_io_snapinfo si;
   assert_int_equal(ves_io_read_snapshot(b, S - 1, NULL, NULL, NULL, &si), VES_OK);
   assert_int_equal(si.reconnections, 1); /* the reset after step 2 */
+  assert_int_equal(ves_io_references(b), 1);
   double E[3], c0[3];
   assert_int_equal(ves_io_read_series(b, "E", E), VES_OK);
   assert_int_equal(ves_io_read_series(b, "c0", c0), VES_OK);
@@ -403,15 +413,51 @@ static void test_restart_after_reset(void **state) {
   run(&r, "info", part, NULL);
   assert_int_equal(r.code, 0);
   assert_non_null(strstr(r.out, "energy_monotone = yes\n"));
+
   run(&r, "run", "--restart", part, "--quiet", NULL);
-  printf("# restart after a reset -> %d: %s", r.code, r.err);
-  assert_int_equal(r.code, 2);
-  assert_non_null(strstr(r.err, "reset its reference configuration 1 time(s)"));
+  if (r.code) fail_msg("restart after a reset: exit %d: %s", r.code, r.err);
+  ves_io *a = open_ro(full);
   b = open_ro(part);
-  assert_int_equal(ves_io_rows(b), 3); /* untouched */
-  assert_int_equal(ves_io_snapshots(b), S);
+  long R = ves_io_rows(a);
+  int n = ves_io_get_info(a)->n;
+  printf("# resets every 2 steps: uninterrupted %ld steps, %d references; stopped at 3 and "
+         "restarted: %ld steps, %d references\n",
+         R, ves_io_references(a), ves_io_rows(b), ves_io_references(b));
+  assert_true(R == 8 && ves_io_references(a) == 4); /* t_end 0.04 at the TINY dt 5e-3 */
+  assert_int_equal(ves_io_rows(b), R);
+  assert_int_equal(ves_io_references(b), ves_io_references(a));
+  same_series(a, b, R);
+  double *ra = series(a, "reconnections"), *rb = series(b, "reconnections");
+  assert_memory_equal(ra, rb, (size_t)R * sizeof *ra);
+  free(ra), free(rb);
+  double *va = malloc(5 * (size_t)n * sizeof *va), *vb = malloc(5 * (size_t)n * sizeof *vb);
+  ves_io_snapinfo sa, sb;
+  assert_int_equal(ves_io_read_snapshot(a, ves_io_snapshots(a) - 1, va, va + 2 * n, va + 4 * n,
+                                        &sa),
+                   VES_OK);
+  assert_int_equal(ves_io_read_snapshot(b, ves_io_snapshots(b) - 1, vb, vb + 2 * n, vb + 4 * n,
+                                        &sb),
+                   VES_OK);
+  assert_true(sa.state.nstep == R && sb.state.nstep == R && sb.reconnections == 4);
+  assert_memory_equal(va, vb, 5 * (size_t)n * sizeof *va); /* y, x, phi bit for bit */
+  assert_memory_equal(&sa.state, &sb.state, sizeof sa.state);
+  free(va), free(vb);
+  ves_io_close(&a), ves_io_close(&b);
+
+  /* references lost: refused, file untouched */
+  char err[512];
+  assert_int_equal(ves_io_open(part, 1, &b, err, sizeof err), VES_OK);
+  assert_int_equal(ves_io_truncate_references(b, 2), VES_OK);
   ves_io_close(&b);
-  unlink(ini), unlink(part);
+  run(&r, "run", "--restart", part, "--quiet", NULL);
+  printf("# restart without its references -> %d: %s", r.code, r.err);
+  assert_int_equal(r.code, 2);
+  assert_non_null(strstr(r.err, "reset its reference configuration 4 time(s)"));
+  b = open_ro(part);
+  assert_int_equal(ves_io_rows(b), R); /* untouched */
+  assert_int_equal(ves_io_references(b), 2);
+  ves_io_close(&b);
+  unlink(ini), unlink(part), unlink(full);
 }
 
 static void test_restart_bitwise(void **state) {

@@ -283,10 +283,16 @@ static void test_reconnect_every(void **state) {
   }
   assert_int_equal(n, 6);
   assert_int_equal(ves_sim_reconnections(sim), 3);
-  /* a reconnected simulation refuses a state taken on the creation reference */
-  ves_sim_state st;
+  /* a state is taken on the reference in use: one from before its reset
+   * (step 6) is refused, nothing changed; its own state is taken back */
+  ves_sim_state st, st2;
   ves_sim_get_state(sim, &st, NULL);
+  st.nstep = 5;
   assert_int_equal(ves_sim_set_state(sim, &st, ves_sim_y(sim)), VES_ERR_ARG);
+  ves_sim_get_state(sim, &st2, NULL);
+  assert_int_equal(st2.nstep, 6);
+  st.nstep = 6;
+  assert_int_equal(ves_sim_set_state(sim, &st, ves_sim_y(sim)), VES_OK);
   ves_sim_destroy(&sim);
   ves_setup_destroy(&s);
 }

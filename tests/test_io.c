@@ -296,6 +296,61 @@ static void test_truncate_continue(void **state) {
   free(f.problem);
 }
 
+/* References (resets): written and read back bit for bit, counted, the
+ * point count checked, truncated, and the next one written in place. */
+static void test_references(void **state) {
+  (void)state;
+  fake f;
+  fake_init(&f);
+  char path[128], err[512] = "";
+  path_in(path, sizeof path, "ref.h5");
+  ves_io *io = NULL;
+  assert_int_equal(ves_io_create(path, &f.h, &io, err, sizeof err), VES_OK);
+  assert_int_equal(ves_io_references(io), 0);
+  enum { NQ = 12 };
+  double x[8], h[4], xq[2 * NQ], wq[NQ], pd[6 * NQ];
+  for (int k = 0; k < 3; k++) {
+    for (int i = 0; i < 8; i++) x[i] = f.X[i] + 0.01 * k;
+    for (int i = 0; i < 4; i++) h[i] = 0.1 + i + k;
+    for (int i = 0; i < 2 * NQ; i++) xq[i] = i / 7.0 + k;
+    for (int i = 0; i < NQ; i++) wq[i] = 1.0 / (i + 3 + k);
+    for (int i = 0; i < 6 * NQ; i++) pd[i] = sin(i + k);
+    ves_io_reference ref = {.step = 10 * (k + 1), .nq = NQ, .x = x, .h = h, .xq = xq, .wq = wq,
+                            .pd = pd};
+    assert_int_equal(ves_io_write_reference(io, &ref), VES_OK);
+    assert_int_equal(ves_io_references(io), k + 1);
+  }
+  ves_io_close(&io);
+  assert_int_equal(ves_io_open(path, 0, &io, err, sizeof err), VES_OK);
+  assert_int_equal(ves_io_references(io), 3);
+  double bx[8], bh[4], bxq[2 * NQ], bwq[NQ], bpd[6 * NQ];
+  ves_io_reference_buf b = {.nq = NQ, .x = bx, .h = bh, .xq = bxq, .wq = bwq, .pd = bpd};
+  assert_int_equal(ves_io_read_reference(io, 2, &b), VES_OK);
+  assert_int_equal(b.step, 30);
+  assert_memory_equal(bx, x, sizeof x);
+  assert_memory_equal(bh, h, sizeof h);
+  assert_memory_equal(bxq, xq, sizeof xq);
+  assert_memory_equal(bwq, wq, sizeof wq);
+  assert_memory_equal(bpd, pd, sizeof pd);
+  assert_int_equal(ves_io_read_reference(io, 3, &b), VES_ERR_ARG);
+  b.nq = NQ - 1; /* not the file's */
+  assert_int_equal(ves_io_read_reference(io, 0, &b), VES_ERR_IO);
+  assert_int_equal(ves_io_truncate_references(io, 1), VES_ERR_ARG); /* read-only */
+  ves_io_close(&io);
+  assert_int_equal(ves_io_open(path, 1, &io, err, sizeof err), VES_OK);
+  assert_int_equal(ves_io_truncate_references(io, 4), VES_ERR_ARG); /* cannot grow */
+  assert_int_equal(ves_io_truncate_references(io, 1), VES_OK);
+  assert_int_equal(ves_io_references(io), 1);
+  ves_io_reference ref = {.step = 99, .nq = NQ, .x = x, .h = h, .xq = xq, .wq = wq, .pd = pd};
+  assert_int_equal(ves_io_write_reference(io, &ref), VES_OK);
+  assert_int_equal(ves_io_references(io), 2);
+  b.nq = NQ;
+  assert_int_equal(ves_io_read_reference(io, 1, &b), VES_OK);
+  assert_int_equal(b.step, 99);
+  ves_io_close(&io);
+  free(f.problem);
+}
+
 /* A writer killed in the middle: one series a row longer than the others,
  * and a snapshot group written but not counted. The reader sees the
  * complete rows and snapshots; the next snapshot replaces the stray group. */
@@ -633,7 +688,8 @@ int main(void) {
   setvbuf(stdout, NULL, _IOLBF, 0); /* keep output in order with cmocka's stderr */
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_roundtrip),     cmocka_unit_test(test_truncate_continue),
-      cmocka_unit_test(test_killed_writer), cmocka_unit_test(test_refusals),
+      cmocka_unit_test(test_killed_writer),
+      cmocka_unit_test(test_references), cmocka_unit_test(test_refusals),
       cmocka_unit_test(test_node_material),     cmocka_unit_test(test_restart_chain),
   };
   return cmocka_run_group_tests_name("io", tests, setup_all, teardown_all);

@@ -978,6 +978,80 @@ static void test_constructors(void **state) {
   free(pd), free(g0), free(g1);
 }
 
+/* ves_reconnect_restore from what a reset stores (nodes, spacings, points,
+ * weights, point data): the same tables and the same model, bit for bit
+ * (values and gradients of E, A, V at a further deformed state), then a
+ * second reset from each gives the same new reference. Errors: a wrong
+ * point count, h <= 0, r < 0. */
+static void test_restore(void **state) {
+  (void)state;
+  const int n = P->n, n2 = 2 * n;
+  ves_reconnect *r1 = NULL, *rr = NULL;
+  assert_int_equal(ves_reconnect_create(P->su->model, P->yd, &P->lme, VES_RESET_NODES_MOTION, &r1),
+                   VES_OK);
+  const ves_nodes *nd = ves_reconnect_nodes(r1);
+  const ves_quad *q = ves_reconnect_quad(r1);
+  const int nq = q->nq;
+  double *pd = xmalloc(6 * (size_t)nq);
+  ves_model_point_data(ves_reconnect_model_const(r1), pd);
+  assert_int_equal(ves_reconnect_restore(P->su->model, nd->x, nd->h, nq, q->x, q->w, pd, &P->lme,
+                                         &rr),
+                   VES_OK);
+  const ves_quad *qr = ves_reconnect_quad(rr);
+  assert_memory_equal(ves_reconnect_nodes(rr)->x, nd->x, (size_t)n2 * sizeof *nd->x);
+  assert_memory_equal(ves_reconnect_nodes(rr)->h, nd->h, (size_t)n * sizeof *nd->h);
+  assert_memory_equal(qr->ptr, q->ptr, ((size_t)nq + 1) * sizeof *q->ptr);
+  assert_memory_equal(qr->nbr, q->nbr, (size_t)q->ptr[nq] * sizeof *q->nbr);
+  assert_memory_equal(qr->tab, q->tab, 6 * (size_t)q->ptr[nq] * sizeof *q->tab);
+  /* a further motion on the new reference: the same model */
+  double *y2 = xmalloc((size_t)n2), *g1 = xmalloc(3 * (size_t)n2), *g2 = xmalloc(3 * (size_t)n2);
+  double v1[3], v2[3];
+  deform(nd, nd->x, 0.5 * AMP, y2);
+  assert_int_equal(ves_model_eval(ves_reconnect_model(r1), y2, 7, v1, v1 + 1, v1 + 2, g1, g1 + n2,
+                                  g1 + 2 * n2),
+                   VES_OK);
+  assert_int_equal(ves_model_eval(ves_reconnect_model(rr), y2, 7, v2, v2 + 1, v2 + 2, g2, g2 + n2,
+                                  g2 + 2 * n2),
+                   VES_OK);
+  assert_memory_equal(v1, v2, sizeof v1);
+  assert_memory_equal(g1, g2, 3 * (size_t)n2 * sizeof *g1);
+  /* and the next reset from either */
+  ves_reconnect *s1 = NULL, *s2 = NULL;
+  assert_int_equal(ves_reconnect_create(ves_reconnect_model(r1), y2, &P->lme,
+                                        VES_RESET_NODES_MOTION, &s1),
+                   VES_OK);
+  assert_int_equal(ves_reconnect_create(ves_reconnect_model(rr), y2, &P->lme,
+                                        VES_RESET_NODES_MOTION, &s2),
+                   VES_OK);
+  assert_memory_equal(ves_reconnect_nodes(s1)->h, ves_reconnect_nodes(s2)->h,
+                      (size_t)n * sizeof(double));
+  assert_memory_equal(ves_reconnect_quad(s1)->tab, ves_reconnect_quad(s2)->tab,
+                      6 * (size_t)ves_reconnect_quad(s1)->ptr[nq] * sizeof(double));
+  printf("# restored reference: %d nodes, %d points, tables and model identical; E* %.12g\n", n,
+         nq, v2[0] / P->cfg.k);
+  ves_reconnect_destroy(&s1), ves_reconnect_destroy(&s2);
+  ves_reconnect_destroy(&rr);
+  /* errors */
+  double *h = xmalloc((size_t)n), *x = xmalloc((size_t)n2);
+  memcpy(h, nd->h, (size_t)n * sizeof *h);
+  memcpy(x, nd->x, (size_t)n2 * sizeof *x);
+  rr = (ves_reconnect *)1;
+  assert_int_equal(ves_reconnect_restore(P->su->model, x, h, nq - 1, q->x, q->w, pd, &P->lme, &rr),
+                   VES_ERR_ARG);
+  assert_null(rr);
+  h[7] = 0;
+  assert_int_equal(ves_reconnect_restore(P->su->model, x, h, nq, q->x, q->w, pd, &P->lme, &rr),
+                   VES_ERR_ARG);
+  h[7] = nd->h[7];
+  int a = 0;
+  while (nd->flag[a] & VES_NODE_AXIS) a++;
+  x[2 * a] = -x[2 * a];
+  assert_int_equal(ves_reconnect_restore(P->su->model, x, h, nq, q->x, q->w, pd, &P->lme, &rr),
+                   VES_ERR_ARG);
+  ves_reconnect_destroy(&r1);
+  free(pd), free(y2), free(g1), free(g2), free(h), free(x);
+}
+
 /* Error paths of the reset and the distortion measure. */
 static void test_errors(void **state) {
   (void)state;
@@ -1100,6 +1174,7 @@ int main(void) {
       cmocka_unit_test(test_distortion_affine),
       cmocka_unit_test(test_due),
       cmocka_unit_test(test_constructors),
+      cmocka_unit_test(test_restore),
       cmocka_unit_test(test_errors),
   };
   return cmocka_run_group_tests(tests, group_setup, group_teardown);

@@ -109,13 +109,33 @@ typedef struct {
 void ves_sim_get_state(const ves_sim *s, ves_sim_state *st, double *y);
 
 /* Continue from state st and positions y (2n); both copied. Sets the
- * model's C0 to st->c0. The state must be one reached without a reset (y
- * relative to the creation model's reference; the reset count then starts
- * at st->nstep steps since the start, as in the uninterrupted run).
+ * model's C0 to st->c0. y is relative to the reference in use: the
+ * creation model's, or the one given by ves_sim_adopt_reference (the steps
+ * counted towards the next reset are then st->nstep minus the step of that
+ * reference's reset, as in the uninterrupted run).
  * VES_ERR_ARG for non-finite or inconsistent values (t < 0, dt <= 0,
- * nstep < 0, A0 or V0 <= 0) or a simulation that has already reset its
- * reference; then nothing changes. */
+ * nstep < 0 or before the reset of the reference in use, A0 or V0 <= 0);
+ * then nothing changes. */
 ves_status ves_sim_set_state(ves_sim *s, const ves_sim_state *st, const double *y);
+
+typedef struct ves_reconnect ves_reconnect; /* reconnect.h */
+
+/* A restart after resets: continue on ref (taken by the simulation on
+ * success), a reference rebuilt by ves_reconnect_restore, which the run
+ * reached with its reconnections-th reset at step reset_step; then set the
+ * state on it with ves_sim_set_state. node_phi (n, may be NULL) is phi of
+ * the material at ref's nodes as the run's snapshot holds it (carried on
+ * from there, ves_sim_node_material; NULL: refitted). The step problem and
+ * the backend are rebuilt on ref's model. On failure ref is freed and the
+ * simulation is unchanged. VES_ERR_ARG for reconnections < 1, reset_step <
+ * 0 or a non-finite node_phi; errors of the step problem and backend. */
+ves_status ves_sim_adopt_reference(ves_sim *s, ves_reconnect *ref, int reconnections,
+                                   long reset_step, const double *node_phi);
+
+/* The reference the last reset made or adopted (owned by the simulation;
+ * valid until the next reset), NULL before any: its nodes, quadrature and
+ * point data are what io.h stores for a restart. */
+const ves_reconnect *ves_sim_reference(const ves_sim *s);
 
 double ves_sim_time(const ves_sim *s);
 double ves_sim_dt(const ves_sim *s);         /* the next step's dt */

@@ -48,13 +48,19 @@
  *                        integrator state (ves_sim_state: dt, E, A, V, E0, A0,
  *                        V0 in model units, E* = E / k; lambda_A, lambda_V,
  *                        c0), wall_seconds, reconnections
+ *   /references          (runs with resets) attribute count; groups "0", "1",
+ *                        ... one per reset of the reference configuration,
+ *                        what ves_reconnect_restore rebuilds it from:
+ *     x, h               n x 2 node positions (R, Z) and n spacings h_a
+ *     points, weights    nq x 2 quadrature points and nq weights
+ *     phi0               nq x 6 point data of phi0 (value, gradient, Hessian)
+ *     attribute step     the accepted step after which the reset was made
  *
  * Snapshot 0 is the initial state; then every [output] snapshot_every steps
  * and the last state of a run (finished, stopped or failed). A restart
- * continues from the last snapshot and drops the series rows after it.
- * Reference-configuration resets (reconnection) will need the reference of
- * each snapshot (nodes, quadrature points, weights, point data of phi0) for
- * a restart: a format_version still to come. */
+ * continues from the last snapshot (on reference reconnections - 1 when the
+ * run had reset its reference before it) and drops the series rows and
+ * references after it. */
 #ifndef VES_IO_H
 #define VES_IO_H
 
@@ -177,6 +183,36 @@ int ves_io_snapshots(const ves_io *io);
  * NULL, si unless NULL. */
 ves_status ves_io_read_snapshot(ves_io *io, int k, double *y, double *x, double *phi,
                                 ves_io_snapinfo *si);
+
+/* A reference configuration made by a reset (reconnect.h), what a restart
+ * rebuilds it from (ves_reconnect_restore): written at every reset, so a
+ * snapshot with r resets behind it continues on reference r - 1. */
+typedef struct {
+  long step;                  /* the accepted step after which the reset was made */
+  int nq;                     /* points */
+  const double *x, *h;        /* 2n node positions (r, z), n spacings h_a */
+  const double *xq, *wq, *pd; /* 2 nq points, nq weights, 6 nq point data of phi0 */
+} ves_io_reference;
+
+/* The same, with the caller's buffers to read into (sizes as above; nq in). */
+typedef struct {
+  long step;
+  int nq;
+  double *x, *h, *xq, *wq, *pd;
+} ves_io_reference_buf;
+
+/* Write reference number ves_io_references(io) and flush. */
+ves_status ves_io_write_reference(ves_io *io, const ves_io_reference *ref);
+
+/* Complete references in the file (0 for a run without resets). */
+int ves_io_references(const ves_io *io);
+
+/* Reference k into out's buffers (out->nq must match the file). */
+ves_status ves_io_read_reference(ves_io *io, int k, ves_io_reference_buf *out);
+
+/* Keep the first count references (a restart drops those made after its
+ * snapshot). */
+ves_status ves_io_truncate_references(ves_io *io, int count);
 
 /* The reference mesh: X (2n) and tri (3 ntri), either may be NULL. */
 ves_status ves_io_read_mesh(ves_io *io, double *X, int *tri);

@@ -107,6 +107,24 @@ typedef enum {
 ves_status ves_reconnect_create(const ves_model *m, const double *y, const ves_lme_params *lme,
                                 ves_reset_nodes where, ves_reconnect **out);
 
+/* Rebuild a reference made by a reset from what defines it (a restart:
+ * io.h stores these at every reset), without the motion that made it:
+ *   m       a model on the same node set (flags, box, triangles; its
+ *           parameters are copied, c0 as in force), e.g. the creation model
+ *   x, h    2n node positions (r >= 0: mirrored ones already mirrored) and
+ *           n spacings h_a (taken as given, not measured again)
+ *   nq, xq, wq, pd   the points (2 nq), weights (nq) and point data of phi0
+ *           (6 nq, the layout of ves_model_create_points)
+ *   lme     LME parameters of the tables
+ * With the values of ves_reconnect_nodes/quad and ves_model_point_data of a
+ * reset, the nodes, tables and model are those of that reset, bit for bit
+ * (the same code builds them). info: the node count and spacings only (no
+ * cond F, det F or shift: no motion). Errors as ves_reconnect_create, and
+ * VES_ERR_ARG for nq not that of m's quadrature, h <= 0 or r < 0. */
+ves_status ves_reconnect_restore(const ves_model *m, const double *x, const double *h, int nq,
+                                 const double *xq, const double *wq, const double *pd,
+                                 const ves_lme_params *lme, ves_reconnect **out);
+
 /* Free the model, quadrature and nodes; accepts NULL and sets *r to NULL.
  * The model must no longer be in use (step problems and backends on it
  * destroyed first). */
@@ -114,6 +132,7 @@ void ves_reconnect_destroy(ves_reconnect **r);
 
 /* The new model (owned by r; the step problem may modify its c0). */
 ves_model *ves_reconnect_model(ves_reconnect *r);
+const ves_model *ves_reconnect_model_const(const ves_reconnect *r); /* the same, read only */
 /* The new nodes and quadrature (owned by r). */
 const ves_nodes *ves_reconnect_nodes(const ves_reconnect *r);
 const ves_quad *ves_reconnect_quad(const ves_reconnect *r);
