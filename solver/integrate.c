@@ -163,12 +163,6 @@ fail:
 static ves_status node_phi_fit(ves_sim *s); /* phi at the reference's nodes (below) */
 static double volume_target(const ves_sim *s, double t);
 
-/* Reset the reference to s->y (ves_reconnect.h): a new model, step problem
- * and backend state are made first, the old ones freed only once all three
- * exist. The positions continue from the new reference nodes (y with the
- * nodes that crossed the axis mirrored: the same motion). E, A, V are
- * re-evaluated on the new model (equal up to rounding). On failure
- * everything made is freed and s is unchanged. */
 /* Put the simulation on the reference nr (taken on success): a new step
  * problem and backend state on its model are made first, the old ones freed
  * only once all exist; y continues from the new reference nodes. E, A, V
@@ -203,6 +197,10 @@ static ves_status switch_reference(ves_sim *s, ves_reconnect *nr, const ves_step
   return VES_OK;
 }
 
+/* Reset the reference to s->y (ves_reconnect.h) and switch to it. The
+ * positions continue from the new reference nodes (y with the nodes that
+ * crossed the axis mirrored: the same motion); E, A, V are re-evaluated on
+ * the new model (equal up to rounding). On failure s is unchanged. */
 static ves_status reconnect(ves_sim *s, const ves_step_params *sp) {
   /* nodes at y(X_a) keep their material, so phi there is carried over: fit
    * it on the old reference if it never was (failure only means a refit on
@@ -222,9 +220,12 @@ static ves_status reconnect(ves_sim *s, const ves_step_params *sp) {
 
 ves_status ves_sim_adopt_reference(ves_sim *s, ves_reconnect *ref, int reconnections,
                                    long reset_step, const double *node_phi) {
-  VES_CHECK(s && ref && reconnections > 0 && reset_step >= 0, VES_ERR_ARG);
-  if (node_phi)
-    for (int a = 0; a < s->n; a++) VES_CHECK(isfinite(node_phi[a]), VES_ERR_ARG);
+  int ok = s && ref && reconnections > 0 && reset_step >= 0;
+  for (int a = 0; ok && node_phi && a < s->n; a++) ok = isfinite(node_phi[a]);
+  if (!ok) {
+    ves_reconnect_destroy(&ref); /* taken, as on every failure */
+    return VES_ERR_ARG;
+  }
   ves_step_params sp = {.dt = s->dt, .hold_area = s->ip.hold_area, .A0 = s->A0,
                         .hold_volume = s->ip.hold_volume, .V_target = volume_target(s, s->t)};
   VES_CALL(switch_reference(s, ref, &sp));
