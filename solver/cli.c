@@ -620,8 +620,9 @@ static int run_restart(run_ctx *r, const char *file) {
   if (si0.reconnections > ves_io_references(r->io)) {
     fprintf(stderr,
             "vesica run: --restart %s: the run reset its reference configuration %d time(s) "
-            "before its last snapshot (step %ld) but the file holds %d reference(s) (written "
-            "by a vesica that did not store them): it cannot be continued, rerun the problem\n",
+            "before its last snapshot (step %ld) but the file holds only %d of the references "
+            "they made (format_version 1 files hold none): it cannot be continued, rerun the "
+            "problem\n",
             file, si0.reconnections, si0.state.nstep, ves_io_references(r->io));
     return 2;
   }
@@ -843,8 +844,8 @@ static int cmd_info(int argc, char **argv) {
     printf("file = %s\n", path);
     printf("format_version = %d\nversion = %s\nstatus = %s\nbackend = %s\n", in->format_version,
            in->version, in->status, in->backend);
-    printf("nodes = %d\ntriangles = %d\nsnapshots = %d\nsteps = %ld\n", in->n, in->ntri,
-           ves_io_snapshots(io), R);
+    printf("nodes = %d\ntriangles = %d\nsnapshots = %d\nreferences = %d\nsteps = %ld\n", in->n,
+           in->ntri, ves_io_snapshots(io), ves_io_references(io), R);
     printf("t_final = %.12g\nt_end = %.12g\n", R ? t[R - 1] : 0.0, cfg.t_end);
     printf("energy_initial = %.12g\nenergy_final = %.12g\n", in->E0, R ? E[R - 1] : in->E0);
     printf("energy_monotone = %s\n", monotone ? "yes" : "no");

@@ -413,6 +413,7 @@ static void test_restart_after_reset(void **state) {
   run(&r, "info", part, NULL);
   assert_int_equal(r.code, 0);
   assert_non_null(strstr(r.out, "energy_monotone = yes\n"));
+  assert_non_null(strstr(r.out, "references = 1\n"));
 
   run(&r, "run", "--restart", part, "--quiet", NULL);
   if (r.code) fail_msg("restart after a reset: exit %d: %s", r.code, r.err);
