@@ -144,14 +144,21 @@ static void check_rows(ves_io *io, long R) {
   }
 }
 
+/* A fake header, and a new file named name in the test folder (path out). */
+static ves_io *fake_file(fake *f, const char *name, char *path, size_t len) {
+  char err[512] = "";
+  ves_io *io = NULL;
+  fake_init(f);
+  path_in(path, len, name);
+  if (ves_io_create(path, &f->h, &io, err, sizeof err) != VES_OK) fail_msg("%s", err);
+  return io;
+}
+
 static void test_roundtrip(void **state) {
   (void)state;
   fake f;
-  fake_init(&f);
   char path[128], err[512] = "";
-  path_in(path, sizeof path, "rt.h5");
-  ves_io *io = NULL;
-  assert_int_equal(ves_io_create(path, &f.h, &io, err, sizeof err), VES_OK);
+  ves_io *io = fake_file(&f, "rt.h5", path, sizeof path);
   double y[8], x[8], phi[4] = {1, 0.5, -0.25, -1};
   for (long i = 0; i < 3; i++) {
     ves_io_row r = row_of(i);
@@ -263,12 +270,9 @@ static void test_roundtrip(void **state) {
 static void test_truncate_continue(void **state) {
   (void)state;
   fake f;
-  fake_init(&f);
   char path[128], err[512] = "";
-  path_in(path, sizeof path, "tc.h5");
-  ves_io *io = NULL;
+  ves_io *io = fake_file(&f, "tc.h5", path, sizeof path);
   double y[8] = {0}, phi[4] = {0};
-  assert_int_equal(ves_io_create(path, &f.h, &io, err, sizeof err), VES_OK);
   ves_io_snapinfo s0 = snap_of(0);
   assert_int_equal(ves_io_snapshot(io, y, y, phi, &s0), VES_OK);
   for (long i = 0; i < 5; i++) {
@@ -301,11 +305,8 @@ static void test_truncate_continue(void **state) {
 static void test_references(void **state) {
   (void)state;
   fake f;
-  fake_init(&f);
   char path[128], err[512] = "";
-  path_in(path, sizeof path, "ref.h5");
-  ves_io *io = NULL;
-  assert_int_equal(ves_io_create(path, &f.h, &io, err, sizeof err), VES_OK);
+  ves_io *io = fake_file(&f, "ref.h5", path, sizeof path);
   assert_int_equal(ves_io_references(io), 0);
   enum { NQ = 12 };
   double x[8], h[4], xq[2 * NQ], wq[NQ], pd[6 * NQ];
@@ -357,12 +358,9 @@ static void test_references(void **state) {
 static void test_killed_writer(void **state) {
   (void)state;
   fake f;
-  fake_init(&f);
   char path[128], err[512] = "";
-  path_in(path, sizeof path, "kw.h5");
-  ves_io *io = NULL;
+  ves_io *io = fake_file(&f, "kw.h5", path, sizeof path);
   double y[8] = {0}, phi[4] = {0};
-  assert_int_equal(ves_io_create(path, &f.h, &io, err, sizeof err), VES_OK);
   ves_io_snapinfo s0 = snap_of(0);
   assert_int_equal(ves_io_snapshot(io, y, y, phi, &s0), VES_OK);
   for (long i = 0; i < 2; i++) {
