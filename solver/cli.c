@@ -247,7 +247,6 @@ typedef struct {
   long max_steps;             /* --max-steps (0: none) */
   double wall_offset;         /* wall time of the time loop before this process */
   long last_snapshot_step;    /* step of the last snapshot written */
-  ves_lme_params lme;         /* the setup's LME parameters */
 } run_ctx;
 
 static void run_free(run_ctx *r) {
@@ -276,8 +275,6 @@ static int build(run_ctx *r) {
     fprintf(stderr, "vesica run: out of memory\n");
     return 3;
   }
-  ves_lme_params_default(&r->lme);
-  r->lme.gamma = r->cfg.gamma, r->lme.tol0 = r->cfg.support_tol;
   ves_backend_options bo;
   ves_backend_options_default(&bo);
   bo.tol = r->cfg.tol, bo.ctol = r->cfg.ctol, bo.max_iter = r->cfg.max_iter;
@@ -295,7 +292,6 @@ static int build(run_ctx *r) {
   ip.reconnect_det_min = c->reconnect_det_min;
   ip.reconnect_nodes =
       strcmp(c->reconnect_nodes, "motion") ? VES_RESET_NODES_COEF : VES_RESET_NODES_MOTION;
-  ip.lme = r->lme; /* the setup's tables were built with these */
   if ((st = ves_sim_create(r->setup->model, r->bk, &bo, &ip, &r->sim)) != VES_OK) {
     fprintf(stderr, "vesica run: %s: cannot start the time loop: %s\n", r->label,
             ves_status_str(st));
@@ -343,7 +339,7 @@ static ves_status restore_reference(run_ctx *r, int k, int reconnections, const 
   ves_reconnect *ref = NULL;
   if (st == VES_OK) st = ves_io_read_reference(r->io, k, &b);
   if (st == VES_OK)
-    st = ves_reconnect_restore(r->setup->model, b.x, b.h, nq, b.xq, b.wq, b.pd, &r->lme, &ref);
+    st = ves_reconnect_restore(r->setup->model, b.x, b.h, nq, b.xq, b.wq, b.pd, &ref);
   if (st == VES_OK) st = ves_sim_adopt_reference(r->sim, ref, reconnections, b.step, phi);
   free(b.x), free(b.h), free(b.xq), free(b.wq), free(b.pd);
   return st;

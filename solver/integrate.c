@@ -88,7 +88,6 @@ void ves_integrate_params_default(ves_integrate_params *p) {
   p->reconnect_cond_max = 0.0;
   p->reconnect_det_min = 0.0;
   p->reconnect_nodes = VES_RESET_NODES_COEF;
-  ves_lme_params_default(&p->lme);
 }
 
 void ves_sim_destroy(ves_sim **s) {
@@ -122,7 +121,6 @@ ves_status ves_sim_create(ves_model *model, const ves_backend_type *backend,
                  ip->reconnect_nodes == VES_RESET_NODES_MOTION),
             VES_ERR_ARG);
   VES_CHECK(ip->c0_until < 0 || (ip->c0_time >= 0 && ip->c0_until > ip->c0_time), VES_ERR_ARG);
-  VES_CHECK(ip->lme.gamma > 0 && ip->lme.tol0 > 0 && ip->lme.tol0 < 1, VES_ERR_ARG);
   ves_status st = VES_ERR_ALLOC;
   ves_sim *s = calloc(1, sizeof *s);
   if (!s) return VES_ERR_ALLOC;
@@ -207,8 +205,8 @@ static ves_status reconnect(ves_sim *s, const ves_step_params *sp) {
    * the new one, ves_sim_node_material) */
   if (s->ip.reconnect_nodes == VES_RESET_NODES_MOTION && !s->node_phi_ok) (void)node_phi_fit(s);
   ves_reconnect *nr = NULL;
-  ves_status st = ves_reconnect_create(s->model, s->y, &s->ip.lme,
-                                       (ves_reset_nodes)s->ip.reconnect_nodes, &nr);
+  ves_status st =
+      ves_reconnect_create(s->model, s->y, (ves_reset_nodes)s->ip.reconnect_nodes, &nr);
   if (st == VES_OK) st = switch_reference(s, nr, sp);
   if (st != VES_OK) return st;
   s->since = 0;
@@ -392,7 +390,7 @@ static ves_status node_points(ves_sim *s) {
   if (s->at_nodes) return VES_OK;
   const ves_nodes *nd = ves_model_nodes(s->model);
   ves_status st = ves_quad_create_at_nodes(nd, &s->at_nodes);
-  if (st == VES_OK) st = ves_quad_tables(s->at_nodes, nd, &s->ip.lme, NULL);
+  if (st == VES_OK) st = ves_quad_tables(s->at_nodes, nd, &ves_model_quad(s->model)->lme, NULL);
   if (st != VES_OK) ves_quad_destroy(&s->at_nodes);
   return st;
 }

@@ -252,6 +252,7 @@ ves_status ves_quad_tables(ves_quad *q, const ves_nodes *nodes,
     iter_sum += li.iterations;
     if (li.iterations > iter_max) iter_max = li.iterations;
   }
+  q->lme = *lme;
   if (info) {
     info->m_mean = q->nq ? (double)nnz / q->nq : 0.0;
     info->m_max = m_max;

@@ -218,16 +218,17 @@ fail:
   return s;
 }
 
-ves_status ves_reconnect_create(const ves_model *m, const double *y, const ves_lme_params *lme,
-                                ves_reset_nodes where, ves_reconnect **out) {
+ves_status ves_reconnect_create(const ves_model *m, const double *y, ves_reset_nodes where,
+                                ves_reconnect **out) {
   VES_CHECK(out, VES_ERR_ARG);
   *out = NULL;
-  VES_CHECK(m && y && lme, VES_ERR_ARG);
+  VES_CHECK(m && y, VES_ERR_ARG);
   VES_CHECK(where == VES_RESET_NODES_COEF || where == VES_RESET_NODES_MOTION, VES_ERR_ARG);
-  VES_CHECK(isfinite(ves_lme_radius(lme, 1.0)), VES_ERR_ARG);
   const double t0 = ves_wall_seconds();
   const ves_nodes *nodes = ves_model_nodes(m);
   const ves_quad *q = ves_model_quad(m);
+  VES_CHECK(q->tab, VES_ERR_ARG); /* the LME parameters are those of m's tables */
+  const ves_lme_params *lme = &q->lme;
   const int n = nodes->n, nq = q->nq;
   VES_CHECK(finite_vec(2 * (size_t)n, y), VES_ERR_ARG);
   ves_status s = VES_ERR_ALLOC;
@@ -280,14 +281,15 @@ fail:
 
 ves_status ves_reconnect_restore(const ves_model *m, const double *x, const double *h, int nq,
                                  const double *xq, const double *wq, const double *pd,
-                                 const ves_lme_params *lme, ves_reconnect **out) {
+                                 ves_reconnect **out) {
   VES_CHECK(out, VES_ERR_ARG);
   *out = NULL;
-  VES_CHECK(m && x && h && xq && wq && pd && lme, VES_ERR_ARG);
-  VES_CHECK(isfinite(ves_lme_radius(lme, 1.0)), VES_ERR_ARG);
+  VES_CHECK(m && x && h && xq && wq && pd, VES_ERR_ARG);
   const double t0 = ves_wall_seconds();
   const ves_nodes *nodes = ves_model_nodes(m);
   const ves_quad *q = ves_model_quad(m);
+  VES_CHECK(q->tab, VES_ERR_ARG); /* the LME parameters are those of m's tables */
+  const ves_lme_params *lme = &q->lme;
   const int n = nodes->n;
   VES_CHECK(nq == q->nq, VES_ERR_ARG);
   VES_CHECK(finite_vec(2 * (size_t)n, x) && finite_vec((size_t)n, h), VES_ERR_ARG);

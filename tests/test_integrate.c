@@ -15,6 +15,7 @@
 #include <string.h>
 
 #include "ves/integrate.h"
+#include "ves/reconnect.h"
 #include "ves/setup.h"
 
 /* A small vesicle: sphere with a P2 bump of amplitude `delta`, eps = 0.15. */
@@ -236,15 +237,11 @@ static void test_failure_keeps_state(void **state) {
   ves_setup_destroy(&s);
 }
 
-/* The relaxation of test_relaxation with the given reconnection policy; the
- * LME parameters those of the setup (the configuration's defaults). */
+/* The relaxation of test_relaxation with the given reconnection policy. */
 static void relax_params(ves_integrate_params *ip, int every, double cond_max, double det_min) {
-  ves_config cfg;
-  ves_config_default(&cfg);
   ves_integrate_params_default(ip);
   ip->t_end = 0.2, ip->dt_initial = 2e-3, ip->dt_max = 0.1, ip->dE_target = 0.05;
   ip->reconnect_every = every, ip->reconnect_cond_max = cond_max, ip->reconnect_det_min = det_min;
-  ip->lme.gamma = cfg.gamma, ip->lme.tol0 = cfg.support_tol;
 }
 
 /* Periodic resets (every 2 steps, 6 steps): constraints and energy stability
@@ -283,6 +280,15 @@ static void test_reconnect_every(void **state) {
   }
   assert_int_equal(n, 6);
   assert_int_equal(ves_sim_reconnections(sim), 3);
+  /* the reset's tables have the setup's LME parameters (the configuration's
+   * gamma 0.6, not ves_lme_params_default's 0.8): the discretization is kept */
+  ves_config cfg;
+  ves_lme_params lp;
+  ves_config_default(&cfg);
+  ves_lme_params_default(&lp);
+  const ves_quad *qr = ves_reconnect_quad(ves_sim_reference(sim));
+  assert_true(s->quad->lme.gamma == cfg.gamma && cfg.gamma != lp.gamma);
+  assert_true(qr->lme.gamma == cfg.gamma && qr->lme.tol0 == cfg.support_tol);
   /* a state is taken on the reference in use: one from before its reset
    * (step 6) is refused, nothing changed; its own state is taken back */
   ves_sim_state st, st2;
@@ -330,22 +336,20 @@ static void test_reconnect_threshold(void **state) {
   assert_int_equal(ves_sim_create(s->model, bk, &bo, &ip, &sim), VES_ERR_ARG);
   relax_params(&ip, -1, 0, 0);
   assert_int_equal(ves_sim_create(s->model, bk, &bo, &ip, &sim), VES_ERR_ARG);
-  relax_params(&ip, 1, 0, 0);
-  ip.lme.gamma = 0;
-  assert_int_equal(ves_sim_create(s->model, bk, &bo, &ip, &sim), VES_ERR_ARG);
   assert_null(sim);
   ves_setup_destroy(&s);
 }
 
 /* A reset that fails (LME tables allowed one Newton iteration: they cannot
  * converge) leaves the step accepted and the simulation on its old reference,
- * able to go on. */
+ * able to go on. The tables of a reset take the LME parameters of the setup's
+ * tables (ves_quad.lme, plain data), set here after they were built. */
 static void test_reconnect_failure(void **state) {
   (void)state;
   ves_setup *s = small_setup();
   ves_integrate_params ip;
   relax_params(&ip, 1, 0, 0);
-  ip.lme.max_iter = 1;
+  s->quad->lme.max_iter = 1;
   ves_sim *sim = make_sim(s, "newton", &ip);
   ves_step_report rep;
   double Eprev;

@@ -521,7 +521,6 @@ static void test_node_material(void **state) {
   ves_integrate_params ip;
   ves_integrate_params_default(&ip);
   ip.t_end = 1, ip.dt_initial = 5e-3, ip.dE_target = 0.05;
-  ip.lme.gamma = 0.6; /* the setup's ([geometry] gamma default) */
   const ves_backend_type *bk = ves_backend_find("newton");
   double *x = malloc(2 * (size_t)n * sizeof *x), *x2 = malloc(2 * (size_t)n * sizeof *x2);
   double *phi = malloc((size_t)n * sizeof *phi), *phi2 = malloc((size_t)n * sizeof *phi2);
@@ -532,7 +531,7 @@ static void test_node_material(void **state) {
   assert_int_equal(ves_sim_node_material(sim, x, phi), VES_OK);
   ves_quad *pq = NULL;
   assert_int_equal(ves_quad_create_at_nodes(nd, &pq), VES_OK);
-  assert_int_equal(ves_quad_tables(pq, nd, &ip.lme, NULL), VES_OK);
+  assert_int_equal(ves_quad_tables(pq, nd, &s->quad->lme, NULL), VES_OK);
   ves_quad_field(pq, s->phi0c, 0, f);
   ves_quad_destroy(&pq);
   int walls = 0, axis = 0;

@@ -79,8 +79,7 @@ static int group_setup(void **state) {
     fprintf(stderr, "setup: %s\n", err);
     return -1;
   }
-  ves_lme_params_default(&P->lme);
-  P->lme.gamma = P->cfg.gamma, P->lme.tol0 = P->cfg.support_tol; /* as ves_setup_create */
+  P->lme = P->su->quad->lme; /* the setup's (config gamma, support_tol) */
   P->n = P->su->nodes->n;
   P->X = malloc(2 * (size_t)P->n * sizeof *P->X);
   P->yd = malloc(2 * (size_t)P->n * sizeof *P->yd);
@@ -103,7 +102,7 @@ static int group_teardown(void **state) {
 
 static ves_reconnect *reset(const ves_model *m, const double *y) {
   ves_reconnect *r = NULL;
-  ves_status st = ves_reconnect_create(m, y, &P->lme, VES_RESET_NODES_COEF, &r);
+  ves_status st = ves_reconnect_create(m, y, VES_RESET_NODES_COEF, &r);
   if (st != VES_OK) fail_msg("reset: %s", ves_status_str(st));
   return r;
 }
@@ -730,7 +729,7 @@ static void test_motion_nodes(void **state) {
   const ves_nodes *n0 = P->su->nodes;
   ves_model *m0 = P->su->model;
   ves_reconnect *rc = reset(m0, P->yd), *r = NULL;
-  assert_int_equal(ves_reconnect_create(m0, P->yd, &P->lme, VES_RESET_NODES_MOTION, &r), VES_OK);
+  assert_int_equal(ves_reconnect_create(m0, P->yd, VES_RESET_NODES_MOTION, &r), VES_OK);
   ves_reconnect_info ic, im;
   ves_reconnect_get_info(rc, &ic);
   ves_reconnect_get_info(r, &im);
@@ -783,7 +782,7 @@ static void test_motion_nodes(void **state) {
   double *ys = xmalloc(n2);
   for (int a = 0; a < n; a++)
     ys[2 * a] = 1.2 * P->X[2 * a], ys[2 * a + 1] = 0.9 * P->X[2 * a + 1] + 0.05;
-  assert_int_equal(ves_reconnect_create(m0, ys, &P->lme, VES_RESET_NODES_MOTION, &r), VES_OK);
+  assert_int_equal(ves_reconnect_create(m0, ys, VES_RESET_NODES_MOTION, &r), VES_OK);
   ves_reconnect_get_info(r, &im);
   printf("# stretch: shift %.1e\n", im.shift_max);
   assert_true(im.shift_max <= 1e-12);
@@ -987,15 +986,14 @@ static void test_restore(void **state) {
   (void)state;
   const int n = P->n, n2 = 2 * n;
   ves_reconnect *r1 = NULL, *rr = NULL;
-  assert_int_equal(ves_reconnect_create(P->su->model, P->yd, &P->lme, VES_RESET_NODES_MOTION, &r1),
+  assert_int_equal(ves_reconnect_create(P->su->model, P->yd, VES_RESET_NODES_MOTION, &r1),
                    VES_OK);
   const ves_nodes *nd = ves_reconnect_nodes(r1);
   const ves_quad *q = ves_reconnect_quad(r1);
   const int nq = q->nq;
   double *pd = xmalloc(6 * (size_t)nq);
   ves_model_point_data(ves_reconnect_model_const(r1), pd);
-  assert_int_equal(ves_reconnect_restore(P->su->model, nd->x, nd->h, nq, q->x, q->w, pd, &P->lme,
-                                         &rr),
+  assert_int_equal(ves_reconnect_restore(P->su->model, nd->x, nd->h, nq, q->x, q->w, pd, &rr),
                    VES_OK);
   const ves_quad *qr = ves_reconnect_quad(rr);
   assert_memory_equal(ves_reconnect_nodes(rr)->x, nd->x, (size_t)n2 * sizeof *nd->x);
@@ -1017,11 +1015,9 @@ static void test_restore(void **state) {
   assert_memory_equal(g1, g2, 3 * (size_t)n2 * sizeof *g1);
   /* and the next reset from either */
   ves_reconnect *s1 = NULL, *s2 = NULL;
-  assert_int_equal(ves_reconnect_create(ves_reconnect_model(r1), y2, &P->lme,
-                                        VES_RESET_NODES_MOTION, &s1),
+  assert_int_equal(ves_reconnect_create(ves_reconnect_model(r1), y2, VES_RESET_NODES_MOTION, &s1),
                    VES_OK);
-  assert_int_equal(ves_reconnect_create(ves_reconnect_model(rr), y2, &P->lme,
-                                        VES_RESET_NODES_MOTION, &s2),
+  assert_int_equal(ves_reconnect_create(ves_reconnect_model(rr), y2, VES_RESET_NODES_MOTION, &s2),
                    VES_OK);
   assert_memory_equal(ves_reconnect_nodes(s1)->h, ves_reconnect_nodes(s2)->h,
                       (size_t)n * sizeof(double));
@@ -1036,17 +1032,17 @@ static void test_restore(void **state) {
   memcpy(h, nd->h, (size_t)n * sizeof *h);
   memcpy(x, nd->x, (size_t)n2 * sizeof *x);
   rr = (ves_reconnect *)1;
-  assert_int_equal(ves_reconnect_restore(P->su->model, x, h, nq - 1, q->x, q->w, pd, &P->lme, &rr),
+  assert_int_equal(ves_reconnect_restore(P->su->model, x, h, nq - 1, q->x, q->w, pd, &rr),
                    VES_ERR_ARG);
   assert_null(rr);
   h[7] = 0;
-  assert_int_equal(ves_reconnect_restore(P->su->model, x, h, nq, q->x, q->w, pd, &P->lme, &rr),
+  assert_int_equal(ves_reconnect_restore(P->su->model, x, h, nq, q->x, q->w, pd, &rr),
                    VES_ERR_ARG);
   h[7] = nd->h[7];
   int a = 0;
   while (nd->flag[a] & VES_NODE_AXIS) a++;
   x[2 * a] = -x[2 * a];
-  assert_int_equal(ves_reconnect_restore(P->su->model, x, h, nq, q->x, q->w, pd, &P->lme, &rr),
+  assert_int_equal(ves_reconnect_restore(P->su->model, x, h, nq, q->x, q->w, pd, &rr),
                    VES_ERR_ARG);
   ves_reconnect_destroy(&r1);
   free(pd), free(y2), free(g1), free(g2), free(h), free(x);
@@ -1060,21 +1056,17 @@ static void test_errors(void **state) {
   double *y = xmalloc(n2), c, d;
   ves_reconnect *r = (ves_reconnect *)1;
   /* arguments */
-  assert_int_equal(ves_reconnect_create(NULL, P->yd, &P->lme, VES_RESET_NODES_COEF, &r),
+  assert_int_equal(ves_reconnect_create(NULL, P->yd, VES_RESET_NODES_COEF, &r),
                    VES_ERR_ARG);
   assert_null(r);
-  assert_int_equal(ves_reconnect_create(m, NULL, &P->lme, VES_RESET_NODES_COEF, &r), VES_ERR_ARG);
-  assert_int_equal(ves_reconnect_create(m, P->yd, NULL, VES_RESET_NODES_COEF, &r), VES_ERR_ARG);
-  assert_int_equal(ves_reconnect_create(m, P->yd, &P->lme, VES_RESET_NODES_COEF, NULL),
+  assert_int_equal(ves_reconnect_create(m, NULL, VES_RESET_NODES_COEF, &r), VES_ERR_ARG);
+  assert_int_equal(ves_reconnect_create(m, P->yd, VES_RESET_NODES_COEF, NULL),
                    VES_ERR_ARG);
-  ves_lme_params bad = P->lme;
-  bad.gamma = 0;
-  assert_int_equal(ves_reconnect_create(m, P->yd, &bad, VES_RESET_NODES_COEF, &r), VES_ERR_ARG);
-  assert_int_equal(ves_reconnect_create(m, P->yd, &P->lme, (ves_reset_nodes)2, &r), VES_ERR_ARG);
+  assert_int_equal(ves_reconnect_create(m, P->yd, (ves_reset_nodes)2, &r), VES_ERR_ARG);
   assert_null(r);
   memcpy(y, P->yd, n2 * sizeof *y);
   y[7] = NAN;
-  assert_int_equal(ves_reconnect_create(m, y, &P->lme, VES_RESET_NODES_COEF, &r), VES_ERR_ARG);
+  assert_int_equal(ves_reconnect_create(m, y, VES_RESET_NODES_COEF, &r), VES_ERR_ARG);
   assert_int_equal(ves_reconnect_distortion(m, y, &c, &d), VES_ERR_ARG);
   assert_int_equal(ves_reconnect_distortion_points(m, y, NULL, NULL), VES_ERR_ARG);
   assert_int_equal(ves_reconnect_distortion(NULL, P->yd, &c, &d), VES_ERR_ARG);
@@ -1087,11 +1079,11 @@ static void test_errors(void **state) {
       axis = a;
   assert_true(axis >= 0);
   y[2 * axis] = 1e-3;
-  assert_int_equal(ves_reconnect_create(m, y, &P->lme, VES_RESET_NODES_COEF, &r), VES_ERR_ARG);
+  assert_int_equal(ves_reconnect_create(m, y, VES_RESET_NODES_COEF, &r), VES_ERR_ARG);
   assert_null(r);
   /* a fold (y_z = -Z): det F = -1 at every point */
   for (int a = 0; a < P->n; a++) y[2 * a] = P->X[2 * a], y[2 * a + 1] = -P->X[2 * a + 1];
-  assert_int_equal(ves_reconnect_create(m, y, &P->lme, VES_RESET_NODES_COEF, &r), VES_ERR_DOMAIN);
+  assert_int_equal(ves_reconnect_create(m, y, VES_RESET_NODES_COEF, &r), VES_ERR_DOMAIN);
   /* a node pushed through the axis: its points keep r > 0 and det F > 0
    * (the basis is smooth); the node is mirrored (it and its ghost swap
    * roles: the same point set), and E, A, V are preserved as by any reset */
@@ -1110,7 +1102,7 @@ static void test_errors(void **state) {
     ves_quad_motion(P->su->quad, y, al, 0, mo);
     rmin = fmin(rmin, mo[0]);
   }
-  ves_status st = ves_reconnect_create(m, y, &P->lme, VES_RESET_NODES_COEF, &r);
+  ves_status st = ves_reconnect_create(m, y, VES_RESET_NODES_COEF, &r);
   printf("# node %d at R = %.4f moved to r = %.4f: det F >= %.3f, r >= %.1e at the points, reset: "
          "%s\n",
          near, P->X[2 * near], y[2 * near], dmin, rmin, ves_status_str(st));
@@ -1134,7 +1126,7 @@ static void test_errors(void **state) {
   }
   /* a node on the axis itself (on its own ghost): refused */
   y[2 * near] = 0.0;
-  assert_int_equal(ves_reconnect_create(m, y, &P->lme, VES_RESET_NODES_COEF, &r), VES_ERR_DOMAIN);
+  assert_int_equal(ves_reconnect_create(m, y, VES_RESET_NODES_COEF, &r), VES_ERR_DOMAIN);
   assert_null(r);
   /* two nodes at the same place, the map still admissible at the points */
   memcpy(y, P->X, n2 * sizeof *y);
@@ -1150,7 +1142,7 @@ static void test_errors(void **state) {
   }
   y[2 * a0] = P->X[2 * b0], y[2 * a0 + 1] = P->X[2 * b0 + 1];
   assert_int_equal(ves_reconnect_distortion(m, y, NULL, &dmin), VES_OK);
-  st = ves_reconnect_create(m, y, &P->lme, VES_RESET_NODES_COEF, &r);
+  st = ves_reconnect_create(m, y, VES_RESET_NODES_COEF, &r);
   printf("# node %d moved onto node %d (%.4f away): det F >= %.3f, reset: %s\n", a0, b0, best, dmin,
          ves_status_str(st));
   assert_true(dmin > 0);

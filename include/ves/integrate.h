@@ -39,8 +39,6 @@ typedef struct {
   double reconnect_det_min;  /* reset when min det F drops below this (0: off; else in (0, 1)) */
   int reconnect_nodes;       /* where the new nodes go: a ves_reset_nodes (reconnect.h);
                                 default VES_RESET_NODES_COEF, the paper's y^a */
-  ves_lme_params lme;        /* LME parameters of the new tables: those the model's
-                                tables were built with (config gamma, support_tol) */
 } ves_integrate_params;
 
 /* What one accepted step did. */

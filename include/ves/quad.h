@@ -30,6 +30,10 @@ typedef struct {
                            of node nbr[k] (r-coefficient -1, z and phi0 +1) */
   double *tab;          /* 6 ptr[nq]: point a's table starts at tab + 6 ptr[a],
                            row-major 6 x m_a, rows p, p_R, p_Z, p_RR, p_RZ, p_ZZ */
+  ves_lme_params lme;   /* the LME parameters the tables were built with (a copy,
+                           set by ves_quad_tables): tables built later for the
+                           same discretization (a reset, points at the nodes)
+                           take them from here */
 } ves_quad;
 
 /* Statistics of a table build. */
@@ -66,7 +70,7 @@ ves_status ves_quad_create_at_nodes(const ves_nodes *nodes, ves_quad **out);
 
 /* Build the tables for the current points against the current nodes (real +
  * ghost), with support radii ves_lme_radius(lme, h_a) and beta_a = gamma/h_a^2.
- * Replaces previous tables. info may be NULL. */
+ * Replaces previous tables; lme is copied into q->lme. info may be NULL. */
 ves_status ves_quad_tables(ves_quad *q, const ves_nodes *nodes,
                            const ves_lme_params *lme, ves_quad_info *info);
 

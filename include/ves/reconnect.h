@@ -87,12 +87,13 @@ typedef enum {
 
 /* Reset the reference configuration of model m to the positions y.
  *   m     the current model (borrowed; read only); its nodes, quadrature
- *         (with tables), point data and parameters (c0 as in force) are used
+ *         (with tables), point data and parameters (c0 as in force) are used;
+ *         the new tables are built with the LME parameters of m's tables
+ *         (ves_model_quad(m)->lme: the discretization does not change)
  *   y     2n current positions (r_a, z_a) of the real nodes (borrowed); axis
  *         nodes must have r_a = 0 exactly, every other node r_a != 0 (it gets
  *         a ghost; r_a < 0 is mirrored, above); wall nodes keep their flag
  *         and stay fixed at y^a
- *   lme   LME parameters of the new tables (borrowed; those of the setup)
  *   where the new node positions: y^a or y(X_a) (above)
  *   out   the new reference, taken by the caller (ves_reconnect_destroy)
  * The new model's reference positions (ves_model_reference) are the new
@@ -100,22 +101,22 @@ typedef enum {
  * fixed dofs those of the old one, its parameters copied from m.
  * Allocates (a once-per-reset operation: ~ the cost of the setup's tables).
  * Returns VES_OK; VES_ERR_ARG (NULL, non-finite y, an axis node with
- * r != 0, invalid lme); VES_ERR_DOMAIN (det F <= 0 or r <= 0 at a point, or
+ * r != 0, m's quadrature without tables); VES_ERR_DOMAIN (det F <= 0 or r <= 0 at a point, or
  * a non-axis node with r = 0, on its own ghost: y is not admissible); VES_ERR_GEOM (two nodes
  * at the same position); VES_ERR_NOCONV / VES_ERR_ARG from the LME tables
  * (a point outside the hull of its new neighbours); VES_ERR_ALLOC. */
-ves_status ves_reconnect_create(const ves_model *m, const double *y, const ves_lme_params *lme,
-                                ves_reset_nodes where, ves_reconnect **out);
+ves_status ves_reconnect_create(const ves_model *m, const double *y, ves_reset_nodes where,
+                                ves_reconnect **out);
 
 /* Rebuild a reference made by a reset from what defines it (a restart:
  * io.h stores these at every reset), without the motion that made it:
  *   m       a model on the same node set (flags, box, triangles; its
- *           parameters are copied, c0 as in force), e.g. the creation model
+ *           parameters are copied, c0 as in force; its tables' LME
+ *           parameters are used), e.g. the creation model
  *   x, h    2n node positions (r >= 0: mirrored ones already mirrored) and
  *           n spacings h_a (taken as given, not measured again)
  *   nq, xq, wq, pd   the points (2 nq), weights (nq) and point data of phi0
  *           (6 nq, the layout of ves_model_create_points)
- *   lme     LME parameters of the tables
  * With the values of ves_reconnect_nodes/quad and ves_model_point_data of a
  * reset, the nodes, tables and model are those of that reset, bit for bit
  * (the same code builds them). info: the node count and spacings only (no
@@ -123,7 +124,7 @@ ves_status ves_reconnect_create(const ves_model *m, const double *y, const ves_l
  * VES_ERR_ARG for nq not that of m's quadrature, h <= 0 or r < 0. */
 ves_status ves_reconnect_restore(const ves_model *m, const double *x, const double *h, int nq,
                                  const double *xq, const double *wq, const double *pd,
-                                 const ves_lme_params *lme, ves_reconnect **out);
+                                 ves_reconnect **out);
 
 /* Free the model, quadrature and nodes; accepts NULL and sets *r to NULL.
  * The model must no longer be in use (step problems and backends on it
