@@ -638,6 +638,42 @@ ves_status ves_io_read_series(ves_io *io, const char *name, double *out) {
   return e < 0 ? VES_ERR_IO : VES_OK;
 }
 
+/* ---- counted groups (snapshots, references) ------------------------------ */
+
+/* Members "0", "1", ... of a group whose attribute count says how many are
+ * complete: a member is written whole, then counted, so a writer killed in
+ * between leaves an uncounted member that the next write replaces. */
+
+/* Open (or create) group `parent` of the file and create its member k anew
+ * (dropping a stray one). On VES_OK *ps and *pg are open (close them with
+ * counted_close); on failure nothing is open. */
+static ves_status counted_open(hid_t file, const char *parent, int k, hid_t *ps, hid_t *pg) {
+  hid_t s = H5Lexists(file, parent, H5P_DEFAULT) > 0
+                ? H5Gopen2(file, parent, H5P_DEFAULT)
+                : H5Gcreate2(file, parent, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+  if (s < 0) return VES_ERR_IO;
+  char name[32];
+  snprintf(name, sizeof name, "%d", k);
+  if (H5Lexists(s, name, H5P_DEFAULT) > 0) H5Ldelete(s, name, H5P_DEFAULT);
+  hid_t g = H5Gcreate2(s, name, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+  if (g < 0) {
+    H5Gclose(s);
+    return VES_ERR_IO;
+  }
+  *ps = s, *pg = g;
+  return VES_OK;
+}
+
+/* Close member k (g) of group s; when its writing went well (st) count it
+ * (count = k + 1) and flush the file. Returns st or the first I/O error. */
+static ves_status counted_close(hid_t file, hid_t s, hid_t g, int k, ves_status st) {
+  H5Gclose(g);
+  if (st == VES_OK) st = attr_int(s, "count", k + 1); /* complete once counted */
+  H5Gclose(s);
+  VES_CALL(st);
+  return H5Fflush(file, H5F_SCOPE_LOCAL) < 0 ? VES_ERR_IO : VES_OK;
+}
+
 /* ---- snapshots -------------------------------------------------------------- */
 
 int ves_io_snapshots(const ves_io *io) { return io->nsnap; }
@@ -670,25 +706,15 @@ ves_status ves_io_snapshot(ves_io *io, const double *y, const double *x, const d
     if (!t) return VES_ERR_ALLOC;
     io->snap_t = t, io->snap_cap = cap;
   }
-  hid_t s = H5Gopen2(io->file, "snapshots", H5P_DEFAULT);
-  if (s < 0) return VES_ERR_IO;
-  char name[32];
-  snprintf(name, sizeof name, "%d", io->nsnap);
-  /* a run killed while writing this snapshot left an incomplete group */
-  if (H5Lexists(s, name, H5P_DEFAULT) > 0) H5Ldelete(s, name, H5P_DEFAULT);
-  hid_t g = H5Gcreate2(s, name, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
-  ves_status st = g < 0 ? VES_ERR_IO : VES_OK;
-  hsize_t n = (hsize_t)io->info.n;
-  if (st == VES_OK) st = dset_write(g, "y", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, n, 2, y);
-  if (st == VES_OK) st = dset_write(g, "x", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, n, 2, x);
-  if (st == VES_OK) st = dset_write(g, "phi", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, n, 0, phi);
+  hid_t s, g;
+  VES_CALL(counted_open(io->file, "snapshots", io->nsnap, &s, &g));
+  const hsize_t n = (hsize_t)io->info.n;
+  const hid_t F = H5T_IEEE_F64LE, M = H5T_NATIVE_DOUBLE;
+  ves_status st = dset_write(g, "y", F, M, n, 2, y);
+  if (st == VES_OK) st = dset_write(g, "x", F, M, n, 2, x);
+  if (st == VES_OK) st = dset_write(g, "phi", F, M, n, 0, phi);
   if (st == VES_OK) st = snapshot_attrs(g, si);
-  if (g >= 0) H5Gclose(g);
-  /* the count last: a snapshot is complete once it is counted */
-  if (st == VES_OK) st = attr_int(s, "count", io->nsnap + 1);
-  H5Gclose(s);
-  VES_CALL(st);
-  if (H5Fflush(io->file, H5F_SCOPE_LOCAL) < 0) return VES_ERR_IO;
+  VES_CALL(counted_close(io->file, s, g, io->nsnap, st));
   io->snap_t[io->nsnap++] = si->state.t;
   return xdmf_write(io);
 }
@@ -761,29 +787,17 @@ ves_status ves_io_write_reference(ves_io *io, const ves_io_reference *ref) {
             VES_ERR_ARG);
   VES_CHECK(ref->nq > 0 && ref->step >= 0, VES_ERR_ARG);
   const int k = ves_io_references(io);
-  hid_t s = H5Lexists(io->file, "references", H5P_DEFAULT) > 0
-                ? H5Gopen2(io->file, "references", H5P_DEFAULT)
-                : H5Gcreate2(io->file, "references", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
-  if (s < 0) return VES_ERR_IO;
-  char name[32];
-  snprintf(name, sizeof name, "%d", k);
-  /* a run killed while writing this reference left an incomplete group */
-  if (H5Lexists(s, name, H5P_DEFAULT) > 0) H5Ldelete(s, name, H5P_DEFAULT);
-  hid_t g = H5Gcreate2(s, name, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
-  ves_status st = g < 0 ? VES_ERR_IO : VES_OK;
+  hid_t s, g;
+  VES_CALL(counted_open(io->file, "references", k, &s, &g));
   const hsize_t n = (hsize_t)io->info.n, nq = (hsize_t)ref->nq;
   const hid_t F = H5T_IEEE_F64LE, M = H5T_NATIVE_DOUBLE;
-  if (st == VES_OK) st = dset_write(g, "x", F, M, n, 2, ref->x);
+  ves_status st = dset_write(g, "x", F, M, n, 2, ref->x);
   if (st == VES_OK) st = dset_write(g, "h", F, M, n, 0, ref->h);
   if (st == VES_OK) st = dset_write(g, "points", F, M, nq, 2, ref->xq);
   if (st == VES_OK) st = dset_write(g, "weights", F, M, nq, 0, ref->wq);
   if (st == VES_OK) st = dset_write(g, "phi0", F, M, nq, 6, ref->pd);
   if (st == VES_OK) st = attr_long(g, "step", ref->step);
-  if (g >= 0) H5Gclose(g);
-  if (st == VES_OK) st = attr_int(s, "count", k + 1); /* complete once counted */
-  H5Gclose(s);
-  VES_CALL(st);
-  return H5Fflush(io->file, H5F_SCOPE_LOCAL) < 0 ? VES_ERR_IO : VES_OK;
+  return counted_close(io->file, s, g, k, st);
 }
 
 ves_status ves_io_read_reference(ves_io *io, int k, ves_io_reference_buf *out) {
