@@ -210,7 +210,8 @@ static void usage_run(FILE *f) {
           "                    A/A0-1 V/Vtarget-1 lambda_A lambda_V iterations f_evals g_evals\n"
           "                    h_evals seconds retries resets (reference resets so far)\n"
           "  --quiet           no progress line (otherwise one line on stderr: step, t*, dt*,\n"
-          "                    E*, iterations, ETA; updated in place on a terminal)\n"
+          "                    E*, iterations, ETA (a range lo-hi while adaptive steps\n"
+          "                    are below dt_max); updated in place on a terminal)\n"
           "Exit 0 at t_end (or --max-steps), 2 on bad input (nothing written), 3 when a step\n"
           "fails down to dt_min (the last good state is saved as the last snapshot), 130/143 on\n"
           "SIGINT/SIGTERM after the current step (state saved; a second signal kills).\n");
@@ -383,9 +384,31 @@ static void remove_output(const char *out) {
   remove(x);
 }
 
+/* The progress line's time to t_end, from the mean wall time w of the
+ * recent steps: (t_end - t) / dt steps of w with constant steps; with
+ * adaptive ones the step count lies between (t_end - t) / dt_max (dt grows
+ * to its cap) and (t_end - t) / dt (it stays): a range, or one value once
+ * the two are within 1.5x. A linear extrapolation in t* (the earlier line)
+ * is off by the growth of dt, orders of magnitude early in a run. */
+static double steps_left(double left, double dt) {
+  double n = ceil(left / dt - 1e-9); /* a step that ends at t_end up to rounding is the last */
+  return n > 0 ? n : 0.0;            /* not -0 */
+}
+
+static void eta_text(char *buf, size_t len, const ves_config *c, double t, double dt, double w) {
+  const double left = c->t_end - t;
+  const double hi = w * steps_left(left, dt),
+               lo = c->adaptive ? w * steps_left(left, c->dt_max) : hi;
+  if (hi <= 1.5 * lo)
+    snprintf(buf, len, "%.0f s", hi);
+  else
+    snprintf(buf, len, "%.0f-%.0f s", lo, hi);
+}
+
 /* The time loop: steps, rows, snapshots, progress. Returns the exit code. */
 static int loop(run_ctx *r) {
-  double t0 = ves_wall_seconds(), tstart = ves_sim_time(r->sim), tend = r->cfg.t_end;
+  double t0 = ves_wall_seconds(), tend = r->cfg.t_end;
+  double recent[10] = {0}; /* wall times at the ends of the last 10 steps (ring) */
   int tty = isatty(2), code = 0;
   long iters = 0, steps = 0;
   ves_step_report rep;
@@ -439,10 +462,14 @@ static int loop(run_ctx *r) {
               ves_sim_reconnections(r->sim));
       fflush(r->series);
     }
+    const double el = ves_wall_seconds() - t0;   /* this process's loop */
+    const int nr = steps < 10 ? (int)steps : 10; /* steps in the window */
+    const double w = (el - (steps > 10 ? recent[steps % 10] : 0.0)) / nr;
+    recent[steps % 10] = el;
     if (!r->quiet && (tty || rep.step % 10 == 0)) {
-      double el = ves_wall_seconds() - t0;
-      double eta = rep.t > tstart ? el * (tend - rep.t) / (rep.t - tstart) : 0;
-      fprintf(stderr, "%sstep %ld  t* %.4g/%.4g  dt* %.3g  E* %.6f  iter %d  ETA %.0f s%s",
+      char eta[64];
+      eta_text(eta, sizeof eta, &r->cfg, rep.t, rep.dt, w);
+      fprintf(stderr, "%sstep %ld  t* %.4g/%.4g  dt* %.3g  E* %.6f  iter %d  ETA %s%s",
               tty ? "\r" : "", rep.step, rep.t, tend, rep.dt, rep.E, rep.stats.iterations, eta,
               tty ? "   " : "\n");
     }

@@ -537,6 +537,47 @@ static void test_restart_bitwise(void **state) {
   tmp_path(part, sizeof part, "part.xdmf"), unlink(part);
 }
 
+/* ---- the progress line -------------------------------------------------------- */
+
+/* The progress line's ETA: one value with constant steps (0 s at t_end);
+ * with adaptive steps below dt_max a range lo-hi, lo from the steps left at
+ * dt_max, hi at the current dt (cli.c eta_text). */
+static void test_progress_eta(void **state) {
+  (void)state;
+  char ini[128], out[128];
+  tmp_path(ini, sizeof ini, "eta.ini");
+  tmp_path(out, sizeof out, "eta.h5");
+  result r;
+  write_file(ini, "[time]\nt_end = 0.1\nadaptive = 0\n"); /* 20 steps of 5e-3 */
+  run(&r, "run", ini, TINY, "--out", out, NULL);
+  if (r.code) fail_msg("run: exit %d: %s", r.code, r.err);
+  printf("# constant steps:\n%s", r.err);
+  const char *l10 = strstr(r.err, "step 10 "), *l20 = strstr(r.err, "step 20 ");
+  assert_non_null(l10);
+  assert_non_null(l20);
+  long a = -1, b = -1;
+  const char *e = strstr(l10, "ETA ");
+  assert_true(e && e < l20);
+  assert_int_equal(sscanf(e, "ETA %ld s\n", &a), 1); /* one value */
+  const char *nl = strchr(e, '\n');
+  assert_true(a >= 0 && nl && !memchr(e, '-', (size_t)(nl - e)));
+  assert_non_null(strstr(l20, "ETA 0 s\n")); /* t_end reached */
+  /* adaptive, dt growing at most 1.2x a step from 5e-3: at step 10 dt <=
+   * 0.031 and t <= 0.2, so 26+ steps are left at that dt, 1 at dt_max = 10 */
+  write_file(ini, "[time]\nt_end = 1\ndt_max = 10\ngrowth_max = 1.2\n");
+  run(&r, "run", ini, TINY, "--out", out, "--max-steps", "10", NULL);
+  if (r.code) fail_msg("run: exit %d: %s", r.code, r.err);
+  printf("# adaptive steps:\n%s", r.err);
+  l10 = strstr(r.err, "step 10 ");
+  assert_non_null(l10);
+  e = strstr(l10, "ETA ");
+  assert_non_null(e);
+  assert_int_equal(sscanf(e, "ETA %ld-%ld s", &a, &b), 2);
+  assert_true(0 <= a && a <= b);
+  unlink(ini), unlink(out);
+  tmp_path(out, sizeof out, "eta.xdmf"), unlink(out);
+}
+
 /* ---- numerical failure: exit 3, the file kept with the last good state ---- */
 
 static void test_numerical_failure(void **state) {
@@ -704,6 +745,7 @@ int main(int argc, char **argv) {
       cmocka_unit_test(test_malformed_input),
       cmocka_unit_test(test_restart_bitwise),
       cmocka_unit_test(test_restart_after_reset),
+      cmocka_unit_test(test_progress_eta),
       cmocka_unit_test(test_numerical_failure),
       cmocka_unit_test(test_sigterm),
       cmocka_unit_test(test_sigkill),
