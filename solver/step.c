@@ -9,6 +9,7 @@
  * never served stale values. */
 #include "ves/step.h"
 
+#include <lapacke.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -31,11 +32,11 @@ struct ves_step {
   double *Kd;             /* nvar K d at the cached x */
   double *gfull;          /* 3 x 2n gradients of E, A, V over all dofs at the cached x */
   /* cache of the last model evaluation */
-  double *xc;             /* nvar the cached point */
-  int cache;              /* 0 nothing, 1 values, 2 values and gradients */
-  ves_status cst;         /* status of the cached evaluation (VES_OK or an error) */
-  double E, A, V;         /* values at xc */
-  double dKd;             /* d^T K d at xc */
+  double *xc;     /* nvar the cached point */
+  int cache;      /* 0 nothing, 1 values, 2 values and gradients */
+  ves_status cst; /* status of the cached evaluation (VES_OK or an error) */
+  double E, A, V; /* values at xc */
+  double dKd;     /* d^T K d at xc */
 };
 
 void ves_step_destroy(ves_step **s) {
@@ -118,11 +119,11 @@ static ves_status ensure(ves_step *s, const double *x, int level) {
   } else {
     s->cache = 0;
     memcpy(s->xc, x, nv * sizeof *x);
-    for (size_t i = 0; i < nv; i++) s->d[i] = x[i] - s->x0[i];  /* d = x - x0 */
-    ves_pattern_symv(s->pat, s->K, s->d, s->Kd);                  /* K d */
+    for (size_t i = 0; i < nv; i++) s->d[i] = x[i] - s->x0[i]; /* d = x - x0 */
+    ves_pattern_symv(s->pat, s->K, s->d, s->Kd);               /* K d */
     double q = 0;
     for (size_t i = 0; i < nv; i++) q += s->d[i] * s->Kd[i];
-    s->dKd = q;                                                   /* d^T K d */
+    s->dKd = q; /* d^T K d */
   }
   ves_step_expand(s, x, s->y);
   const size_t n2 = 2 * (size_t)s->n;
@@ -147,8 +148,7 @@ ves_status ves_step_eval_f(ves_step *s, const double *x, double *f) {
 }
 
 /* Restrict a full gradient (2n) to the free dofs, scaled: out = a g_free (+ out if add). */
-static void restrict_grad(const ves_step *s, const double *gfull, double a, int add,
-                          double *out) {
+static void restrict_grad(const ves_step *s, const double *gfull, double a, int add, double *out) {
   for (int i = 0; i < 2 * s->n; i++) {
     int k = s->pat->dof[i];
     if (k >= 0) out[k] = (add ? out[k] : 0.0) + a * gfull[i];
@@ -191,7 +191,7 @@ ves_status ves_step_eval_jac(ves_step *s, const double *x, double *J) {
 ves_status ves_step_eval_energy_grad(ves_step *s, const double *x, double *E, double *gE) {
   STEP_READY(s, x);
   VES_CALL(ensure(s, x, gE ? 2 : 1));
-  if (E) *E = s->par.dt * s->E;                        /* dt E(y) */
+  if (E) *E = s->par.dt * s->E;                         /* dt E(y) */
   if (gE) restrict_grad(s, s->gfull, s->par.dt, 0, gE); /* dt grad E */
   return VES_OK;
 }
@@ -227,4 +227,113 @@ ves_model *ves_step_model(ves_step *s) { return s ? s->m : NULL; }
 
 const ves_step_params *ves_step_get_params(const ves_step *s) {
   return s && s->is_set ? &s->par : NULL;
+}
+
+/* ---- stiffness of the explicit step ------------------------------------------ */
+
+/* u^T K v with K given by its lower triplets (the step pattern). */
+static double k_dot(const ves_pattern *p, const double *K, const double *u, const double *v,
+                    double *w) {
+  ves_pattern_symv(p, K, v, w); /* w = K v */
+  double s = 0;
+  for (int i = 0; i < p->nfree; i++) s += u[i] * w[i];
+  return s;
+}
+
+/* mu_max of K^-1 A on {v : J v = 0}, A = Hess E + sigma_A Hess A + sigma_V
+ * Hess V, by Lanczos in the K inner product (the operator P K^-1 A, P the
+ * K-orthogonal projection onto the null space of J, is K-symmetric there):
+ * w = P K^-1 A v from [K J^T; J 0] [w; m] = [A v; 0], full
+ * reorthogonalization, eigenvalues of the tridiagonal by LAPACK dstev. */
+ves_status ves_step_stiffness(ves_step *s, const double *sigma, int iters, double *mu_max,
+                              double *resid) {
+  VES_CHECK(s && s->is_set && mu_max && iters >= 2 && (sigma || s->ncon == 0), VES_ERR_ARG);
+  const ves_pattern *p = s->pat;
+  const int nv = s->nvar, nc = s->ncon, nk = nv + nc, nnz = p->nnz + nc * (nv + 1);
+  const int kmax = iters < nv - nc ? iters : nv - nc;
+  VES_CHECK(kmax >= 2, VES_ERR_ARG);
+  double sA = 0, sV = 0;
+  int q = 0;
+  if (s->par.hold_area) sA = sigma[q++];
+  if (s->par.hold_volume) sV = sigma[q++];
+  ves_status st = VES_ERR_ALLOC;
+  ves_ldl *f = NULL;
+  int *ir = malloc((size_t)nnz * sizeof *ir), *jc = malloc((size_t)nnz * sizeof *jc);
+  double *val = malloc((size_t)nnz * sizeof *val), *A = malloc((size_t)p->nnz * sizeof *A);
+  double *J = malloc(((size_t)nc * nv + 1) * sizeof *J), *rhs = malloc((size_t)nk * sizeof *rhs);
+  double *V = malloc((size_t)(kmax + 1) * nv * sizeof *V), *w = malloc((size_t)nv * sizeof *w);
+  double *tmp = malloc((size_t)nv * sizeof *tmp);
+  double *al = malloc((size_t)kmax * sizeof *al), *be = malloc((size_t)kmax * sizeof *be);
+  double *d = malloc((size_t)kmax * sizeof *d), *e = malloc((size_t)kmax * sizeof *e);
+  double *Z = malloc((size_t)kmax * kmax * sizeof *Z);
+  if (!ir || !jc || !val || !A || !J || !rhs || !V || !w || !tmp || !al || !be || !d || !e || !Z)
+    goto done;
+  /* A at y^n (ves_model_hessian: cE Hess E + lA Hess A + lV Hess V) and J */
+  if ((st = ves_model_hessian(s->m, s->yn, 1.0, sA, sV, s->blk)) != VES_OK) goto done;
+  ves_pattern_extract(s->pat, s->blk, A);
+  if ((st = ves_step_eval_jac(s, s->x0, J)) != VES_OK) goto done;
+  /* [K J^T; J 0], lower triplets: K's, then the rows of J and their zero diagonal */
+  memcpy(ir, p->irow, (size_t)p->nnz * sizeof *ir);
+  memcpy(jc, p->jcol, (size_t)p->nnz * sizeof *jc);
+  memcpy(val, s->K, (size_t)p->nnz * sizeof *val);
+  int t = p->nnz;
+  for (int i = 0; i < nc; i++) {
+    for (int j = 0; j < nv; j++) ir[t] = nv + i, jc[t] = j, val[t++] = J[(size_t)i * nv + j];
+    ir[t] = nv + i, jc[t] = nv + i, val[t++] = 0.0;
+  }
+  if ((st = ves_ldl_create(nk, nnz, ir, jc, nc == 0, &f)) != VES_OK) goto done;
+  if ((st = ves_ldl_factor(f, val)) != VES_OK) goto done;
+  /* v_0: a fixed pseudo-random vector, K-projected onto J v = 0 */
+  unsigned long long r = 88172645463325252ULL;
+  for (int i = 0; i < nv; i++) {
+    r ^= r << 13, r ^= r >> 7, r ^= r << 17; /* xorshift64 */
+    tmp[i] = (double)(r >> 11) / 9007199254740992.0 - 0.5;
+  }
+  ves_pattern_symv(p, s->K, tmp, rhs); /* [K r; 0] -> w = P r */
+  for (int i = 0; i < nc; i++) rhs[nv + i] = 0.0;
+  if ((st = ves_ldl_solve(f, rhs)) != VES_OK) goto done;
+  double nrm = sqrt(k_dot(p, s->K, rhs, rhs, tmp));
+  st = VES_ERR_NOCONV;
+  if (!(nrm > 0)) goto done;
+  for (int i = 0; i < nv; i++) V[i] = rhs[i] / nrm;
+  int k = 0;
+  for (; k < kmax; k++) {
+    double *vk = V + (size_t)k * nv;
+    ves_pattern_symv(p, A, vk, rhs); /* [A v; 0] */
+    for (int i = 0; i < nc; i++) rhs[nv + i] = 0.0;
+    if ((st = ves_ldl_solve(f, rhs)) != VES_OK) goto done;
+    memcpy(w, rhs, (size_t)nv * sizeof *w); /* w = P K^-1 A v_k */
+    /* full reorthogonalization in the K inner product, twice */
+    for (int pass = 0; pass < 2; pass++) {
+      ves_pattern_symv(p, s->K, w, tmp); /* K w */
+      for (int j = 0; j <= k; j++) {
+        const double *vj = V + (size_t)j * nv;
+        double c = 0;
+        for (int i = 0; i < nv; i++) c += vj[i] * tmp[i];
+        if (pass == 0 && j == k) al[k] = c;
+        for (int i = 0; i < nv; i++) w[i] -= c * vj[i];
+      }
+    }
+    be[k] = sqrt(fmax(k_dot(p, s->K, w, w, tmp), 0.0));
+    if (k + 1 == kmax || !(be[k] > 1e-14 * fabs(al[k]))) {
+      k++;
+      break; /* the Krylov space is exhausted or the budget spent */
+    }
+    double *vn = V + (size_t)(k + 1) * nv;
+    for (int i = 0; i < nv; i++) vn[i] = w[i] / be[k];
+  }
+  /* eigenvalues of the k x k tridiagonal (al, be), ascending, with vectors */
+  memcpy(d, al, (size_t)k * sizeof *d);
+  memcpy(e, be, (size_t)(k - 1) * sizeof *e);
+  st = LAPACKE_dstev(LAPACK_COL_MAJOR, 'V', k, d, e, Z, k) == 0 ? VES_OK : VES_ERR_NOCONV;
+  if (st == VES_OK) {
+    *mu_max = d[k - 1];
+    /* |(Op - theta) V s| = be_k |s_k|: the Ritz residual of mu_max, relative */
+    if (resid) *resid = be[k - 1] * fabs(Z[(size_t)(k - 1) * k + (k - 1)]) / fabs(d[k - 1]);
+  }
+done:
+  ves_ldl_destroy(&f);
+  free(ir), free(jc), free(val), free(A), free(J), free(rhs), free(V), free(w), free(tmp);
+  free(al), free(be), free(d), free(e), free(Z);
+  return st;
 }

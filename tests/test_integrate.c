@@ -26,7 +26,8 @@ static ves_setup *bump_setup(const char *delta) {
                        "geometry.band=3",       "shape.mode=2",       delta};
   if (ves_config_load(NULL, 6, set, &cfg, err, sizeof err) != VES_OK) fail_msg("config: %s", err);
   ves_setup *s = NULL;
-  if (ves_setup_create(&cfg, VES_PHI0_L2, &s, err, sizeof err) != VES_OK) fail_msg("setup: %s", err);
+  if (ves_setup_create(&cfg, VES_PHI0_L2, &s, err, sizeof err) != VES_OK)
+    fail_msg("setup: %s", err);
   return s;
 }
 
@@ -102,7 +103,7 @@ static void test_near_equilibrium(void **state) {
            rep.retries);
     assert_int_equal(rep.retries, 0);
     assert_true(rep.stats.iterations <= 6); /* measured: 3-4 */
-    assert_true(rep.E < Eprev);            /* the mode decays: E strictly falls */
+    assert_true(rep.E < Eprev);             /* the mode decays: E strictly falls */
     Eprev = rep.E;
   }
   assert_int_equal(n, 8);
@@ -142,6 +143,70 @@ static void test_euler_adaptive(void **state) {
   ves_setup_destroy(&s);
 }
 
+/* Forward Euler with constant dt from the initial state, n steps; returns
+ * the number of steps at which E rose (energy check off) and the first
+ * step's constraint forces sigma = lambda / dt. */
+static int euler_rises(ves_setup *s, double dt, int n, double *sigma) {
+  ves_integrate_params ip;
+  ves_integrate_params_default(&ip);
+  ip.t_end = 1.0, ip.adaptive = 0, ip.dt_initial = ip.dt_max = ip.dt_min = dt;
+  ip.check_energy = 0;
+  ves_sim *sim = make_sim(s, "euler", &ip);
+  double Eprev;
+  ves_sim_initial(sim, &Eprev, NULL, NULL);
+  ves_step_report rep;
+  int rises = 0;
+  for (int k = 0; k < n; k++) {
+    if (ves_sim_step(sim, &rep) != VES_OK) break; /* an explosion leaves the domain */
+    if (k == 0 && sigma) sigma[0] = rep.lambda[0] / dt, sigma[1] = rep.lambda[1] / dt;
+    rises += rep.E > Eprev;
+    Eprev = rep.E;
+  }
+  ves_sim_state st;
+  ves_sim_get_state(sim, &st, NULL);
+  if (st.nstep < n) rises += n - (int)st.nstep; /* steps that failed count as rises */
+  ves_sim_destroy(&sim);
+  return rises;
+}
+
+/* ves_step_stiffness predicts forward Euler's stability limit 2 / mu_max:
+ * 40 steps at 0.7 of it never raise E (every mode decays: (1 - 1.4)^2 < 1),
+ * 40 steps at 1.5 of it do (the top mode grows 2x a step, 2^40 = 1e12 from
+ * whatever the start holds of it). The start state: y^0, the forces from a
+ * tiny first Euler step. */
+static void test_euler_stiffness(void **state) {
+  (void)state;
+  ves_setup *s = small_setup();
+  double sigma[2], mu, res;
+  (void)euler_rises(s, 1e-7, 1, sigma);
+  ves_step *st = NULL;
+  assert_int_equal(ves_step_create(s->model, &st), VES_OK);
+  double *y = malloc(2 * (size_t)s->nodes->n * sizeof *y);
+  ves_model_reference(s->model, y);
+  double A0, V0;
+  assert_int_equal(ves_model_eval(s->model, y, VES_F_A | VES_F_V, NULL, &A0, &V0, NULL, NULL, NULL),
+                   VES_OK);
+  ves_step_params par = {.dt = 1, .hold_area = 1, .A0 = A0, .hold_volume = 1, .V_target = V0};
+  assert_int_equal(ves_step_set(st, y, &par), VES_OK);
+  assert_int_equal(ves_step_stiffness(st, sigma, 60, &mu, &res), VES_OK);
+  const double lim = 2 / mu;
+  printf("# sigma %.6g %.6g; mu_max %.6e (Ritz residual %.1e): FE limit dt* %.4e\n", sigma[0],
+         sigma[1], mu, res, lim);
+  assert_true(mu > 0 && res < 1e-2); /* the top Ritz value has converged to 1% */
+  const int below = euler_rises(s, 0.7 * lim, 40, NULL),
+            above = euler_rises(s, 1.5 * lim, 40, NULL);
+  printf("# 40 FE steps at 0.7 x the limit: E rose %d times; at 1.5 x: %d times\n", below, above);
+  assert_int_equal(below, 0);
+  assert_true(above > 0);
+  /* arguments */
+  assert_int_equal(ves_step_stiffness(st, sigma, 1, &mu, NULL), VES_ERR_ARG);
+  assert_int_equal(ves_step_stiffness(st, NULL, 60, &mu, NULL), VES_ERR_ARG);
+  assert_int_equal(ves_step_stiffness(NULL, sigma, 60, &mu, NULL), VES_ERR_ARG);
+  free(y);
+  ves_step_destroy(&st);
+  ves_setup_destroy(&s);
+}
+
 /* Protocols: a C0 pulse from t = 0.01 to 0.0175 raises the target curvature
  * (E jumps up at the switch, then decreases again; C0 returns to 0 at the end
  * of the pulse, which falls inside a step: the step is cut to land on it); a
@@ -165,8 +230,10 @@ static void test_protocols(void **state) {
     printf("# t %.4f c0 %.1f E* %.5f V/V0 %.6f\n", rep.t, rep.c0, rep.E, rep.V / V0);
     assert_true(fabs(rep.V / want - 1) <= 1e-8); /* the ramp's target, to ctol */
     assert_true(fabs(rep.A / A0 - 1) <= 1e-8);
-    if (rep.t > 0.01 + 1e-12 && rep.t <= 0.0175 + 1e-12) assert_true(rep.c0 == 2.0), saw_c0 = 1;
-    else assert_true(rep.c0 == 0.0);
+    if (rep.t > 0.01 + 1e-12 && rep.t <= 0.0175 + 1e-12)
+      assert_true(rep.c0 == 2.0), saw_c0 = 1;
+    else
+      assert_true(rep.c0 == 0.0);
     if (fabs(rep.t - 0.0175) < 1e-12) saw_end = 1; /* a step ends on the pulse's end */
   }
   /* constant dt = 5e-3 to t = 0.03, one step cut to end at 0.0175:
@@ -193,8 +260,10 @@ static void test_c0_switch_restarts_dt(void **state) {
   ves_step_report rep;
   double before = 0, after = 0;
   while (ves_sim_step(sim, &rep) == VES_OK) {
-    if (rep.c0 == 0.0) before = rep.dt;
-    else if (after == 0) after = rep.dt; /* the first step on the new C0 */
+    if (rep.c0 == 0.0)
+      before = rep.dt;
+    else if (after == 0)
+      after = rep.dt; /* the first step on the new C0 */
   }
   printf("# last dt* before the switch %.4g, first after %.4g\n", before, after);
   assert_true(before > 2 * ip.dt_initial); /* it had grown */
@@ -415,12 +484,12 @@ int main(void) {
   setvbuf(stdout, NULL, _IOLBF, 0); /* keep output in order with cmocka's stderr */
   const struct CMUnitTest tests[] = {
       /* first in the process: see there */
-      cmocka_unit_test(test_reconnect_off),       cmocka_unit_test(test_relaxation),
-      cmocka_unit_test(test_near_equilibrium),
-      cmocka_unit_test(test_euler_adaptive),    cmocka_unit_test(test_protocols),
-      cmocka_unit_test(test_c0_switch_restarts_dt),
-      cmocka_unit_test(test_failure_keeps_state), cmocka_unit_test(test_reconnect_every),
-      cmocka_unit_test(test_reconnect_threshold), cmocka_unit_test(test_reconnect_failure),
+      cmocka_unit_test(test_reconnect_off),         cmocka_unit_test(test_relaxation),
+      cmocka_unit_test(test_near_equilibrium),      cmocka_unit_test(test_euler_adaptive),
+      cmocka_unit_test(test_euler_stiffness),       cmocka_unit_test(test_protocols),
+      cmocka_unit_test(test_c0_switch_restarts_dt), cmocka_unit_test(test_failure_keeps_state),
+      cmocka_unit_test(test_reconnect_every),       cmocka_unit_test(test_reconnect_threshold),
+      cmocka_unit_test(test_reconnect_failure),
   };
   return cmocka_run_group_tests_name("integrate", tests, NULL, NULL);
 }

@@ -15,11 +15,11 @@
 
 /* What one step solves for. */
 typedef struct {
-  double dt;         /* time step (t* units) */
-  int hold_area;     /* 1: constraint A(y) = A0 */
-  double A0;         /* target area (units R0^2) */
-  int hold_volume;   /* 1: constraint V(y) = V_target */
-  double V_target;   /* target volume at t_{n+1} (units R0^3) */
+  double dt;       /* time step (t* units) */
+  int hold_area;   /* 1: constraint A(y) = A0 */
+  double A0;       /* target area (units R0^2) */
+  int hold_volume; /* 1: constraint V(y) = V_target */
+  double V_target; /* target volume at t_{n+1} (units R0^3) */
 } ves_step_params;
 
 typedef struct ves_step ves_step;
@@ -33,8 +33,8 @@ void ves_step_destroy(ves_step **s);
  * stores the targets. */
 ves_status ves_step_set(ves_step *s, const double *yn, const ves_step_params *par);
 
-int ves_step_nvar(const ves_step *s);  /* free dofs */
-int ves_step_ncon(const ves_step *s);  /* 0, 1 or 2: area first, then volume */
+int ves_step_nvar(const ves_step *s); /* free dofs */
+int ves_step_ncon(const ves_step *s); /* 0, 1 or 2: area first, then volume */
 
 /* x0 = the free dofs of y^n. */
 void ves_step_x0(const ves_step *s, double *x);
@@ -44,9 +44,9 @@ void ves_step_expand(const ves_step *s, const double *x, double *y);
 /* Evaluations at x (nvar). VES_ERR_DOMAIN when y leaves the admissible set
  * (det F <= 0 or r <= 0 at a point): backends must treat it as "cut the step". */
 ves_status ves_step_eval_f(ves_step *s, const double *x, double *f);
-ves_status ves_step_eval_grad(ves_step *s, const double *x, double *g);   /* g[nvar] */
-ves_status ves_step_eval_c(ves_step *s, const double *x, double *c);      /* c[ncon] */
-ves_status ves_step_eval_jac(ves_step *s, const double *x, double *J);    /* J[ncon*nvar], row-major */
+ves_status ves_step_eval_grad(ves_step *s, const double *x, double *g); /* g[nvar] */
+ves_status ves_step_eval_c(ves_step *s, const double *x, double *c);    /* c[ncon] */
+ves_status ves_step_eval_jac(ves_step *s, const double *x, double *J); /* J[ncon*nvar], row-major */
 
 /* Hessian of the Lagrangian sigma_f (K + dt Hess E) + sum_i lambda_i Hess c_i
  * in a fixed sparsity: hess_nnz entries, lower triangle (row >= col), structure
@@ -62,6 +62,24 @@ ves_status ves_step_eval_hess(ves_step *s, const double *x, double sigma_f, cons
 const double *ves_step_K(const ves_step *s);
 /* dt E(y) alone and its gradient (the Euler backend's force). */
 ves_status ves_step_eval_energy_grad(ves_step *s, const double *x, double *E, double *gE);
+
+/* The stiffness of the explicit step at y^n: the largest eigenvalue mu_max
+ * (units 1/t*) of K^-1 (Hess E + sum_i sigma_i Hess c_i) on the tangent space
+ * {v : J v = 0} of the held constraints, sigma[ncon] the constraint forces
+ * per unit time (a step's multipliers divided by its dt; NULL when ncon = 0).
+ * Forward Euler on K ydot = -grad E - sum sigma_i grad c_i, J ydot = 0 is
+ * linearly stable near y^n for dt <= 2 / mu_max (the iteration matrix is I -
+ * dt K^-1 A on that space; at a state out of equilibrium this is its frozen
+ * linearization). Lanczos in the K inner product from a fixed start, at most
+ * `iters` (>= 2) steps with full reorthogonalization: mu_max from below;
+ * *resid (may be NULL) is its Ritz residual relative to mu_max, a bound on
+ * the error when the top eigenvalue is separated. Requires ves_step_set (its
+ * dt and targets only select the held constraints); allocates and factorizes
+ * [K J^T; J 0] (an analysis, not part of a step). Returns VES_OK,
+ * VES_ERR_ARG, errors of the Hessian assembly or the factorization,
+ * VES_ERR_NOCONV (a zero start vector or LAPACK's dstev failed), VES_ERR_ALLOC. */
+ves_status ves_step_stiffness(ves_step *s, const double *sigma, int iters, double *mu_max,
+                              double *resid);
 
 /* The model, y^n and parameters of the current step. */
 ves_model *ves_step_model(ves_step *s);
