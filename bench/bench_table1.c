@@ -15,7 +15,10 @@
  * run usually ends as "step failed" at dt_min). With --fe-watch N (which
  * turns the integrator's energy check off for FE) an FE run does not stop at the first rise
  * but goes on for at most N steps, printing E* at every step, to tell a
- * growing instability from a rounding-level rise.
+ * growing instability from a rounding-level rise. With --fe-limit N the
+ * stiffness of the state at t1 is computed first (ves_step_stiffness, N
+ * Lanczos steps): FE's linear stability limit 2 / mu_max, printed before the
+ * table; --limit-only stops there.
  *
  * Columns: method, backend, dt*, E*(t1), E*(t2), steps, gradient and
  * Hessian evaluations (a Hessian = one assembly of the Hessian of E or of
@@ -24,7 +27,7 @@
  *
  * Usage: bench_table1 [CONFIG] [--set section.key=value]... [--t1 T]
  *        [--t2 T] [--vti dt,dt,...] [--fe dt,dt,...] [--backends b,b,...]
- *        [--fe-watch N]
+ *        [--fe-watch N] [--fe-limit N [--limit-only]]
  * Default: problems/oblate.ini at eps = 0.02, h_band = 0.5 (bench/RESULTS.md
  * gives the command of the eps = 0.01 table). Threads: OMP_NUM_THREADS. */
 #include <math.h>
@@ -36,6 +39,7 @@
 #include "ves/config.h"
 #include "ves/integrate.h"
 #include "ves/setup.h"
+#include "ves/step.h"
 #include "bench_common.h"
 #include "clock_impl.h"
 
@@ -118,6 +122,7 @@ int main(int argc, char **argv) {
          fe[MAX_LIST] = {1e-4, 5e-5, 2e-5, 1e-5, 5e-6, 2e-6, 1e-6};
   int nvti = 3, nfe = 7, nb = 1;
   long watch = 0;
+  int lanczos = 0, limit_only = 0;
   char blist[256] = "newton";
   for (int i = 1; i < argc; i++) {
     const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
@@ -133,6 +138,10 @@ int main(int argc, char **argv) {
       nfe = bench_parse_list(v, fe, MAX_LIST), i++;
     else if (!strcmp(a, "--fe-watch") && v)
       watch = atol(v), i++;
+    else if (!strcmp(a, "--fe-limit") && v)
+      lanczos = atoi(v), i++;
+    else if (!strcmp(a, "--limit-only"))
+      limit_only = 1;
     else if (!strcmp(a, "--backends") && v)
       snprintf(blist, sizeof blist, "%s", v), i++;
     else if (a[0] != '-')
@@ -197,6 +206,33 @@ int main(int argc, char **argv) {
   ves_sim_destroy(&sim);
   printf("# start: E*(0) = %.6f, E*(t1 = %g) = %.6f (newton, dt %g, %.1f s)\n", E0, t1,
          st1.E / cfg.k, t1 / 10, ves_wall_seconds() - t0);
+  if (lanczos > 0) {
+    /* K^-1 Hess L at y(t1), the constraint forces of the last step per unit time */
+    ves_step *sp = NULL;
+    ves_step_params par = {.dt = st1.dt,
+                           .hold_area = cfg.area,
+                           .A0 = st1.A0,
+                           .hold_volume = cfg.volume,
+                           .V_target = st1.V0};
+    double sigma[2] = {st1.lambda[0] / st1.dt, st1.lambda[1] / st1.dt}, mu = 0, res = 0;
+    t0 = ves_wall_seconds();
+    st = ves_step_create(s->model, &sp);
+    if (st == VES_OK) st = ves_step_set(sp, y1, &par);
+    if (st == VES_OK) st = ves_step_stiffness(sp, sigma, lanczos, &mu, &res);
+    ves_step_destroy(&sp);
+    if (st != VES_OK) {
+      fprintf(stderr, "bench_table1: --fe-limit: %s\n", ves_status_str(st));
+      return 3;
+    }
+    printf("# FE stability at t1: mu_max = %.6e 1/t* (%d Lanczos steps, Ritz residual %.1e, "
+           "%.1f s): FE stable for dt* <= 2/mu_max = %.4e\n",
+           mu, lanczos, res, ves_wall_seconds() - t0, 2 / mu);
+    if (limit_only) {
+      free(y1);
+      ves_setup_destroy(&s);
+      return 0;
+    }
+  }
   printf("| method | backend | dt* | E*(t1) | E*(t2) | steps | grad | hess | iterations | "
          "seconds | max dA/A0 | max dV/V0 | status |\n|---|---|---|---|---|---|---|---|---|---|"
          "---|---|---|\n");

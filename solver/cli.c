@@ -209,6 +209,7 @@ static void usage_run(FILE *f) {
           "  --series FILE.tsv also one tab-separated line per accepted step: step t dt E\n"
           "                    A/A0-1 V/Vtarget-1 lambda_A lambda_V iterations f_evals g_evals\n"
           "                    h_evals seconds retries resets (reference resets so far)\n"
+          "                    rejected_iterations rejected_seconds (attempts retried at dt/2)\n"
           "  --quiet           no progress line (otherwise one line on stderr: step, t*, dt*,\n"
           "                    E*, iterations, ETA (a range lo-hi while adaptive steps\n"
           "                    are below dt_max); updated in place on a terminal)\n"
@@ -455,11 +456,12 @@ static int loop(run_ctx *r) {
       double A0, V0;
       ves_sim_initial(r->sim, NULL, &A0, &V0);
       fprintf(r->series,
-              "%ld\t%.9g\t%.6g\t%.12g\t%.3e\t%.3e\t%.9g\t%.9g\t%d\t%d\t%d\t%d\t%.3f\t%d\t%d\n",
+              "%ld\t%.9g\t%.6g\t%.12g\t%.3e\t%.3e\t%.9g\t%.9g\t%d\t%d\t%d\t%d\t%.3f\t%d\t%d\t%d\t%"
+              ".3f\n",
               rep.step, rep.t, rep.dt, rep.E, rep.A / A0 - 1, rep.V / rep.V_target - 1,
               rep.lambda[0], rep.lambda[1], rep.stats.iterations, rep.stats.f_evals,
               rep.stats.g_evals, rep.stats.h_evals, rep.stats.seconds, rep.retries,
-              ves_sim_reconnections(r->sim));
+              ves_sim_reconnections(r->sim), rep.rejected.iterations, rep.rejected.seconds);
       fflush(r->series);
     }
     const double el = ves_wall_seconds() - t0;   /* this process's loop */
@@ -473,6 +475,13 @@ static int loop(run_ctx *r) {
               tty ? "\r" : "", rep.step, rep.t, tend, rep.dt, rep.E, rep.stats.iterations, eta,
               tty ? "   " : "\n");
     }
+    if (rep.retries && !r->quiet) /* the cost of the rejected attempts, and why */
+      fprintf(stderr,
+              "%sstep %ld: %d attempt(s) rejected from dt* %.3g (last: %s; %d iterations, %d "
+              "Hessians, %.1f s), accepted at dt* %.3g\n",
+              tty ? "\n" : "", rep.step, rep.retries, rep.reject_dt,
+              ves_status_str(rep.reject_status), rep.rejected.iterations, rep.rejected.h_evals,
+              rep.rejected.seconds, rep.dt);
     if (rep.reconnected && !r->quiet)
       fprintf(stderr,
               "%sstep %ld: reference reset #%d (max cond F %.3g, min det F %.3g, max "

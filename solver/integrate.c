@@ -272,6 +272,7 @@ ves_status ves_sim_step(ves_sim *s, ves_step_report *rep) {
     ves_step_params sp = {.dt = dt, .hold_area = s->ip.hold_area, .A0 = s->A0,
                           .hold_volume = s->ip.hold_volume, .V_target = Vt};
     double lam[2] = {s->lambda[0], s->lambda[1]}, E, A, V;
+    memset(&rep->stats, 0, sizeof rep->stats); /* this attempt's */
     st = ves_step_set(s->step, s->y, &sp);
     if (st == VES_OK) {
       ves_step_x0(s->step, s->x);
@@ -331,6 +332,12 @@ ves_status ves_sim_step(ves_sim *s, ves_step_report *rep) {
     }
     rep->solve_status = st;
     rep->dt = dt;
+    if (retries == 0) rep->reject_dt = dt;
+    rep->reject_status = st;
+    rep->rejected.iterations += rep->stats.iterations, rep->rejected.f_evals += rep->stats.f_evals;
+    rep->rejected.g_evals += rep->stats.g_evals, rep->rejected.h_evals += rep->stats.h_evals;
+    rep->rejected.seconds += rep->stats.seconds, rep->rejected.violation = rep->stats.violation;
+    rep->rejected.solver_status = rep->stats.solver_status;
     if (st < 0 && st != VES_ERR_DOMAIN && st != VES_ERR_NOCONV && st != VES_ERR_SOLVER &&
         st != VES_ERR_SINGULAR)
       return st; /* not a numerical rejection: argument or memory errors */

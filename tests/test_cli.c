@@ -574,6 +574,15 @@ static void test_progress_eta(void **state) {
   assert_non_null(e);
   assert_int_equal(sscanf(e, "ETA %ld-%ld s", &a, &b), 2);
   assert_true(0 <= a && a <= b);
+  /* a step with retries says what its rejected attempts were and cost:
+   * adaptive Euler grows dt until a step raises E (test_integrate.c) */
+  write_file(ini, "[time]\nt_end = 1\ndt_max = 1\n");
+  run(&r, "run", ini, TINY, "--backend", "euler", "--out", out, "--max-steps", "30", NULL);
+  if (r.code) fail_msg("run: exit %d: %s", r.code, r.err);
+  e = strstr(r.err, "attempt(s) rejected from dt* ");
+  if (!e) fail_msg("no line for the rejected attempts:\n%s", r.err);
+  printf("# euler: %.*s\n", (int)strcspn(e, "\n"), e);
+  assert_non_null(strstr(e, "(last: step rejected; "));
   unlink(ini), unlink(out);
   tmp_path(out, sizeof out, "eta.xdmf"), unlink(out);
 }

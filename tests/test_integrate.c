@@ -132,6 +132,16 @@ static void test_euler_adaptive(void **state) {
     n++;
     retried += rep.retries > 0;
     assert_true(rep.E <= Eprev + 1e-10 * fabs(Eprev)); /* the check's own rounding margin */
+    /* the rejected attempts: one Euler iteration each, the first at 2^retries dt (halving is
+     * exact), rejected for raising E or leaving the domain */
+    assert_int_equal(rep.rejected.iterations, rep.retries);
+    if (rep.retries) {
+      assert_true(rep.reject_dt == ldexp(rep.dt, rep.retries));
+      assert_true(rep.reject_status == VES_STEP_REJECTED || rep.reject_status == VES_ERR_DOMAIN);
+      assert_true(rep.rejected.seconds > 0);
+    } else {
+      assert_true(rep.reject_dt == 0 && rep.reject_status == VES_OK && rep.rejected.seconds == 0);
+    }
     Eprev = rep.E;
   }
   printf("# euler adaptive: %d steps to t* %.4g, dt* %.3g, %d with retries, E* %.6f -> %.6f\n", n,

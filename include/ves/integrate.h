@@ -52,6 +52,12 @@ typedef struct {
   int retries;             /* halvings before acceptance */
   ves_backend_stats stats; /* the backend's statistics of the accepted solve */
   ves_status solve_status; /* the accepted solve's status */
+  /* the rejected attempts of this step (all zero when retries = 0) */
+  ves_backend_stats rejected; /* their statistics summed (iterations, evaluations,
+                                 seconds; violation and solver_status of the last) */
+  ves_status reject_status;   /* why the last one was rejected (VES_MAXITER, VES_ERR_NOCONV,
+                                 VES_ERR_DOMAIN, VES_STEP_REJECTED: E rose, ...) */
+  double reject_dt;           /* the largest dt tried (the first attempt's) */
   /* reconnection after the step (all zero when reconnection is off) */
   int reconnected;             /* 1: the reference was reset to the new y */
   double cond, det_min;        /* distortion of y relative to the reference the step was
