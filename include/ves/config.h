@@ -59,7 +59,7 @@ typedef struct {
   /* [solver] */
   char backend[VES_CONFIG_STR]; /* ipopt | nlopt | newton | euler */
   double tol, ctol;             /* optimality and constraint tolerances */
-  int max_iter;                 /* iterations per step */
+  int max_iter;                 /* iterations per attempt of a step (then dt/2) */
   int freeze_hessian;           /* newton: Hessian once per step */
   /* [reconnect] reference-configuration resets (all 0: none) */
   int reconnect_every;       /* accepted steps between resets (0: off) */
