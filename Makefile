@@ -3,6 +3,7 @@
 #
 #   make            build build/libvesica.a and build/vesica
 #   make test       every test in tests/ (SAN=1: AddressSanitizer + UBSan)
+#   make valgrind   the small cases under valgrind (tests/valgrind.sh)
 #   make bench      the benchmarks in bench/, printing tables
 #   make run        the default problem (results/oblate.h5, .xdmf, PNG figures)
 #   make deps       install missing Debian packages (root) or print the command
@@ -46,7 +47,7 @@ BENCHES  = $(patsubst bench/%.c,$(BUILD)/bench/%,$(wildcard bench/bench_*.c))
 # command of every table, e.g. make bench BENCH_ONLY=bench_mode.
 BENCH_ONLY ?= 
 
-.PHONY: all deps test test-slow bench run clean format
+.PHONY: all deps test test-slow valgrind bench run clean format
 all: deps-quiet $(BUILD)/libvesica.a $(BUILD)/vesica
 
 $(BUILD)/obj/%.o: solver/%.c | $(BUILD)/obj
@@ -90,6 +91,11 @@ deps-quiet: deps
 test: deps
 	@$(MAKE) --no-print-directory $(BUILD)/libvesica.a $(BUILD)/vesica $(TESTS)
 	@OPENBLAS_NUM_THREADS=1 sh tests/run.sh $(TESTS)
+
+# the small cases under valgrind (memcheck, no SAN build): ~4 min
+valgrind: deps
+	@$(MAKE) --no-print-directory SAN=0 BUILD=build build/vesica
+	@sh tests/valgrind.sh build/vesica
 
 # the slow cases too (the full NLopt-vs-Ipopt step comparison, ~3 min)
 test-slow:
