@@ -36,7 +36,7 @@ static void usage(FILE *f) {
              "  run CONFIG.ini [--backend ipopt|nlopt|newton|euler] [--out FILE.h5]\n"
              "                 [--set section.key=value]... [--max-steps N] [--series FILE.tsv]\n"
              "                 [--quiet]\n"
-             "  run --restart FILE.h5 [--max-steps N] [--quiet]\n"
+             "  run --restart FILE.h5 [--set solver.KEY=V|time.t_end=T]... [--max-steps N] [--quiet]\n"
              "                     integrate in time, writing FILE.h5 (+ FILE.xdmf)\n"
              "  check CONFIG.ini [--set section.key=value]... [--phi0 l2|sampled]\n"
              "                     build the initial state and print its derived quantities\n"
@@ -196,7 +196,7 @@ static void usage_run(FILE *f) {
           "usage: vesica run CONFIG.ini [--backend ipopt|nlopt|newton|euler] [--out FILE.h5]\n"
           "                 [--set section.key=value]... [--max-steps N] [--series FILE.tsv]\n"
           "                 [--quiet]\n"
-          "       vesica run --restart FILE.h5 [--max-steps N] [--quiet]\n"
+          "       vesica run --restart FILE.h5 [--set KEY=VALUE]... [--max-steps N] [--quiet]\n"
           "Builds the initial state as 'check' does and integrates to [time] t_end with the\n"
           "chosen backend (default [solver] backend).\n"
           "  --out FILE.h5     the run's HDF5 file (default: the problem file's name with .h5,\n"
@@ -204,7 +204,9 @@ static void usage_run(FILE *f) {
           "                    parameters, one row per accepted step (flushed at every step),\n"
           "                    snapshots every [output] snapshot_every steps and at the end\n"
           "  --restart FILE.h5 continue the run of FILE.h5 from its last snapshot, appending to\n"
-          "                    it; the trajectory is bit for bit the uninterrupted one\n"
+          "                    it; the trajectory is bit for bit the uninterrupted one;\n"
+          "                    --set may change solver.tol, solver.ctol, solver.max_iter,\n"
+          "                    solver.freeze_hessian and time.t_end (recorded in the file)\n"
           "  --max-steps N     stop (with a snapshot, exit 0) once N steps are accepted in all\n"
           "  --series FILE.tsv also one tab-separated line per accepted step: step t dt E\n"
           "                    A/A0-1 V/Vtarget-1 lambda_A lambda_V iterations f_evals g_evals\n"
@@ -617,8 +619,15 @@ static int run_new(run_ctx *r, const char *path, const char *out, const char *ba
   return loop(r);
 }
 
-/* Continue FILE.h5 from its last snapshot. */
-static int run_restart(run_ctx *r, const char *file) {
+/* The keys a restart may change: how each step is solved, and where the run
+ * ends; the rest defines the setup, the physics or the protocol the stored
+ * steps followed. */
+static const char *const RESTART_KEYS[] = {"solver.tol", "solver.ctol", "solver.max_iter",
+                                           "solver.freeze_hessian", "time.t_end"};
+
+/* Continue FILE.h5 from its last snapshot, with the overrides set[nset]
+ * (RESTART_KEYS only; recorded in the file). */
+static int run_restart(run_ctx *r, const char *file, int nset, const char *const *set) {
   char err[1024] = "";
   r->label = file;
   snprintf(r->out, sizeof r->out, "%s", file);
@@ -639,6 +648,24 @@ static int run_restart(run_ctx *r, const char *file) {
   }
   if (ves_config_load_text(in->problem, in->source, &r->cfg, err, sizeof err) != VES_OK) {
     fprintf(stderr, "vesica run: --restart %s: the stored problem: %s\n", file, err);
+    return 2;
+  }
+  for (int i = 0; i < nset; i++) {
+    size_t k = 0, nk = sizeof RESTART_KEYS / sizeof RESTART_KEYS[0];
+    const size_t len = strcspn(set[i], "=");
+    while (k < nk && !(strlen(RESTART_KEYS[k]) == len && !strncmp(set[i], RESTART_KEYS[k], len)))
+      k++;
+    if (k == nk) {
+      fprintf(stderr,
+              "vesica run: --restart %s: --set %s: a restart may change only solver.tol, "
+              "solver.ctol, solver.max_iter, solver.freeze_hessian and time.t_end (the other "
+              "keys define the setup and the steps already taken)\n",
+              file, set[i]);
+      return 2;
+    }
+  }
+  if (nset && ves_config_set(&r->cfg, nset, set, err, sizeof err) != VES_OK) {
+    fprintf(stderr, "vesica run: --restart %s: %s\n", file, err);
     return 2;
   }
   /* after resets the snapshot's y is relative to the last reference made
@@ -703,6 +730,7 @@ static int run_restart(run_ctx *r, const char *file) {
   }
   if ((st = ves_io_truncate(r->io, si.rows)) != VES_OK ||
       (st = ves_io_truncate_references(r->io, si.reconnections)) != VES_OK ||
+      (nset && (st = ves_io_set_problem(r->io, &r->cfg)) != VES_OK) ||
       (st = ves_io_set_setup_seconds(r->io, r->setup->seconds_total)) != VES_OK ||
       (st = ves_io_set_status(r->io, "running")) != VES_OK) {
     fprintf(stderr, "vesica run: --restart %s: cannot write: %s\n", file, ves_status_str(st));
@@ -710,9 +738,12 @@ static int run_restart(run_ctx *r, const char *file) {
   }
   r->wall_offset = si.wall_seconds;
   r->last_snapshot_step = si.state.nstep;
-  if (!r->quiet)
-    fprintf(stderr, "vesica run: continuing %s from snapshot %d (step %ld, t* = %.6g)\n", file,
-            S - 1, si.state.nstep, si.state.t);
+  if (!r->quiet) {
+    fprintf(stderr, "vesica run: continuing %s from snapshot %d (step %ld, t* = %.6g)", file, S - 1,
+            si.state.nstep, si.state.t);
+    for (int i = 0; i < nset; i++) fprintf(stderr, "%s%s", i ? ", " : " with ", set[i]);
+    fputc('\n', stderr);
+  }
   return loop(r);
 }
 
@@ -765,9 +796,9 @@ static int cmd_run(int argc, char **argv) {
       return 2;
     }
   }
-  if (restart && (path || nset || backend || out || series)) {
+  if (restart && (path || backend || out || series)) {
     fprintf(stderr,
-            "vesica run: --restart %s continues the stored problem: no CONFIG.ini, --set, "
+            "vesica run: --restart %s continues the stored problem: no CONFIG.ini, "
             "--backend, --out or --series with it\n",
             restart);
     return 2;
@@ -780,7 +811,8 @@ static int cmd_run(int argc, char **argv) {
   run_ctx r;
   memset(&r, 0, sizeof r);
   r.quiet = quiet, r.max_steps = max_steps, r.last_snapshot_step = -1;
-  rc = restart ? run_restart(&r, restart) : run_new(&r, path, out, backend, nset, set, series);
+  rc = restart ? run_restart(&r, restart, nset, set)
+               : run_new(&r, path, out, backend, nset, set, series);
   run_free(&r);
   return rc;
 }

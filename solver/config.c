@@ -299,6 +299,13 @@ ves_status ves_config_load(const char *path, int nset, const char *const *set, v
   return ves_config_validate(cfg, err, errlen);
 }
 
+ves_status ves_config_set(ves_config *cfg, int nset, const char *const *set, char *err,
+                          size_t errlen) {
+  VES_CHECK(cfg && (nset == 0 || set), VES_ERR_ARG);
+  VES_CALL(apply_overrides(nset, set, cfg, err, errlen));
+  return ves_config_validate(cfg, err, errlen);
+}
+
 ves_status ves_config_load_text(const char *text, const char *name, ves_config *cfg, char *err,
                                 size_t errlen) {
   VES_CHECK(text && name && cfg, VES_ERR_ARG);

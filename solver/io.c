@@ -323,7 +323,9 @@ void ves_io_close(ves_io **pio) {
 
 /* Every configuration key as a typed attribute of /parameters. */
 static ves_status write_parameters(hid_t file, const ves_config *cfg) {
-  hid_t g = H5Gcreate2(file, "parameters", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+  hid_t g = H5Lexists(file, "parameters", H5P_DEFAULT) > 0
+                ? H5Gopen2(file, "parameters", H5P_DEFAULT)
+                : H5Gcreate2(file, "parameters", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
   if (g < 0) return VES_ERR_IO;
   ves_status st = VES_OK;
   for (int i = 0; i < ves_config_count() && st == VES_OK; i++) {
@@ -841,6 +843,22 @@ ves_status ves_io_set_status(ves_io *io, const char *status) {
   VES_CHECK(io && status && io->writable && strlen(status) < sizeof io->info.status, VES_ERR_ARG);
   VES_CALL(attr_str(io->file, "status", status));
   snprintf(io->info.status, sizeof io->info.status, "%s", status);
+  return H5Fflush(io->file, H5F_SCOPE_LOCAL) < 0 ? VES_ERR_IO : VES_OK;
+}
+
+ves_status ves_io_set_problem(ves_io *io, const ves_config *cfg) {
+  VES_CHECK(io && io->writable && cfg, VES_ERR_ARG);
+  char *text = NULL;
+  VES_CALL(ves_config_to_text(cfg, &text));
+  ves_status st = attr_str(io->file, "problem", text);
+  if (st == VES_OK) st = write_parameters(io->file, cfg);
+  if (st == VES_OK) {
+    free(io->info.problem);
+    io->info.problem = text;
+  } else {
+    free(text);
+  }
+  VES_CALL(st);
   return H5Fflush(io->file, H5F_SCOPE_LOCAL) < 0 ? VES_ERR_IO : VES_OK;
 }
 

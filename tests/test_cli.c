@@ -537,6 +537,41 @@ static void test_restart_bitwise(void **state) {
   tmp_path(part, sizeof part, "part.xdmf"), unlink(part);
 }
 
+/* A restart may change the solver settings and t_end (recorded in the file:
+ * info and a later restart see them), nothing else. */
+static void test_restart_set(void **state) {
+  (void)state;
+  char ini[128], out[128];
+  tmp_path(ini, sizeof ini, "rset.ini");
+  tmp_path(out, sizeof out, "rset.h5");
+  write_file(ini, "[time]\nt_end = 0.1\n");
+  result r;
+  run(&r, "run", ini, TINY, "--out", out, "--quiet", "--max-steps", "2", NULL);
+  assert_int_equal(r.code, 0);
+  run(&r, "run", "--restart", out, "--set", "geometry.epsilon=0.1", NULL);
+  assert_int_equal(r.code, 2);
+  assert_non_null(strstr(r.err, "a restart may change only"));
+  run(&r, "run", "--restart", out, "--set", "solver.max_iter=0", NULL);
+  assert_int_equal(r.code, 2); /* out of range */
+  run(&r, "run", "--restart", out, "--set", "solver.max_iter=7", "--set", "time.t_end=0.03",
+      NULL);
+  if (r.code) fail_msg("restart: exit %d: %s", r.code, r.err);
+  assert_non_null(strstr(r.err, "with solver.max_iter=7, time.t_end=0.03"));
+  run(&r, "info", out, NULL);
+  assert_int_equal(r.code, 0);
+  assert_non_null(strstr(r.out, "solver.max_iter = 7\n"));
+  assert_non_null(strstr(r.out, "time.t_end = 0.03\n"));
+  assert_non_null(strstr(r.out, "t_final = 0.03\n"));
+  assert_non_null(strstr(r.out, "status = finished\n"));
+  /* a later restart keeps them: t_end 0.03 is reached, nothing to do */
+  run(&r, "run", "--restart", out, NULL);
+  assert_int_equal(r.code, 0);
+  run(&r, "info", out, NULL);
+  assert_non_null(strstr(r.out, "t_final = 0.03\n"));
+  unlink(ini), unlink(out);
+  tmp_path(out, sizeof out, "rset.xdmf"), unlink(out);
+}
+
 /* ---- the progress line -------------------------------------------------------- */
 
 /* The progress line's ETA: one value with constant steps (0 s at t_end);
@@ -754,6 +789,7 @@ int main(int argc, char **argv) {
       cmocka_unit_test(test_malformed_input),
       cmocka_unit_test(test_restart_bitwise),
       cmocka_unit_test(test_restart_after_reset),
+      cmocka_unit_test(test_restart_set),
       cmocka_unit_test(test_progress_eta),
       cmocka_unit_test(test_numerical_failure),
       cmocka_unit_test(test_sigterm),

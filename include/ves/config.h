@@ -86,6 +86,12 @@ ves_status ves_config_load(const char *path, int nset, const char *const *set, v
 ves_status ves_config_load_text(const char *text, const char *name, ves_config *cfg, char *err,
                                 size_t errlen);
 
+/* Apply the overrides "section.key=value" (nset of them) to a loaded cfg,
+ * then check its consistency; errors as ves_config_load (cfg may then hold
+ * some of the overrides). */
+ves_status ves_config_set(ves_config *cfg, int nset, const char *const *set, char *err,
+                          size_t errlen);
+
 /* Cross-key consistency (epsilon vs box, a protocol that would do nothing,
  * an event after t_end, ...); same error convention. */
 ves_status ves_config_validate(const ves_config *cfg, char *err, size_t errlen);

@@ -159,6 +159,11 @@ ves_status ves_io_snapshot(ves_io *io, const double *y, const double *x, const d
 /* Set the root attribute status (at most 15 characters) and flush. */
 ves_status ves_io_set_status(ves_io *io, const char *status);
 
+/* Overwrite the problem text (root attribute problem) and /parameters with
+ * cfg's (a restart that changed solver settings: what a later restart and
+ * info read), and flush. */
+ves_status ves_io_set_problem(ves_io *io, const ves_config *cfg);
+
 /* Overwrite the root attribute setup_seconds (a restart's own setup). */
 ves_status ves_io_set_setup_seconds(ves_io *io, double seconds);
 
