@@ -14,7 +14,14 @@
  *
  * Adaptivity (paper Sec. 4, Fig. 4): dt_next = dt * clamp(dE_target / |dE|,
  * 1/2, growth_max), not grown when the backend needed more than iter_target
- * iterations, capped by dt_max and by the next protocol event. When C0
+ * iterations, capped by dt_max and by the next protocol event, and for
+ * retry_memory accepted steps after a rejected attempt at dt_r by retry_cap
+ * dt_r. Without that memory the controller regrew dt right after a retry
+ * and the next attempt failed again: every other step of the prolate C0
+ * run was a rejected attempt (160-390 s each, Newton damped by inertia
+ * corrections of up to 1e6 K: at those dt the step problem is not convex,
+ * E having 6-8 directions of negative curvature while the vesicle buds)
+ * against 20-40 s for the accepted ones. When C0
  * switches, dt starts again from dt_initial (no larger than it was): the
  * step grown on the old landscape is far too large for the new one (measured:
  * a stomatocyte relaxed to dt* = 0.48, then a C0 pulse; Newton failed at
@@ -65,6 +72,8 @@ struct ves_sim {
   double *node_phi;                 /* n: phi of the material at those nodes */
   int node_phi_ok;                  /* node_phi holds the current reference's values */
   long reset_step;                  /* the step of the last reset (0: none) */
+  double dt_rejected;               /* smallest recently rejected dt (0: none) */
+  long since_rejected;              /* accepted steps since then */
 };
 
 void ves_integrate_params_default(ves_integrate_params *p) {
@@ -76,6 +85,8 @@ void ves_integrate_params_default(ves_integrate_params *p) {
   p->dE_target = 0.02;
   p->growth_max = 2.0;
   p->iter_target = 8;
+  p->retry_memory = 10;
+  p->retry_cap = 0.7;
   p->hold_area = 1;
   p->hold_volume = 1;
   p->volume_rate = 0.0;
@@ -112,7 +123,8 @@ ves_status ves_sim_create(ves_model *model, const ves_backend_type *backend,
   *out = NULL;
   VES_CHECK(ip->t_end > 0 && ip->dt_initial > 0 && ip->dt_max >= ip->dt_initial &&
                 ip->dt_min > 0 && ip->dt_min <= ip->dt_initial && ip->growth_max >= 1 &&
-                ip->dE_target > 0 && ip->volume_final > 0,
+                ip->dE_target > 0 && ip->volume_final > 0 && ip->retry_memory >= 0 &&
+                ip->retry_cap > 0 && ip->retry_cap <= 1,
             VES_ERR_ARG);
   VES_CHECK(ip->reconnect_every >= 0 &&
                 (ip->reconnect_cond_max == 0 || ip->reconnect_cond_max > 1) &&
@@ -258,6 +270,7 @@ ves_status ves_sim_step(ves_sim *s, ves_step_report *rep) {
   if (c0 != s->c0) { /* a new energy landscape: dt starts again from dt_initial */
     s->c0 = c0;
     s->dt = fmin(s->dt, s->ip.dt_initial);
+    s->dt_rejected = 0, s->since_rejected = 0; /* rejections on the old landscape */
     VES_CALL(ves_model_set_c0(s->model, s->c0));
     VES_CALL(ves_model_eval(s->model, s->y, VES_F_E, &s->E, NULL, NULL, NULL, NULL, NULL));
   }
@@ -307,7 +320,11 @@ ves_status ves_sim_step(ves_sim *s, ves_step_report *rep) {
         if (rep->stats.iterations > s->ip.iter_target) f = fmin(f, 1.0);
         next = dt * f;
         if (retries) next = fmin(next, dt); /* just halved: do not jump back at once */
+        if (s->dt_rejected > 0 && s->since_rejected >= s->ip.retry_memory)
+          s->dt_rejected = 0; /* forgotten: the landscape may have changed */
+        if (s->dt_rejected > 0) next = fmin(next, s->ip.retry_cap * s->dt_rejected);
       }
+      if (s->dt_rejected > 0) s->since_rejected++;
       s->dt = fmin(fmax(next, s->ip.dt_min), s->ip.dt_max);
       /* reconnection: the step stands whatever happens here */
       if (s->rp.every > 0 || s->rp.cond_max > 0 || s->rp.det_min > 0) {
@@ -333,6 +350,8 @@ ves_status ves_sim_step(ves_sim *s, ves_step_report *rep) {
     rep->solve_status = st;
     rep->dt = dt;
     if (retries == 0) rep->reject_dt = dt;
+    if (s->dt_rejected == 0 || dt < s->dt_rejected) s->dt_rejected = dt;
+    s->since_rejected = 0;
     rep->reject_status = st;
     rep->rejected.iterations += rep->stats.iterations, rep->rejected.f_evals += rep->stats.f_evals;
     rep->rejected.g_evals += rep->stats.g_evals, rep->rejected.h_evals += rep->stats.h_evals;
@@ -369,15 +388,17 @@ void ves_sim_get_state(const ves_sim *s, ves_sim_state *st, double *y) {
   st->E0 = s->E0, st->A0 = s->A0, st->V0 = s->V0;
   st->lambda[0] = s->lambda[0], st->lambda[1] = s->lambda[1];
   st->c0 = s->c0;
+  st->dt_rejected = s->dt_rejected, st->since_rejected = s->since_rejected;
   if (y) memcpy(y, s->y, 2 * (size_t)s->n * sizeof *y);
 }
 
 ves_status ves_sim_set_state(ves_sim *s, const ves_sim_state *st, const double *y) {
   VES_CHECK(s && st && y, VES_ERR_ARG);
-  const double v[] = {st->t,  st->dt, st->E,         st->A,         st->V, st->E0,
-                      st->A0, st->V0, st->lambda[0], st->lambda[1], st->c0};
+  const double v[] = {st->t,  st->dt, st->E,         st->A,         st->V,  st->E0,
+                      st->A0, st->V0, st->lambda[0], st->lambda[1], st->c0, st->dt_rejected};
   for (size_t i = 0; i < sizeof v / sizeof v[0]; i++) VES_CHECK(isfinite(v[i]), VES_ERR_ARG);
   VES_CHECK(st->t >= 0 && st->dt > 0 && st->nstep >= 0 && st->A0 > 0 && st->V0 > 0, VES_ERR_ARG);
+  VES_CHECK(st->dt_rejected >= 0 && st->since_rejected >= 0, VES_ERR_ARG);
   for (int i = 0; i < 2 * s->n; i++) VES_CHECK(isfinite(y[i]), VES_ERR_ARG);
   VES_CHECK(st->nstep >= s->reset_step, VES_ERR_ARG); /* not before the reference's reset */
   VES_CALL(ves_model_set_c0(s->model, st->c0));
@@ -388,6 +409,7 @@ ves_status ves_sim_set_state(ves_sim *s, const ves_sim_state *st, const double *
   s->E0 = st->E0, s->A0 = st->A0, s->V0 = st->V0;
   s->lambda[0] = st->lambda[0], s->lambda[1] = st->lambda[1];
   s->c0 = st->c0;
+  s->dt_rejected = st->dt_rejected, s->since_rejected = st->since_rejected;
   return VES_OK;
 }
 

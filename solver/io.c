@@ -696,6 +696,8 @@ static ves_status snapshot_attrs(hid_t g, const ves_io_snapinfo *si) {
   VES_CALL(attr_double(g, "lambda_V", s->lambda[1]));
   VES_CALL(attr_double(g, "c0", s->c0));
   VES_CALL(attr_double(g, "wall_seconds", si->wall_seconds));
+  VES_CALL(attr_double(g, "dt_rejected", s->dt_rejected));
+  VES_CALL(attr_long(g, "since_rejected", s->since_rejected));
   return attr_int(g, "reconnections", si->reconnections);
 }
 
@@ -758,6 +760,11 @@ ves_status ves_io_read_snapshot(ves_io *io, int k, double *y, double *x, double 
     if (st == VES_OK) st = attr_read(g, "step", H5T_NATIVE_LONG, &s->nstep);
     if (st == VES_OK) st = attr_read(g, "rows", H5T_NATIVE_LONG, &si->rows);
     if (st == VES_OK) st = attr_read(g, "reconnections", H5T_NATIVE_INT, &si->reconnections);
+    /* the controller's memory of rejected steps (absent before 2026-11-25: none) */
+    if (st == VES_OK && H5Aexists(g, "dt_rejected") > 0)
+      st = attr_read_double(g, "dt_rejected", &s->dt_rejected);
+    if (st == VES_OK && H5Aexists(g, "since_rejected") > 0)
+      st = attr_read(g, "since_rejected", H5T_NATIVE_LONG, &s->since_rejected);
   }
   H5Gclose(g);
   return st;

@@ -109,7 +109,9 @@ static ves_io_snapinfo snap_of(long step) {
                              .A0 = 12.5,
                              .V0 = 4.25,
                              .lambda = {-1.0 / 3, 2.0 / 7},
-                             .c0 = 0.1 * step};
+                             .c0 = 0.1 * step,
+                             .dt_rejected = 2e-3 / 7,
+                             .since_rejected = step % 5};
   return si;
 }
 

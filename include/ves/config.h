@@ -48,6 +48,8 @@ typedef struct {
   double dE_target;                         /* target |dE*| per step */
   double growth_max;                        /* largest dt growth factor per step */
   int iter_target;                          /* no dt growth above this many iterations */
+  int retry_memory;                         /* accepted steps a rejected dt is remembered */
+  double retry_cap;                         /* dt <= retry_cap x that dt meanwhile */
   /* [constraints] */
   int area, volume; /* 1: hold A = A0, V = V_target */
   /* [protocol] */

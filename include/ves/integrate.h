@@ -22,6 +22,9 @@ typedef struct {
   double dE_target;    /* adaptive: target |E*(n+1) - E*(n)| per step (units k) */
   double growth_max;   /* adaptive: largest factor between consecutive steps (> 1) */
   int iter_target;     /* adaptive: above this many backend iterations dt is not grown */
+  int retry_memory;    /* adaptive: after a rejected attempt at dt_r, this many accepted
+                          steps keep dt <= retry_cap dt_r (0: only the next step is held) */
+  double retry_cap;    /* adaptive: that cap's factor, in (0, 1] */
   int hold_area;       /* 1: A(y) = A0 at every step */
   int hold_volume;     /* 1: V(y) = V_target(t) at every step */
   double volume_rate;  /* protocol: dV/dt / V0 (1/t*; < 0 deflates; 0 = none) */
@@ -106,6 +109,9 @@ typedef struct {
   double E0, A0, V0; /* at t = 0 (A0 is the area target, V0 scales the volume ramp) */
   double lambda[2];  /* multipliers of the last accepted step (the next warm start) */
   double c0;         /* C0 R0 in force */
+  double dt_rejected; /* the smallest dt rejected within the last retry_memory accepted
+                         steps (0: none) */
+  long since_rejected; /* accepted steps since that rejection */
 } ves_sim_state;
 
 /* Copy the state out; y (2n, the caller's buffer) receives the positions
