@@ -313,7 +313,16 @@ static ves_status snapshot(run_ctx *r, double wall) {
   ves_sim_get_state(r->sim, &si.state, r->y);
   r->last_snapshot_step = si.state.nstep;
   ves_status st = ves_sim_node_material(r->sim, r->x, r->phi);
-  return st == VES_OK ? ves_io_snapshot(r->io, r->y, r->x, r->phi, &si) : st;
+  if (st != VES_OK) { /* x and phi are for looking at: the run and its state go on */
+    const int n = r->setup->nodes->n;
+    for (int i = 0; i < 2 * n; i++) r->x[i] = NAN;
+    for (int a = 0; a < n; a++) r->phi[a] = NAN;
+    fprintf(stderr,
+            "vesica run: warning: step %ld: the material at the nodes could not be evaluated "
+            "(%s); snapshot %d holds x and phi as NaN (y, the state, is complete)\n",
+            si.state.nstep, ves_status_str(st), ves_io_snapshots(r->io));
+  }
+  return ves_io_snapshot(r->io, r->y, r->x, r->phi, &si);
 }
 
 /* The reference the last reset made, for a restart (io.h). */
@@ -719,8 +728,11 @@ static int run_restart(run_ctx *r, const char *file, int nset, const char *const
             S - 1);
     return 2;
   }
+  int phi_ok = 1; /* NaN when the snapshot could not evaluate it: refitted when needed */
+  for (int a = 0; a < n && phi_ok; a++) phi_ok = isfinite(r->phi[a]);
   if (si.reconnections > 0 &&
-      (st = restore_reference(r, si.reconnections - 1, si.reconnections, r->phi)) != VES_OK) {
+      (st = restore_reference(r, si.reconnections - 1, si.reconnections,
+                              phi_ok ? r->phi : NULL)) != VES_OK) {
     fprintf(stderr, "vesica run: --restart %s: reference %d (reset #%d) cannot be rebuilt: %s\n",
             file, si.reconnections - 1, si.reconnections, ves_status_str(st));
     return 2;

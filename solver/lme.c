@@ -300,8 +300,18 @@ ves_status ves_lme_eval(const ves_lme_params *par, const double X[2], int m,
   double r[2];
   xreal Jx[3];
   int iters = 0;
+  const int warm = lambda[0] != 0.0 || lambda[1] != 0.0;
   ves_status st = lme_newton(par, m, q, d, dmax, par->newton_tol * hloc, lambda,
                              p, r, Jx, &iters);
+  if (st == VES_ERR_NOCONV && warm) {
+    /* a guess from another point can start far out (|lambda| dmax above
+     * LME_LAMBDA_MAX at once: measured at a node set made by a reset,
+     * where the previous point was unrelated): again from lambda = 0 */
+    int more = 0;
+    lambda[0] = lambda[1] = 0.0;
+    st = lme_newton(par, m, q, d, dmax, par->newton_tol * hloc, lambda, p, r, Jx, &more);
+    iters += more;
+  }
   if (info) {
     info->iterations = iters;
     info->residual = hypot(r[0], r[1]);

@@ -244,7 +244,9 @@ ves_status ves_quad_tables(ves_quad *q, const ves_nodes *nodes,
       xa[2 * k + 1] = xe[2 * a + 1];
       beta[k] = beta_e[a];
     }
-    if (p % VES_QUAD_NPT == 0) lambda[0] = lambda[1] = 0.0; /* warm start within a triangle */
+    /* warm start within a triangle only: a point set without triangles (points
+     * at the nodes) is not ordered in space */
+    if (q->ntri == 0 || p % VES_QUAD_NPT == 0) lambda[0] = lambda[1] = 0.0;
     ves_lme_info li;
     s = ves_lme_eval(lme, q->x + 2 * p, m, xa, beta, lambda, 2, q->tab + 6 * (size_t)q->ptr[p],
                      work, &li);

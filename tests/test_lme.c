@@ -528,6 +528,14 @@ static void test_warm_start_rows(void **state) {
    * relative bounds the difference of every row. */
   for (int k = 0; k < 6; k++)
     assert_true(relerr(m, t2 + k * m, H->tab + k * m) <= 1e-12);
+  /* a wild guess (|lambda| dmax ~ 1e4, above the divergence bound: what a
+   * previous, unrelated point can leave) is dropped for 0 after its Newton
+   * fails: the cold result, bit for bit (the same iteration from 0) */
+  double lfar[2] = {3e3 / h, -2e3 / h};
+  assert_int_equal(
+      ves_lme_eval(&par, X, m, H->xa, H->beta, lfar, 2, t2, H->work, NULL),
+      VES_OK);
+  assert_memory_equal(t2, H->tab, 6 * (size_t)m * sizeof(double));
   /* a non-finite guess is replaced by 0: the cold result, bit for bit */
   double lnan[2] = {NAN, 1.0};
   assert_int_equal(

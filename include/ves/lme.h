@@ -39,7 +39,8 @@ int ves_lme_work_size(int m);
  *   m         number of neighbours (>= 3, not all collinear with X)
  *   xa[2m]    neighbour coordinates, interleaved (R_a, Z_a)            borrowed
  *   beta[m]   beta_a = gamma / h_a^2                                   borrowed
- *   lambda[2] in: initial guess (0,0 if none; non-finite -> 0); out: the
+ *   lambda[2] in: initial guess (0,0 if none; non-finite -> 0; a guess from
+ *             which Newton fails is dropped for 0, once); out: the
  *             converged lambda(X) (the last iterate if Newton failed)
  *   nder      0: values; 1: + gradients; 2: + Hessians
  *   tab       output, row-major 6 x m (only the first 1, 3 or 6 rows are
