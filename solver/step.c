@@ -229,7 +229,7 @@ const ves_step_params *ves_step_get_params(const ves_step *s) {
   return s && s->is_set ? &s->par : NULL;
 }
 
-/* ---- stiffness of the explicit step ------------------------------------------ */
+/* ---- the spectrum of the linearized flow ---------------------------------- */
 
 /* u^T K v with K given by its lower triplets (the step pattern). */
 static double k_dot(const ves_pattern *p, const double *K, const double *u, const double *v,
@@ -240,70 +240,96 @@ static double k_dot(const ves_pattern *p, const double *K, const double *u, cons
   return s;
 }
 
-/* mu_max of K^-1 A on {v : J v = 0}, A = Hess E + sigma_A Hess A + sigma_V
- * Hess V, by Lanczos in the K inner product (the operator P K^-1 A, P the
- * K-orthogonal projection onto the null space of J, is K-symmetric there):
- * w = P K^-1 A v from [K J^T; J 0] [w; m] = [A v; 0], full
- * reorthogonalization, eigenvalues of the tridiagonal by LAPACK dstev. */
-ves_status ves_step_stiffness(ves_step *s, const double *sigma, int iters, double *mu_max,
-                              double *resid) {
-  VES_CHECK(s && s->is_set && mu_max && iters >= 2 && (sigma || s->ncon == 0), VES_ERR_ARG);
-  const ves_pattern *p = s->pat;
-  const int nv = s->nvar, nc = s->ncon, nk = nv + nc, nnz = p->nnz + nc * (nv + 1);
-  const int kmax = iters < nv - nc ? iters : nv - nc;
-  VES_CHECK(kmax >= 2, VES_ERR_ARG);
+/* A = Hess E + sigma_A Hess A + sigma_V Hess V at y^n (lower triplets, the
+ * step pattern) and the constraint Jacobian J there. */
+static ves_status flow_matrices(ves_step *s, const double *sigma, double *A, double *J) {
   double sA = 0, sV = 0;
   int q = 0;
   if (s->par.hold_area) sA = sigma[q++];
   if (s->par.hold_volume) sV = sigma[q++];
+  VES_CALL(ves_model_hessian(s->m, s->yn, 1.0, sA, sV, s->blk));
+  ves_pattern_extract(s->pat, s->blk, A);
+  return ves_step_eval_jac(s, s->x0, J);
+}
+
+/* Ritz pairs of a K-symmetric operator on {v : J v = 0}. */
+typedef struct {
+  int k;       /* Ritz values computed (<= the Lanczos steps asked for) */
+  double *th;  /* th[k]: Ritz values, ascending */
+  double *res; /* res[k]: their Ritz residuals |(Op - th) V s| in the K norm */
+  int neg;     /* negative pivots of the factorized [M J^T; J 0] */
+} ritz;
+
+/* Factorize [M J^T; J 0] (M in the step pattern's lower triplets, J
+ * row-major ncon x nvar) into *out (taken by the caller); spd: M is positive
+ * definite (Cholesky when ncon = 0). */
+static ves_status kkt_factor(const ves_step *s, const double *M, int spd, const double *J,
+                             ves_ldl **out) {
+  const ves_pattern *p = s->pat;
+  const int nv = s->nvar, nc = s->ncon, nnz = p->nnz + nc * (nv + 1);
+  int *ir = malloc((size_t)nnz * sizeof *ir), *jc = malloc((size_t)nnz * sizeof *jc);
+  double *val = malloc((size_t)nnz * sizeof *val);
+  ves_status st = VES_ERR_ALLOC;
+  if (ir && jc && val) {
+    memcpy(ir, p->irow, (size_t)p->nnz * sizeof *ir);
+    memcpy(jc, p->jcol, (size_t)p->nnz * sizeof *jc);
+    memcpy(val, M, (size_t)p->nnz * sizeof *val);
+    int t = p->nnz; /* then the rows of J and their zero diagonal */
+    for (int i = 0; i < nc; i++) {
+      for (int j = 0; j < nv; j++) ir[t] = nv + i, jc[t] = j, val[t++] = J[(size_t)i * nv + j];
+      ir[t] = nv + i, jc[t] = nv + i, val[t++] = 0.0;
+    }
+    st = ves_ldl_create(nv + nc, nnz, ir, jc, spd && nc == 0, out);
+    if (st == VES_OK && (st = ves_ldl_factor(*out, val)) != VES_OK) ves_ldl_destroy(out);
+  }
+  free(ir), free(jc), free(val);
+  return st;
+}
+
+/* Lanczos in the K inner product for Op v = w, [M J^T; J 0] [w; m] =
+ * [B v; 0], M and B symmetric in the step pattern (lower triplets), one of
+ * them K: then Op is K-symmetric on the null space of J (M = K: P K^-1 B;
+ * B = K: P M^-1 K with M restricted to that space). Start vector:
+ * [M J^T; J 0]^-1 [K r; 0] for a fixed pseudo-random r, which lies in the
+ * null space of J. Full reorthogonalization (twice), at most kmax steps;
+ * eigenpairs of the tridiagonal by LAPACK dstev. out->th and out->res hold
+ * kmax entries; spd as for kkt_factor. */
+static ves_status lanczos(ves_step *s, const double *M, int spd, const double *B, const double *J,
+                          int kmax, ritz *out) {
+  const ves_pattern *p = s->pat;
+  const int nv = s->nvar, nc = s->ncon, nk = nv + nc;
   ves_status st = VES_ERR_ALLOC;
   ves_ldl *f = NULL;
-  int *ir = malloc((size_t)nnz * sizeof *ir), *jc = malloc((size_t)nnz * sizeof *jc);
-  double *val = malloc((size_t)nnz * sizeof *val), *A = malloc((size_t)p->nnz * sizeof *A);
-  double *J = malloc(((size_t)nc * nv + 1) * sizeof *J), *rhs = malloc((size_t)nk * sizeof *rhs);
+  double *rhs = malloc((size_t)nk * sizeof *rhs);
   double *V = malloc((size_t)(kmax + 1) * nv * sizeof *V), *w = malloc((size_t)nv * sizeof *w);
   double *tmp = malloc((size_t)nv * sizeof *tmp);
   double *al = malloc((size_t)kmax * sizeof *al), *be = malloc((size_t)kmax * sizeof *be);
-  double *d = malloc((size_t)kmax * sizeof *d), *e = malloc((size_t)kmax * sizeof *e);
-  double *Z = malloc((size_t)kmax * kmax * sizeof *Z);
-  if (!ir || !jc || !val || !A || !J || !rhs || !V || !w || !tmp || !al || !be || !d || !e || !Z)
-    goto done;
-  /* A at y^n (ves_model_hessian: cE Hess E + lA Hess A + lV Hess V) and J */
-  if ((st = ves_model_hessian(s->m, s->yn, 1.0, sA, sV, s->blk)) != VES_OK) goto done;
-  ves_pattern_extract(s->pat, s->blk, A);
-  if ((st = ves_step_eval_jac(s, s->x0, J)) != VES_OK) goto done;
-  /* [K J^T; J 0], lower triplets: K's, then the rows of J and their zero diagonal */
-  memcpy(ir, p->irow, (size_t)p->nnz * sizeof *ir);
-  memcpy(jc, p->jcol, (size_t)p->nnz * sizeof *jc);
-  memcpy(val, s->K, (size_t)p->nnz * sizeof *val);
-  int t = p->nnz;
-  for (int i = 0; i < nc; i++) {
-    for (int j = 0; j < nv; j++) ir[t] = nv + i, jc[t] = j, val[t++] = J[(size_t)i * nv + j];
-    ir[t] = nv + i, jc[t] = nv + i, val[t++] = 0.0;
-  }
-  if ((st = ves_ldl_create(nk, nnz, ir, jc, nc == 0, &f)) != VES_OK) goto done;
-  if ((st = ves_ldl_factor(f, val)) != VES_OK) goto done;
-  /* v_0: a fixed pseudo-random vector, K-projected onto J v = 0 */
+  double *e = malloc((size_t)kmax * sizeof *e), *Z = malloc((size_t)kmax * kmax * sizeof *Z);
+  if (!rhs || !V || !w || !tmp || !al || !be || !e || !Z) goto done;
+  if ((st = kkt_factor(s, M, spd, J, &f)) != VES_OK) goto done;
+  ves_ldl_info li;
+  ves_ldl_get_info(f, &li);
+  out->neg = li.neg_pivots;
+  /* v_0 from a fixed pseudo-random vector */
   unsigned long long r = 88172645463325252ULL;
   for (int i = 0; i < nv; i++) {
     r ^= r << 13, r ^= r >> 7, r ^= r << 17; /* xorshift64 */
     tmp[i] = (double)(r >> 11) / 9007199254740992.0 - 0.5;
   }
-  ves_pattern_symv(p, s->K, tmp, rhs); /* [K r; 0] -> w = P r */
+  ves_pattern_symv(p, s->K, tmp, rhs); /* [K r; 0] */
   for (int i = 0; i < nc; i++) rhs[nv + i] = 0.0;
   if ((st = ves_ldl_solve(f, rhs)) != VES_OK) goto done;
-  double nrm = sqrt(k_dot(p, s->K, rhs, rhs, tmp));
+  double nrm = sqrt(fmax(k_dot(p, s->K, rhs, rhs, tmp), 0.0));
   st = VES_ERR_NOCONV;
   if (!(nrm > 0)) goto done;
   for (int i = 0; i < nv; i++) V[i] = rhs[i] / nrm;
   int k = 0;
   for (; k < kmax; k++) {
     double *vk = V + (size_t)k * nv;
-    ves_pattern_symv(p, A, vk, rhs); /* [A v; 0] */
+    ves_pattern_symv(p, B, vk, rhs); /* [B v; 0] */
     for (int i = 0; i < nc; i++) rhs[nv + i] = 0.0;
     if ((st = ves_ldl_solve(f, rhs)) != VES_OK) goto done;
-    memcpy(w, rhs, (size_t)nv * sizeof *w); /* w = P K^-1 A v_k */
-    /* full reorthogonalization in the K inner product, twice */
+    memcpy(w, rhs, (size_t)nv * sizeof *w); /* w = Op v_k */
     for (int pass = 0; pass < 2; pass++) {
       ves_pattern_symv(p, s->K, w, tmp); /* K w */
       for (int j = 0; j <= k; j++) {
@@ -322,18 +348,96 @@ ves_status ves_step_stiffness(ves_step *s, const double *sigma, int iters, doubl
     double *vn = V + (size_t)(k + 1) * nv;
     for (int i = 0; i < nv; i++) vn[i] = w[i] / be[k];
   }
-  /* eigenvalues of the k x k tridiagonal (al, be), ascending, with vectors */
-  memcpy(d, al, (size_t)k * sizeof *d);
-  memcpy(e, be, (size_t)(k - 1) * sizeof *e);
-  st = LAPACKE_dstev(LAPACK_COL_MAJOR, 'V', k, d, e, Z, k) == 0 ? VES_OK : VES_ERR_NOCONV;
+  /* eigenpairs of the k x k tridiagonal (al, be), ascending */
+  memcpy(out->th, al, (size_t)k * sizeof *al);
+  if (k > 1) memcpy(e, be, (size_t)(k - 1) * sizeof *e);
+  st = LAPACKE_dstev(LAPACK_COL_MAJOR, 'V', k, out->th, e, Z, k) == 0 ? VES_OK : VES_ERR_NOCONV;
   if (st == VES_OK) {
-    *mu_max = d[k - 1];
-    /* |(Op - theta) V s| = be_k |s_k|: the Ritz residual of mu_max, relative */
-    if (resid) *resid = be[k - 1] * fabs(Z[(size_t)(k - 1) * k + (k - 1)]) / fabs(d[k - 1]);
+    out->k = k;
+    /* |(Op - th_j) V s_j| = be_k |last entry of s_j| */
+    for (int j = 0; j < k; j++) out->res[j] = be[k - 1] * fabs(Z[(size_t)j * k + (k - 1)]);
   }
 done:
   ves_ldl_destroy(&f);
-  free(ir), free(jc), free(val), free(A), free(J), free(rhs), free(V), free(w), free(tmp);
-  free(al), free(be), free(d), free(e), free(Z);
+  free(rhs), free(V), free(w), free(tmp);
+  free(al), free(be), free(e), free(Z);
+  return st;
+}
+
+/* mu_max of K^-1 A on {v : J v = 0} (step.h): Lanczos on P K^-1 A, P the
+ * K-orthogonal projection onto the null space of J. */
+ves_status ves_step_stiffness(ves_step *s, const double *sigma, int iters, double *mu_max,
+                              double *resid) {
+  VES_CHECK(s && s->is_set && mu_max && iters >= 2 && (sigma || s->ncon == 0), VES_ERR_ARG);
+  const int nv = s->nvar, nc = s->ncon, nnz = s->pat->nnz;
+  const int kmax = iters < nv - nc ? iters : nv - nc;
+  VES_CHECK(kmax >= 2, VES_ERR_ARG);
+  ves_status st = VES_ERR_ALLOC;
+  double *A = malloc((size_t)nnz * sizeof *A), *J = malloc(((size_t)nc * nv + 1) * sizeof *J);
+  ritz rz = {.th = malloc((size_t)kmax * sizeof(double)),
+             .res = malloc((size_t)kmax * sizeof(double))};
+  if (A && J && rz.th && rz.res && (st = flow_matrices(s, sigma, A, J)) == VES_OK &&
+      (st = lanczos(s, s->K, 1, A, J, kmax, &rz)) == VES_OK) {
+    *mu_max = rz.th[rz.k - 1];
+    if (resid) *resid = rz.res[rz.k - 1] / fabs(rz.th[rz.k - 1]);
+  }
+  free(A), free(J), free(rz.th), free(rz.res);
+  return st;
+}
+
+/* The lowest eigenvalues above mu_lo (step.h): shift and invert, Lanczos on
+ * Op = P (A - mu_lo K)^-1 K, whose eigenvalues are th = 1 / (mu - mu_lo):
+ * the largest th are the mu nearest above mu_lo; the inertia of [A - mu_lo
+ * K, J^T; J 0] is that of A - mu_lo K on the null space of J, plus ncon
+ * positive and ncon negative. */
+ves_status ves_step_modes(ves_step *s, const double *sigma, double mu_lo, int iters, int nwant,
+                          double *mu, double *err, int *nbelow) {
+  VES_CHECK(s && s->is_set && mu && iters >= 2 && nwant >= 1 && nwant <= iters &&
+                (sigma || s->ncon == 0) && isfinite(mu_lo),
+            VES_ERR_ARG);
+  const int nv = s->nvar, nc = s->ncon, nnz = s->pat->nnz;
+  const int kmax = iters < nv - nc ? iters : nv - nc;
+  VES_CHECK(kmax >= 2 && nwant <= kmax, VES_ERR_ARG);
+  ves_status st = VES_ERR_ALLOC;
+  double *A = malloc((size_t)nnz * sizeof *A), *J = malloc(((size_t)nc * nv + 1) * sizeof *J);
+  ritz rz = {.th = malloc((size_t)kmax * sizeof(double)),
+             .res = malloc((size_t)kmax * sizeof(double))};
+  if (!A || !J || !rz.th || !rz.res || (st = flow_matrices(s, sigma, A, J)) != VES_OK) goto done;
+  for (int i = 0; i < nnz; i++) A[i] -= mu_lo * s->K[i]; /* A - mu_lo K */
+  if ((st = lanczos(s, A, 0, s->K, J, kmax, &rz)) != VES_OK) goto done;
+  if (nbelow) *nbelow = rz.neg - nc;
+  for (int j = 0; j < nwant; j++) {
+    const int i = rz.k - 1 - j; /* the j-th largest th */
+    const int ok = i >= 0 && rz.th[i] > 0;
+    mu[j] = ok ? mu_lo + 1 / rz.th[i] : NAN;
+    /* |d mu| = |d th| / th^2 */
+    if (err) err[j] = ok ? rz.res[i] / (rz.th[i] * rz.th[i]) : NAN;
+  }
+done:
+  free(A), free(J), free(rz.th), free(rz.res);
+  return st;
+}
+
+/* The gradient flow at y^n (step.h): [K J^T; J 0] [ydot; sigma] = [-grad E; 0]. */
+ves_status ves_step_flow(ves_step *s, double *ydot, double *sigma) {
+  VES_CHECK(s && s->is_set && (sigma || s->ncon == 0), VES_ERR_ARG);
+  const int nv = s->nvar, nc = s->ncon;
+  ves_status st = VES_ERR_ALLOC;
+  ves_ldl *f = NULL;
+  double *J = malloc(((size_t)nc * nv + 1) * sizeof *J),
+         *rhs = malloc((size_t)(nv + nc) * sizeof *rhs);
+  if (!J || !rhs) goto done;
+  if ((st = ves_step_eval_jac(s, s->x0, J)) != VES_OK ||
+      (st = ves_step_eval_energy_grad(s, s->x0, NULL, rhs)) != VES_OK ||
+      (st = kkt_factor(s, s->K, 1, J, &f)) != VES_OK)
+    goto done;
+  for (int i = 0; i < nv; i++) rhs[i] /= -s->par.dt; /* -grad E (the step's is dt grad E) */
+  for (int i = 0; i < nc; i++) rhs[nv + i] = 0.0;
+  if ((st = ves_ldl_solve(f, rhs)) != VES_OK) goto done;
+  if (ydot) memcpy(ydot, rhs, (size_t)nv * sizeof *ydot);
+  for (int i = 0; i < nc; i++) sigma[i] = rhs[nv + i];
+done:
+  ves_ldl_destroy(&f);
+  free(J), free(rhs);
   return st;
 }

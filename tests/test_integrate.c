@@ -14,6 +14,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include <lapacke.h>
+
 #include "ves/integrate.h"
 #include "ves/reconnect.h"
 #include "ves/setup.h"
@@ -225,6 +227,124 @@ static void test_euler_stiffness(void **state) {
   assert_int_equal(ves_step_stiffness(st, NULL, 60, &mu, NULL), VES_ERR_ARG);
   assert_int_equal(ves_step_stiffness(NULL, sigma, 60, &mu, NULL), VES_ERR_ARG);
   free(y);
+  ves_step_destroy(&st);
+  ves_setup_destroy(&s);
+}
+
+/* Dense n x n symmetric matrix (column-major) from lower triplets. */
+static double *dense_sym(const ves_pattern *p, const double *v) {
+  const int n = p->nfree;
+  double *D = calloc((size_t)n * n, sizeof *D);
+  assert_non_null(D);
+  for (int t = 0; t < p->nnz; t++) {
+    D[(size_t)p->jcol[t] * n + p->irow[t]] += v[t];
+    if (p->irow[t] != p->jcol[t]) D[(size_t)p->irow[t] * n + p->jcol[t]] += v[t];
+  }
+  return D;
+}
+
+/* Q^T D Q for the Householder Q of J^T = Q R (n x m): its trailing
+ * (n - m) x (n - m) block is D on the null space of J, in an orthonormal basis. */
+static void project_dense(int n, int m, double *QR, const double *tau, double *D) {
+  assert_int_equal(LAPACKE_dormqr(LAPACK_COL_MAJOR, 'L', 'T', n, n, m, QR, n, tau, D, n), 0);
+  assert_int_equal(LAPACKE_dormqr(LAPACK_COL_MAJOR, 'R', 'N', n, n, m, QR, n, tau, D, n), 0);
+}
+
+/* ves_step_modes and ves_step_stiffness against a dense solve of the same
+ * pencil A v = mu K v on {J v = 0} (A = Hess E + sigma_i Hess c_i from the
+ * step Hessian: (H - K) / dt with lambda = dt sigma; the null space by
+ * Householder; LAPACK dsygv), at the small vesicle's y^0 with the flow's
+ * constraint forces there (ves_step_flow, checked against Euler's first
+ * step): the lowest eigenvalues above mu_lo agree with dense to 1e-7 of
+ * the spectrum's scale mu_max (both are double precision solves of the same
+ * matrices; Lanczos with full reorthogonalization on well-separated extreme
+ * eigenvalues converges to rounding within 60 steps, and its own error bound
+ * must cover the difference too), the inertia count below mu_lo is exact,
+ * and mu_max matches the dense top eigenvalue to 1e-6 (asserted earlier
+ * Ritz residual level). */
+static void test_flow_spectrum(void **state) {
+  (void)state;
+  ves_setup *s = small_setup();
+  double sigma[2];
+  (void)euler_rises(s, 1e-7, 1, sigma);
+  ves_step *st = NULL;
+  assert_int_equal(ves_step_create(s->model, &st), VES_OK);
+  double *y = malloc(2 * (size_t)s->nodes->n * sizeof *y);
+  assert_non_null(y);
+  ves_model_reference(s->model, y);
+  double A0, V0;
+  assert_int_equal(ves_model_eval(s->model, y, VES_F_A | VES_F_V, NULL, &A0, &V0, NULL, NULL, NULL),
+                   VES_OK);
+  const double dt = 0.5;
+  ves_step_params par = {.dt = dt, .hold_area = 1, .A0 = A0, .hold_volume = 1, .V_target = V0};
+  assert_int_equal(ves_step_set(st, y, &par), VES_OK);
+  /* ves_step_flow solves the system of Euler's step at y^0: the same forces
+   * to rounding (1e-10 relative: one factorization each of the same matrix) */
+  double sf[2];
+  assert_int_equal(ves_step_flow(st, NULL, sf), VES_OK);
+  printf("# flow forces at y^0: sigma %.12e %.12e (Euler's first step %.12e %.12e)\n", sf[0],
+         sf[1], sigma[0], sigma[1]);
+  for (int i = 0; i < 2; i++) assert_true(fabs(sf[i] - sigma[i]) <= 1e-10 * fabs(sigma[i]));
+  assert_int_equal(ves_step_flow(st, NULL, NULL), VES_ERR_ARG);
+  /* the dense pencil on the null space of J */
+  const ves_pattern *p = ves_model_pattern(s->model);
+  const int n = p->nfree, m = 2, nt = n - m;
+  double *H = malloc((size_t)p->nnz * sizeof *H), *x0 = malloc((size_t)n * sizeof *x0);
+  double *J = malloc((size_t)m * n * sizeof *J), tau[2];
+  assert_true(H && x0 && J);
+  ves_step_x0(st, x0);
+  const double lam[2] = {dt * sigma[0], dt * sigma[1]};
+  assert_int_equal(ves_step_eval_hess(st, x0, 1.0, lam, H), VES_OK);
+  const double *K = ves_step_K(st);
+  for (int t = 0; t < p->nnz; t++) H[t] = (H[t] - K[t]) / dt; /* A */
+  double *Ad = dense_sym(p, H), *Kd = dense_sym(p, K);
+  assert_int_equal(ves_step_eval_jac(st, x0, J), VES_OK); /* row-major m x n = J^T col-major */
+  assert_int_equal(LAPACKE_dgeqrf(LAPACK_COL_MAJOR, n, m, J, n, tau), 0);
+  project_dense(n, m, J, tau, Ad);
+  project_dense(n, m, J, tau, Kd);
+  double *At = malloc((size_t)nt * nt * sizeof *At), *Kt = malloc((size_t)nt * nt * sizeof *Kt);
+  double *w = malloc((size_t)nt * sizeof *w);
+  assert_true(At && Kt && w);
+  for (int j = 0; j < nt; j++)
+    for (int i = 0; i < nt; i++) {
+      At[(size_t)j * nt + i] = Ad[(size_t)(j + m) * n + (i + m)];
+      Kt[(size_t)j * nt + i] = Kd[(size_t)(j + m) * n + (i + m)];
+    }
+  assert_int_equal(LAPACKE_dsygv(LAPACK_COL_MAJOR, 1, 'N', 'L', nt, At, nt, Kt, nt, w), 0);
+  const double scale = w[nt - 1];
+  printf("# dense pencil (%d tangent dofs): mu = %.8e %.8e %.8e %.8e %.8e ... %.6e\n", nt, w[0],
+         w[1], w[2], w[3], w[4], scale);
+  /* the top: ves_step_stiffness */
+  double mu_max, res;
+  assert_int_equal(ves_step_stiffness(st, sigma, 60, &mu_max, &res), VES_OK);
+  printf("# stiffness: mu_max %.8e (dense %.8e, Ritz residual %.1e)\n", mu_max, scale, res);
+  assert_true(fabs(mu_max - scale) <= 1e-6 * scale);
+  /* the bottom from below all (nbelow 0), and from between w[2] and w[3] (3) */
+  /* (shift and invert converges fast for the eigenvalues nearest mu_lo: the
+   * bottom of this spectrum is a cluster, -0.048 -0.047 -0.030 -0.027 ...) */
+  const double los[2] = {w[0] - 0.1 * (w[1] - w[0]), 0.5 * (w[2] + w[3])};
+  const int below[2] = {0, 3};
+  for (int c = 0; c < 2; c++) {
+    double mu[3], err[3];
+    int nb = -1;
+    assert_int_equal(ves_step_modes(st, sigma, los[c], 60, 3, mu, err, &nb), VES_OK);
+    printf("# modes above %.6g: %d below; mu = %.8e %.8e %.8e (error bounds %.1e %.1e %.1e)\n",
+           los[c], nb, mu[0], mu[1], mu[2], err[0], err[1], err[2]);
+    assert_int_equal(nb, below[c]);
+    for (int j = 0; j < 3; j++) {
+      const double d = fabs(mu[j] - w[below[c] + j]);
+      assert_true(d <= 1e-7 * scale);
+      assert_true(d <= 10 * err[j] + 1e-12 * scale); /* the bound is honest */
+    }
+  }
+  /* arguments */
+  double mu1;
+  assert_int_equal(ves_step_modes(st, sigma, 0, 60, 0, &mu1, NULL, NULL), VES_ERR_ARG);
+  assert_int_equal(ves_step_modes(st, sigma, 0, 1, 1, &mu1, NULL, NULL), VES_ERR_ARG);
+  assert_int_equal(ves_step_modes(st, NULL, 0, 60, 1, &mu1, NULL, NULL), VES_ERR_ARG);
+  assert_int_equal(ves_step_modes(st, sigma, NAN, 60, 1, &mu1, NULL, NULL), VES_ERR_ARG);
+  assert_int_equal(ves_step_modes(NULL, sigma, 0, 60, 1, &mu1, NULL, NULL), VES_ERR_ARG);
+  free(y), free(H), free(x0), free(J), free(Ad), free(Kd), free(At), free(Kt), free(w);
   ves_step_destroy(&st);
   ves_setup_destroy(&s);
 }
@@ -508,7 +628,7 @@ int main(void) {
       /* first in the process: see there */
       cmocka_unit_test(test_reconnect_off),         cmocka_unit_test(test_relaxation),
       cmocka_unit_test(test_near_equilibrium),      cmocka_unit_test(test_euler_adaptive),
-      cmocka_unit_test(test_euler_stiffness),       cmocka_unit_test(test_protocols),
+      cmocka_unit_test(test_euler_stiffness),       cmocka_unit_test(test_flow_spectrum),       cmocka_unit_test(test_protocols),
       cmocka_unit_test(test_c0_switch_restarts_dt), cmocka_unit_test(test_failure_keeps_state),
       cmocka_unit_test(test_reconnect_every),       cmocka_unit_test(test_reconnect_threshold),
       cmocka_unit_test(test_reconnect_failure),
