@@ -3,6 +3,7 @@
  * Exit codes: 0 ok, 2 bad input (usage, configuration, files), 3 numerical
  * failure (or a write error during a run), 130/143 stopped by SIGINT/SIGTERM
  * (the last state saved). */
+#include <ctype.h>
 #include <errno.h>
 #include <limits.h>
 #include <math.h>
@@ -43,6 +44,9 @@ static void usage(FILE *f) {
              "  info FILE.h5       summary of a run, one 'key = value' per line\n"
              "  plot FILE.h5 [--outdir DIR] [--times T1,T2,...]\n"
              "                     PNG figures: energy and dt, node snapshots, constraints\n"
+             "  spectrum FILE.h5 [--snapshot K] [--above MU] [--modes M] [--lanczos N]\n"
+             "                     the linearized flow at a stored state: slow and unstable\n"
+             "                     modes, forward Euler's stability limit\n"
              "  keys               print every problem-file key with its default and range\n"
              "  --version          print the version\n"
              "  --help             this text (also: vesica COMMAND --help)\n"
@@ -629,6 +633,74 @@ static int run_new(run_ctx *r, const char *path, const char *out, const char *ba
   return loop(r);
 }
 
+/* Rebuild the run stored in r->io (its problem already in r->cfg) at
+ * snapshot S: the setup (which must reproduce the file's nodes), the
+ * reference in force at S (rebuilt from the file after resets) and the
+ * integrator's state there, into r. pre starts every message. Returns 0 or
+ * an exit code (a message printed). */
+static int rebuild_at(run_ctx *r, const char *pre, int S, ves_io_snapinfo *si) {
+  /* after resets the snapshot's y is relative to the last reference made
+   * before it, which the file must hold */
+  const ves_io_info *in = ves_io_get_info(r->io);
+  ves_status st = ves_io_read_snapshot(r->io, S, NULL, NULL, NULL, si);
+  if (st != VES_OK) {
+    fprintf(stderr, "%s: snapshot %d is unreadable: %s\n", pre, S, ves_status_str(st));
+    return 2;
+  }
+  if (si->reconnections > ves_io_references(r->io)) {
+    fprintf(stderr,
+            "%s: the run reset its reference configuration %d time(s) before snapshot %d "
+            "(step %ld) but the file holds only %d of the references they made "
+            "(format_version 1 files hold none): rerun the problem\n",
+            pre, si->reconnections, S, si->state.nstep, ves_io_references(r->io));
+    return 2;
+  }
+  if (!(r->bk = ves_backend_find(in->backend))) {
+    fprintf(stderr, "%s: unknown backend '%s'\n", pre, in->backend);
+    return 2;
+  }
+  int rc = build(r);
+  if (rc) return rc;
+  /* the setup is deterministic: the rebuilt nodes must be the file's, bit for bit */
+  int n = r->setup->nodes->n;
+  if (n != in->n || r->setup->quad->ntri != in->ntri) {
+    fprintf(stderr, "%s: the rebuilt setup has %d nodes, %d triangles; the file %d, %d\n", pre, n,
+            r->setup->quad->ntri, in->n, in->ntri);
+    return 2;
+  }
+  double *X = malloc(2 * (size_t)n * sizeof *X);
+  if (!X) return 3;
+  st = ves_io_read_mesh(r->io, X, NULL);
+  int same = st == VES_OK && !memcmp(X, r->setup->nodes->x, 2 * (size_t)n * sizeof *X);
+  free(X);
+  if (!same) {
+    fprintf(stderr,
+            "%s: the rebuilt nodes differ from the file's mesh (another vesica version, or a "
+            "changed points file?)\n",
+            pre);
+    return 2;
+  }
+  if ((st = ves_io_read_snapshot(r->io, S, r->y, NULL, r->phi, si)) != VES_OK ||
+      si->rows > ves_io_rows(r->io) || si->rows != si->state.nstep) {
+    fprintf(stderr, "%s: snapshot %d is unreadable or inconsistent\n", pre, S);
+    return 2;
+  }
+  int phi_ok = 1; /* NaN when the snapshot could not evaluate it: refitted when needed */
+  for (int a = 0; a < n && phi_ok; a++) phi_ok = isfinite(r->phi[a]);
+  if (si->reconnections > 0 &&
+      (st = restore_reference(r, si->reconnections - 1, si->reconnections,
+                              phi_ok ? r->phi : NULL)) != VES_OK) {
+    fprintf(stderr, "%s: reference %d (reset #%d) cannot be rebuilt: %s\n", pre,
+            si->reconnections - 1, si->reconnections, ves_status_str(st));
+    return 2;
+  }
+  if ((st = ves_sim_set_state(r->sim, &si->state, r->y)) != VES_OK) {
+    fprintf(stderr, "%s: snapshot %d: %s\n", pre, S, ves_status_str(st));
+    return 2;
+  }
+  return 0;
+}
+
 /* The keys a restart may change: how each step is solved, and where the run
  * ends; the rest defines the setup, the physics or the protocol the stored
  * steps followed. */
@@ -678,69 +750,10 @@ static int run_restart(run_ctx *r, const char *file, int nset, const char *const
     fprintf(stderr, "vesica run: --restart %s: %s\n", file, err);
     return 2;
   }
-  /* after resets the snapshot's y is relative to the last reference made
-   * before it, which the file must hold */
-  ves_io_snapinfo si0;
-  if ((st = ves_io_read_snapshot(r->io, S - 1, NULL, NULL, NULL, &si0)) != VES_OK) {
-    fprintf(stderr, "vesica run: --restart %s: snapshot %d is unreadable: %s\n", file, S - 1,
-            ves_status_str(st));
-    return 2;
-  }
-  if (si0.reconnections > ves_io_references(r->io)) {
-    fprintf(stderr,
-            "vesica run: --restart %s: the run reset its reference configuration %d time(s) "
-            "before its last snapshot (step %ld) but the file holds only %d of the references "
-            "they made (format_version 1 files hold none): it cannot be continued, rerun the "
-            "problem\n",
-            file, si0.reconnections, si0.state.nstep, ves_io_references(r->io));
-    return 2;
-  }
-  if (!(r->bk = ves_backend_find(in->backend))) {
-    fprintf(stderr, "vesica run: --restart %s: unknown backend '%s'\n", file, in->backend);
-    return 2;
-  }
-  if ((rc = build(r))) return rc;
-  /* the setup is deterministic: the rebuilt nodes must be the file's, bit for bit */
-  int n = r->setup->nodes->n;
-  if (n != in->n || r->setup->quad->ntri != in->ntri) {
-    fprintf(stderr,
-            "vesica run: --restart %s: the rebuilt setup has %d nodes, %d triangles; "
-            "the file %d, %d\n",
-            file, n, r->setup->quad->ntri, in->n, in->ntri);
-    return 2;
-  }
-  double *X = malloc(2 * (size_t)n * sizeof *X);
-  if (!X) return 3;
-  st = ves_io_read_mesh(r->io, X, NULL);
-  int same = st == VES_OK && !memcmp(X, r->setup->nodes->x, 2 * (size_t)n * sizeof *X);
-  free(X);
-  if (!same) {
-    fprintf(stderr,
-            "vesica run: --restart %s: the rebuilt nodes differ from the file's mesh "
-            "(another vesica version, or a changed points file?)\n",
-            file);
-    return 2;
-  }
   ves_io_snapinfo si;
-  if ((st = ves_io_read_snapshot(r->io, S - 1, r->y, NULL, r->phi, &si)) != VES_OK ||
-      si.rows > ves_io_rows(r->io) || si.rows != si.state.nstep) {
-    fprintf(stderr, "vesica run: --restart %s: snapshot %d is unreadable or inconsistent\n", file,
-            S - 1);
-    return 2;
-  }
-  int phi_ok = 1; /* NaN when the snapshot could not evaluate it: refitted when needed */
-  for (int a = 0; a < n && phi_ok; a++) phi_ok = isfinite(r->phi[a]);
-  if (si.reconnections > 0 &&
-      (st = restore_reference(r, si.reconnections - 1, si.reconnections,
-                              phi_ok ? r->phi : NULL)) != VES_OK) {
-    fprintf(stderr, "vesica run: --restart %s: reference %d (reset #%d) cannot be rebuilt: %s\n",
-            file, si.reconnections - 1, si.reconnections, ves_status_str(st));
-    return 2;
-  }
-  if ((st = ves_sim_set_state(r->sim, &si.state, r->y)) != VES_OK) {
-    fprintf(stderr, "vesica run: --restart %s: snapshot %d: %s\n", file, S - 1, ves_status_str(st));
-    return 2;
-  }
+  char pre[PATH_MAX + 32];
+  snprintf(pre, sizeof pre, "vesica run: --restart %s", file);
+  if ((rc = rebuild_at(r, pre, S - 1, &si))) return rc;
   if ((st = ves_io_truncate(r->io, si.rows)) != VES_OK ||
       (st = ves_io_truncate_references(r->io, si.reconnections)) != VES_OK ||
       (nset && (st = ves_io_set_problem(r->io, &r->cfg)) != VES_OK) ||
@@ -1066,6 +1079,182 @@ static int cmd_plot(int argc, char **argv) {
   return 0;
 }
 
+/* --------------------------------------------------------------------------
+ * spectrum */
+
+static void usage_spectrum(FILE *f) {
+  fprintf(f,
+          "usage: vesica spectrum FILE.h5 [--snapshot K] [--above MU] [--modes M] [--lanczos N]\n"
+          "The linearized flow at a stored state: K dy/dt = -A (y - y_s) on the tangent space\n"
+          "of the held constraints, A = Hess E + sigma_A Hess A + sigma_V Hess V with sigma\n"
+          "the flow's constraint forces at the state. Along an eigenvector (A v = mu K v) a\n"
+          "perturbation decays as exp(-mu t*): mu < 0 is an unstable direction (growth rate\n"
+          "-mu; a state near a saddle of E lingers ~ 1/|mu| per e-fold), mu ~ 0 a neutral one\n"
+          "(the vesicle translated in the box). Forward Euler is stable for dt* <= 2/mu_max.\n"
+          "  --snapshot K  the snapshot (0-based; default the last; negative counts from it)\n"
+          "  --above MU    the eigenvalues just above MU (1/t*, default -1; shift and invert,\n"
+          "                converges fastest for MU just below the wanted ones); 'below' counts\n"
+          "                those under MU exactly (the factorization's inertia)\n"
+          "  --modes M     how many (default 6)      --lanczos N  Lanczos steps (default 80)\n"
+          "Prints key = value lines: file, snapshot, step, t, energy (E*), reconnections,\n"
+          "sigma_A, sigma_V, dissipation (-dE*/dt* of the flow: ydot^T K ydot),\n"
+          "ydot_max (largest nodal speed, R0/t*), mu_max, mu_max_residual, fe_dt_limit,\n"
+          "above, below, mu_1..mu_M with mu_i_error (Ritz bounds), seconds.\n"
+          "Costs two factorizations and 2N solves of the step's KKT matrix (the setup and,\n"
+          "after resets, the reference are rebuilt first, as a restart does).\n");
+}
+
+/* Parse a long in [lo, hi] for option opt; 0 ok, 2 with a message. */
+static int parse_long(const char *cmd, const char *opt, const char *v, long lo, long hi,
+                      long *out) {
+  char *end = NULL;
+  errno = 0;
+  long x = strtol(v, &end, 10);
+  if (errno || end == v || *end || x < lo || x > hi) {
+    fprintf(stderr, "vesica %s: %s '%s': not an integer in [%ld, %ld]\n", cmd, opt, v, lo, hi);
+    return 2;
+  }
+  *out = x;
+  return 0;
+}
+
+static int cmd_spectrum(int argc, char **argv) {
+  const char *path = NULL;
+  long snap = -1, modes = 6, lanczos = 80;
+  double above = -1;
+  for (int i = 0; i < argc; i++) {
+    const char *a = argv[i];
+    if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
+      usage_spectrum(stdout);
+      return 0;
+    } else if (!strcmp(a, "--snapshot") || !strcmp(a, "--above") || !strcmp(a, "--modes") ||
+               !strcmp(a, "--lanczos")) {
+      if (i + 1 >= argc) {
+        fprintf(stderr, "vesica spectrum: %s needs a value\n", a);
+        return 2;
+      }
+      const char *v = argv[++i];
+      int rc = 0;
+      if (!strcmp(a, "--snapshot"))
+        rc = parse_long("spectrum", a, v, -1000000, 1000000, &snap);
+      else if (!strcmp(a, "--modes"))
+        rc = parse_long("spectrum", a, v, 1, 100, &modes);
+      else if (!strcmp(a, "--lanczos"))
+        rc = parse_long("spectrum", a, v, 2, 2000, &lanczos);
+      else {
+        char *end = NULL;
+        above = strtod(v, &end);
+        if (end == v || *end || !isfinite(above)) {
+          fprintf(stderr, "vesica spectrum: --above '%s': not a finite number\n", v);
+          rc = 2;
+        }
+      }
+      if (rc) return rc;
+    } else if (a[0] == '-' && a[1] && !isdigit((unsigned char)a[1])) {
+      fprintf(stderr, "vesica spectrum: unknown option '%s' (see vesica spectrum --help)\n", a);
+      return 2;
+    } else if (path) {
+      fprintf(stderr, "vesica spectrum: more than one file ('%s')\n", a);
+      return 2;
+    } else {
+      path = a;
+    }
+  }
+  if (!path) {
+    usage_spectrum(stderr);
+    return 2;
+  }
+  if (modes > lanczos) {
+    fprintf(stderr, "vesica spectrum: --modes %ld is more than --lanczos %ld\n", modes, lanczos);
+    return 2;
+  }
+  run_ctx r;
+  memset(&r, 0, sizeof r);
+  r.label = path, r.quiet = 1;
+  char err[1024] = "", pre[PATH_MAX + 32];
+  snprintf(pre, sizeof pre, "vesica spectrum: %s", path);
+  int rc = 2;
+  if (ves_io_open(path, 0, &r.io, err, sizeof err) != VES_OK) {
+    fprintf(stderr, "vesica spectrum: %s\n", err);
+    goto done;
+  }
+  const ves_io_info *in = ves_io_get_info(r.io);
+  const int S = ves_io_snapshots(r.io);
+  const long k = snap < 0 ? S + snap : snap;
+  if (k < 0 || k >= S) {
+    fprintf(stderr, "%s: --snapshot %ld: the file holds %d snapshot(s)\n", pre, snap, S);
+    goto done;
+  }
+  if (ves_config_load_text(in->problem, in->source, &r.cfg, err, sizeof err) != VES_OK) {
+    fprintf(stderr, "%s: the stored problem: %s\n", pre, err);
+    goto done;
+  }
+  const double t0 = ves_wall_seconds();
+  ves_io_snapinfo si;
+  if ((rc = rebuild_at(&r, pre, (int)k, &si))) goto done;
+  ves_model *m = ves_sim_model(r.sim);
+  ves_step *sp = NULL;
+  ves_step_params par = {.dt = si.state.dt,
+                         .hold_area = r.cfg.area,
+                         .A0 = si.state.A0,
+                         .hold_volume = r.cfg.volume,
+                         .V_target = si.state.V};
+  double sigma[2] = {0, 0}, mu_max = 0, res = 0, diss = 0, vmax = 0;
+  double *mu = malloc((size_t)modes * sizeof *mu), *mu_err = malloc((size_t)modes * sizeof *mu_err);
+  double *yd = NULL, *Kyd = NULL;
+  int nbelow = 0;
+  ves_status st = mu && mu_err ? ves_step_create(m, &sp) : VES_ERR_ALLOC;
+  if (st == VES_OK) st = ves_step_set(sp, r.y, &par);
+  if (st == VES_OK) {
+    const int nv = ves_step_nvar(sp);
+    yd = malloc((size_t)nv * sizeof *yd), Kyd = malloc((size_t)nv * sizeof *Kyd);
+    st = yd && Kyd ? ves_step_flow(sp, yd, sigma) : VES_ERR_ALLOC;
+    if (st == VES_OK) {
+      ves_pattern_symv(ves_model_pattern(m), ves_step_K(sp), yd, Kyd);
+      for (int i = 0; i < nv; i++) diss += yd[i] * Kyd[i];
+      const ves_pattern *pat = ves_model_pattern(m);
+      for (int a = 0; a < pat->n; a++) { /* |ydot| of node a over its free components */
+        double v2 = 0;
+        for (int c = 0; c < 2; c++)
+          if (pat->dof[2 * a + c] >= 0) v2 += yd[pat->dof[2 * a + c]] * yd[pat->dof[2 * a + c]];
+        vmax = fmax(vmax, sqrt(v2));
+      }
+    }
+  }
+  if (st == VES_OK) st = ves_step_stiffness(sp, sigma, (int)lanczos, &mu_max, &res);
+  if (st == VES_OK)
+    st = ves_step_modes(sp, sigma, above, (int)lanczos, (int)modes, mu, mu_err, &nbelow);
+  ves_step_destroy(&sp);
+  if (st != VES_OK) {
+    fprintf(stderr, "%s: snapshot %ld: the spectrum failed: %s%s\n", pre, k, ves_status_str(st),
+            st == VES_ERR_SINGULAR ? " (--above is an eigenvalue? move it a little)" : "");
+    rc = 3;
+  } else {
+    const double kk = r.cfg.k;
+    printf("file = %s\nsnapshot = %ld\nstep = %ld\nt = %.9g\nenergy = %.9f\n", path, k,
+           si.state.nstep, si.state.t, si.state.E / kk);
+    printf("reconnections = %d\n", si.reconnections);
+    printf("sigma_A = %.9e\nsigma_V = %.9e\n", r.cfg.area ? sigma[0] / kk : 0.0,
+           r.cfg.volume ? sigma[r.cfg.area ? 1 : 0] / kk : 0.0);
+    printf("dissipation = %.9e\nydot_max = %.6e\n", diss / kk, vmax);
+    printf("mu_max = %.9e\nmu_max_residual = %.2e\nfe_dt_limit = %.6e\n", mu_max, res,
+           2 / mu_max);
+    printf("above = %.9g\nbelow = %d\n", above, nbelow);
+    for (long j = 0; j < modes; j++)
+      printf("mu_%ld = %.9e\nmu_%ld_error = %.2e\n", j + 1, mu[j], j + 1, mu_err[j]);
+    printf("seconds = %.1f\n", ves_wall_seconds() - t0);
+    if (nbelow > 0)
+      fprintf(stderr,
+              "vesica spectrum: %d eigenvalue(s) lie below --above %g: lower it to see them\n",
+              nbelow, above);
+    rc = 0;
+  }
+  free(mu), free(mu_err), free(yd), free(Kyd);
+done:
+  run_free(&r);
+  return rc;
+}
+
 int main(int argc, char **argv) {
   if (argc < 2) {
     usage(stderr);
@@ -1083,6 +1272,7 @@ int main(int argc, char **argv) {
   if (!strcmp(argv[1], "run")) return cmd_run(argc - 2, argv + 2);
   if (!strcmp(argv[1], "info")) return cmd_info(argc - 2, argv + 2);
   if (!strcmp(argv[1], "plot")) return cmd_plot(argc - 2, argv + 2);
+  if (!strcmp(argv[1], "spectrum")) return cmd_spectrum(argc - 2, argv + 2);
   if (!strcmp(argv[1], "keys")) {
     if (argc > 2 && (!strcmp(argv[2], "--help") || !strcmp(argv[2], "-h"))) {
       printf("usage: vesica keys\nPrints every problem-file key as a Markdown table: section, "

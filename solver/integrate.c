@@ -376,6 +376,8 @@ const double *ves_sim_y(const ves_sim *s) { return s->y; }
 int ves_sim_reconnections(const ves_sim *s) { return s->reconnections; }
 const ves_reconnect *ves_sim_reference(const ves_sim *s) { return s->ref; }
 
+ves_model *ves_sim_model(ves_sim *s) { return s ? s->model : NULL; }
+
 void ves_sim_initial(const ves_sim *s, double *E, double *A, double *V) {
   if (E) *E = s->E0 / ves_model_get_k(s->model);
   if (A) *A = s->A0;

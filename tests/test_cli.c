@@ -330,7 +330,7 @@ static void test_malformed_input(void **state) {
 
 static void test_help(void **state) {
   (void)state;
-  const char *cmds[] = {"run", "check", "info", "plot", "keys"};
+  const char *cmds[] = {"run", "check", "info", "plot", "keys", "spectrum"};
   result r;
   for (size_t i = 0; i < sizeof cmds / sizeof cmds[0]; i++) {
     run(&r, cmds[i], "--help", NULL);
@@ -340,6 +340,77 @@ static void test_help(void **state) {
   run(&r, "--help", NULL);
   assert_int_equal(r.code, 0);
   assert_non_null(strstr(r.out, "info FILE.h5"));
+}
+
+/* ---- spectrum ------------------------------------------------------------- */
+
+/* The value of "key = " in text, NAN when absent. */
+static double key_value(const char *text, const char *key) {
+  char pat[64];
+  snprintf(pat, sizeof pat, "\n%s = ", key);
+  const char *p = strstr(text, pat);
+  return p ? strtod(p + strlen(pat), NULL) : NAN;
+}
+
+/* vesica spectrum on a run with resets, at a snapshot behind the last
+ * reset (its reference rebuilt from the file) and at the last one. The two
+ * halves of the answer come from different computations and must agree: the
+ * count below a shift (the factorization's inertia) and the eigenvalues
+ * Lanczos finds above it. The Ritz values of the lowest eigenvalues are
+ * upper bounds (mu_j <= mu_j^Ritz, interlacing), so with the shift just
+ * above a first call's mu_2^Ritz at least 2 lie below it, the lowest found
+ * lies above it, and when exactly 2 lie below, that one is mu_3 <=
+ * mu_3^Ritz of the first call. fe_dt_limit is 2 / mu_max. Bad options
+ * exit 2. */
+static void test_spectrum(void **state) {
+  (void)state;
+  char ini[128], h5[128];
+  tmp_path(ini, sizeof ini, "spec.ini");
+  tmp_path(h5, sizeof h5, "spec.h5");
+  write_file(ini, "[time]\nt_end = 0.02\nadaptive = 0\n[output]\nsnapshot_every = 1\n"
+                  "[reconnect]\nevery = 2\nnodes = motion\n");
+  result r;
+  run(&r, "run", ini, TINY, "--out", h5, "--quiet", NULL);
+  if (r.code) fail_msg("run: exit %d: %s", r.code, r.err);
+  const char *snaps[] = {"3", "-1"}; /* step 3 (one reset behind it), the last (step 4) */
+  for (int c = 0; c < 2; c++) {
+    run(&r, "spectrum", h5, "--snapshot", snaps[c], "--modes", "4", "--lanczos", "60", NULL);
+    if (r.code) fail_msg("spectrum: exit %d: %s", r.code, r.err);
+    printf("# spectrum --snapshot %s:\n%s", snaps[c], r.out);
+    const double mu2 = key_value(r.out, "mu_2"), mu3 = key_value(r.out, "mu_3");
+    const double mu_max = key_value(r.out, "mu_max"), lim = key_value(r.out, "fe_dt_limit");
+    assert_true(key_value(r.out, "reconnections") == (c == 0 ? 1 : 2));
+    assert_true(key_value(r.out, "below") == 0); /* --above -1 lies below all here */
+    assert_true(mu_max > 0 && fabs(lim * mu_max - 2) < 1e-5);
+    assert_true(isfinite(mu2) && isfinite(mu3) && mu3 > mu2);
+    assert_true(key_value(r.out, "dissipation") > 0);
+    char above[64];
+    const double shift = mu2 + 1e-9 * fabs(mu2);
+    snprintf(above, sizeof above, "%.17g", shift);
+    run(&r, "spectrum", h5, "--snapshot", snaps[c], "--above", above, "--modes", "1", "--lanczos",
+        "60", NULL);
+    if (r.code) fail_msg("spectrum --above: exit %d: %s", r.code, r.err);
+    const double m1 = key_value(r.out, "mu_1"), nb = key_value(r.out, "below");
+    printf("# --above %s: below %g, mu_1 %.9e (mu_3^Ritz before %.9e)\n", above, nb, m1, mu3);
+    assert_true(nb >= 2 && m1 > shift);
+    if (nb == 2) assert_true(m1 <= mu3 + 1e-9 * fabs(mu3));
+  }
+  /* bad input */
+  const char *bad[][3] = {{"--snapshot", "99", "holds"},
+                          {"--modes", "0", "--modes"},
+                          {"--above", "x", "--above"},
+                          {"--lanczos", "1", "--lanczos"},
+                          {"--frobnicate", "1", "unknown option"}};
+  for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+    run(&r, "spectrum", h5, bad[i][0], bad[i][1], NULL);
+    assert_int_equal(r.code, 2);
+    assert_non_null(strstr(r.err, bad[i][2]));
+  }
+  run(&r, "spectrum", ini, NULL); /* not an HDF5 file */
+  assert_int_equal(r.code, 2);
+  unlink(ini), unlink(h5);
+  char xdmf[128];
+  unlink(tmp_path(xdmf, sizeof xdmf, "spec.xdmf"));
 }
 
 /* ---- restart: bit for bit -------------------------------------------------- */
@@ -367,8 +438,8 @@ static void same_series(ves_io *a, ves_io *b, long rows) {
     double *x = series(a, names[i]), *y = series(b, names[i]);
     for (long k = 0; k < rows; k++)
       if (memcmp(x + k, y + k, sizeof *x))
-        fail_msg("series %s differs between the runs at row %ld: %.17g against %.17g", names[i],
-                 k, x[k], y[k]);
+        fail_msg("series %s differs between the runs at row %ld: %.17g against %.17g", names[i], k,
+                 x[k], y[k]);
     free(x), free(y);
   }
 }
@@ -433,12 +504,10 @@ static void test_restart_after_reset(void **state) {
   free(ra), free(rb);
   double *va = malloc(5 * (size_t)n * sizeof *va), *vb = malloc(5 * (size_t)n * sizeof *vb);
   ves_io_snapinfo sa, sb;
-  assert_int_equal(ves_io_read_snapshot(a, ves_io_snapshots(a) - 1, va, va + 2 * n, va + 4 * n,
-                                        &sa),
-                   VES_OK);
-  assert_int_equal(ves_io_read_snapshot(b, ves_io_snapshots(b) - 1, vb, vb + 2 * n, vb + 4 * n,
-                                        &sb),
-                   VES_OK);
+  assert_int_equal(
+      ves_io_read_snapshot(a, ves_io_snapshots(a) - 1, va, va + 2 * n, va + 4 * n, &sa), VES_OK);
+  assert_int_equal(
+      ves_io_read_snapshot(b, ves_io_snapshots(b) - 1, vb, vb + 2 * n, vb + 4 * n, &sb), VES_OK);
   assert_true(sa.state.nstep == R && sb.state.nstep == R && sb.reconnections == 4);
   assert_memory_equal(va, vb, 5 * (size_t)n * sizeof *va); /* y, x, phi bit for bit */
   assert_memory_equal(&sa.state, &sb.state, sizeof sa.state);
@@ -553,8 +622,7 @@ static void test_restart_set(void **state) {
   assert_non_null(strstr(r.err, "a restart may change only"));
   run(&r, "run", "--restart", out, "--set", "solver.max_iter=0", NULL);
   assert_int_equal(r.code, 2); /* out of range */
-  run(&r, "run", "--restart", out, "--set", "solver.max_iter=7", "--set", "time.t_end=0.03",
-      NULL);
+  run(&r, "run", "--restart", out, "--set", "solver.max_iter=7", "--set", "time.t_end=0.03", NULL);
   if (r.code) fail_msg("restart: exit %d: %s", r.code, r.err);
   assert_non_null(strstr(r.err, "with solver.max_iter=7, time.t_end=0.03"));
   run(&r, "info", out, NULL);
@@ -642,7 +710,8 @@ static void test_numerical_failure(void **state) {
   assert_string_equal(ves_io_get_info(io)->status, "failed");
   assert_int_equal(ves_io_rows(io), 0);
   ves_io_snapinfo si;
-  assert_int_equal(ves_io_read_snapshot(io, ves_io_snapshots(io) - 1, NULL, NULL, NULL, &si), VES_OK);
+  assert_int_equal(ves_io_read_snapshot(io, ves_io_snapshots(io) - 1, NULL, NULL, NULL, &si),
+                   VES_OK);
   assert_true(si.state.nstep == 0 && si.state.t == 0.0); /* the last good state */
   ves_io_close(&io);
   unlink(ini), unlink(out);
@@ -770,6 +839,8 @@ static void test_sigkill(void **state) {
 int main(int argc, char **argv) {
   setvbuf(stdout, NULL, _IOLBF, 0); /* keep output in order with cmocka's stderr */
   (void)argc;
+  if (getenv("TEST_FILTER")) /* one test by name (a development aid) */
+    cmocka_set_test_filter(getenv("TEST_FILTER"));
   /* BUILD/tests/test_cli -> BUILD/vesica */
   char self[PATH_MAX - 16];
   snprintf(self, sizeof self, "%s", argv[0]);
@@ -790,6 +861,7 @@ int main(int argc, char **argv) {
       cmocka_unit_test(test_restart_bitwise),
       cmocka_unit_test(test_restart_after_reset),
       cmocka_unit_test(test_restart_set),
+      cmocka_unit_test(test_spectrum),
       cmocka_unit_test(test_progress_eta),
       cmocka_unit_test(test_numerical_failure),
       cmocka_unit_test(test_sigterm),

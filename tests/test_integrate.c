@@ -282,8 +282,8 @@ static void test_flow_spectrum(void **state) {
    * to rounding (1e-10 relative: one factorization each of the same matrix) */
   double sf[2];
   assert_int_equal(ves_step_flow(st, NULL, sf), VES_OK);
-  printf("# flow forces at y^0: sigma %.12e %.12e (Euler's first step %.12e %.12e)\n", sf[0],
-         sf[1], sigma[0], sigma[1]);
+  printf("# flow forces at y^0: sigma %.12e %.12e (Euler's first step %.12e %.12e)\n", sf[0], sf[1],
+         sigma[0], sigma[1]);
   for (int i = 0; i < 2; i++) assert_true(fabs(sf[i] - sigma[i]) <= 1e-10 * fabs(sigma[i]));
   assert_int_equal(ves_step_flow(st, NULL, NULL), VES_ERR_ARG);
   /* the dense pencil on the null space of J */
@@ -626,12 +626,12 @@ int main(void) {
   setvbuf(stdout, NULL, _IOLBF, 0); /* keep output in order with cmocka's stderr */
   const struct CMUnitTest tests[] = {
       /* first in the process: see there */
-      cmocka_unit_test(test_reconnect_off),         cmocka_unit_test(test_relaxation),
-      cmocka_unit_test(test_near_equilibrium),      cmocka_unit_test(test_euler_adaptive),
-      cmocka_unit_test(test_euler_stiffness),       cmocka_unit_test(test_flow_spectrum),       cmocka_unit_test(test_protocols),
-      cmocka_unit_test(test_c0_switch_restarts_dt), cmocka_unit_test(test_failure_keeps_state),
-      cmocka_unit_test(test_reconnect_every),       cmocka_unit_test(test_reconnect_threshold),
-      cmocka_unit_test(test_reconnect_failure),
+      cmocka_unit_test(test_reconnect_off),       cmocka_unit_test(test_relaxation),
+      cmocka_unit_test(test_near_equilibrium),    cmocka_unit_test(test_euler_adaptive),
+      cmocka_unit_test(test_euler_stiffness),     cmocka_unit_test(test_flow_spectrum),
+      cmocka_unit_test(test_protocols),           cmocka_unit_test(test_c0_switch_restarts_dt),
+      cmocka_unit_test(test_failure_keeps_state), cmocka_unit_test(test_reconnect_every),
+      cmocka_unit_test(test_reconnect_threshold), cmocka_unit_test(test_reconnect_failure),
   };
   return cmocka_run_group_tests_name("integrate", tests, NULL, NULL);
 }

@@ -146,6 +146,9 @@ ves_status ves_sim_adopt_reference(ves_sim *s, ves_reconnect *ref, int reconnect
  * valid until the next reset), NULL before any: its nodes, quadrature and
  * point data are what io.h stores for a restart. */
 const ves_reconnect *ves_sim_reference(const ves_sim *s);
+/* The model in use: the creation model, or the last reset's (owned by the
+ * simulation or borrowed at create; valid until the next reset). */
+ves_model *ves_sim_model(ves_sim *s);
 
 double ves_sim_time(const ves_sim *s);
 double ves_sim_dt(const ves_sim *s);         /* the next step's dt */
