@@ -1,7 +1,7 @@
 #!/bin/sh
 # The small cases under valgrind (memcheck): the program's setup, steps with
 # every backend but NLopt (slow under valgrind), resets of the reference,
-# HDF5 output, a restart after a reset, info. A case passes when valgrind
+# HDF5 output, a restart after a reset, info, spectrum. A case passes when valgrind
 # reports no error and no definite leak and the program exits as expected.
 # Closes with "N passed, N failed"; exit 1 on a failure.
 #
@@ -40,6 +40,7 @@ case_ "newton, resets every step" run $P $TINY --set reconnect.every=1 --max-ste
   --out "$D/a.h5"
 case_ "restart after the resets" run --restart "$D/a.h5" --max-steps 3 --quiet
 case_ info info "$D/a.h5"
+case_ "spectrum after the resets" spectrum "$D/a.h5" --modes 2 --lanczos 10
 case_ ipopt run $P $TINY --backend ipopt --max-steps 1 --quiet --out "$D/b.h5"
 case_ euler run $P $TINY --backend euler --max-steps 2 --quiet --out "$D/c.h5"
 echo "$pass passed, $fail failed"
