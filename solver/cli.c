@@ -32,25 +32,27 @@
 #define MONOTONE_TOL 1e-10
 
 static void usage(FILE *f) {
-  fprintf(f, "usage: vesica <command> [options]\n"
-             "commands:\n"
-             "  run CONFIG.ini [--backend ipopt|nlopt|newton|euler] [--out FILE.h5]\n"
-             "                 [--set section.key=value]... [--max-steps N] [--series FILE.tsv]\n"
-             "                 [--quiet]\n"
-             "  run --restart FILE.h5 [--set solver.KEY=V|time.t_end=T]... [--max-steps N] [--quiet]\n"
-             "                     integrate in time, writing FILE.h5 (+ FILE.xdmf)\n"
-             "  check CONFIG.ini [--set section.key=value]... [--phi0 l2|sampled]\n"
-             "                     build the initial state and print its derived quantities\n"
-             "  info FILE.h5       summary of a run, one 'key = value' per line\n"
-             "  plot FILE.h5 [--outdir DIR] [--times T1,T2,...]\n"
-             "                     PNG figures: energy and dt, node snapshots, constraints\n"
-             "  spectrum FILE.h5 [--snapshot K] [--above MU] [--modes M] [--lanczos N]\n"
-             "                     the linearized flow at a stored state: slow and unstable\n"
-             "                     modes, forward Euler's stability limit\n"
-             "  keys               print every problem-file key with its default and range\n"
-             "  --version          print the version\n"
-             "  --help             this text (also: vesica COMMAND --help)\n"
-             "exit codes: 0 ok, 2 bad input, 3 numerical failure (last good state saved)\n");
+  fprintf(f,
+          "usage: vesica <command> [options]\n"
+          "commands:\n"
+          "  run CONFIG.ini [--backend ipopt|nlopt|newton|euler] [--out FILE.h5]\n"
+          "                 [--set section.key=value]... [--max-steps N] [--series FILE.tsv]\n"
+          "                 [--quiet]\n"
+          "  run --restart FILE.h5 [--set solver.KEY=V|time.t_end=T]... [--max-steps N] [--quiet]\n"
+          "                     integrate in time, writing FILE.h5 (+ FILE.xdmf)\n"
+          "  check CONFIG.ini [--set section.key=value]... [--phi0 l2|sampled]\n"
+          "                     build the initial state and print its derived quantities\n"
+          "  info FILE.h5       summary of a run, one 'key = value' per line\n"
+          "  plot FILE.h5 [--outdir DIR] [--times T1,T2,...]\n"
+          "                     PNG figures: energy and dt, node snapshots, constraints\n"
+          "  spectrum FILE.h5 [--snapshot K] [--above MU] [--modes M] [--lanczos N]\n"
+          "           [--vectors F]\n"
+          "                     the linearized flow at a stored state: slow and unstable\n"
+          "                     modes, forward Euler's stability limit\n"
+          "  keys               print every problem-file key with its default and range\n"
+          "  --version          print the version\n"
+          "  --help             this text (also: vesica COMMAND --help)\n"
+          "exit codes: 0 ok, 2 bad input, 3 numerical failure (last good state saved)\n");
 }
 
 /* --------------------------------------------------------------------------
@@ -364,11 +366,11 @@ static ves_status restore_reference(run_ctx *r, int k, int reconnections, const 
 }
 
 /* The folder of path must exist and be writable, path must not be a folder. */
-static int check_writable(const char *what, const char *path) {
+static int check_writable(const char *cmd, const char *what, const char *path) {
   char dir[PATH_MAX];
   const char *slash = strrchr(path, '/');
   if (!*path || strlen(path) >= sizeof dir - 8) {
-    fprintf(stderr, "vesica run: %s '%s': not a usable file name\n", what, path);
+    fprintf(stderr, "vesica %s: %s '%s': not a usable file name\n", cmd, what, path);
     return 2;
   }
   if (slash == path)
@@ -379,15 +381,15 @@ static int check_writable(const char *what, const char *path) {
     snprintf(dir, sizeof dir, ".");
   struct stat sb;
   if (stat(dir, &sb) != 0 || !S_ISDIR(sb.st_mode)) {
-    fprintf(stderr, "vesica run: %s %s: folder %s does not exist\n", what, path, dir);
+    fprintf(stderr, "vesica %s: %s %s: folder %s does not exist\n", cmd, what, path, dir);
     return 2;
   }
   if (access(dir, W_OK) != 0) {
-    fprintf(stderr, "vesica run: %s %s: folder %s is not writable\n", what, path, dir);
+    fprintf(stderr, "vesica %s: %s %s: folder %s is not writable\n", cmd, what, path, dir);
     return 2;
   }
   if (stat(path, &sb) == 0 && !S_ISREG(sb.st_mode)) {
-    fprintf(stderr, "vesica run: %s %s: exists and is not a regular file\n", what, path);
+    fprintf(stderr, "vesica %s: %s %s: exists and is not a regular file\n", cmd, what, path);
     return 2;
   }
   return 0;
@@ -576,8 +578,9 @@ static int run_new(run_ctx *r, const char *path, const char *out, const char *ba
   }
   char xdmf[PATH_MAX];
   ves_io_xdmf_path(r->out, xdmf, sizeof xdmf);
-  if ((rc = check_writable("--out", r->out)) || (rc = check_writable("--out", xdmf))) return rc;
-  if (series && (rc = check_writable("--series", series))) return rc;
+  if ((rc = check_writable("run", "--out", r->out)) || (rc = check_writable("run", "--out", xdmf)))
+    return rc;
+  if (series && (rc = check_writable("run", "--series", series))) return rc;
   char abs[PATH_MAX], *problem = NULL, err[1024] = "";
   if (!realpath(path, abs)) snprintf(abs, sizeof abs, "%s", path);
   if (ves_config_to_text(&r->cfg, &problem) != VES_OK) {
@@ -715,7 +718,7 @@ static int run_restart(run_ctx *r, const char *file, int nset, const char *const
   snprintf(r->out, sizeof r->out, "%s", file);
   char xdmf[PATH_MAX];
   ves_io_xdmf_path(file, xdmf, sizeof xdmf);
-  int rc = check_writable("--restart", xdmf);
+  int rc = check_writable("run", "--restart", xdmf);
   if (rc) return rc;
   ves_status st = ves_io_open(file, 1, &r->io, err, sizeof err);
   if (st != VES_OK) {
@@ -1085,6 +1088,7 @@ static int cmd_plot(int argc, char **argv) {
 static void usage_spectrum(FILE *f) {
   fprintf(f,
           "usage: vesica spectrum FILE.h5 [--snapshot K] [--above MU] [--modes M] [--lanczos N]\n"
+          "                       [--vectors F]\n"
           "The linearized flow at a stored state: K dy/dt = -A (y - y_s) on the tangent space\n"
           "of the held constraints, A = Hess E + sigma_A Hess A + sigma_V Hess V with sigma\n"
           "the flow's constraint forces at the state. Along an eigenvector (A v = mu K v) a\n"
@@ -1096,10 +1100,22 @@ static void usage_spectrum(FILE *f) {
           "                converges fastest for MU just below the wanted ones); 'below' counts\n"
           "                those under MU exactly (the factorization's inertia)\n"
           "  --modes M     how many (default 6)      --lanczos N  Lanczos steps (default 80)\n"
-          "Prints key = value lines: file, snapshot, step, t, energy (E*), reconnections,\n"
+          "  --vectors F   write the modes to the text file F: one row a node (a, its material\n"
+          "                position r z, phi, h), then per mode the coefficients' components\n"
+          "                u_r u_z and the motion they give at the node du_r du_z\n"
+          "Prints key = value lines: file, snapshot, step, t, energy (E*), reconnections, nodes,\n"
           "sigma_A, sigma_V, dissipation (-dE*/dt* of the flow: ydot^T K ydot),\n"
           "ydot_max (largest nodal speed, R0/t*), mu_max, mu_max_residual, fe_dt_limit,\n"
-          "above, below, mu_1..mu_M with mu_i_error (Ritz bounds), seconds.\n"
+          "above, below, mu_1..mu_M with mu_i_error (Ritz bounds) and where each mode lives:\n"
+          "mu_i_peak_r, mu_i_peak_z, mu_i_peak_phi (the material position and phi of the node\n"
+          "with the largest coefficient |u_a|), mu_i_band (share of sum |u_a|^2 on nodes with\n"
+          "|phi| < 0.9), mu_i_axis (share on nodes within 2 h_a of the axis), mu_i_material\n"
+          "(|du| / |u| over the nodes: ~1 for a smooth motion, << 1 for coefficients that\n"
+          "barely move the material), mu_i_from_E, mu_i_from_A, mu_i_from_V (mu's parts:\n"
+          "v^T Hess E v, sigma_A v^T Hess A v, sigma_V v^T Hess V v, v K-normalized),\n"
+          "mu_i_drift (the K-cosine of the mode with the coefficients' drift d = y^a - y(X_a)),\n"
+          "drift_K_norm (sqrt(d^T K d)), drift_in_modes (sum of the squared cosines: the share\n"
+          "of d in the modes found), seconds.\n"
           "Costs two factorizations and 2N solves of the step's KKT matrix (the setup and,\n"
           "after resets, the reference are rebuilt first, as a restart does).\n");
 }
@@ -1118,8 +1134,73 @@ static int parse_long(const char *cmd, const char *opt, const char *v, long lo, 
   return 0;
 }
 
+/* Where a mode lives (vesica spectrum --help). */
+typedef struct {
+  double peak[2];  /* material position of the node with the largest |u_a| (R0) */
+  double peak_phi; /* phi there */
+  double band;     /* share of sum_a |u_a|^2 on nodes with |phi_a| < 0.9 */
+  double axis;     /* share on nodes within 2 h_a of the axis */
+  double material; /* |du| / |u| over the nodes */
+  double from[3];  /* mu's parts: v^T Hess E v, sigma_A v^T Hess A v, sigma_V v^T Hess V v */
+  double drift;    /* K-cosine with the drift y^a - y(X_a) of the coefficients */
+} mode_place;
+
+/* The modes vec[nmodes * nv] (free dofs) of the state in r: their places
+ * and, with vpath, the text file of --vectors. VES_ERR_IO when the file
+ * cannot be written (errno set), or the errors of the node evaluations. */
+static ves_status mode_places(run_ctx *r, const double *vec, int nmodes, int nv, const char *vpath,
+                              mode_place *place) {
+  const ves_model *m = ves_sim_model(r->sim);
+  const ves_pattern *pat = ves_model_pattern(m);
+  const ves_nodes *nd = ves_model_nodes(m);
+  const int n = nd->n;
+  double *u = malloc(2 * (size_t)n * nmodes * sizeof *u);
+  double *du = malloc(2 * (size_t)n * nmodes * sizeof *du);
+  FILE *f = NULL;
+  ves_status st = u && du ? ves_sim_node_material(r->sim, r->x, r->phi) : VES_ERR_ALLOC;
+  for (int j = 0; j < nmodes && st == VES_OK; j++) {
+    const double *v = vec + (size_t)j * nv;
+    double *uj = u + 2 * (size_t)n * j, *dj = du + 2 * (size_t)n * j;
+    for (int i = 0; i < 2 * n; i++) uj[i] = pat->dof[i] >= 0 ? v[pat->dof[i]] : 0.0;
+    if ((st = ves_sim_motion_at_nodes(r->sim, uj, dj)) != VES_OK) break;
+    double tot = 0, band = 0, axis = 0, mat = 0, big = -1;
+    mode_place *q = place + j;
+    for (int a = 0; a < n; a++) {
+      const double u2 = uj[2 * a] * uj[2 * a] + uj[2 * a + 1] * uj[2 * a + 1];
+      tot += u2, mat += dj[2 * a] * dj[2 * a] + dj[2 * a + 1] * dj[2 * a + 1];
+      if (fabs(r->phi[a]) < 0.9) band += u2;
+      if (r->x[2 * a] < 2 * nd->h[a]) axis += u2;
+      if (u2 > big)
+        big = u2, q->peak[0] = r->x[2 * a], q->peak[1] = r->x[2 * a + 1], q->peak_phi = r->phi[a];
+    }
+    q->band = band / tot, q->axis = axis / tot, q->material = sqrt(mat / tot);
+  }
+  if (st == VES_OK && vpath) {
+    errno = 0;
+    if (!(f = fopen(vpath, "w"))) st = VES_ERR_IO;
+  }
+  if (f) {
+    fprintf(f, "# vesica spectrum: the modes of %s, one row a node\n# a r z phi h", r->label);
+    for (int j = 0; j < nmodes; j++)
+      fprintf(f, " u%d_r u%d_z du%d_r du%d_z", j + 1, j + 1, j + 1, j + 1);
+    fprintf(f, "\n# (r z: material position of the node, R0; u: the mode's coefficients,\n"
+               "# K-normalized; du: the motion they give at the node)\n");
+    for (int a = 0; a < n; a++) {
+      fprintf(f, "%d %.9g %.9g %.6g %.6g", a, r->x[2 * a], r->x[2 * a + 1], r->phi[a], nd->h[a]);
+      for (int j = 0; j < nmodes; j++) {
+        const double *uj = u + 2 * (size_t)n * j, *dj = du + 2 * (size_t)n * j;
+        fprintf(f, " %.6e %.6e %.6e %.6e", uj[2 * a], uj[2 * a + 1], dj[2 * a], dj[2 * a + 1]);
+      }
+      fputc('\n', f);
+    }
+    if (ferror(f) | fclose(f)) st = VES_ERR_IO;
+  }
+  free(u), free(du);
+  return st;
+}
+
 static int cmd_spectrum(int argc, char **argv) {
-  const char *path = NULL;
+  const char *path = NULL, *vpath = NULL;
   long snap = -1, modes = 6, lanczos = 80;
   double above = -1;
   for (int i = 0; i < argc; i++) {
@@ -1128,7 +1209,7 @@ static int cmd_spectrum(int argc, char **argv) {
       usage_spectrum(stdout);
       return 0;
     } else if (!strcmp(a, "--snapshot") || !strcmp(a, "--above") || !strcmp(a, "--modes") ||
-               !strcmp(a, "--lanczos")) {
+               !strcmp(a, "--lanczos") || !strcmp(a, "--vectors")) {
       if (i + 1 >= argc) {
         fprintf(stderr, "vesica spectrum: %s needs a value\n", a);
         return 2;
@@ -1141,6 +1222,8 @@ static int cmd_spectrum(int argc, char **argv) {
         rc = parse_long("spectrum", a, v, 1, 100, &modes);
       else if (!strcmp(a, "--lanczos"))
         rc = parse_long("spectrum", a, v, 2, 2000, &lanczos);
+      else if (!strcmp(a, "--vectors"))
+        vpath = v;
       else {
         char *end = NULL;
         above = strtod(v, &end);
@@ -1168,6 +1251,7 @@ static int cmd_spectrum(int argc, char **argv) {
     fprintf(stderr, "vesica spectrum: --modes %ld is more than --lanczos %ld\n", modes, lanczos);
     return 2;
   }
+  if (vpath && check_writable("spectrum", "--vectors", vpath)) return 2;
   run_ctx r;
   memset(&r, 0, sizeof r);
   r.label = path, r.quiet = 1;
@@ -1201,14 +1285,15 @@ static int cmd_spectrum(int argc, char **argv) {
                          .V_target = si.state.V};
   double sigma[2] = {0, 0}, mu_max = 0, res = 0, diss = 0, vmax = 0;
   double *mu = malloc((size_t)modes * sizeof *mu), *mu_err = malloc((size_t)modes * sizeof *mu_err);
-  double *yd = NULL, *Kyd = NULL;
-  int nbelow = 0;
+  double *yd = NULL, *Kyd = NULL, *vec = NULL;
+  int nbelow = 0, nv = 0;
   ves_status st = mu && mu_err ? ves_step_create(m, &sp) : VES_ERR_ALLOC;
   if (st == VES_OK) st = ves_step_set(sp, r.y, &par);
   if (st == VES_OK) {
-    const int nv = ves_step_nvar(sp);
+    nv = ves_step_nvar(sp);
     yd = malloc((size_t)nv * sizeof *yd), Kyd = malloc((size_t)nv * sizeof *Kyd);
-    st = yd && Kyd ? ves_step_flow(sp, yd, sigma) : VES_ERR_ALLOC;
+    vec = malloc((size_t)modes * nv * sizeof *vec);
+    st = yd && Kyd && vec ? ves_step_flow(sp, yd, sigma) : VES_ERR_ALLOC;
     if (st == VES_OK) {
       ves_pattern_symv(ves_model_pattern(m), ves_step_K(sp), yd, Kyd);
       for (int i = 0; i < nv; i++) diss += yd[i] * Kyd[i];
@@ -1223,8 +1308,44 @@ static int cmd_spectrum(int argc, char **argv) {
   }
   if (st == VES_OK) st = ves_step_stiffness(sp, sigma, (int)lanczos, &mu_max, &res);
   if (st == VES_OK)
-    st = ves_step_modes(sp, sigma, above, (int)lanczos, (int)modes, mu, mu_err, &nbelow);
+    st = ves_step_modes(sp, sigma, above, (int)lanczos, (int)modes, mu, mu_err, vec, &nbelow);
+  mode_place *place = st == VES_OK ? calloc((size_t)modes, sizeof *place) : NULL;
+  if (st == VES_OK && !place) st = VES_ERR_ALLOC;
+  /* the coefficients' drift from the motion, d = y^a - y(X_a) over the free
+   * dofs, and its K-cosine with each mode (the modes are K-normalized) */
+  double dKd = 0, drift_share = 0;
+  if (st == VES_OK && (st = ves_sim_node_material(r.sim, r.x, NULL)) == VES_OK) {
+    const ves_pattern *pat = ves_model_pattern(m);
+    for (int i = 0; i < 2 * pat->n; i++)
+      if (pat->dof[i] >= 0) yd[pat->dof[i]] = r.y[i] - r.x[i]; /* yd reused: d */
+    ves_pattern_symv(pat, ves_step_K(sp), yd, Kyd);
+    for (int i = 0; i < nv; i++) dKd += yd[i] * Kyd[i];
+    for (long j = 0; j < modes; j++) {
+      double c = 0;
+      for (int i = 0; i < nv; i++) c += vec[(size_t)j * nv + i] * Kyd[i];
+      place[j].drift = dKd > 0 ? c / sqrt(dKd) : 0.0;
+      if (isfinite(place[j].drift)) drift_share += place[j].drift * place[j].drift;
+    }
+  }
+  for (long j = 0; j < modes && st == VES_OK; j++) { /* mu = E'' + sigma_A A'' + sigma_V V'' */
+    double cv[3] = {NAN, NAN, NAN};
+    if (isfinite(mu[j]) && (st = ves_step_curvatures(sp, vec + (size_t)j * nv, cv)) != VES_OK)
+      break;
+    int q = 0;
+    place[j].from[0] = cv[0];
+    place[j].from[1] = r.cfg.area ? sigma[q++] * cv[1] : 0.0;
+    place[j].from[2] = r.cfg.volume ? sigma[q] * cv[2] : 0.0;
+  }
   ves_step_destroy(&sp);
+  if (st == VES_OK) {
+    st = mode_places(&r, vec, (int)modes, nv, vpath, place);
+    if (st == VES_ERR_IO) {
+      fprintf(stderr, "vesica spectrum: --vectors %s: cannot write: %s\n", vpath, strerror(errno));
+      rc = 2;
+      free(mu), free(mu_err), free(yd), free(Kyd), free(vec), free(place);
+      goto done;
+    }
+  }
   if (st != VES_OK) {
     fprintf(stderr, "%s: snapshot %ld: the spectrum failed: %s%s\n", pre, k, ves_status_str(st),
             st == VES_ERR_SINGULAR ? " (--above is an eigenvalue? move it a little)" : "");
@@ -1233,15 +1354,25 @@ static int cmd_spectrum(int argc, char **argv) {
     const double kk = r.cfg.k;
     printf("file = %s\nsnapshot = %ld\nstep = %ld\nt = %.9g\nenergy = %.9f\n", path, k,
            si.state.nstep, si.state.t, si.state.E / kk);
-    printf("reconnections = %d\n", si.reconnections);
+    printf("reconnections = %d\nnodes = %d\n", si.reconnections, ves_model_nodes(m)->n);
     printf("sigma_A = %.9e\nsigma_V = %.9e\n", r.cfg.area ? sigma[0] / kk : 0.0,
            r.cfg.volume ? sigma[r.cfg.area ? 1 : 0] / kk : 0.0);
     printf("dissipation = %.9e\nydot_max = %.6e\n", diss / kk, vmax);
     printf("mu_max = %.9e\nmu_max_residual = %.2e\nfe_dt_limit = %.6e\n", mu_max, res,
            2 / mu_max);
     printf("above = %.9g\nbelow = %d\n", above, nbelow);
-    for (long j = 0; j < modes; j++)
+    for (long j = 0; j < modes; j++) {
+      const mode_place *q = place + j;
       printf("mu_%ld = %.9e\nmu_%ld_error = %.2e\n", j + 1, mu[j], j + 1, mu_err[j]);
+      printf("mu_%ld_peak_r = %.4f\nmu_%ld_peak_z = %.4f\nmu_%ld_peak_phi = %.3f\n", j + 1,
+             q->peak[0], j + 1, q->peak[1], j + 1, q->peak_phi);
+      printf("mu_%ld_band = %.3f\nmu_%ld_axis = %.3f\nmu_%ld_material = %.3e\n", j + 1, q->band,
+             j + 1, q->axis, j + 1, q->material);
+      printf("mu_%ld_from_E = %.6e\nmu_%ld_from_A = %.6e\nmu_%ld_from_V = %.6e\n", j + 1,
+             q->from[0], j + 1, q->from[1], j + 1, q->from[2]);
+      printf("mu_%ld_drift = %.3e\n", j + 1, q->drift);
+    }
+    printf("drift_K_norm = %.6e\ndrift_in_modes = %.3e\n", sqrt(dKd), drift_share);
     printf("seconds = %.1f\n", ves_wall_seconds() - t0);
     if (nbelow > 0)
       fprintf(stderr,
@@ -1249,7 +1380,7 @@ static int cmd_spectrum(int argc, char **argv) {
               nbelow, above);
     rc = 0;
   }
-  free(mu), free(mu_err), free(yd), free(Kyd);
+  free(mu), free(mu_err), free(yd), free(Kyd), free(vec), free(place);
 done:
   run_free(&r);
   return rc;

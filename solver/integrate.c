@@ -468,3 +468,10 @@ ves_status ves_sim_node_material(ves_sim *s, double *x, double *phi) {
   memcpy(phi, s->node_phi, (size_t)s->n * sizeof *phi);
   return VES_OK;
 }
+
+ves_status ves_sim_motion_at_nodes(ves_sim *s, const double *u, double *du) {
+  VES_CHECK(s && u && du, VES_ERR_ARG);
+  VES_CALL(node_points(s));
+  ves_reconnect_motion_at_nodes(ves_model_nodes(s->model), s->at_nodes, u, du, NULL);
+  return VES_OK;
+}

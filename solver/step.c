@@ -293,9 +293,11 @@ static ves_status kkt_factor(const ves_step *s, const double *M, int spd, const 
  * [M J^T; J 0]^-1 [K r; 0] for a fixed pseudo-random r, which lies in the
  * null space of J. Full reorthogonalization (twice), at most kmax steps;
  * eigenpairs of the tridiagonal by LAPACK dstev. out->th and out->res hold
- * kmax entries; spd as for kkt_factor. */
+ * kmax entries; spd as for kkt_factor. vec (NULL when nvec = 0) receives
+ * the Ritz vectors V z of the nvec largest Ritz values, largest first, nv
+ * entries each, K-normalized (NAN beyond the k computed). */
 static ves_status lanczos(ves_step *s, const double *M, int spd, const double *B, const double *J,
-                          int kmax, ritz *out) {
+                          int kmax, int nvec, double *vec, ritz *out) {
   const ves_pattern *p = s->pat;
   const int nv = s->nvar, nc = s->ncon, nk = nv + nc;
   ves_status st = VES_ERR_ALLOC;
@@ -356,6 +358,17 @@ static ves_status lanczos(ves_step *s, const double *M, int spd, const double *B
     out->k = k;
     /* |(Op - th_j) V s_j| = be_k |last entry of s_j| */
     for (int j = 0; j < k; j++) out->res[j] = be[k - 1] * fabs(Z[(size_t)j * k + (k - 1)]);
+    for (int j = 0; j < nvec; j++) { /* x_j = V z_{k-1-j} */
+      double *x = vec + (size_t)j * nv;
+      if (j >= k) {
+        for (int i = 0; i < nv; i++) x[i] = NAN;
+        continue;
+      }
+      const double *z = Z + (size_t)(k - 1 - j) * k;
+      memset(x, 0, (size_t)nv * sizeof *x);
+      for (int l = 0; l < k; l++)
+        for (int i = 0; i < nv; i++) x[i] += z[l] * V[(size_t)l * nv + i];
+    }
   }
 done:
   ves_ldl_destroy(&f);
@@ -377,7 +390,7 @@ ves_status ves_step_stiffness(ves_step *s, const double *sigma, int iters, doubl
   ritz rz = {.th = malloc((size_t)kmax * sizeof(double)),
              .res = malloc((size_t)kmax * sizeof(double))};
   if (A && J && rz.th && rz.res && (st = flow_matrices(s, sigma, A, J)) == VES_OK &&
-      (st = lanczos(s, s->K, 1, A, J, kmax, &rz)) == VES_OK) {
+      (st = lanczos(s, s->K, 1, A, J, kmax, 0, NULL, &rz)) == VES_OK) {
     *mu_max = rz.th[rz.k - 1];
     if (resid) *resid = rz.res[rz.k - 1] / fabs(rz.th[rz.k - 1]);
   }
@@ -391,7 +404,7 @@ ves_status ves_step_stiffness(ves_step *s, const double *sigma, int iters, doubl
  * K, J^T; J 0] is that of A - mu_lo K on the null space of J, plus ncon
  * positive and ncon negative. */
 ves_status ves_step_modes(ves_step *s, const double *sigma, double mu_lo, int iters, int nwant,
-                          double *mu, double *err, int *nbelow) {
+                          double *mu, double *err, double *vec, int *nbelow) {
   VES_CHECK(s && s->is_set && mu && iters >= 2 && nwant >= 1 && nwant <= iters &&
                 (sigma || s->ncon == 0) && isfinite(mu_lo),
             VES_ERR_ARG);
@@ -404,7 +417,7 @@ ves_status ves_step_modes(ves_step *s, const double *sigma, double mu_lo, int it
              .res = malloc((size_t)kmax * sizeof(double))};
   if (!A || !J || !rz.th || !rz.res || (st = flow_matrices(s, sigma, A, J)) != VES_OK) goto done;
   for (int i = 0; i < nnz; i++) A[i] -= mu_lo * s->K[i]; /* A - mu_lo K */
-  if ((st = lanczos(s, A, 0, s->K, J, kmax, &rz)) != VES_OK) goto done;
+  if ((st = lanczos(s, A, 0, s->K, J, kmax, vec ? nwant : 0, vec, &rz)) != VES_OK) goto done;
   if (nbelow) *nbelow = rz.neg - nc;
   for (int j = 0; j < nwant; j++) {
     const int i = rz.k - 1 - j; /* the j-th largest th */
@@ -415,6 +428,21 @@ ves_status ves_step_modes(ves_step *s, const double *sigma, double mu_lo, int it
   }
 done:
   free(A), free(J), free(rz.th), free(rz.res);
+  return st;
+}
+
+/* v^T Hess F v for F = E, A, V at y^n (step.h): three assemblies. */
+ves_status ves_step_curvatures(ves_step *s, const double *v, double curv[3]) {
+  VES_CHECK(s && s->is_set && v && curv, VES_ERR_ARG);
+  const ves_pattern *p = s->pat;
+  double *H = malloc((size_t)p->nnz * sizeof *H), *w = malloc((size_t)s->nvar * sizeof *w);
+  ves_status st = H && w ? VES_OK : VES_ERR_ALLOC;
+  for (int f = 0; f < 3 && st == VES_OK; f++) {
+    if ((st = ves_model_hessian(s->m, s->yn, f == 0, f == 1, f == 2, s->blk)) != VES_OK) break;
+    ves_pattern_extract(p, s->blk, H);
+    curv[f] = k_dot(p, H, v, v, w); /* v^T H v */
+  }
+  free(H), free(w);
   return st;
 }
 

@@ -373,10 +373,61 @@ static void test_spectrum(void **state) {
   run(&r, "run", ini, TINY, "--out", h5, "--quiet", NULL);
   if (r.code) fail_msg("run: exit %d: %s", r.code, r.err);
   const char *snaps[] = {"3", "-1"}; /* step 3 (one reset behind it), the last (step 4) */
+  char tsv[128];
+  tmp_path(tsv, sizeof tsv, "modes.tsv");
   for (int c = 0; c < 2; c++) {
-    run(&r, "spectrum", h5, "--snapshot", snaps[c], "--modes", "4", "--lanczos", "60", NULL);
+    run(&r, "spectrum", h5, "--snapshot", snaps[c], "--modes", "4", "--lanczos", "60", "--vectors",
+        tsv, NULL);
     if (r.code) fail_msg("spectrum: exit %d: %s", r.code, r.err);
     printf("# spectrum --snapshot %s:\n%s", snaps[c], r.out);
+    /* where the modes live: shares in [0, 1]; mu's parts add up to mu: they
+     * are the Rayleigh quotient x^T A x of the Ritz vector, which differs
+     * from the shift-and-invert Ritz value by second order in the Ritz
+     * residual, well inside the first-order bound mu_i_error (measured:
+     * 0.05-0.1 of it for the unconverged pairs here, 1e-9 of mu_max for
+     * the converged one) */
+    for (int j = 1; j <= 4; j++) {
+      char key[64];
+      const char *parts[] = {"band", "axis", "material", "from_E", "from_A", "from_V", "drift"};
+      double v[7];
+      for (int q = 0; q < 7; q++) {
+        snprintf(key, sizeof key, "mu_%d_%s", j, parts[q]);
+        v[q] = key_value(r.out, key);
+        assert_true(isfinite(v[q]));
+      }
+      snprintf(key, sizeof key, "mu_%d", j);
+      const double mu = key_value(r.out, key);
+      assert_true(v[0] >= 0 && v[0] <= 1 && v[1] >= 0 && v[1] <= 1 && v[2] > 0);
+      assert_true(fabs(v[6]) <= 1 + 1e-12); /* a cosine */
+      snprintf(key, sizeof key, "mu_%d_error", j);
+      const double bound = key_value(r.out, key) + 1e-9 * key_value(r.out, "mu_max");
+      assert_true(fabs(v[3] + v[4] + v[5] - mu) <= bound);
+    }
+    const double share = key_value(r.out, "drift_in_modes");
+    assert_true(share >= 0 && share <= 1 + 1e-12 && key_value(r.out, "drift_K_norm") > 0);
+    /* the file: 4 comment lines, then one row a node of 5 + 4 x 4 numbers */
+    FILE *f = fopen(tsv, "r");
+    assert_non_null(f);
+    char line[4096];
+    int rows = 0, comments = 0;
+    while (fgets(line, sizeof line, f)) {
+      if (line[0] == '#') {
+        comments++;
+        continue;
+      }
+      int cols = 0;
+      for (char *tok = strtok(line, " \n"); tok; tok = strtok(NULL, " \n")) {
+        char *end;
+        const double x = strtod(tok, &end);
+        assert_true(end != tok && isfinite(x));
+        cols++;
+      }
+      assert_int_equal(cols, 5 + 4 * 4);
+      rows++;
+    }
+    fclose(f);
+    assert_int_equal(comments, 4);
+    assert_int_equal(rows, (int)key_value(r.out, "nodes"));
     const double mu2 = key_value(r.out, "mu_2"), mu3 = key_value(r.out, "mu_3");
     const double mu_max = key_value(r.out, "mu_max"), lim = key_value(r.out, "fe_dt_limit");
     assert_true(key_value(r.out, "reconnections") == (c == 0 ? 1 : 2));
@@ -408,7 +459,10 @@ static void test_spectrum(void **state) {
   }
   run(&r, "spectrum", ini, NULL); /* not an HDF5 file */
   assert_int_equal(r.code, 2);
-  unlink(ini), unlink(h5);
+  run(&r, "spectrum", h5, "--vectors", "/nonexistent-dir/m.tsv", NULL);
+  assert_int_equal(r.code, 2);
+  assert_non_null(strstr(r.err, "does not exist"));
+  unlink(ini), unlink(h5), unlink(tsv);
   char xdmf[128];
   unlink(tmp_path(xdmf, sizeof xdmf, "spec.xdmf"));
 }

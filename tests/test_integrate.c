@@ -324,10 +324,14 @@ static void test_flow_spectrum(void **state) {
    * bottom of this spectrum is a cluster, -0.048 -0.047 -0.030 -0.027 ...) */
   const double los[2] = {w[0] - 0.1 * (w[1] - w[0]), 0.5 * (w[2] + w[3])};
   const int below[2] = {0, 3};
+  double *vec = malloc(3 * (size_t)n * sizeof *vec), *Kv = malloc((size_t)n * sizeof *Kv);
+  double *Av = malloc((size_t)n * sizeof *Av), *J2 = malloc((size_t)m * n * sizeof *J2);
+  assert_true(vec && Kv && Av && J2);
+  assert_int_equal(ves_step_eval_jac(st, x0, J2), VES_OK);
   for (int c = 0; c < 2; c++) {
     double mu[3], err[3];
     int nb = -1;
-    assert_int_equal(ves_step_modes(st, sigma, los[c], 60, 3, mu, err, &nb), VES_OK);
+    assert_int_equal(ves_step_modes(st, sigma, los[c], 60, 3, mu, err, vec, &nb), VES_OK);
     printf("# modes above %.6g: %d below; mu = %.8e %.8e %.8e (error bounds %.1e %.1e %.1e)\n",
            los[c], nb, mu[0], mu[1], mu[2], err[0], err[1], err[2]);
     assert_int_equal(nb, below[c]);
@@ -335,16 +339,63 @@ static void test_flow_spectrum(void **state) {
       const double d = fabs(mu[j] - w[below[c] + j]);
       assert_true(d <= 1e-7 * scale);
       assert_true(d <= 10 * err[j] + 1e-12 * scale); /* the bound is honest */
+      /* the Ritz vector: tangent (J v = 0 to rounding of the K-solves,
+       * 1e-12 of |J| |v|), K-normalized (1e-12), and an eigenvector: the
+       * tangent part of (A - mu K) v, relative to |K v| mu_max, below the
+       * eigenvalue's own accuracy (1e-7 of mu_max, above) */
+      const double *v = vec + (size_t)j * n;
+      double vKv = 0, jn[2] = {0, 0}, jv[2] = {0, 0}, vn = 0, kn = 0, rn = 0;
+      ves_pattern_symv(p, K, v, Kv);
+      ves_pattern_symv(p, H, v, Av);
+      for (int i = 0; i < n; i++) {
+        vKv += v[i] * Kv[i], vn += v[i] * v[i], kn += Kv[i] * Kv[i];
+        Av[i] -= mu[j] * Kv[i]; /* r = (A - mu K) v */
+        for (int q = 0; q < m; q++)
+          jv[q] += J2[(size_t)q * n + i] * v[i],
+              jn[q] += J2[(size_t)q * n + i] * J2[(size_t)q * n + i];
+      }
+      /* remove r's component in the range of J^T: r - J^T (J J^T)^-1 J r */
+      double G[3] = {0, 0, 0}, g[2] = {0, 0};
+      for (int i = 0; i < n; i++) {
+        G[0] += J2[i] * J2[i], G[1] += J2[i] * J2[n + i], G[2] += J2[n + i] * J2[n + i];
+        g[0] += J2[i] * Av[i], g[1] += J2[n + i] * Av[i];
+      }
+      const double det = G[0] * G[2] - G[1] * G[1];
+      const double c0 = (G[2] * g[0] - G[1] * g[1]) / det, c1 = (G[0] * g[1] - G[1] * g[0]) / det;
+      for (int i = 0; i < n; i++) {
+        const double ri = Av[i] - c0 * J2[i] - c1 * J2[n + i];
+        rn += ri * ri;
+      }
+      const double rel = sqrt(rn / kn) / scale;
+      printf("#   vector %d: v^T K v - 1 = %.1e, |J v| / (|J| |v|) = %.1e %.1e, tangent "
+             "residual / (|K v| mu_max) = %.1e\n",
+             j + 1, vKv - 1, fabs(jv[0]) / sqrt(jn[0] * vn), fabs(jv[1]) / sqrt(jn[1] * vn), rel);
+      /* mu = v^T A v split over the functionals (ves_step_curvatures): the
+       * same number from three separate assemblies (rounding of sums over
+       * ~1e5 terms: 1e-9 of mu_max) */
+      double cv[3];
+      assert_int_equal(ves_step_curvatures(st, v, cv), VES_OK);
+      const double split = cv[0] + sigma[0] * cv[1] + sigma[1] * cv[2];
+      printf("#   vector %d: E'' %.6e + sigma_A A'' %.6e + sigma_V V'' %.6e = %.9e (mu %.9e)\n",
+             j + 1, cv[0], sigma[0] * cv[1], sigma[1] * cv[2], split, mu[j]);
+      assert_true(fabs(split - mu[j]) <= 1e-9 * scale);
+      assert_true(fabs(vKv - 1) <= 1e-11); /* measured <= 1.5e-13 */
+      for (int q = 0; q < m; q++) assert_true(fabs(jv[q]) <= 1e-12 * sqrt(jn[q] * vn));
+      assert_true(rel <= 1e-7);
     }
   }
   /* arguments */
   double mu1;
-  assert_int_equal(ves_step_modes(st, sigma, 0, 60, 0, &mu1, NULL, NULL), VES_ERR_ARG);
-  assert_int_equal(ves_step_modes(st, sigma, 0, 1, 1, &mu1, NULL, NULL), VES_ERR_ARG);
-  assert_int_equal(ves_step_modes(st, NULL, 0, 60, 1, &mu1, NULL, NULL), VES_ERR_ARG);
-  assert_int_equal(ves_step_modes(st, sigma, NAN, 60, 1, &mu1, NULL, NULL), VES_ERR_ARG);
-  assert_int_equal(ves_step_modes(NULL, sigma, 0, 60, 1, &mu1, NULL, NULL), VES_ERR_ARG);
+  assert_int_equal(ves_step_modes(st, sigma, 0, 60, 0, &mu1, NULL, NULL, NULL), VES_ERR_ARG);
+  assert_int_equal(ves_step_modes(st, sigma, 0, 1, 1, &mu1, NULL, NULL, NULL), VES_ERR_ARG);
+  assert_int_equal(ves_step_modes(st, NULL, 0, 60, 1, &mu1, NULL, NULL, NULL), VES_ERR_ARG);
+  assert_int_equal(ves_step_modes(st, sigma, NAN, 60, 1, &mu1, NULL, NULL, NULL), VES_ERR_ARG);
+  assert_int_equal(ves_step_modes(NULL, sigma, 0, 60, 1, &mu1, NULL, NULL, NULL), VES_ERR_ARG);
+  double cv3[3];
+  assert_int_equal(ves_step_curvatures(st, NULL, cv3), VES_ERR_ARG);
+  assert_int_equal(ves_step_curvatures(NULL, vec, cv3), VES_ERR_ARG);
   free(y), free(H), free(x0), free(J), free(Ad), free(Kd), free(At), free(Kt), free(w);
+  free(vec), free(Kv), free(Av), free(J2);
   ves_step_destroy(&st);
   ves_setup_destroy(&s);
 }

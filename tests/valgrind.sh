@@ -40,7 +40,7 @@ case_ "newton, resets every step" run $P $TINY --set reconnect.every=1 --max-ste
   --out "$D/a.h5"
 case_ "restart after the resets" run --restart "$D/a.h5" --max-steps 3 --quiet
 case_ info info "$D/a.h5"
-case_ "spectrum after the resets" spectrum "$D/a.h5" --modes 2 --lanczos 10
+case_ "spectrum after the resets" spectrum "$D/a.h5" --modes 2 --lanczos 10 --vectors "$D/m.tsv"
 case_ ipopt run $P $TINY --backend ipopt --max-steps 1 --quiet --out "$D/b.h5"
 case_ euler run $P $TINY --backend euler --max-steps 2 --quiet --out "$D/c.h5"
 echo "$pass passed, $fail failed"

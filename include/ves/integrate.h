@@ -174,4 +174,12 @@ void ves_sim_initial(const ves_sim *s, double *E, double *A, double *V); /* at t
  * state is never changed. */
 ves_status ves_sim_node_material(ves_sim *s, double *x, double *phi);
 
+/* The motion that coefficients u[2n] (per node (r, z), a displacement or a
+ * velocity field, fixed components included) give at the current
+ * reference's nodes: du(X_a) = sum_b p_b(X_a) u^b over the nodes and their
+ * mirrored ghosts, into du[2n] (linear in u; with u = y it is the x of
+ * ves_sim_node_material). Builds the point set at the nodes on first use, as
+ * ves_sim_node_material does; VES_ERR_ARG or its errors. */
+ves_status ves_sim_motion_at_nodes(ves_sim *s, const double *u, double *du);
+
 #endif

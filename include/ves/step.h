@@ -99,7 +99,9 @@ ves_status ves_step_stiffness(ves_step *s, const double *sigma, int iters, doubl
  * box). Shift and invert: Lanczos on P (A - mu_lo K)^-1 K, at most `iters`
  * steps; mu[nwant] (ascending, the nwant lowest found above mu_lo; NAN
  * where fewer were found), err[nwant] (may be NULL) their Ritz error bounds
- * (1/t*, good when the eigenvalue is separated); *nbelow (may be NULL) the
+ * (1/t*, good when the eigenvalue is separated); vec[nwant * nvar] (may be
+ * NULL) the Ritz vectors, in the order of mu, K-normalized (v^T K v = 1;
+ * NAN where mu is); *nbelow (may be NULL) the
  * exact number of eigenvalues below mu_lo (the inertia of [A - mu_lo K,
  * J^T; J 0] from MUMPS). mu_lo must not be an eigenvalue (a singular
  * factorization: VES_ERR_SINGULAR). Allocates and factorizes (an analysis,
@@ -108,7 +110,15 @@ ves_status ves_step_stiffness(ves_step *s, const double *sigma, int iters, doubl
  * constraints), errors of the assembly or the factorization, VES_ERR_NOCONV
  * (dstev failed), VES_ERR_ALLOC. */
 ves_status ves_step_modes(ves_step *s, const double *sigma, double mu_lo, int iters, int nwant,
-                          double *mu, double *err, int *nbelow);
+                          double *mu, double *err, double *vec, int *nbelow);
+
+/* The curvatures of the three functionals along a direction v[nvar] (free
+ * dofs) at y^n: curv = (v^T Hess E v, v^T Hess A v, v^T Hess V v), units of
+ * E, A, V per |v|^2. For a K-normalized mode of ves_step_modes, mu = curv[0]
+ * + sigma_A curv[1] + sigma_V curv[2] over the held constraints: which of
+ * them makes mu what it is. Allocates (an analysis); VES_ERR_ARG, errors of
+ * the assembly, VES_ERR_ALLOC. */
+ves_status ves_step_curvatures(ves_step *s, const double *v, double curv[3]);
 
 /* The model, y^n and parameters of the current step. */
 ves_model *ves_step_model(ves_step *s);
