@@ -21,6 +21,7 @@
 #include "ves/integrate.h"
 #include "ves/io.h"
 #include "ves/plot.h"
+#include "ves/quad.h"
 #include "ves/reconnect.h"
 #include "ves/setup.h"
 #include "clock_impl.h"
@@ -861,7 +862,14 @@ static void usage_info(FILE *f) {
              "  reduced_volume_initial, reduced_volume_final, dt_first, dt_largest, retries,\n"
              "  reconnections, newton_iterations (the backend's iterations in all: Newton steps,\n"
              "  Ipopt iterations, ...), hessian_evaluations, wall_seconds (time loop, over\n"
-             "  restarts), setup_seconds, source;\n"
+             "  restarts), setup_seconds;\n"
+             "  interface_area, interface_volume, interface_reduced_volume and\n"
+             "  node_triangles_inverted, each _initial (first snapshot) and _final (last): the\n"
+             "  sharp interface the nodes show, phi = 0 of the piecewise-linear phi at the nodes\n"
+             "  on the reference triangles moved to the material positions (a check of the\n"
+             "  phase-field A and V against that geometry; inverted triangles: the motion folds\n"
+             "  at the scale of the nodes; not for format_version 1 files);\n"
+             "  source;\n"
              "then every parameter as section.key = value.\n");
 }
 
@@ -869,6 +877,32 @@ static void usage_info(FILE *f) {
 static double reduced_volume(double A, double V) {
   double R0 = sqrt(A / (4 * M_PI));
   return V / (4.0 / 3.0 * M_PI * R0 * R0 * R0);
+}
+
+/* The sharp interface the nodes show at the first and the last snapshot
+ * (format_version >= 2: material positions x and phi at the nodes): the
+ * level set phi = 0 of the piecewise-linear phi on the reference triangles
+ * mapped to x, a check of the phase-field A and V against the geometry. */
+static void interface_lines(ves_io *io, const ves_io_info *in) {
+  const int S = ves_io_snapshots(io), n = in->n;
+  if (in->format_version < 2 || S < 1) return;
+  double *x = malloc(2 * (size_t)n * sizeof *x), *phi = malloc((size_t)n * sizeof *phi);
+  int *tri = malloc(3 * (size_t)in->ntri * sizeof *tri);
+  if (x && phi && tri && ves_io_read_mesh(io, NULL, tri) == VES_OK) {
+    const int ks[2] = {0, S - 1};
+    const char *when[2] = {"initial", "final"};
+    for (int c = 0; c < 2; c++) {
+      ves_level_set ls;
+      if (ves_io_read_snapshot(io, ks[c], NULL, x, phi, NULL) != VES_OK ||
+          ves_quad_level_set(n, in->ntri, tri, x, phi, &ls) != VES_OK)
+        continue; /* a snapshot without x and phi (NaN): nothing to show */
+      printf("interface_area_%s = %.9g\ninterface_volume_%s = %.9g\n", when[c], ls.area, when[c],
+             ls.volume);
+      printf("interface_reduced_volume_%s = %.9g\n", when[c], reduced_volume(ls.area, ls.volume));
+      printf("node_triangles_inverted_%s = %d\n", when[c], ls.inverted);
+    }
+  }
+  free(x), free(phi), free(tri);
 }
 
 static int cmd_info(int argc, char **argv) {
@@ -951,6 +985,7 @@ static int cmd_info(int argc, char **argv) {
     printf("newton_iterations = %.0f\nhessian_evaluations = %.0f\n", iters, hes);
     printf("wall_seconds = %.3f\nsetup_seconds = %.3f\n", R ? col[10][R - 1] : 0.0,
            in->setup_seconds);
+    interface_lines(io, in);
     printf("source = %s\n", in->source);
     for (int i = 0; i < ves_config_count(); i++) {
       ves_config_entry e;
