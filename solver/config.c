@@ -113,6 +113,9 @@ static const key_spec KEYS[] = {
      "iterations per attempt of a step; an attempt that needs more is retried at dt/2"},
     {"solver", "freeze_hessian", KEY_INT, OFF(freeze_hessian), "1", 0, 1, NULL,
      "newton: assemble the Hessian once per step (paper)"},
+    {"solver", "drift_damping", KEY_DOUBLE, OFF(drift_damping), "0", 0, 1e6, NULL,
+     "viscous penalty alpha on the rate of the coefficient drift y^a - y(X_a), added to the "
+     "dissipation (0: off; see bench/RESULTS.md)"},
     {"reconnect", "every", KEY_INT, OFF(reconnect_every), "0", 0, 1000000, NULL,
      "reset the reference configuration to the current positions every this many accepted "
      "steps (paper Fig. 5: 20; 0: off)"},

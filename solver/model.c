@@ -124,6 +124,11 @@ struct ves_model {
                          most nodes and their pattern rows stay in cache */
   model_ws *ws;       /* nthr workspaces */
   double *ev;         /* 3 nq: per-point w e of E, A, V (summed in point order) */
+  /* Drift damping (par.drift > 0, else NULL): the points at the nodes with
+   * their tables, and the block values of the constant matrix S added to K
+   * (drift_build). */
+  ves_quad *qn; /* n points at the nodes (ves_quad_create_at_nodes) */
+  double *dblk; /* 4 ptr[n] block values of S in the pattern */
 };
 
 static int omp_threads(void) {
@@ -199,6 +204,8 @@ void ves_model_destroy(ves_model **m) {
     for (int k = 0; k < p->nthr; k++) ws_free(p->ws + k);
   free(p->ws);
   free(p->ev);
+  ves_quad_destroy(&p->qn);
+  free(p->dblk);
   free(p);
   *m = NULL;
 }
@@ -399,6 +406,68 @@ done:
   return s;
 }
 
+/* The drift-damping matrix S (model.h, ves_model_params.drift):
+ *   u^T S u = sum_a c_a |u^a - u(X_a)|^2,  c_a = drift mu 2 pi M_a / h_a^2,
+ *   M_a = sum_alpha w_alpha R_alpha P_a(X_alpha)  (P_a: p_a plus its ghost's),
+ * with u(X_a) = sum_b N_ab u^b from the tables at the nodes (a ghost entry
+ * carries -u_r, +u_z). Per component i, S_i = sum_a c_a d_ia d_ia^T with
+ * d_ia = e_a - N_i(a, .): r and z decouple, so only the rr and zz entries of
+ * the blocks are set. M_a is node a's share of the r-weighted reference
+ * measure (the lumped mass of the basis; > 0 on the axis too). Wall nodes
+ * (fixed, no drift) have no term: their points at the nodes lie 1e-3 h_a
+ * inside the hull, where an affine motion differs from its nodal value. */
+static ves_status drift_build(ves_model *m) {
+  const ves_quad *q = m->q, *qn = m->qn;
+  const int n = m->nodes->n;
+  const ves_pattern *pat = m->pat;
+  double *M = calloc((size_t)n, sizeof *M);
+  int *nb = malloc(((size_t)qn->ptr[n] + 1) * sizeof *nb);
+  double *dr = malloc(((size_t)qn->ptr[n] + 1) * sizeof *dr);
+  double *dz = malloc(((size_t)qn->ptr[n] + 1) * sizeof *dz);
+  m->dblk = calloc(4 * (size_t)pat->ptr[n] + 1, sizeof *m->dblk);
+  ves_status s = VES_ERR_ALLOC;
+  if (!M || !nb || !dr || !dz || !m->dblk)
+    goto done;
+  for (int al = 0; al < q->nq; al++) /* M_a = sum w R P_a */
+    for (int k = q->ptr[al]; k < q->ptr[al + 1]; k++)
+      M[q->nbr[k]] += q->w[al] * q->x[2 * (size_t)al] * q->tab[6 * (size_t)q->ptr[al] + (k - q->ptr[al])];
+  for (int a = 0; a < n; a++) {
+    if (m->nodes->flag[a] & VES_NODE_WALL) /* fixed, u = 0 there; and its point sits */
+      continue;                            /* off the hull, so no exact reproduction */
+    const int k0 = qn->ptr[a], mk = qn->ptr[a + 1] - k0;
+    const double *p = qn->tab + 6 * (size_t)k0; /* value row */
+    int cnt = 0;
+    for (int k = 0; k < mk; k++) { /* fold: d_b = delta_ab - sum of the entries of b */
+      int b = qn->nbr[k0 + k], j = 0;
+      while (j < cnt && nb[j] != b) j++;
+      if (j == cnt)
+        nb[cnt] = b, dr[cnt] = dz[cnt] = 0, cnt++;
+      dr[j] -= qn->mirror[k0 + k] ? -p[k] : p[k];
+      dz[j] -= p[k];
+    }
+    int j = 0;
+    while (j < cnt && nb[j] != a) j++;
+    if (j == cnt)
+      nb[cnt] = a, dr[cnt] = dz[cnt] = 0, cnt++;
+    dr[j] += 1, dz[j] += 1;
+    const double h = m->nodes->h[a];
+    const double c = m->par.drift * m->par.mu * 2 * M_PI * M[a] / (h * h);
+    for (int i = 0; i < cnt; i++)
+      for (int k = 0; k < cnt; k++) {
+        if (nb[k] > nb[i])
+          continue;
+        long t = ves_pattern_find(pat, nb[i], nb[k]);
+        assert(t >= 0); /* the pattern holds the couplings of the points at the nodes */
+        m->dblk[4 * t] += c * dr[i] * dr[k];
+        m->dblk[4 * t + 3] += c * dz[i] * dz[k];
+      }
+  }
+  s = VES_OK;
+done:
+  free(M), free(nb), free(dr), free(dz);
+  return s;
+}
+
 /* The model from checked arguments and point data pd[6 nq] (copied): the
  * common part of ves_model_create and ves_model_create_points. */
 static ves_status model_build(const ves_nodes *nodes, const ves_quad *q, const double *pd,
@@ -444,8 +513,15 @@ static ves_status model_build(const ves_nodes *nodes, const ves_quad *q, const d
   }
   if ((s = make_slabs(m)) != VES_OK || (s = order_triangles(m)) != VES_OK)
     goto fail;
-  s = ves_pattern_create(q, n, m->fixed, &m->pat);
+  if (par->drift > 0) { /* the points at the nodes, on the same LME parameters */
+    if ((s = ves_quad_create_at_nodes(nodes, &m->qn)) != VES_OK ||
+        (s = ves_quad_tables(m->qn, nodes, &q->lme, NULL)) != VES_OK)
+      goto fail;
+  }
+  s = ves_pattern_create(q, m->qn, n, m->fixed, &m->pat);
   if (s != VES_OK)
+    goto fail;
+  if (m->qn && (s = drift_build(m)) != VES_OK)
     goto fail;
   *out = m;
   return VES_OK;
@@ -459,7 +535,7 @@ ves_status ves_model_create_points(const ves_nodes *nodes, const ves_quad *q, co
   VES_CHECK(out, VES_ERR_ARG);
   *out = NULL; /* on every error path */
   VES_CHECK(nodes && q && q->tab && pd && par, VES_ERR_ARG);
-  VES_CHECK(par->eps > 0 && par->k > 0 && par->mu >= 0, VES_ERR_ARG);
+  VES_CHECK(par->eps > 0 && par->k > 0 && par->mu >= 0 && par->drift >= 0 && isfinite(par->drift), VES_ERR_ARG);
   VES_CHECK(q->nq == NPT * q->ntri, VES_ERR_ARG);
   for (size_t i = 0; i < 6 * (size_t)q->nq; i++)
     VES_CHECK(isfinite(pd[i]), VES_ERR_ARG);
@@ -473,7 +549,7 @@ ves_status ves_model_create(const ves_nodes *nodes, const ves_quad *q, const dou
   VES_CHECK(out, VES_ERR_ARG);
   *out = NULL; /* on every error path */
   VES_CHECK(nodes && q && q->tab && phi0c && par, VES_ERR_ARG);
-  VES_CHECK(par->eps > 0 && par->k > 0 && par->mu >= 0, VES_ERR_ARG);
+  VES_CHECK(par->eps > 0 && par->k > 0 && par->mu >= 0 && par->drift >= 0 && isfinite(par->drift), VES_ERR_ARG);
   VES_CHECK(q->nq == NPT * q->ntri, VES_ERR_ARG);
   double *fld = malloc(6 * (size_t)q->nq * sizeof *fld);
   if (!fld)
@@ -825,7 +901,10 @@ ves_status ves_model_hessian(ves_model *m, const double *y, double cE, double cA
 ves_status ves_model_dissipation(ves_model *m, const double *y, double *blk) {
   VES_CHECK(m && y && blk, VES_ERR_ARG);
   const double fac[3] = {0, 0, 0};
-  return assemble(m, ASM_DISS, fac, y, blk);
+  VES_CALL(assemble(m, ASM_DISS, fac, y, blk));
+  if (m->dblk) /* K + S: the drift damping */
+    for (size_t i = 0; i < 4 * (size_t)m->pat->ptr[m->nodes->n]; i++) blk[i] += m->dblk[i];
+  return VES_OK;
 }
 
 ves_status ves_model_pointwise_W(ves_model *m, const double *y, double *W) {

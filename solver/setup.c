@@ -133,7 +133,8 @@ ves_status ves_setup_create(const ves_config *cfg, ves_phi0_method method, ves_s
   s->seconds_project = ves_wall_seconds() - t;
 
   ves_model_params mp = {.eps = cfg->epsilon, .c0 = cfg->c0, .k = cfg->k, .mu = cfg->mu,
-                         .lambda = cfg->lambda_ratio * cfg->mu};
+                         .lambda = cfg->lambda_ratio * cfg->mu,
+                         .drift = cfg->drift_damping};
   if ((st = ves_model_create(s->nodes, s->quad, s->phi0c, &mp, &s->model)) != VES_OK)
     FAIL(st, "model: %s", ves_status_str(st));
   s->seconds_total = ves_wall_seconds() - t0;

@@ -123,7 +123,7 @@ static int cmp_int(const void *x, const void *y) {
  * the nodes b <= a that alpha sees (the head of alpha's sorted list up to a),
  * columns ascending. One pass, cost ~ sum_alpha m_alpha^2 / 2, once per
  * configuration; the column array grows by doubling. */
-static ves_status node_pattern(const folded *fo, int n, int **ptr_out, int **col_out) {
+static ves_status node_pattern(const folded *fos, int nfo, int n, int **ptr_out, int **col_out) {
   int *ptr = calloc((size_t)n + 1, sizeof *ptr), *col = NULL;
   int *mark = malloc((size_t)n * sizeof *mark);
   size_t cap = 0, used = 0;
@@ -131,20 +131,23 @@ static ves_status node_pattern(const folded *fo, int n, int **ptr_out, int **col
   if (!ptr || !mark) goto done;
   for (int a = 0; a < n; a++) mark[a] = -1;
   for (int a = 0; a < n; a++) {
-    for (int t = fo->npt[a]; t < fo->npt[a + 1]; t++) {
-      int al = fo->pts[t];
-      if (cap - used < (size_t)(fo->fptr[al + 1] - fo->fptr[al])) { /* room for a whole list */
-        size_t c = cap ? 2 * cap : 1 << 16;
-        while (c - used < (size_t)(fo->fptr[al + 1] - fo->fptr[al])) c *= 2;
-        int *tmp = realloc(col, c * sizeof *col);
-        if (!tmp) goto done;
-        col = tmp, cap = c;
-      }
-      for (int k = fo->fptr[al]; k < fo->fptr[al + 1] && fo->fnbr[k] <= a; k++) {
-        int b = fo->fnbr[k];
-        if (mark[b] == a) continue;
-        mark[b] = a;
-        col[used++] = b;
+    for (int f = 0; f < nfo; f++) { /* the union over the point sets */
+      const folded *fo = fos + f;
+      for (int t = fo->npt[a]; t < fo->npt[a + 1]; t++) {
+        int al = fo->pts[t];
+        if (cap - used < (size_t)(fo->fptr[al + 1] - fo->fptr[al])) { /* room for a whole list */
+          size_t c = cap ? 2 * cap : 1 << 16;
+          while (c - used < (size_t)(fo->fptr[al + 1] - fo->fptr[al])) c *= 2;
+          int *tmp = realloc(col, c * sizeof *col);
+          if (!tmp) goto done;
+          col = tmp, cap = c;
+        }
+        for (int k = fo->fptr[al]; k < fo->fptr[al + 1] && fo->fnbr[k] <= a; k++) {
+          int b = fo->fnbr[k];
+          if (mark[b] == a) continue;
+          mark[b] = a;
+          col[used++] = b;
+        }
       }
     }
     ptr[a + 1] = (int)used;
@@ -161,17 +164,19 @@ done:
   return s;
 }
 
-ves_status ves_pattern_create(const ves_quad *q, int n, const unsigned char *fixed,
-                              ves_pattern **out) {
-  VES_CHECK(q && q->tab && fixed && out && n > 0, VES_ERR_ARG);
+ves_status ves_pattern_create(const ves_quad *q, const ves_quad *q2, int n,
+                              const unsigned char *fixed, ves_pattern **out) {
+  VES_CHECK(q && q->tab && (!q2 || q2->tab) && fixed && out && n > 0, VES_ERR_ARG);
   *out = NULL;
-  folded fo = {0};
+  folded fo[2] = {{0}, {0}};
+  const int nfo = q2 ? 2 : 1;
   ves_pattern *p = calloc(1, sizeof *p);
-  ves_status s = p ? folded_create(q, n, 0, &fo) : VES_ERR_ALLOC;
+  ves_status s = p ? folded_create(q, n, 0, fo) : VES_ERR_ALLOC;
+  if (s == VES_OK && q2) s = folded_create(q2, n, 0, fo + 1);
   if (s != VES_OK) goto fail;
   p->n = n;
-  s = node_pattern(&fo, n, &p->ptr, &p->col);
-  folded_free(&fo); /* not needed past the node pattern */
+  s = node_pattern(fo, nfo, n, &p->ptr, &p->col);
+  folded_free(fo), folded_free(fo + 1); /* not needed past the node pattern */
   if (s != VES_OK) goto fail;
   s = VES_ERR_ALLOC;
   /* free dofs and the lower triplets over them */
@@ -210,7 +215,7 @@ ves_status ves_pattern_create(const ves_quad *q, int n, const unsigned char *fix
   p = NULL;
 fail:
   ves_pattern_destroy(&p);
-  folded_free(&fo);
+  folded_free(fo), folded_free(fo + 1);
   return s;
 }
 
@@ -421,7 +426,7 @@ ves_status ves_sparse_project_l2(const ves_quad *q, int n, const double *f, doub
       s = VES_ERR_SINGULAR;
       goto done;
     }
-  if ((s = node_pattern(&fo, n, &ptr, &col)) != VES_OK) goto done;
+  if ((s = node_pattern(&fo, 1, n, &ptr, &col)) != VES_OK) goto done;
   s = VES_ERR_ALLOC;
   int nnz = ptr[n];
   pos = malloc((size_t)n * sizeof *pos);

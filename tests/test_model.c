@@ -1059,6 +1059,133 @@ static void test_errors(void **state) {
   free(y), free(g), free(blk), free(W);
 }
 
+/* u^T M u over all 2n dofs from block values blk of pattern pat (lower
+ * blocks; an off-diagonal block counts twice). */
+static double blk_quadratic(const ves_pattern *pat, const double *blk, const double *u) {
+  double sum = 0;
+  for (int a = 0; a < pat->n; a++)
+    for (int t = pat->ptr[a]; t < pat->ptr[a + 1]; t++) {
+      const int b = pat->col[t];
+      const double *B = blk + 4 * (size_t)t;
+      double v = 0;
+      for (int i = 0; i < 2; i++)
+        for (int j = 0; j < 2; j++) v += u[2 * a + i] * B[2 * i + j] * u[2 * b + j];
+      sum += a == b ? v : 2 * v;
+    }
+  return sum;
+}
+
+/* The drift damping (ves_model_params.drift): K_alpha - K_0 = S with
+ *   u^T S u = sum_a c_a |u^a - u(X_a)|^2,  c_a = alpha mu 2 pi M_a / h_a^2,
+ * (a over the nodes off the wall), the reference computed here from the
+ * definition: u(X_a) by
+ * ves_quad_motion on a point set at the nodes built here, M_a summed from
+ * the quadrature tables. Checked for random u (the model's assembly: the
+ * folding of ghosts with the sign of r, the pattern's union), on affine
+ * motions (zero: LME reproduces them, so S leaves uniform strains and
+ * translations alone), and on a smooth motion (small against K: O((h/L)^2)).
+ * Tolerances: the S part is a difference of two sums of ~1e5 products of
+ * either sign, so 1e-10 of |u^T K_0 u| + |u^T S u| is a rounding bound with a
+ * wide margin; affine: the reference is ~1e-16 per node of
+ * sum_b |p_b||u^b|, so 1e-10 of the random case's value. */
+static void test_drift_damping(void **state) {
+  (void)state;
+  problem *P = P1;
+  const int n = P->n, n2 = 2 * n;
+  const double alpha = 0.7;
+  const ves_model_params par = {.eps = P->cfg.epsilon, .c0 = P->cfg.c0, .k = P->cfg.k,
+                                .mu = P->cfg.mu, .lambda = P->cfg.lambda_ratio * P->cfg.mu,
+                                .drift = alpha};
+  const ves_quad *q = P->s->quad;
+  ves_model *m = NULL;
+  assert_int_equal(ves_model_create(P->s->nodes, q, P->s->phi0c, &par, &m), VES_OK);
+  const ves_pattern *pd = ves_model_pattern(m);
+  /* the pattern holds the undamped one, the same free dofs */
+  assert_int_equal(pd->nfree, P->pat->nfree);
+  for (int a = 0; a < n; a++)
+    for (int t = P->pat->ptr[a]; t < P->pat->ptr[a + 1]; t++)
+      assert_true(ves_pattern_find(pd, a, P->pat->col[t]) >= 0);
+  printf("# drift damping: pattern %d blocks (undamped %d)\n", pd->ptr[n], P->pat->ptr[n]);
+  double *Kd = xmalloc(4 * (size_t)pd->ptr[n]), *K0 = xmalloc(blk_len(P));
+  assert_int_equal(ves_model_dissipation(m, P->y, Kd), VES_OK);
+  assert_int_equal(ves_model_dissipation(P->s->model, P->y, K0), VES_OK);
+  /* the reference */
+  ves_quad *qn = NULL;
+  assert_int_equal(ves_quad_create_at_nodes(P->s->nodes, &qn), VES_OK);
+  assert_int_equal(ves_quad_tables(qn, P->s->nodes, &q->lme, NULL), VES_OK);
+  double *M = calloc((size_t)n, sizeof *M);
+  assert_non_null(M);
+  double Msum = 0, Mref = 0;
+  for (int al = 0; al < q->nq; al++) {
+    for (int k = q->ptr[al]; k < q->ptr[al + 1]; k++)
+      M[q->nbr[k]] += q->w[al] * q->x[2 * al] * q->tab[6 * (size_t)q->ptr[al] + (k - q->ptr[al])];
+    Mref += q->w[al] * q->x[2 * al];
+  }
+  double Mmin = INFINITY;
+  for (int a = 0; a < n; a++) Msum += M[a], Mmin = fmin(Mmin, M[a]);
+  /* partition of unity: sum_a M_a = int R dR dZ over the box = LR^2 LZ */
+  const double LR = P->s->nodes->LR, LZ = P->s->nodes->LZ;
+  printf("# M: sum %.15f (quadrature %.15f, box LR^2 LZ %.15f), min %.3e\n", Msum, Mref,
+         LR * LR * LZ, Mmin);
+  assert_true(fabs(Msum - Mref) <= 1e-12 * Mref);
+  assert_true(fabs(Mref - LR * LR * LZ) <= 1e-12 * Mref); /* degree-4 rule, R linear */
+  assert_true(Mmin > 0);                                 /* the axis nodes too */
+  double *u = xmalloc(n2);
+  uint64_t rng = 0x2545F4914F6CDD1DULL;
+  double qs_random = 0;
+  for (int kind = 0; kind < 3; kind++) { /* random, affine, smooth */
+    for (int a = 0; a < n; a++) {
+      const double R = P->X[2 * a], Z = P->X[2 * a + 1];
+      if (kind == 0)
+        u[2 * a] = 2 * urand(&rng) - 1, u[2 * a + 1] = 2 * urand(&rng) - 1;
+      else if (kind == 1) /* the admissible affine motions: r odd, z even in R */
+        u[2 * a] = 0.3 * R, u[2 * a + 1] = -0.2 * Z + 0.1;
+      else
+        u[2 * a] = P->y[2 * a] - R, u[2 * a + 1] = P->y[2 * a + 1] - Z;
+      if (kind == 0 && (P->s->nodes->flag[a] & VES_NODE_AXIS))
+        u[2 * a] = 0; /* r stays 0 on the axis */
+    }
+    double ref = 0;
+    for (int a = 0; a < n; a++) {
+      double out[12];
+      if (P->s->nodes->flag[a] & VES_NODE_WALL)
+        continue; /* fixed nodes: no term */
+      ves_quad_motion(qn, u, a, 0, out);
+      const double dr = u[2 * a] - out[0], dz = u[2 * a + 1] - out[6];
+      const double h = P->s->nodes->h[a];
+      ref += alpha * par.mu * 2 * M_PI * M[a] / (h * h) * (dr * dr + dz * dz);
+    }
+    const double qd = blk_quadratic(pd, Kd, u), q0 = blk_quadratic(P->pat, K0, u);
+    printf("# %s motion: u^T S u = %.6e (reference %.6e), u^T K_0 u = %.6e, ratio S/K_0 %.3e\n",
+           kind == 0 ? "random" : kind == 1 ? "affine" : "smooth", qd - q0, ref, q0,
+           (qd - q0) / q0);
+    if (kind == 0) {
+      qs_random = ref;
+      assert_true(fabs((qd - q0) - ref) <= 1e-10 * (fabs(q0) + ref));
+      assert_true(ref > 0);
+    } else if (kind == 1) {
+      assert_true(ref <= 1e-10 * qs_random);
+      assert_true(fabs(qd - q0) <= 1e-10 * (fabs(q0) + qs_random));
+    } else {
+      assert_true(fabs((qd - q0) - ref) <= 1e-10 * (fabs(q0) + ref));
+      /* a smooth motion (wavelength ~2 R0 against h 0.06-0.2): the defect
+       * is ~ (h^2 / (4 gamma)) Lap u, so S/K ~ alpha (h/L)^2 / (16 gamma^2),
+       * ~1e-3 for L ~ 1/3; measured 1.7e-4 */
+      assert_true(ref < 1e-2 * q0);
+    }
+  }
+  ves_model_params bad = par;
+  bad.drift = -1;
+  ves_model *mb = NULL;
+  assert_int_equal(ves_model_create(P->s->nodes, q, P->s->phi0c, &bad, &mb), VES_ERR_ARG);
+  bad.drift = NAN;
+  assert_int_equal(ves_model_create(P->s->nodes, q, P->s->phi0c, &bad, &mb), VES_ERR_ARG);
+  assert_null(mb);
+  ves_quad_destroy(&qn);
+  ves_model_destroy(&m);
+  free(Kd), free(K0), free(M), free(u);
+}
+
 int main(void) {
   setvbuf(stdout, NULL, _IOLBF, 0);
   const struct CMUnitTest tests[] = {
@@ -1067,6 +1194,7 @@ int main(void) {
       cmocka_unit_test(test_hessian_columns),
       cmocka_unit_test(test_hessian_direction),
       cmocka_unit_test(test_dissipation),
+      cmocka_unit_test(test_drift_damping),
       cmocka_unit_test(test_translation_invariance),
       cmocka_unit_test(test_locality),
       cmocka_unit_test(test_assembly_reference),

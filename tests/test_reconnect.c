@@ -911,6 +911,60 @@ static void test_due(void **state) {
   assert_int_equal(ves_reconnect_due(&par, m, P->yd, 0, NULL, NULL, NULL), VES_ERR_ARG);
 }
 
+/* The drift damping across a reset: the new model keeps the parameter and
+ * builds S on the NEW nodes. A model with drift 0.5 and one without, both
+ * reset at the deformed state: E, A, V of the new models bitwise equal (S
+ * is in K only); on the affine motion dy = (0.3 r, -0.2 z + 0.1) of the new
+ * reference the two K agree to rounding (S vanishes on motions affine in
+ * the new reference: a stale S on the old nodes would not, since dy is not
+ * affine in X there), and on a random motion the damped K is larger.
+ * 1e-12 of dy^T K dy: sums of ~1e5 products of either sign. */
+static void test_drift_reset(void **state) {
+  (void)state;
+  ves_model *m0 = P->su->model, *md = NULL;
+  const ves_quad *q = P->su->quad;
+  const int n2 = 2 * P->n;
+  ves_model_params par;
+  ves_model_get_params(m0, &par);
+  assert_true(par.drift == 0);
+  par.drift = 0.5;
+  double *pd = xmalloc(6 * (size_t)q->nq);
+  ves_model_point_data(m0, pd);
+  assert_int_equal(ves_model_create_points(P->su->nodes, q, pd, &par, &md), VES_OK);
+  ves_reconnect *r0 = reset(m0, P->yd), *rd = reset(md, P->yd);
+  ves_model *m1 = ves_reconnect_model(r0), *m1d = ves_reconnect_model(rd);
+  ves_model_params p1;
+  ves_model_get_params(m1d, &p1);
+  assert_true(p1.drift == 0.5);
+  double v1[3], v1d[3];
+  eav(m1, P->yd, v1);
+  eav(m1d, P->yd, v1d);
+  assert_memory_equal(v1, v1d, sizeof v1);
+  const ves_pattern *pa = ves_model_pattern(m1), *pb = ves_model_pattern(m1d);
+  double *ba = xmalloc(4 * (size_t)pa->ptr[P->n]), *bb = xmalloc(4 * (size_t)pb->ptr[P->n]);
+  double *dy = xmalloc(n2);
+  assert_int_equal(ves_model_dissipation(m1, P->yd, ba), VES_OK);
+  assert_int_equal(ves_model_dissipation(m1d, P->yd, bb), VES_OK);
+  for (int a = 0; a < P->n; a++)
+    dy[2 * a] = 0.3 * P->yd[2 * a], dy[2 * a + 1] = -0.2 * P->yd[2 * a + 1] + 0.1;
+  const double ka = blk_quad(pa, ba, dy), kb = blk_quad(pb, bb, dy);
+  unsigned long rng = 12345; /* a deterministic pseudo-random motion in [-1, 1) */
+  for (int i = 0; i < n2; i++)
+    rng = rng * 6364136223846793005UL + 1442695040888963407UL,
+    dy[i] = (double)(rng >> 11) * 0x1.0p-52 - 1;
+  for (int a = 0; a < P->n; a++)
+    if (P->su->nodes->flag[a] & (VES_NODE_AXIS | VES_NODE_WALL)) dy[2 * a] = 0;
+  const double ra = blk_quad(pa, ba, dy), rb = blk_quad(pb, bb, dy);
+  printf("# after the reset: affine dy^T K dy %.12e (undamped %.12e, rel diff %.1e); random "
+         "%.6e (undamped %.6e)\n",
+         kb, ka, fabs(kb - ka) / ka, rb, ra);
+  assert_true(fabs(kb - ka) <= 1e-12 * ka);
+  assert_true(rb > ra * (1 + 1e-3));
+  ves_reconnect_destroy(&r0), ves_reconnect_destroy(&rd);
+  ves_model_destroy(&md);
+  free(pd), free(ba), free(bb), free(dy);
+}
+
 /* ves_model_create_points from a model's own point data, nodes and
  * quadrature rebuilds the same model: E, A, V and gradients bitwise equal
  * (the same point data and the same assembly). ves_quad_create_points copies
@@ -1158,6 +1212,7 @@ int main(void) {
       cmocka_unit_test(test_push_forward_analytic),
       cmocka_unit_test(test_composed_field_fd),
       cmocka_unit_test(test_invariance),
+      cmocka_unit_test(test_drift_reset),
       cmocka_unit_test(test_near_identity),
       cmocka_unit_test(test_chain),
       cmocka_unit_test(test_next_step_similarity),

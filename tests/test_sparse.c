@@ -331,7 +331,7 @@ static void test_pattern(void **state) {
       for (int l = q->ptr[al]; l < q->ptr[al + 1]; l++)
         if (q->nbr[l] <= q->nbr[k]) coupled[(size_t)q->nbr[k] * n + q->nbr[l]] = 1;
   ves_pattern *p = NULL;
-  assert_int_equal(ves_pattern_create(q, n, fixed, &p), VES_OK);
+  assert_int_equal(ves_pattern_create(q, NULL, n, fixed, &p), VES_OK);
   long count = 0;
   for (int a = 0; a < n; a++)
     for (int b = 0; b < n; b++) {
@@ -401,9 +401,9 @@ static void test_pattern(void **state) {
   ves_pattern_destroy(&p);
   assert_null(p);
   ves_pattern_destroy(NULL);
-  assert_int_equal(ves_pattern_create(NULL, n, fixed, &p), VES_ERR_ARG);
-  assert_int_equal(ves_pattern_create(q, 0, fixed, &p), VES_ERR_ARG);
-  assert_int_equal(ves_pattern_create(q, n, NULL, &p), VES_ERR_ARG);
+  assert_int_equal(ves_pattern_create(NULL, NULL, n, fixed, &p), VES_ERR_ARG);
+  assert_int_equal(ves_pattern_create(q, NULL, 0, fixed, &p), VES_ERR_ARG);
+  assert_int_equal(ves_pattern_create(q, NULL, n, NULL, &p), VES_ERR_ARG);
   free(fixed);
   free(coupled);
   free(blk);

@@ -63,6 +63,7 @@ typedef struct {
   double tol, ctol;             /* optimality and constraint tolerances */
   int max_iter;                 /* iterations per attempt of a step (then dt/2) */
   int freeze_hessian;           /* newton: Hessian once per step */
+  double drift_damping;         /* alpha of the drift damping (model.h), 0: off */
   /* [reconnect] reference-configuration resets (all 0: none) */
   int reconnect_every;       /* accepted steps between resets (0: off) */
   double reconnect_cond_max; /* reset when max cond_2 F exceeds this (0: off, else > 1) */

@@ -21,6 +21,17 @@ typedef struct {
   double k;      /* bending stiffness (1 in reduced units) */
   double mu;     /* shear viscosity (1 in reduced units) */
   double lambda; /* penalty viscosity lambda (lambda/mu >= 10) */
+  double drift;  /* drift damping alpha >= 0 (dimensionless; 0: off): K gets
+                    the constant S with ydot^T S ydot =
+                    sum_a alpha mu 2 pi M_a / h_a^2 |ydot^a - ydot(X_a)|^2
+                    (a over the nodes off the wall),
+                    M_a = sum_alpha w_alpha R_alpha p_a(X_alpha) the node's
+                    r-weighted reference measure: a viscous penalty on the
+                    rate of the coefficients' departure from the motion at
+                    their nodes. Zero on affine motions (LME reproduces
+                    them), O((h/L)^2) of the dissipation on smooth ones,
+                    stiff on grid-scale coefficient patterns (bench/RESULTS.md,
+                    "Drift damping") */
 } ves_model_params;
 
 typedef struct ves_model ves_model;
@@ -77,7 +88,8 @@ ves_status ves_model_eval(ves_model *m, const double *y, int which, double *E, d
 ves_status ves_model_hessian(ves_model *m, const double *y, double cE, double cA, double cV,
                              double *blk);
 
-/* Block values of the dissipation matrix K(y): Diss = (1/2) ydot^T K ydot. */
+/* Block values of the dissipation matrix K(y): Diss = (1/2) ydot^T K ydot,
+ * K including the drift damping S (ves_model_params.drift). */
 ves_status ves_model_dissipation(ves_model *m, const double *y, double *blk);
 
 /* Pointwise W (units 1/R0) at every quadrature point, W[nq]. */

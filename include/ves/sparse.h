@@ -27,10 +27,12 @@ typedef struct {
 } ves_pattern;
 
 /* Build the pattern from the quadrature tables: a and b are coupled when some
- * point has both in its (ghost-folded) neighbour list. fixed[2n] flags the
- * fixed dofs (borrowed). *out taken by the caller. */
-ves_status ves_pattern_create(const ves_quad *q, int n, const unsigned char *fixed,
-                              ves_pattern **out);
+ * point has both in its (ghost-folded) neighbour list. q2 (may be NULL): a
+ * second point set with tables against the same n nodes whose couplings are
+ * added (the union; the model's drift damping uses the points at the nodes).
+ * fixed[2n] flags the fixed dofs (borrowed). *out taken by the caller. */
+ves_status ves_pattern_create(const ves_quad *q, const ves_quad *q2, int n,
+                              const unsigned char *fixed, ves_pattern **out);
 void ves_pattern_destroy(ves_pattern **p);
 
 /* Position of the block (a, b), b <= a, in the pattern, or -1. */
