@@ -26,7 +26,17 @@
  * results are bitwise the same for 1, 2, ... threads. E, A, V are summed in
  * point order and their gradients in point order, exactly as the earlier
  * per-point code did; the Hessian and K differ from a per-point assembly
- * by rounding only (sums regrouped per triangle). */
+ * by rounding only (sums regrouped per triangle).
+ *
+ * Drift damping (not in the paper; ves_model_params.drift, off by default):
+ * LME smooths, so coefficient patterns at the grid scale barely move the
+ * material (~1% on a sphere) and K, which sees only the motion at the
+ * points, hardly resists them; the discrete E has directions of negative
+ * curvature among them (relabeling modes, bench/RESULTS.md), and the
+ * coefficients drift from the material by up to 1e6 h over long runs. A
+ * constant S (drift_build) added to K penalizes the rate of y^a - y(X_a):
+ * zero on affine motions, O((h/L)^2) of K on smooth ones. Measured effect
+ * in bench/RESULTS.md, "Drift damping". */
 #include "ves/model.h"
 
 #include <assert.h>
