@@ -48,7 +48,11 @@ BENCHES  = $(patsubst bench/%.c,$(BUILD)/bench/%,$(wildcard bench/bench_*.c))
 BENCH_ONLY ?= 
 
 .PHONY: all deps test test-slow valgrind bench run clean format
-all: deps-quiet $(BUILD)/libvesica.a $(BUILD)/vesica
+# (a sub-make, as test and run do: the pkg-config flags above are read when
+# this Makefile is parsed, i.e. before deps installs ipopt and hdf5 on a
+# fresh machine)
+all: deps
+	@$(MAKE) --no-print-directory $(BUILD)/libvesica.a $(BUILD)/vesica
 
 $(BUILD)/obj/%.o: solver/%.c | $(BUILD)/obj
 	$(CC) $(CFLAGS) -c $< -o $@
@@ -85,8 +89,6 @@ deps:
 	else \
 	  echo "run as root: apt-get update && apt-get install -y --no-install-recommends$$missing"; exit 1; \
 	fi
-deps-quiet: deps
-.PHONY: deps-quiet
 
 test: deps
 	@$(MAKE) --no-print-directory $(BUILD)/libvesica.a $(BUILD)/vesica $(TESTS)

@@ -633,10 +633,13 @@ static void test_reconnect_failure(void **state) {
 
 /* Defaults: reconnection off, and the trajectory that of the code before
  * reconnection existed. The values were printed (%a) by that code, this
- * problem and parameters (t, dt, E*, sum_i y_i (1 + i mod 7)); compared to
- * 1e-13 relative: the same arithmetic, so equal unless the rounding differs
- * (measured: identical as the first test of the process, with 1 and 2
- * threads; 5e-14 after the other tests of this file in the same process). */
+ * problem and parameters (t, dt, E*, sum_i y_i (1 + i mod 7)). t and dt come
+ * from the controller's own arithmetic and must be equal; E* and the
+ * checksum of y go through MUMPS and OpenBLAS, whose kernels depend on the
+ * CPU: on the machine that printed them they were identical (1 and 2
+ * threads) and 5e-14 after the other tests of this process; on an AMD EPYC
+ * (2026-12-01) E* agrees to 1.3e-15 and the checksum to 2.5e-13, growing by
+ * ~4e-14 a step. Tolerances: E* 1e-14, the checksum 2e-12 (8x that). */
 static void test_reconnect_off(void **state) {
   (void)state;
   static const double want[6][4] = {
@@ -655,19 +658,23 @@ static void test_reconnect_off(void **state) {
   ip.t_end = 0.2, ip.dt_initial = 2e-3, ip.dt_max = 0.1, ip.dE_target = 0.05;
   ves_sim *sim = make_sim(s, "newton", &ip);
   ves_step_report rep;
-  double worst = 0;
+  double worstE = 0, worsty = 0;
   for (int n = 0; n < 6; n++) {
     assert_int_equal(ves_sim_step(sim, &rep), VES_OK);
     const double *y = ves_sim_y(sim);
     double sum = 0;
     for (int a = 0; a < 2 * s->nodes->n; a++) sum += y[a] * (1 + a % 7);
     const double got[4] = {rep.t, rep.dt, rep.E, sum};
-    for (int j = 0; j < 4; j++) worst = fmax(worst, fabs(got[j] / want[n][j] - 1));
+    assert_true(got[0] == want[n][0] && got[1] == want[n][1]);
+    worstE = fmax(worstE, fabs(got[2] / want[n][2] - 1));
+    worsty = fmax(worsty, fabs(got[3] / want[n][3] - 1));
     assert_int_equal(rep.reconnected, 0);
     assert_true(rep.cond == 0 && rep.det_min == 0); /* nothing measured */
   }
-  printf("# defaults: max relative difference to the stored trajectory %.1e\n", worst);
-  assert_true(worst <= 1e-13);
+  printf("# defaults: max relative difference to the stored trajectory: E* %.1e, y %.1e\n",
+         worstE, worsty);
+  assert_true(worstE <= 1e-14);
+  assert_true(worsty <= 2e-12);
   assert_int_equal(ves_sim_reconnections(sim), 0);
   ves_sim_destroy(&sim);
   ves_setup_destroy(&s);
