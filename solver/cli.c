@@ -869,6 +869,8 @@ static void usage_info(FILE *f) {
              "  on the reference triangles moved to the material positions (a check of the\n"
              "  phase-field A and V against that geometry; inverted triangles: the motion folds\n"
              "  at the scale of the nodes; not for format_version 1 files);\n"
+             "  interface_area_drift_max, interface_volume_drift_max (max over the snapshots\n"
+             "  of |A_I/A_I(initial) - 1|, |V_I/V_I(initial) - 1|), node_triangles_inverted_max;\n"
              "  source;\n"
              "then every parameter as section.key = value.\n");
 }
@@ -879,30 +881,39 @@ static double reduced_volume(double A, double V) {
   return V / (4.0 / 3.0 * M_PI * R0 * R0 * R0);
 }
 
-/* The sharp interface the nodes show at the first and the last snapshot
- * (format_version >= 2: material positions x and phi at the nodes): the
- * level set phi = 0 of the piecewise-linear phi on the reference triangles
- * mapped to x, a check of the phase-field A and V against the geometry. */
-static void interface_lines(ves_io *io, const ves_io_info *in) {
-  const int S = ves_io_snapshots(io), n = in->n;
-  if (in->format_version < 2 || S < 1) return;
-  double *x = malloc(2 * (size_t)n * sizeof *x), *phi = malloc((size_t)n * sizeof *phi);
-  int *tri = malloc(3 * (size_t)in->ntri * sizeof *tri);
-  if (x && phi && tri && ves_io_read_mesh(io, NULL, tri) == VES_OK) {
-    const int ks[2] = {0, S - 1};
+/* The sharp interface the nodes show (ves_plot_interface) at the first and
+ * the last snapshot, and its largest drift over the snapshots against the
+ * first: a check of the phase-field A and V against that geometry. */
+static void interface_lines(ves_io *io) {
+  const int S = ves_io_snapshots(io);
+  ves_level_set *ls = malloc((size_t)(S > 0 ? S : 1) * sizeof *ls);
+  unsigned char *ok = malloc((size_t)(S > 0 ? S : 1));
+  if (ls && ok && ves_plot_interface(io, ls, ok) == VES_OK) {
+    int k0 = 0, k1 = S - 1, inv = 0, seen = 0;
+    while (k0 < S && !ok[k0]) k0++;
+    while (k1 >= 0 && !ok[k1]) k1--;
+    double da = 0, dv = 0;
+    for (int k = k0; k <= k1; k++)
+      if (ok[k]) {
+        da = fmax(da, fabs(ls[k].area / ls[k0].area - 1));
+        dv = fmax(dv, fabs(ls[k].volume / ls[k0].volume - 1));
+        inv = ls[k].inverted > inv ? ls[k].inverted : inv, seen++;
+      }
+    const int ks[2] = {k0, k1};
     const char *when[2] = {"initial", "final"};
-    for (int c = 0; c < 2; c++) {
-      ves_level_set ls;
-      if (ves_io_read_snapshot(io, ks[c], NULL, x, phi, NULL) != VES_OK ||
-          ves_quad_level_set(n, in->ntri, tri, x, phi, &ls) != VES_OK)
-        continue; /* a snapshot without x and phi (NaN): nothing to show */
-      printf("interface_area_%s = %.9g\ninterface_volume_%s = %.9g\n", when[c], ls.area, when[c],
-             ls.volume);
-      printf("interface_reduced_volume_%s = %.9g\n", when[c], reduced_volume(ls.area, ls.volume));
-      printf("node_triangles_inverted_%s = %d\n", when[c], ls.inverted);
+    for (int c = 0; c < 2 && seen; c++) {
+      const ves_level_set *l = ls + ks[c];
+      printf("interface_area_%s = %.9g\ninterface_volume_%s = %.9g\n", when[c], l->area,
+             when[c], l->volume);
+      printf("interface_reduced_volume_%s = %.9g\n", when[c], reduced_volume(l->area, l->volume));
+      printf("node_triangles_inverted_%s = %d\n", when[c], l->inverted);
     }
+    if (seen)
+      printf("interface_area_drift_max = %.6e\ninterface_volume_drift_max = %.6e\n"
+             "node_triangles_inverted_max = %d\n",
+             da, dv, inv);
   }
-  free(x), free(phi), free(tri);
+  free(ls), free(ok);
 }
 
 static int cmd_info(int argc, char **argv) {
@@ -985,7 +996,7 @@ static int cmd_info(int argc, char **argv) {
     printf("newton_iterations = %.0f\nhessian_evaluations = %.0f\n", iters, hes);
     printf("wall_seconds = %.3f\nsetup_seconds = %.3f\n", R ? col[10][R - 1] : 0.0,
            in->setup_seconds);
-    interface_lines(io, in);
+    interface_lines(io);
     printf("source = %s\n", in->source);
     for (int i = 0; i < ves_config_count(); i++) {
       ves_config_entry e;

@@ -186,13 +186,43 @@ static ves_status fig_snapshots(FILE *f, ves_io *io, const ves_plot_params *p, c
   return VES_OK;
 }
 
-/* Constraint drift and the volume protocol against t*. */
+ves_status ves_plot_interface(ves_io *io, ves_level_set *ls, unsigned char *ok) {
+  VES_CHECK(io && ls && ok, VES_ERR_ARG);
+  const ves_io_info *in = ves_io_get_info(io);
+  const int S = ves_io_snapshots(io), n = in->n;
+  memset(ok, 0, (size_t)S);
+  if (in->format_version < 2 || S < 1) return VES_OK;
+  double *x = malloc(2 * (size_t)n * sizeof *x), *phi = malloc((size_t)n * sizeof *phi);
+  int *tri = malloc(3 * (size_t)in->ntri * sizeof *tri);
+  ves_status st = VES_ERR_ALLOC;
+  if (x && phi && tri && (st = ves_io_read_mesh(io, NULL, tri)) == VES_OK)
+    for (int k = 0; k < S; k++)
+      ok[k] = ves_io_read_snapshot(io, k, NULL, x, phi, NULL) == VES_OK &&
+              ves_quad_level_set(n, in->ntri, tri, x, phi, ls + k) == VES_OK;
+  free(x), free(phi), free(tri);
+  return st;
+}
+
+/* Constraint drift, the drift of the nodes' sharp interface (ls, ok at the
+ * S snapshots at times T) and the volume protocol against t*. */
 static void fig_constraints(FILE *f, const ves_plot_params *p, const ves_io_info *in, long R,
-                            const double *t, const double *A, const double *V, const double *Vt) {
+                            const double *t, const double *A, const double *V, const double *Vt,
+                            int S, const double *T, const ves_level_set *ls,
+                            const unsigned char *ok) {
   fprintf(f, "$drift << EOD\n");
   for (long i = 0; i < R; i++)
     fprintf(f, "%.10g %.6e %.6e %.12g %.12g\n", t[i], fmax(fabs(A[i] / in->A0 - 1), PLOT_FLOOR),
             fmax(fabs(V[i] / Vt[i] - 1), PLOT_FLOOR), V[i] / in->V0, Vt[i] / in->V0);
+  fprintf(f, "EOD\n$iface << EOD\n");
+  int k0 = 0, nif = 0; /* the first snapshot with an interface is the reference */
+  while (k0 < S && !ok[k0]) k0++;
+  for (int k = k0 + 1; k < S; k++)
+    if (ok[k] && T[k] > 0) /* t* = 0 has no place on the log axis */
+      fprintf(f, "%.10g %.6e %.6e\n", T[k],
+              fmax(fabs(ls[k].area / ls[k0].area - 1), PLOT_FLOOR),
+              fmax(fabs(ls[k].volume / ls[k0].volume - 1), PLOT_FLOOR)),
+          nif++;
+  if (!nif) fprintf(f, "NaN NaN NaN\n"); /* an empty datablock would stop gnuplot */
   fprintf(f, "EOD\n");
   fprintf(f, "reset\nset terminal pngcairo size 900,900 font ',12'\n");
   gp_output(f, p, 2);
@@ -205,11 +235,15 @@ static void fig_constraints(FILE *f, const ves_plot_params *p, const ves_io_info
   gp_quote(f, title);
   fprintf(f, "\nset logscale x\nset format x '10^{%%L}'\nset grid\nset lmargin 12\n"
              "set logscale y\nset format y '10^{%%L}'\nset ylabel 'relative drift'\n"
-             "set key top left\n"
+             "set key right center\n"
              "plot $drift using 1:2 with linespoints pt 7 ps 0.5 lc rgb '#b40426' "
              "title '|A/A_0 - 1|', "
              "$drift using 1:3 with linespoints pt 5 ps 0.5 lc rgb '#3b4cc0' "
-             "title '|V/V_{target} - 1|'\n"
+             "title '|V/V_{target} - 1|', "
+             "$iface using 1:2 with points pt 6 ps 1 lc rgb '#b40426' "
+             "title 'interface area: |A_I/A_I(0) - 1|', "
+             "$iface using 1:3 with points pt 4 ps 1 lc rgb '#3b4cc0' "
+             "title 'interface volume: |V_I/V_I(0) - 1|'\n"
              "unset logscale y\nset format y '%%g'\nset ylabel 'V / V_0'\n"
              "set xlabel 't* = t k / ({/Symbol m} R_0^3)'\nset key bottom left\n"
              "plot $drift using 1:4 with linespoints pt 7 ps 0.5 lc rgb '#3b4cc0' title 'V/V_0', "
@@ -229,9 +263,11 @@ ves_status ves_plot_write(ves_io *io, const ves_plot_params *p, char *err, size_
   }
   ves_status st = VES_ERR_ALLOC;
   double *buf = malloc(6 * (size_t)R * sizeof *buf), *T = malloc((size_t)S * sizeof *T);
+  ves_level_set *ls = malloc((size_t)S * sizeof *ls);
+  unsigned char *ok = malloc((size_t)S);
   FILE *f = NULL;
   char script[PATH_MAX] = "";
-  if (!buf || !T) goto done;
+  if (!buf || !T || !ls || !ok) goto done;
   double *t = buf, *dt = buf + R, *E = buf + 2 * R, *A = buf + 3 * R, *V = buf + 4 * R,
          *Vt = buf + 5 * R;
   const char *names[6] = {"t", "dt", "E", "A", "V", "V_target"};
@@ -243,6 +279,7 @@ ves_status ves_plot_write(ves_io *io, const ves_plot_params *p, char *err, size_
     T[k] = si.state.t;
   }
   int sel[VES_PLOT_MAXTIMES], nsel = select_snapshots(T, S, p, sel);
+  if ((st = ves_plot_interface(io, ls, ok)) != VES_OK) goto done;
 
   const char *dir = getenv("TMPDIR");
   snprintf(script, sizeof script, "%s/vesica_plot_XXXXXX", dir && *dir ? dir : "/tmp");
@@ -256,7 +293,7 @@ ves_status ves_plot_write(ves_io *io, const ves_plot_params *p, char *err, size_
   }
   fig_energy(f, p, in, R, t, dt, E);
   if ((st = fig_snapshots(f, io, p, sel, nsel)) != VES_OK) goto done;
-  fig_constraints(f, p, in, R, t, A, V, Vt);
+  fig_constraints(f, p, in, R, t, A, V, Vt, S, T, ls, ok);
   int bad = ferror(f);
   bad |= fclose(f) != 0;
   f = NULL;
@@ -291,6 +328,6 @@ ves_status ves_plot_write(ves_io *io, const ves_plot_params *p, char *err, size_
 done:
   if (f) fclose(f);
   if (script[0]) unlink(script);
-  free(buf), free(T);
+  free(buf), free(T), free(ls), free(ok);
   return st;
 }

@@ -478,6 +478,19 @@ static void test_spectrum(void **state) {
   assert_true(fabs(key_value(r.out, "interface_reduced_volume_final") - vi) <= 1e-3);
   assert_true(key_value(r.out, "node_triangles_inverted_initial") == 0);
   assert_true(key_value(r.out, "node_triangles_inverted_final") == 0);
+  /* the largest drift over the snapshots: at least the final one (it is in
+   * the max), and small over 4 small steps (the same 1e-3 as v above; the
+   * drift of A_I, V_I separately, so a bound of 1e-2 on each) */
+  const double daf = fabs(key_value(r.out, "interface_area_final") / ai - 1);
+  const double dvf = fabs(key_value(r.out, "interface_volume_final") / voli - 1);
+  const double dam = key_value(r.out, "interface_area_drift_max");
+  const double dvm = key_value(r.out, "interface_volume_drift_max");
+  printf("# info: interface drift max: area %.3e (final %.3e), volume %.3e (final %.3e)\n", dam,
+         daf, dvm, dvf);
+  /* daf, dvf from values printed to 9 digits: off by up to 1e-8 */
+  assert_true(dam >= daf - 1e-8 && dvm >= dvf - 1e-8);
+  assert_true(dam <= 1e-2 && dvm <= 1e-2);
+  assert_true(key_value(r.out, "node_triangles_inverted_max") == 0);
   run(&r, "spectrum", ini, NULL); /* not an HDF5 file */
   assert_int_equal(r.code, 2);
   run(&r, "spectrum", h5, "--vectors", "/nonexistent-dir/m.tsv", NULL);

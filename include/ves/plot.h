@@ -5,8 +5,11 @@
  *   <stem>_snapshots.png    the nodes at chosen times (mirrored across the
  *                           axis: the whole meridian section), coloured by
  *                           phi (paper Figs. 3 and 5)
- *   <stem>_constraints.png  constraint drift |A/A0 - 1|, |V/V_target - 1| and
- *                           the volume V/V0 against t*
+ *   <stem>_constraints.png  constraint drift |A/A0 - 1|, |V/V_target - 1|,
+ *                           the drift of the sharp interface the nodes show
+ *                           (its area and volume against the first
+ *                           snapshot's, at every snapshot) and the volume
+ *                           V/V0 against t*
  * gnuplot runs as a child process on a script written to a temporary file;
  * its exit status is checked and its messages returned in err. */
 #ifndef VES_PLOT_H
@@ -15,6 +18,7 @@
 #include <stddef.h>
 
 #include "ves/io.h"
+#include "ves/quad.h"
 #include "ves/status.h"
 
 #define VES_PLOT_NFIG 3
@@ -30,6 +34,17 @@ typedef struct {
                                       over the snapshots on a log time scale) */
   double times[VES_PLOT_MAXTIMES]; /* chosen times (t*): the nearest snapshot each */
 } ves_plot_params;
+
+/* The sharp interface the nodes show at every snapshot k < S of the file:
+ * ls[k] = ves_quad_level_set of phi at the nodes on the reference triangles
+ * placed at the material positions x (format_version >= 2), ok[k] = 1; ok[k]
+ * = 0 where the snapshot has no x and phi (format 1, or a snapshot written
+ * with NaN). ls[S] and ok[S] are the caller's (S = ves_io_snapshots). The
+ * phase-field A and V are held by the constraints; this geometry is not,
+ * and its drift shows a motion the quadrature points no longer resolve
+ * (bench/RESULTS.md, "The longer pulse continued"). VES_ERR_ALLOC, or the
+ * reader's error for an unreadable mesh. */
+ves_status ves_plot_interface(ves_io *io, ves_level_set *ls, unsigned char *ok);
 
 /* Write the three figures. VES_ERR_ARG for bad parameters (no rows or no
  * snapshots in the file included: message in err); VES_ERR_IO when a
