@@ -903,8 +903,8 @@ static void interface_lines(ves_io *io) {
     const char *when[2] = {"initial", "final"};
     for (int c = 0; c < 2 && seen; c++) {
       const ves_level_set *l = ls + ks[c];
-      printf("interface_area_%s = %.9g\ninterface_volume_%s = %.9g\n", when[c], l->area,
-             when[c], l->volume);
+      printf("interface_area_%s = %.9g\ninterface_volume_%s = %.9g\n", when[c], l->area, when[c],
+             l->volume);
       printf("interface_reduced_volume_%s = %.9g\n", when[c], reduced_volume(l->area, l->volume));
       printf("node_triangles_inverted_%s = %d\n", when[c], l->inverted);
     }

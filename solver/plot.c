@@ -218,8 +218,7 @@ static void fig_constraints(FILE *f, const ves_plot_params *p, const ves_io_info
   while (k0 < S && !ok[k0]) k0++;
   for (int k = k0 + 1; k < S; k++)
     if (ok[k] && T[k] > 0) /* t* = 0 has no place on the log axis */
-      fprintf(f, "%.10g %.6e %.6e\n", T[k],
-              fmax(fabs(ls[k].area / ls[k0].area - 1), PLOT_FLOOR),
+      fprintf(f, "%.10g %.6e %.6e\n", T[k], fmax(fabs(ls[k].area / ls[k0].area - 1), PLOT_FLOOR),
               fmax(fabs(ls[k].volume / ls[k0].volume - 1), PLOT_FLOOR)),
           nif++;
   if (!nif) fprintf(f, "NaN NaN NaN\n"); /* an empty datablock would stop gnuplot */

@@ -671,8 +671,8 @@ static void test_reconnect_off(void **state) {
     assert_int_equal(rep.reconnected, 0);
     assert_true(rep.cond == 0 && rep.det_min == 0); /* nothing measured */
   }
-  printf("# defaults: max relative difference to the stored trajectory: E* %.1e, y %.1e\n",
-         worstE, worsty);
+  printf("# defaults: max relative difference to the stored trajectory: E* %.1e, y %.1e\n", worstE,
+         worsty);
   assert_true(worstE <= 1e-14);
   assert_true(worsty <= 2e-12);
   assert_int_equal(ves_sim_reconnections(sim), 0);
