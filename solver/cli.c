@@ -631,7 +631,7 @@ static int run_new(run_ctx *r, const char *path, const char *out, const char *ba
     fprintf(r->series,
             "# vesica %s run %s backend %s nodes %d E0 %.12g A0 %.12g V0 %.12g\n"
             "# step\tt\tdt\tE\tA/A0-1\tV/Vt-1\tlambda_A\tlambda_V\titer\tf\tg\th\tseconds\t"
-            "retries\tresets\n",
+            "retries\tresets\trejected_iterations\trejected_seconds\n",
             VES_VERSION, path, r->bk->name, r->setup->nodes->n, E0, A0, V0);
   }
   return loop(r);

@@ -778,6 +778,76 @@ static void test_progress_eta(void **state) {
   tmp_path(out, sizeof out, "eta.xdmf"), unlink(out);
 }
 
+/* Tab-separated fields of a line (without its newline). */
+static int tsv_fields(const char *line) {
+  int n = 1;
+  for (const char *c = line; *c && *c != '\n'; c++) n += *c == '\t';
+  return n;
+}
+
+/* --series: a header naming every column of the rows (it named 15 of
+ * the 17 once), one row per accepted step whose step, t and E are the
+ * file's series (to the 9-12 printed digits: 1e-8 relative), and on a
+ * step with retries the rejected attempts' iterations (adaptive Euler
+ * grows dt until a step raises E, as in test_progress_eta). */
+static void test_series(void **state) {
+  (void)state;
+  char ini[128], out[128], tsv[128];
+  tmp_path(ini, sizeof ini, "ser.ini");
+  tmp_path(out, sizeof out, "ser.h5");
+  tmp_path(tsv, sizeof tsv, "ser.tsv");
+  write_file(ini, "[time]\nt_end = 1\ndt_max = 1\n");
+  result r;
+  run(&r, "run", ini, TINY, "--backend", "euler", "--out", out, "--max-steps", "30", "--series",
+      tsv, "--quiet", NULL);
+  if (r.code) fail_msg("run: exit %d: %s", r.code, r.err);
+  ves_io *io = NULL;
+  char err[256];
+  assert_int_equal(ves_io_open(out, 0, &io, err, sizeof err), VES_OK);
+  const long R = ves_io_rows(io);
+  double *t = series(io, "t"), *E = series(io, "E");
+  FILE *f = fopen(tsv, "r");
+  assert_non_null(f);
+  char line[1024], head[1024] = "";
+  int nhead = 0, rows = 0, retried = 0;
+  while (fgets(line, sizeof line, f)) {
+    if (!strncmp(line, "# step", 6)) {
+      snprintf(head, sizeof head, "%s", line);
+      nhead = tsv_fields(line);
+      continue;
+    }
+    if (line[0] == '#') continue;
+    assert_int_equal(tsv_fields(line), nhead);
+    long step;
+    double tt, dt, e;
+    assert_int_equal(sscanf(line, "%ld\t%lf\t%lf\t%lf", &step, &tt, &dt, &e), 4);
+    assert_true(step == rows + 1 && rows < R);
+    assert_true(fabs(tt / t[rows] - 1) <= 1e-8 && fabs(e / E[rows] - 1) <= 1e-8);
+    /* the last two columns: rejected_iterations > 0 exactly when retries > 0 */
+    const char *c = line;
+    double v[17];
+    for (int k = 0; k < 17; k++) {
+      v[k] = strtod(c, NULL);
+      c = strchr(c, '\t');
+      if (k < 16) assert_non_null(c), c++;
+    }
+    assert_true((v[13] > 0) == (v[15] > 0));
+    retried += v[13] > 0;
+    rows++;
+  }
+  fclose(f);
+  printf("# series: %d columns named, %d rows (file %ld), %d with retries\n", nhead, rows, R,
+         retried);
+  assert_int_equal(nhead, 17);
+  assert_non_null(strstr(head, "\trejected_iterations\trejected_seconds\n"));
+  assert_int_equal(rows, R);
+  assert_true(retried > 0);
+  free(t), free(E);
+  ves_io_close(&io);
+  unlink(ini), unlink(out), unlink(tsv);
+  tmp_path(out, sizeof out, "ser.xdmf"), unlink(out);
+}
+
 /* ---- numerical failure: exit 3, the file kept with the last good state ---- */
 
 static void test_numerical_failure(void **state) {
@@ -951,6 +1021,7 @@ int main(int argc, char **argv) {
       cmocka_unit_test(test_restart_set),
       cmocka_unit_test(test_spectrum),
       cmocka_unit_test(test_progress_eta),
+      cmocka_unit_test(test_series),
       cmocka_unit_test(test_numerical_failure),
       cmocka_unit_test(test_sigterm),
       cmocka_unit_test(test_sigkill),
