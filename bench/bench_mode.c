@@ -29,6 +29,7 @@
 #include "ves/integrate.h"
 #include "ves/setup.h"
 #include "bench_common.h"
+#include "blas_core_impl.h"
 
 #define MAX_SET 32
 
@@ -85,6 +86,7 @@ static double moment(const ves_setup *s, const double *ps, int l) {
 }
 
 int main(int argc, char **argv) {
+  ves_blas_core_fix(argv); /* OpenBLAS's kernels (blas_core_impl.h) */
   setvbuf(stdout, NULL, _IOLBF, 0);
   const char *path = "problems/mode2.ini", *set[MAX_SET];
   int nset = 0, print = 0;

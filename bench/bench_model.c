@@ -16,6 +16,7 @@
 
 #include "ves/model.h"
 #include "ves/setup.h"
+#include "blas_core_impl.h"
 
 static double now(void) {
   struct timespec ts;
@@ -95,6 +96,7 @@ static int run(double eps, row *r) {
 }
 
 int main(int argc, char **argv) {
+  ves_blas_core_fix(argv); /* OpenBLAS's kernels (blas_core_impl.h) */
   double def[2] = {0.04, 0.01};
   int nrow = argc > 1 ? argc - 1 : 2;
   row rows[16];

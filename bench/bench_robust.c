@@ -22,12 +22,14 @@
 #include "ves/integrate.h"
 #include "ves/setup.h"
 #include "bench_common.h"
+#include "blas_core_impl.h"
 #include "clock_impl.h"
 
 #define MAX_LIST 32
 #define MAX_SET 32
 
 int main(int argc, char **argv) {
+  ves_blas_core_fix(argv); /* OpenBLAS's kernels (blas_core_impl.h) */
   setvbuf(stdout, NULL, _IOLBF, 0);
   const char *path = "problems/oblate.ini", *set[MAX_SET];
   int nset = 0;

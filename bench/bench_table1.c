@@ -41,6 +41,7 @@
 #include "ves/setup.h"
 #include "ves/step.h"
 #include "bench_common.h"
+#include "blas_core_impl.h"
 #include "clock_impl.h"
 
 #define MAX_LIST 16
@@ -114,6 +115,7 @@ static void print_row(const row *r) {
 }
 
 int main(int argc, char **argv) {
+  ves_blas_core_fix(argv); /* OpenBLAS's kernels (blas_core_impl.h) */
   setvbuf(stdout, NULL, _IOLBF, 0);
   const char *path = "problems/oblate.ini", *set[MAX_SET];
   int nset = 0;

@@ -24,6 +24,7 @@
 #include "ves/quad.h"
 #include "ves/reconnect.h"
 #include "ves/setup.h"
+#include "blas_core_impl.h"
 #include "clock_impl.h"
 
 #define VES_VERSION "0.1.0"
@@ -1433,6 +1434,7 @@ done:
 }
 
 int main(int argc, char **argv) {
+  ves_blas_core_fix(argv); /* returns unless OpenBLAS needs a restart */
   if (argc < 2) {
     usage(stderr);
     return 2;

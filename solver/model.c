@@ -47,6 +47,8 @@
 #include <omp.h>
 #endif
 
+#include <cblas.h>
+
 #include "model_impl.h"
 
 /* Which q entries an r-dof (resp. z-dof) feeds, and from which table row. */
@@ -57,48 +59,25 @@ typedef struct {
   int nl;           /* size of the local variable vector */
 } local_map;
 
-static const local_map MAP_Q = {6, 5, {0, 1, 2, 5, 6, 7}, {0, 1, 2, 3, 4, 5},
-                                {3, 4, 8, 9, 10},       {1, 2, 3, 4, 5},
-                                VES_NQ};
+static const local_map MAP_Q = {
+    6, 5, {0, 1, 2, 5, 6, 7}, {0, 1, 2, 3, 4, 5}, {3, 4, 8, 9, 10}, {1, 2, 3, 4, 5}, VES_NQ};
 static const local_map MAP_QD = {3, 2, {0, 1, 2}, {0, 1, 2}, {3, 4}, {1, 2}, VES_NQD};
 
 #define NPT VES_QUAD_NPT /* points per triangle: the unit of assembly */
 #define NB 11            /* largest nr + nz (MAP_Q) */
-#define NC (2 * NB)      /* largest number of column-product rows, 2 (nr + nz) */
-#define CHUNK 8          /* columns per register block of the pair kernel */
-
-/* Vectorization: the inner loops run over the nodes of a point or a union.
- * OMP_SIMD asks for it where the cost model would not (trip counts unknown);
- * CLONES adds an AVX2 version picked at run time (GCC, x86-64). Neither
- * changes results: the same operations per element in the same order, and
- * no fused multiply-add under -std=c11 (-ffp-contract=off). */
-#ifdef _OPENMP
-#define OMP_SIMD _Pragma("omp simd")
-#else
-#define OMP_SIMD
-#endif
-#if defined(__GNUC__) && defined(__x86_64__)
-#define CLONES __attribute__((target_clones("avx2", "default")))
-#else
-#define CLONES
-#endif
 
 /* Per-thread workspace (allocated at create; cap = NPT mmax bounds the
- * union of a triangle's node lists). */
+ * union of a triangle's node lists, numax is the largest union). */
 typedef struct {
-  int *un;            /* NPT x mmax: folded node lists of a triangle's points */
-  double *Tr, *Tz;    /* NPT x 6 mmax: folded tables */
-  int *stamp;         /* n: fold_point's duplicate marks, -1 when free */
-  int *slot;          /* n: position of a node in a point's list, then in the union */
-  int *U, *Utmp;      /* cap: the triangle's union node list (ascending), merge buffer */
-  unsigned char *has; /* NPT x cap: point p sees union node i */
-  double *R;          /* NPT x cap x NB: (b_r, b_z) of union node i at point p */
-  double *C;          /* NPT x NC x ldc: column products c H b(j) of point p over
-                         the union (A, B, C, D rows of scatter_hess_ref), zero
-                         where p does not see node j; 64-byte aligned */
-  double *h;          /* 4 x ldc: one row of the triangle's block matrix */
-  double *tmp;        /* mmax: one row of a point's column products */
-  int *pos;           /* mmax: union position of a point's nodes */
+  int *un;         /* NPT x mmax: folded node lists of a triangle's points */
+  double *Tr, *Tz; /* NPT x 6 mmax: folded tables */
+  int *stamp;      /* n: fold_point's duplicate marks, -1 when free */
+  int *slot;       /* n: position of a node in a point's list, then in the union */
+  int *U, *Utmp;   /* cap: the triangle's union node list (ascending), merge buffer */
+  double *X;       /* NPT NB x numax: the stacked B of a triangle (triangle_xy) */
+  double *Y;       /* NPT (NB + 6) x numax: its products with the local Hessians */
+  double *M;       /* 3 numax^2: the triangle's Mrr, Mrz, Mzz (triangle_blocks) */
+  double *yl;      /* 4 mmax: a point's gathered y, then its gradient rows */
 } model_ws;
 
 /* One folded point of a triangle (pointers into the table or the workspace). */
@@ -119,21 +98,20 @@ struct ves_model {
   double *yref;           /* 2n reference positions */
   int mmax;               /* largest neighbour count of a point */
   int cap;                /* NPT mmax: capacity of a triangle's union */
-  int ldc;                /* capacity of a row of model_ws.C: cap rounded up to
-                             CHUNK (a triangle uses its union rounded up) */
+  int numax;              /* the largest union of a triangle (make_slabs) */
   /* Threads: the nodes are split into nthr slabs in Z of about equal
    * assembly work; slab k owns the rows (nodes) in it, and every triangle
    * whose union meets slab k is visited by the thread of slab k, which writes
    * only owned rows. Every block (and gradient entry) thus receives its
    * contributions in triangle order whatever the thread count. */
-  int nthr;           /* slabs = threads (omp_get_max_threads() at create) */
-  int *owner;         /* n: slab of a node */
-  int *tlo, *thi;     /* ntri: slab range of a triangle's union */
-  int *torder;        /* ntri: the order of assembly, along a Morton curve of
-                         the centroids, so that consecutive triangles share
-                         most nodes and their pattern rows stay in cache */
-  model_ws *ws;       /* nthr workspaces */
-  double *ev;         /* 3 nq: per-point w e of E, A, V (summed in point order) */
+  int nthr;       /* slabs = threads (omp_get_max_threads() at create) */
+  int *owner;     /* n: slab of a node */
+  int *tlo, *thi; /* ntri: slab range of a triangle's union */
+  int *torder;    /* ntri: the order of assembly, along a Morton curve of
+                     the centroids, so that consecutive triangles share
+                     most nodes and their pattern rows stay in cache */
+  model_ws *ws;   /* nthr workspaces */
+  double *ev;     /* 3 nq: per-point w e of E, A, V (summed in point order) */
   /* Drift damping (par.drift > 0, else NULL): the points at the nodes with
    * their tables, and the block values of the constant matrix S added to K
    * (drift_build). */
@@ -173,11 +151,12 @@ void ves_model_reference(const ves_model *m, double *y) {
 
 static void ws_free(model_ws *w) {
   free(w->un), free(w->Tr), free(w->Tz), free(w->stamp), free(w->slot);
-  free(w->U), free(w->Utmp), free(w->has), free(w->R), free(w->C), free(w->h);
-  free(w->tmp), free(w->pos);
+  free(w->U), free(w->Utmp), free(w->X), free(w->Y), free(w->M), free(w->yl);
 }
 
-static ves_status ws_alloc(model_ws *w, int n, int mmax, int cap, int ldc) {
+/* The workspace of the folding and the unions (the products' arrays follow
+ * in ws_alloc_products, once the largest union is known). */
+static ves_status ws_alloc(model_ws *w, int n, int mmax, int cap) {
   w->un = malloc((size_t)NPT * mmax * sizeof *w->un);
   w->Tr = malloc((size_t)NPT * 6 * mmax * sizeof *w->Tr);
   w->Tz = malloc((size_t)NPT * 6 * mmax * sizeof *w->Tz);
@@ -185,22 +164,22 @@ static ves_status ws_alloc(model_ws *w, int n, int mmax, int cap, int ldc) {
   w->slot = malloc((size_t)n * sizeof *w->slot);
   w->U = malloc((size_t)cap * sizeof *w->U);
   w->Utmp = malloc((size_t)cap * sizeof *w->Utmp);
-  w->has = malloc((size_t)NPT * cap);
-  w->R = malloc((size_t)NPT * cap * NB * sizeof *w->R);
-  w->C = aligned_alloc(64, (size_t)NPT * NC * ldc * sizeof *w->C); /* ldc: CHUNK multiple */
-  w->h = aligned_alloc(64, 4 * (size_t)ldc * sizeof *w->h);
-  w->tmp = malloc((size_t)mmax * sizeof *w->tmp);
-  w->pos = malloc((size_t)mmax * sizeof *w->pos);
-  if (!w->un || !w->Tr || !w->Tz || !w->stamp || !w->slot || !w->U || !w->Utmp || !w->has ||
-      !w->R || !w->C || !w->h || !w->tmp || !w->pos)
+  w->yl = malloc(4 * (size_t)mmax * sizeof *w->yl);
+  if (!w->un || !w->Tr || !w->Tz || !w->stamp || !w->slot || !w->U || !w->Utmp || !w->yl)
     return VES_ERR_ALLOC;
   for (int a = 0; a < n; a++) w->stamp[a] = -1;
   return VES_OK;
 }
 
+static ves_status ws_alloc_products(model_ws *w, int numax) {
+  w->X = malloc((size_t)NPT * NB * numax * sizeof *w->X);
+  w->Y = malloc((size_t)NPT * (NB + 6) * numax * sizeof *w->Y);
+  w->M = malloc(3 * (size_t)numax * numax * sizeof *w->M);
+  return w->X && w->Y && w->M ? VES_OK : VES_ERR_ALLOC;
+}
+
 void ves_model_destroy(ves_model **m) {
-  if (!m || !*m)
-    return;
+  if (!m || !*m) return;
   ves_model *p = *m;
   free(p->pt);
   free(p->fixed);
@@ -243,8 +222,7 @@ static int fold_point(const ves_quad *q, int mmax, model_ws *w, int al, int p, f
   int mu = 0;
   for (int k = 0; k < m0; k++) {
     int a = nb[k];
-    if (w->stamp[a] != al)
-      w->stamp[a] = al, un[mu++] = a;
+    if (w->stamp[a] != al) w->stamp[a] = al, un[mu++] = a;
   }
   for (int i = 1; i < mu; i++) { /* insertion sort: mu ~ 100 */
     int v = un[i], j = i - 1;
@@ -302,7 +280,8 @@ static int triangle_union(const ves_model *m, model_ws *w, int t, folded f[NPT],
  * 16-bit coordinates interleaved. */
 static unsigned long morton_key(double x, double z) {
   unsigned long key = 0, ix = (unsigned long)(x * 65535.0), iz = (unsigned long)(z * 65535.0);
-  for (int b = 0; b < 16; b++) key |= ((ix >> b) & 1UL) << (2 * b) | ((iz >> b) & 1UL) << (2 * b + 1);
+  for (int b = 0; b < 16; b++)
+    key |= ((ix >> b) & 1UL) << (2 * b) | ((iz >> b) & 1UL) << (2 * b + 1);
   return key;
 }
 
@@ -313,8 +292,7 @@ typedef struct {
 
 static int cmp_key(const void *a, const void *b) {
   const key_index *x = a, *y = b;
-  if (x->key != y->key)
-    return x->key < y->key ? -1 : 1;
+  if (x->key != y->key) return x->key < y->key ? -1 : 1;
   return (x->t > y->t) - (x->t < y->t);
 }
 
@@ -332,11 +310,14 @@ static ves_status order_triangles(ves_model *m) {
     return VES_ERR_ALLOC;
   }
   for (int a = 0; a < n; a++)
-    for (int d = 0; d < 2; d++) lo[d] = fmin(lo[d], x[2 * a + d]), hi[d] = fmax(hi[d], x[2 * a + d]);
+    for (int d = 0; d < 2; d++)
+      lo[d] = fmin(lo[d], x[2 * a + d]), hi[d] = fmax(hi[d], x[2 * a + d]);
   for (int t = 0; t < q->ntri; t++) {
     double c[2];
     for (int d = 0; d < 2; d++) {
-      c[d] = (x[2 * q->tri[3 * t] + d] + x[2 * q->tri[3 * t + 1] + d] + x[2 * q->tri[3 * t + 2] + d]) / 3;
+      c[d] =
+          (x[2 * q->tri[3 * t] + d] + x[2 * q->tri[3 * t + 1] + d] + x[2 * q->tri[3 * t + 2] + d]) /
+          3;
       c[d] = hi[d] > lo[d] ? (c[d] - lo[d]) / (hi[d] - lo[d]) : 0.0;
       c[d] = fmin(fmax(c[d], 0.0), 1.0);
     }
@@ -381,12 +362,12 @@ static ves_status make_slabs(ves_model *m) {
   zlo = malloc((size_t)ntri * sizeof *zlo);
   zhi = malloc((size_t)ntri * sizeof *zhi);
   zs = malloc((size_t)n * sizeof *zs);
-  if (!work || !m->owner || !m->tlo || !m->thi || !zlo || !zhi || !zs)
-    goto done;
+  if (!work || !m->owner || !m->tlo || !m->thi || !zlo || !zhi || !zs) goto done;
   for (int t = 0; t < ntri; t++) {
     folded f[NPT];
     const int *U;
     int nu = triangle_union(m, w, t, f, &U);
+    if (nu > m->numax) m->numax = nu;
     zlo[t] = INFINITY, zhi[t] = -INFINITY;
     for (int i = 0; i < nu; i++) {
       double z = m->nodes->x[2 * U[i] + 1];
@@ -436,11 +417,11 @@ static ves_status drift_build(ves_model *m) {
   double *dz = malloc(((size_t)qn->ptr[n] + 1) * sizeof *dz);
   m->dblk = calloc(4 * (size_t)pat->ptr[n] + 1, sizeof *m->dblk);
   ves_status s = VES_ERR_ALLOC;
-  if (!M || !nb || !dr || !dz || !m->dblk)
-    goto done;
+  if (!M || !nb || !dr || !dz || !m->dblk) goto done;
   for (int al = 0; al < q->nq; al++) /* M_a = sum w R P_a */
     for (int k = q->ptr[al]; k < q->ptr[al + 1]; k++)
-      M[q->nbr[k]] += q->w[al] * q->x[2 * (size_t)al] * q->tab[6 * (size_t)q->ptr[al] + (k - q->ptr[al])];
+      M[q->nbr[k]] +=
+          q->w[al] * q->x[2 * (size_t)al] * q->tab[6 * (size_t)q->ptr[al] + (k - q->ptr[al])];
   for (int a = 0; a < n; a++) {
     if (m->nodes->flag[a] & VES_NODE_WALL) /* fixed, u = 0 there; and its point sits */
       continue;                            /* off the hull, so no exact reproduction */
@@ -450,22 +431,19 @@ static ves_status drift_build(ves_model *m) {
     for (int k = 0; k < mk; k++) { /* fold: d_b = delta_ab - sum of the entries of b */
       int b = qn->nbr[k0 + k], j = 0;
       while (j < cnt && nb[j] != b) j++;
-      if (j == cnt)
-        nb[cnt] = b, dr[cnt] = dz[cnt] = 0, cnt++;
+      if (j == cnt) nb[cnt] = b, dr[cnt] = dz[cnt] = 0, cnt++;
       dr[j] -= qn->mirror[k0 + k] ? -p[k] : p[k];
       dz[j] -= p[k];
     }
     int j = 0;
     while (j < cnt && nb[j] != a) j++;
-    if (j == cnt)
-      nb[cnt] = a, dr[cnt] = dz[cnt] = 0, cnt++;
+    if (j == cnt) nb[cnt] = a, dr[cnt] = dz[cnt] = 0, cnt++;
     dr[j] += 1, dz[j] += 1;
     const double h = m->nodes->h[a];
     const double c = m->par.drift * m->par.mu * 2 * M_PI * M[a] / (h * h);
     for (int i = 0; i < cnt; i++)
       for (int k = 0; k < cnt; k++) {
-        if (nb[k] > nb[i])
-          continue;
+        if (nb[k] > nb[i]) continue;
         long t = ves_pattern_find(pat, nb[i], nb[k]);
         assert(t >= 0); /* the pattern holds the couplings of the points at the nodes */
         m->dblk[4 * t] += c * dr[i] * dr[k];
@@ -485,34 +463,28 @@ static ves_status model_build(const ves_nodes *nodes, const ves_quad *q, const d
   int n = nodes->n;
   ves_status s = VES_ERR_ALLOC;
   ves_model *m = calloc(1, sizeof *m);
-  if (!m)
-    return VES_ERR_ALLOC;
+  if (!m) return VES_ERR_ALLOC;
   m->nodes = nodes, m->q = q, m->par = *par;
   m->lp.eps = par->eps, m->lp.C0 = par->c0, m->lp.mu = par->mu, m->lp.lambda = par->lambda;
   m->mmax = 0;
   for (int al = 0; al < q->nq; al++)
-    if (q->ptr[al + 1] - q->ptr[al] > m->mmax)
-      m->mmax = q->ptr[al + 1] - q->ptr[al];
+    if (q->ptr[al + 1] - q->ptr[al] > m->mmax) m->mmax = q->ptr[al + 1] - q->ptr[al];
   m->cap = NPT * m->mmax;
-  m->ldc = (m->cap + CHUNK - 1) / CHUNK * CHUNK;
   m->nthr = omp_threads();
   if (m->nthr > 64) /* zcut[] in make_slabs; beyond 2 cores untested anyway */
     m->nthr = 64;
-  if (m->nthr < 1)
-    m->nthr = 1;
+  if (m->nthr < 1) m->nthr = 1;
   m->pt = malloc((size_t)q->nq * sizeof *m->pt);
   m->fixed = malloc(2 * (size_t)n);
   m->yref = malloc(2 * (size_t)n * sizeof *m->yref);
   m->ws = calloc((size_t)m->nthr, sizeof *m->ws);
   m->ev = malloc(3 * (size_t)q->nq * sizeof *m->ev);
-  if (!m->pt || !m->fixed || !m->yref || !m->ws || !m->ev)
-    goto fail;
+  if (!m->pt || !m->fixed || !m->yref || !m->ws || !m->ev) goto fail;
   for (int k = 0; k < m->nthr; k++)
-    if ((s = ws_alloc(m->ws + k, n, m->mmax, m->cap, m->ldc)) != VES_OK)
-      goto fail;
+    if ((s = ws_alloc(m->ws + k, n, m->mmax, m->cap)) != VES_OK) goto fail;
   for (int a = 0; a < n; a++) {
     m->fixed[2 * a] = (nodes->flag[a] & (VES_NODE_WALL | VES_NODE_AXIS)) != 0; /* r */
-    m->fixed[2 * a + 1] = (nodes->flag[a] & VES_NODE_WALL) != 0;              /* z */
+    m->fixed[2 * a + 1] = (nodes->flag[a] & VES_NODE_WALL) != 0;               /* z */
   }
   memcpy(m->yref, nodes->x, 2 * (size_t)n * sizeof *m->yref);
   for (int al = 0; al < q->nq; al++) {
@@ -521,18 +493,17 @@ static ves_status model_build(const ves_nodes *nodes, const ves_quad *q, const d
     m->pt[al].dphi0[0] = f[1], m->pt[al].dphi0[1] = f[2];
     m->pt[al].ddphi0[0] = f[3], m->pt[al].ddphi0[1] = f[4], m->pt[al].ddphi0[2] = f[5];
   }
-  if ((s = make_slabs(m)) != VES_OK || (s = order_triangles(m)) != VES_OK)
-    goto fail;
+  if ((s = make_slabs(m)) != VES_OK || (s = order_triangles(m)) != VES_OK) goto fail;
+  for (int k = 0; k < m->nthr; k++)
+    if ((s = ws_alloc_products(m->ws + k, m->numax)) != VES_OK) goto fail;
   if (par->drift > 0) { /* the points at the nodes, on the same LME parameters */
     if ((s = ves_quad_create_at_nodes(nodes, &m->qn)) != VES_OK ||
         (s = ves_quad_tables(m->qn, nodes, &q->lme, NULL)) != VES_OK)
       goto fail;
   }
   s = ves_pattern_create(q, m->qn, n, m->fixed, &m->pat);
-  if (s != VES_OK)
-    goto fail;
-  if (m->qn && (s = drift_build(m)) != VES_OK)
-    goto fail;
+  if (s != VES_OK) goto fail;
+  if (m->qn && (s = drift_build(m)) != VES_OK) goto fail;
   *out = m;
   return VES_OK;
 fail:
@@ -545,10 +516,10 @@ ves_status ves_model_create_points(const ves_nodes *nodes, const ves_quad *q, co
   VES_CHECK(out, VES_ERR_ARG);
   *out = NULL; /* on every error path */
   VES_CHECK(nodes && q && q->tab && pd && par, VES_ERR_ARG);
-  VES_CHECK(par->eps > 0 && par->k > 0 && par->mu >= 0 && par->drift >= 0 && isfinite(par->drift), VES_ERR_ARG);
+  VES_CHECK(par->eps > 0 && par->k > 0 && par->mu >= 0 && par->drift >= 0 && isfinite(par->drift),
+            VES_ERR_ARG);
   VES_CHECK(q->nq == NPT * q->ntri, VES_ERR_ARG);
-  for (size_t i = 0; i < 6 * (size_t)q->nq; i++)
-    VES_CHECK(isfinite(pd[i]), VES_ERR_ARG);
+  for (size_t i = 0; i < 6 * (size_t)q->nq; i++) VES_CHECK(isfinite(pd[i]), VES_ERR_ARG);
   return model_build(nodes, q, pd, par, out);
 }
 
@@ -559,11 +530,11 @@ ves_status ves_model_create(const ves_nodes *nodes, const ves_quad *q, const dou
   VES_CHECK(out, VES_ERR_ARG);
   *out = NULL; /* on every error path */
   VES_CHECK(nodes && q && q->tab && phi0c && par, VES_ERR_ARG);
-  VES_CHECK(par->eps > 0 && par->k > 0 && par->mu >= 0 && par->drift >= 0 && isfinite(par->drift), VES_ERR_ARG);
+  VES_CHECK(par->eps > 0 && par->k > 0 && par->mu >= 0 && par->drift >= 0 && isfinite(par->drift),
+            VES_ERR_ARG);
   VES_CHECK(q->nq == NPT * q->ntri, VES_ERR_ARG);
   double *fld = malloc(6 * (size_t)q->nq * sizeof *fld);
-  if (!fld)
-    return VES_ERR_ALLOC;
+  if (!fld) return VES_ERR_ALLOC;
   ves_quad_field(q, phi0c, 2, fld);
   ves_status s = model_build(nodes, q, fld, par, out);
   free(fld);
@@ -585,220 +556,226 @@ const ves_nodes *ves_model_nodes(const ves_model *m) { return m->nodes; }
 
 const ves_quad *ves_model_quad(const ves_model *m) { return m->q; }
 
-/* q = B y at the point (the 11 local kinematic variables). */
-static void kinematics(const folded *f, const double *y, double q[VES_NQ]) {
+/* The inner loops over a point's nodes are written as contiguous
+ * reductions (the table rows are contiguous; y is gathered first) and asked
+ * to vectorize with OpenMP simd: the same binary sums in the same order on
+ * every thread, so results stay bitwise independent of the thread count. */
+#ifdef _OPENMP
+#define OMP_SIMD_SUM _Pragma("omp simd reduction(+ : s)")
+#define OMP_SIMD _Pragma("omp simd")
+#else
+#define OMP_SIMD_SUM
+#define OMP_SIMD
+#endif
+
+/* q = B y at the point (the 11 local kinematic variables), with yl (2 mu
+ * scratch) the gathered y_r, y_z of its nodes. */
+static void kinematics(const folded *f, const double *y, double *yl, double q[VES_NQ]) {
   const int mu = f->mu;
   const double *Tr = f->Tr, *Tz = f->Tz;
   const int *un = f->un;
-  for (int i = 0; i < VES_NQ; i++) q[i] = 0.0;
+  double *yr = yl, *yz = yl + mu;
+  for (int u = 0; u < mu; u++) yr[u] = y[2 * un[u]], yz[u] = y[2 * un[u] + 1];
   for (int j = 0; j < 6; j++) {
+    const double *row = Tr + j * mu;
     double s = 0.0;
-    for (int u = 0; u < mu; u++) s += Tr[j * mu + u] * y[2 * un[u]];
+    OMP_SIMD_SUM /* over s */
+        for (int u = 0; u < mu; u++) s += row[u] * yr[u];
     q[MAP_Q.qr[j]] = s;
   }
   for (int j = 0; j < 5; j++) {
     const double *row = Tz + MAP_Q.rz[j] * mu;
     double s = 0.0;
-    for (int u = 0; u < mu; u++) s += row[u] * y[2 * un[u] + 1];
+    OMP_SIMD_SUM /* over s */
+        for (int u = 0; u < mu; u++) s += row[u] * yz[u];
     q[MAP_Q.qz[j]] = s;
   }
 }
 
-/* g += c B^T ge (ge over the local variables of map mp) on the entries of the
- * nodes of slab k (all nodes when k < 0). */
-static void scatter_grad(const local_map *mp, const folded *f, const int *owner, int k, double c,
-                         const double *ge, double *g) {
+/* g += c B^T ge on the entries of the nodes of slab k: per node u,
+ * (B^T ge)_r(u) = sum_j ge[qr_j] Tr[rr_j][u], (B^T ge)_z(u) likewise, formed
+ * row by row over the nodes (sl: 2 mu scratch), then added. */
+static void scatter_grad(const folded *f, const int *owner, int k, double c, const double *ge,
+                         double *sl, double *g) {
   const int mu = f->mu;
+  double *sr = sl, *sz = sl + mu;
+  for (int u = 0; u < mu; u++) sr[u] = sz[u] = 0.0;
+  for (int j = 0; j < 6; j++) {
+    const double a = c * ge[MAP_Q.qr[j]], *row = f->Tr + MAP_Q.rr[j] * mu;
+    OMP_SIMD
+    for (int u = 0; u < mu; u++) sr[u] += a * row[u];
+  }
+  for (int j = 0; j < 5; j++) {
+    const double a = c * ge[MAP_Q.qz[j]], *row = f->Tz + MAP_Q.rz[j] * mu;
+    OMP_SIMD
+    for (int u = 0; u < mu; u++) sz[u] += a * row[u];
+  }
   for (int u = 0; u < mu; u++) {
-    if (k >= 0 && owner[f->un[u]] != k)
-      continue;
-    double sr = 0.0, sz = 0.0;
-    for (int j = 0; j < mp->nr; j++) sr += ge[mp->qr[j]] * f->Tr[mp->rr[j] * mu + u];
-    for (int j = 0; j < mp->nz; j++) sz += ge[mp->qz[j]] * f->Tz[mp->rz[j] * mu + u];
-    g[2 * f->un[u]] += c * sr;
-    g[2 * f->un[u] + 1] += c * sz;
+    const int a = f->un[u];
+    if (owner[a] == k) g[2 * a] += sr[u], g[2 * a + 1] += sz[u];
   }
 }
 
-/* The column products of one point over the triangle's union (slot[] maps a
- * node to its union position): for each of its nodes v at union position j,
- *   A_v = c H_rr b_r(v), B_v = c H_rz b_z(v), C_v = c H_zr b_r(v), D_v = c H_zz b_z(v)
- * into rows 0..nr-1, nr..2nr-1, 2nr..2nr+nz-1, 2nr+nz.. of C (row stride
- * ldc), and b(v) = (b_r, b_z) into R[NB j ..]; has[j] = 1. C must be zero at
- * the other positions (the pair kernel multiplies through them). Each row is
- * formed over the point's nodes (contiguous table rows, vectorized), then
- * placed at the union positions. */
-CLONES
-static void column_products(const local_map *mp, const folded *f, const int *slot, double c,
-                            const double *H, int ldc, double *C, double *R, unsigned char *has,
-                            double *tmp, int *pos) {
-  const int nr = mp->nr, nz = mp->nz, nl = mp->nl, mu = f->mu;
-  for (int v = 0; v < mu; v++) {
-    const int j = pos[v] = slot[f->un[v]];
-    double *rw = R + (size_t)NB * j;
-    for (int k = 0; k < nr; k++) rw[k] = f->Tr[mp->rr[k] * mu + v];
-    for (int k = 0; k < nz; k++) rw[nr + k] = f->Tz[mp->rz[k] * mu + v];
-    has[j] = 1;
-  }
-  for (int r = 0; r < 2 * (nr + nz); r++) {
-    /* output row r: q row qo of H against the r-inputs (A, C) or z-inputs (B, D) */
-    const int side = r < nr ? 0 : r < 2 * nr ? 1 : r < 2 * nr + nz ? 0 : 1;
-    const int qo = r < 2 * nr ? mp->qr[r % nr] : mp->qz[(r - 2 * nr) % nz];
-    const int nk = side ? nz : nr;
-    for (int v = 0; v < mu; v++) tmp[v] = 0.0;
-    for (int k = 0; k < nk; k++) {
-      const double hk = H[qo * nl + (side ? mp->qz[k] : mp->qr[k])];
-      const double *T = side ? f->Tz + mp->rz[k] * mu : f->Tr + mp->rr[k] * mu;
-      OMP_SIMD
-      for (int v = 0; v < mu; v++) tmp[v] += hk * T[v];
-    }
-    double *Cr = C + (size_t)r * ldc;
-    for (int v = 0; v < mu; v++) Cr[pos[v]] = c * tmp[v];
-  }
-}
-
-/* Row i of the triangle's lower block matrix, sum over its points p of
- * c_p B_p^T H_p B_p: for the columns j = 0..i (and up to the next multiple
- * of CHUNK, unused), out[0, 1, 2, 3][j] (row stride ldc) =
- *   sum_p b_r(i).A_j, b_r(i).B_j, b_z(i).C_j, b_z(i).D_j  (points seeing i),
- * CHUNK columns at a time in registers. C rows are CHUNK-aligned (64 bytes).
- * GCC and Clang get an explicit register tile (vector extensions; the AVX2
- * clone is picked at run time, and gives the same bits as the baseline:
- * the same products and sums per element, in the same order, no fused
- * multiply-add under -std=c11); other compilers the plain loop. */
-#if defined(__GNUC__) && defined(__x86_64__)
-typedef double vec4 __attribute__((vector_size(32), may_alias));
+/* The triangle's matrices B over its union, stacked point by point, and
+ * their products with the local Hessians (workspace X, Y; column j = union
+ * node j, column-major):
+ *   Xr[(p nr + k) + j Kr] = b_r(p, k; j),  Xz[(p nz + k) + j Kz] = b_z(p, k; j)
+ * (the folded table rows of map mp; zero where point p does not see node j),
+ * Kr = NPT nr, Kz = NPT nz, and with cH_p = c_p d2e/dq2 at point p split by
+ * the map into its rr, rz and zz parts,
+ *   Yrr = diag_p(cH_rr) Xr,  Yrz = diag_p(cH_rz) Xz,  Yzz = diag_p(cH_zz) Xz.
+ * Hs holds the NPT local matrices (nl x nl each, c included). */
+#if defined(__GNUC__)
+__attribute__((always_inline))
 #endif
-CLONES
-static void row_sums(int nr, int nz, const unsigned char *has, const double *R, const double *C,
-                     int cap, int ldc, int i, double *out) {
-  for (int j0 = 0; j0 <= i; j0 += CHUNK) {
-#if defined(__GNUC__) && defined(__x86_64__)
-    vec4 a0 = {0}, a1 = {0}, b0 = {0}, b1 = {0}, c0 = {0}, c1 = {0}, d0 = {0}, d1 = {0};
-    for (int p = 0; p < NPT; p++) {
-      if (!has[(size_t)p * cap + i])
-        continue;
-      const double *rw = R + ((size_t)p * cap + i) * NB;
-      const double *Cp = C + (size_t)p * NC * ldc + j0;
+static inline void
+triangle_xy_n(const local_map *mp, const int nr, const int nz, const folded f[NPT], const int *slot,
+              int nu, const double *Hs, double *X, double *Y) {
+  const int nl = mp->nl, Kr = NPT * nr, Kz = NPT * nz;
+  double *Xr = X, *Xz = X + (size_t)Kr * nu;
+  double *Yrr = Y, *Yrz = Y + (size_t)Kr * nu, *Yzz = Y + 2 * (size_t)Kr * nu;
+  memset(X, 0, (size_t)(Kr + Kz) * nu * sizeof *X);
+  for (int p = 0; p < NPT; p++) {
+    const folded *fp = f + p;
+    const int mu = fp->mu;
+    for (int v = 0; v < mu; v++) {
+      const int j = slot[fp->un[v]];
+      for (int k = 0; k < nr; k++) Xr[p * nr + k + (size_t)j * Kr] = fp->Tr[mp->rr[k] * mu + v];
+      for (int k = 0; k < nz; k++) Xz[p * nz + k + (size_t)j * Kz] = fp->Tz[mp->rz[k] * mu + v];
+    }
+  }
+  for (int p = 0; p < NPT; p++) {
+    const double *H = Hs + (size_t)p * nl * nl;
+    double hrr[6][6], hrz[6][5], hzz[5][5]; /* nr <= 6, nz <= 5 */
+    for (int k = 0; k < nr; k++) {
+      for (int l = 0; l < nr; l++) hrr[k][l] = H[mp->qr[k] * nl + mp->qr[l]];
+      for (int l = 0; l < nz; l++) hrz[k][l] = H[mp->qr[k] * nl + mp->qz[l]];
+    }
+    for (int k = 0; k < nz; k++)
+      for (int l = 0; l < nz; l++) hzz[k][l] = H[mp->qz[k] * nl + mp->qz[l]];
+    for (int j = 0; j < nu; j++) {
+      const double *xr = Xr + p * nr + (size_t)j * Kr, *xz = Xz + p * nz + (size_t)j * Kz;
+      double *yrr = Yrr + p * nr + (size_t)j * Kr, *yrz = Yrz + p * nr + (size_t)j * Kr,
+             *yzz = Yzz + p * nz + (size_t)j * Kz;
       for (int k = 0; k < nr; k++) {
-        const vec4 *x = (const vec4 *)(Cp + (size_t)k * ldc),
-                   *z = (const vec4 *)(Cp + (size_t)(nr + k) * ldc);
-        const double s = rw[k];
-        a0 += s * x[0], a1 += s * x[1], b0 += s * z[0], b1 += s * z[1];
+        double a = 0, b = 0;
+        for (int l = 0; l < nr; l++) a += hrr[k][l] * xr[l];
+        for (int l = 0; l < nz; l++) b += hrz[k][l] * xz[l];
+        yrr[k] = a, yrz[k] = b;
       }
       for (int k = 0; k < nz; k++) {
-        const vec4 *x = (const vec4 *)(Cp + (size_t)(2 * nr + k) * ldc),
-                   *z = (const vec4 *)(Cp + (size_t)(2 * nr + nz + k) * ldc);
-        const double s = rw[nr + k];
-        c0 += s * x[0], c1 += s * x[1], d0 += s * z[0], d1 += s * z[1];
+        double a = 0;
+        for (int l = 0; l < nz; l++) a += hzz[k][l] * xz[l];
+        yzz[k] = a;
       }
     }
-    vec4 *o = (vec4 *)(out + j0);
-    o[0] = a0, o[1] = a1;
-    o = (vec4 *)(out + ldc + j0), o[0] = b0, o[1] = b1;
-    o = (vec4 *)(out + 2 * (size_t)ldc + j0), o[0] = c0, o[1] = c1;
-    o = (vec4 *)(out + 3 * (size_t)ldc + j0), o[0] = d0, o[1] = d1;
-#else
-    double h[4][CHUNK] = {{0}};
-    for (int p = 0; p < NPT; p++) {
-      if (!has[(size_t)p * cap + i])
-        continue;
-      const double *rw = R + ((size_t)p * cap + i) * NB;
-      const double *Cp = C + (size_t)p * NC * ldc + j0;
-      for (int k = 0; k < nr; k++) {
-        const double s = rw[k], *x = Cp + (size_t)k * ldc, *z = Cp + (size_t)(nr + k) * ldc;
-        for (int c = 0; c < CHUNK; c++) h[0][c] += s * x[c], h[1][c] += s * z[c];
-      }
-      for (int k = 0; k < nz; k++) {
-        const double s = rw[nr + k], *x = Cp + (size_t)(2 * nr + k) * ldc,
-                     *z = Cp + (size_t)(2 * nr + nz + k) * ldc;
-        for (int c = 0; c < CHUNK; c++) h[2][c] += s * x[c], h[3][c] += s * z[c];
-      }
-    }
-    for (int r = 0; r < 4; r++)
-      for (int c = 0; c < CHUNK; c++) out[(size_t)r * ldc + j0 + c] = h[r][c];
-#endif
   }
 }
 
-/* Add row i of the triangle's block matrix (row_sums) to the pattern: block
- * (U[i], U[j]), j <= i, by one forward walk along the pattern row of U[i]
- * (ascending, as U is). Pairs of the union that share no point are not in
- * the pattern; their sums are exactly zero (C is zero where a point does not
- * see the node) and are skipped. */
-static void row_blocks(const local_map *mp, const ves_pattern *pat, const model_ws *w,
-                       const int *U, int i, int cap, int ldc, double *blk) {
-  const int a = U[i];
-  const double *h = w->h;
-  row_sums(mp->nr, mp->nz, w->has, w->R, w->C, cap, ldc, i, w->h);
-  int lo = pat->ptr[a], hi = pat->ptr[a + 1] - 1;
-  while (lo < hi) { /* first column >= U[0] in row a */
-    int mid = (lo + hi) / 2;
-    if (pat->col[mid] < U[0])
-      lo = mid + 1;
-    else
-      hi = mid;
-  }
-  for (int j = 0, t = lo; j <= i; j++) {
-    const int b = U[j];
-    while (pat->col[t] < b) t++; /* the diagonal (a, a) ends the walk */
-    if (pat->col[t] != b) {
-      assert(h[j] == 0 && h[ldc + j] == 0 && h[2 * ldc + j] == 0 && h[3 * ldc + j] == 0);
-      continue;
+/* triangle_xy_n with the map's sizes as constants (the small products
+ * unrolled). */
+static void triangle_xy(const local_map *mp, const folded f[NPT], const int *slot, int nu,
+                        const double *Hs, double *X, double *Y) {
+  if (mp->nr == 6 && mp->nz == 5)
+    triangle_xy_n(mp, 6, 5, f, slot, nu, Hs, X, Y);
+  else if (mp->nr == 3 && mp->nz == 2)
+    triangle_xy_n(mp, 3, 2, f, slot, nu, Hs, X, Y);
+  else
+    triangle_xy_n(mp, mp->nr, mp->nz, f, slot, nu, Hs, X, Y);
+}
+
+/* Add the owned rows of the triangle's block matrix to the pattern: block
+ * (U[i], U[j]), j <= i, with entries (rr, rz, zr, zz) =
+ * (Mrr[j + i nu], Mrz[i + j nu], Mrz[j + i nu], Mzz[j + i nu]) (Mrr and Mzz
+ * are symmetric: column i is read), by one forward walk along the pattern
+ * row of U[i] (ascending, as U is). Pairs of the union that share no point
+ * are not in the pattern; their sums are exactly zero (X is zero where a
+ * point does not see the node) and are skipped. */
+static void triangle_scatter(const ves_model *m, const int *U, int nu, int k, const double *M,
+                             double *blk) {
+  const ves_pattern *pat = m->pat;
+  const double *Mrr = M, *Mrz = M + (size_t)nu * nu, *Mzz = M + 2 * (size_t)nu * nu;
+  for (int i = 0; i < nu; i++) {
+    const int a = U[i];
+    if (m->owner[a] != k) continue;
+    const double *crr = Mrr + (size_t)i * nu, *czr = Mrz + (size_t)i * nu,
+                 *czz = Mzz + (size_t)i * nu;
+    int lo = pat->ptr[a], hi = pat->ptr[a + 1] - 1;
+    while (lo < hi) { /* first column >= U[0] in row a */
+      int mid = (lo + hi) / 2;
+      if (pat->col[mid] < U[0])
+        lo = mid + 1;
+      else
+        hi = mid;
     }
-    double *dst = blk + 4 * (size_t)t;
-    dst[0] += h[j], dst[1] += h[ldc + j], dst[2] += h[2 * ldc + j], dst[3] += h[3 * ldc + j];
+    for (int j = 0, t = lo; j <= i; j++) {
+      const int b = U[j];
+      while (pat->col[t] < b) t++; /* the diagonal (a, a) ends the walk */
+      const double rz = Mrz[i + (size_t)j * nu];
+      if (pat->col[t] != b) {
+        assert(crr[j] == 0 && rz == 0 && czr[j] == 0 && czz[j] == 0);
+        continue;
+      }
+      double *dst = blk + 4 * (size_t)t;
+      dst[0] += crr[j], dst[1] += rz, dst[2] += czr[j], dst[3] += czz[j];
+    }
   }
 }
 
 /* What a triangle pass assembles. */
 typedef enum { ASM_HESS, ASM_DISS } asm_kind;
 
-/* Triangle t's contribution to the rows of slab k: local matrices of its
- * points (fac[3] = f_E cE, f_A cA, f_V cV for ASM_HESS), column products,
- * then the owned rows of the triangle's block matrix into blk. */
+/* Triangle t's contribution to the rows of slab k: the local matrices of its
+ * points (fac[3] = f_E cE, f_A cA, f_V cV for ASM_HESS), then its block
+ * matrix sum_p B_p^T cH_p B_p over its union as three products
+ *   Mrr = Xr^T Yrr,  Mrz = Xr^T Yrz,  Mzz = Xz^T Yzz   (triangle_xy)
+ * by the BLAS (one thread: the caller runs the triangles in parallel), and
+ * its owned rows into blk. */
 static ves_status triangle_blocks(const ves_model *m, model_ws *w, asm_kind kind,
-                                  const double fac[3], int t, int k, const double *y,
-                                  double *blk) {
+                                  const double fac[3], int t, int k, const double *y, double *blk) {
   const local_map *mp = kind == ASM_HESS ? &MAP_Q : &MAP_QD;
-  const int cap = m->cap;
+  const int nl = mp->nl;
   folded f[NPT];
   const int *U;
   const int nu = triangle_union(m, w, t, f, &U);
-  /* C's row stride for this triangle: the union rounded up to CHUNK columns */
-  const int ldc = (nu + CHUNK - 1) / CHUNK * CHUNK, nrow = 2 * (mp->nr + mp->nz);
-  for (int p = 0; p < NPT; p++) {
-    memset(w->C + (size_t)p * NC * ldc, 0, (size_t)nrow * ldc * sizeof *w->C);
-    memset(w->has + (size_t)p * cap, 0, (size_t)nu);
-  }
+  double Hs[NPT * VES_NQ * VES_NQ];
   for (int p = 0; p < NPT; p++) {
     const int al = NPT * t + p;
-    double q[VES_NQ], e, H[VES_NQ * VES_NQ], Hs[VES_NQ * VES_NQ] = {0}, c;
-    kinematics(f + p, y, q);
+    double q[VES_NQ], e, H[VES_NQ * VES_NQ], *Hp = Hs + (size_t)p * nl * nl, c;
+    kinematics(f + p, y, w->yl, q);
+    for (int i = 0; i < nl * nl; i++) Hp[i] = 0.0;
     if (kind == ASM_HESS) {
       if (fac[0] != 0) {
         VES_CALL(ves_model_local_energy(&m->lp, &m->pt[al], q, &e, NULL, H));
-        for (int i = 0; i < VES_NQ * VES_NQ; i++) Hs[i] += fac[0] * H[i];
+        for (int i = 0; i < VES_NQ * VES_NQ; i++) Hp[i] += fac[0] * H[i];
       }
       if (fac[1] != 0) {
         VES_CALL(ves_model_local_area(&m->lp, &m->pt[al], q, &e, NULL, H));
-        for (int i = 0; i < VES_NQ * VES_NQ; i++) Hs[i] += fac[1] * H[i];
+        for (int i = 0; i < VES_NQ * VES_NQ; i++) Hp[i] += fac[1] * H[i];
       }
       if (fac[2] != 0) {
         VES_CALL(ves_model_local_volume(&m->lp, &m->pt[al], q, &e, NULL, H));
-        for (int i = 0; i < VES_NQ * VES_NQ; i++) Hs[i] += fac[2] * H[i];
+        for (int i = 0; i < VES_NQ * VES_NQ; i++) Hp[i] += fac[2] * H[i];
       }
       c = m->q->w[al];
     } else {
-      VES_CALL(ves_model_local_dissip(&m->lp, q, Hs));
+      VES_CALL(ves_model_local_dissip(&m->lp, q, Hp));
       c = 2 * M_PI * m->q->w[al];
     }
-    column_products(mp, f + p, w->slot, c, Hs, ldc, w->C + (size_t)p * NC * ldc,
-                    w->R + (size_t)p * cap * NB, w->has + (size_t)p * cap, w->tmp, w->pos);
+    for (int i = 0; i < nl * nl; i++) Hp[i] *= c;
   }
-  for (int i = 0; i < nu; i++)
-    if (m->owner[U[i]] == k)
-      row_blocks(mp, m->pat, w, U, i, cap, ldc, blk);
+  triangle_xy(mp, f, w->slot, nu, Hs, w->X, w->Y);
+  const int Kr = NPT * mp->nr, Kz = NPT * mp->nz;
+  const double *Xr = w->X, *Xz = w->X + (size_t)Kr * nu;
+  const double *Yrr = w->Y, *Yrz = w->Y + (size_t)Kr * nu, *Yzz = w->Y + 2 * (size_t)Kr * nu;
+  double *M = w->M;
+  cblas_dgemm(CblasColMajor, CblasTrans, CblasNoTrans, nu, nu, Kr, 1.0, Xr, Kr, Yrr, Kr, 0.0, M,
+              nu); /* Mrr = Xr^T Yrr */
+  cblas_dgemm(CblasColMajor, CblasTrans, CblasNoTrans, nu, nu, Kr, 1.0, Xr, Kr, Yrz, Kr, 0.0,
+              M + (size_t)nu * nu, nu); /* Mrz = Xr^T Yrz */
+  cblas_dgemm(CblasColMajor, CblasTrans, CblasNoTrans, nu, nu, Kz, 1.0, Xz, Kz, Yzz, Kz, 0.0,
+              M + 2 * (size_t)nu * nu, nu); /* Mzz = Xz^T Yzz */
+  triangle_scatter(m, U, nu, k, M, blk);
   return VES_OK;
 }
 
@@ -810,6 +787,9 @@ static ves_status assemble(ves_model *m, asm_kind kind, const double fac[3], con
   ves_status st[64];
   memset(blk, 0, 4 * (size_t)pat->ptr[pat->n] * sizeof *blk);
   for (int k = 0; k < m->nthr; k++) st[k] = VES_OK;
+  /* the triangles' products run on one BLAS thread each, in parallel */
+  const int blas_threads = openblas_get_num_threads();
+  if (blas_threads != 1) openblas_set_num_threads(1);
 #pragma omp parallel num_threads(m->nthr)
   {
     const int tid = omp_tid(), nt = omp_nteam();
@@ -821,17 +801,17 @@ static ves_status assemble(ves_model *m, asm_kind kind, const double fac[3], con
           st[k] = triangle_blocks(m, w, kind, fac, t, k, y, blk);
       }
   }
+  if (blas_threads != 1) openblas_set_num_threads(blas_threads);
   for (int k = 0; k < m->nthr; k++)
-    if (st[k] != VES_OK)
-      return st[k];
+    if (st[k] != VES_OK) return st[k];
   return VES_OK;
 }
 
 /* The values and gradients of triangle t's points for slab k: w e of the
  * selected functionals into m->ev (by the triangle's first slab only), and
  * the gradient entries of the slab's nodes. */
-static ves_status triangle_eval(ves_model *m, model_ws *w, int which, int t, int k,
-                                const double *y, double *const g[3]) {
+static ves_status triangle_eval(ves_model *m, model_ws *w, int which, int t, int k, const double *y,
+                                double *const g[3]) {
   const double fac[3] = {2 * M_PI * 3 * m->par.k / (16 * M_SQRT2 * m->par.eps),
                          2 * M_PI * 3 / (2 * M_SQRT2), 2 * M_PI};
   static ves_model_local_fn *const fn[3] = {ves_model_local_energy, ves_model_local_area,
@@ -841,15 +821,12 @@ static ves_status triangle_eval(ves_model *m, model_ws *w, int which, int t, int
     folded f;
     double q[VES_NQ], e, ge[VES_NQ], wa = m->q->w[al];
     fold_point(m->q, m->mmax, w, al, 0, &f);
-    kinematics(&f, y, q);
+    kinematics(&f, y, w->yl, q);
     for (int i = 0; i < 3; i++) {
-      if (!(which & (1 << i)))
-        continue;
+      if (!(which & (1 << i))) continue;
       VES_CALL(fn[i](&m->lp, &m->pt[al], q, &e, g[i] ? ge : NULL, NULL));
-      if (k == m->tlo[t])
-        m->ev[3 * (size_t)al + i] = wa * e;
-      if (g[i])
-        scatter_grad(&MAP_Q, &f, m->owner, k, fac[i] * wa, ge, g[i]);
+      if (k == m->tlo[t]) m->ev[3 * (size_t)al + i] = wa * e;
+      if (g[i]) scatter_grad(&f, m->owner, k, fac[i] * wa, ge, w->yl + 2 * f.mu, g[i]);
     }
   }
   return VES_OK;
@@ -866,8 +843,7 @@ ves_status ves_model_eval(ves_model *m, const double *y, int which, double *E, d
   ves_status st[64];
   which &= VES_F_E | VES_F_A | VES_F_V;
   for (int i = 0; i < 3; i++)
-    if (g[i])
-      memset(g[i], 0, 2 * (size_t)n * sizeof *g[i]);
+    if (g[i]) memset(g[i], 0, 2 * (size_t)n * sizeof *g[i]);
   for (int k = 0; k < m->nthr; k++) st[k] = VES_OK;
 #pragma omp parallel num_threads(m->nthr)
   {
@@ -879,8 +855,7 @@ ves_status ves_model_eval(ves_model *m, const double *y, int which, double *E, d
           st[k] = triangle_eval(m, w, which, t, k, y, g);
   }
   for (int k = 0; k < m->nthr; k++)
-    if (st[k] != VES_OK)
-      return st[k];
+    if (st[k] != VES_OK) return st[k];
   /* The totals are accumulated in extended precision, in point order: the
    * sums run over ~1e4..1e6 points, and the optimizers (line searches,
    * finite-difference checks) compare values that differ by far less than
@@ -889,14 +864,10 @@ ves_status ves_model_eval(ves_model *m, const double *y, int which, double *E, d
   long double s[3] = {0, 0, 0};
   for (int al = 0; al < m->q->nq; al++)
     for (int i = 0; i < 3; i++)
-      if (which & (1 << i))
-        s[i] += m->ev[3 * (size_t)al + i];
-  if ((which & VES_F_E) && E)
-    *E = (double)(fE * s[0]);
-  if ((which & VES_F_A) && A)
-    *A = (double)(fA * s[1]);
-  if ((which & VES_F_V) && V)
-    *V = (double)(fV * s[2]);
+      if (which & (1 << i)) s[i] += m->ev[3 * (size_t)al + i];
+  if ((which & VES_F_E) && E) *E = (double)(fE * s[0]);
+  if ((which & VES_F_A) && A) *A = (double)(fA * s[1]);
+  if ((which & VES_F_V) && V) *V = (double)(fV * s[2]);
   return VES_OK;
 }
 
@@ -934,14 +905,13 @@ ves_status ves_model_pointwise_W(ves_model *m, const double *y, double *W) {
           folded f;
           double q[VES_NQ], e;
           fold_point(m->q, m->mmax, w, al, 0, &f);
-          kinematics(&f, y, q);
+          kinematics(&f, y, w->yl, q);
           st[k] = ves_model_local_energy_ex(&m->lp, &m->pt[al], q, &e, NULL, NULL, W + al, NULL);
         }
       }
   }
   for (int k = 0; k < m->nthr; k++)
-    if (st[k] != VES_OK)
-      return st[k];
+    if (st[k] != VES_OK) return st[k];
   return VES_OK;
 }
 
