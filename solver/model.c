@@ -13,9 +13,11 @@
  *
  * Assembly of the Hessians and K, per triangle: its 6 points share nearly
  * all their nodes, so the products c B^T H B of all 6 are summed into one
- * local lower block matrix over the union of their node lists (row by row,
- * CHUNK columns at a time in registers) and each block is added to the
- * pattern once, not once per point (~6x fewer scattered updates). Triangles
+ * block matrix over the union of their node lists, formed by the BLAS as
+ * three dense products X^T diag_p(c H_p) X (the rr, rz and zz parts; X the
+ * points' B stacked, K = 36 / 30 deep; one BLAS thread per triangle, the
+ * triangles in parallel), and each lower block is added to the pattern
+ * once, not once per point (~6x fewer scattered updates). Triangles
  * are visited along a Morton curve so the pattern rows they touch stay in
  * cache. Threads (OpenMP, the count fixed at create from
  * omp_get_max_threads(), i.e. OMP_NUM_THREADS or all cores): the nodes are
@@ -23,10 +25,10 @@
  * its slab and visits the triangles whose unions meet it (those straddling
  * two slabs are computed by both, ~a few %). Every block and gradient entry
  * thus receives its contributions in the same order for any thread count:
- * results are bitwise the same for 1, 2, ... threads. E, A, V are summed in
- * point order and their gradients in point order, exactly as the earlier
- * per-point code did; the Hessian and K differ from a per-point assembly
- * by rounding only (sums regrouped per triangle).
+ * results are bitwise the same for 1, 2, ... threads (for one BLAS kernel:
+ * OpenBLAS picks it from the CPU). E, A, V are summed in point order and
+ * their gradients in point order; the Hessian and K differ from a per-point
+ * assembly by rounding only (sums regrouped per triangle).
  *
  * Drift damping (not in the paper; ves_model_params.drift, off by default):
  * LME smooths, so coefficient patterns at the grid scale barely move the
