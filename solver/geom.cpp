@@ -199,7 +199,15 @@ struct ves_geom_search {
 
 namespace {
 
-/* Output iterator of the kd-tree: filters exactly, stores up to cap indices, counts all. */
+/* The exact test |X - x_a| <= r_a of every query and filter. */
+inline bool within(const ves_geom_search *s, int a, double X, double Z) {
+  double dR = X - s->x[2 * a], dZ = Z - s->x[2 * a + 1];
+  return dR * dR + dZ * dZ <= s->r[a] * s->r[a];
+}
+
+/* Output iterator of the kd-tree: filters (exactly when rho = 0, else keeps
+ * |X - x_a| <= r_a + rho with a relative margin), stores up to cap indices,
+ * counts all. */
 struct Collect {
   typedef std::output_iterator_tag iterator_category;
   typedef void value_type;
@@ -208,7 +216,7 @@ struct Collect {
   typedef void reference;
   const ves_geom_search *s;
   const int *node;
-  double X, Z;
+  double X, Z, rho;
   int cap;
   int *idx;
   int *count;
@@ -217,14 +225,38 @@ struct Collect {
   Collect operator++(int) { return *this; }
   Collect &operator=(std::size_t k) {
     int a = node[k];
-    double dR = X - s->x[2 * a], dZ = Z - s->x[2 * a + 1];
-    if (dR * dR + dZ * dZ <= s->r[a] * s->r[a]) { /* the exact test |X - x_a| <= r_a */
+    bool keep;
+    if (rho == 0.0)
+      keep = within(s, a, X, Z);
+    else {
+      double dR = X - s->x[2 * a], dZ = Z - s->x[2 * a + 1], t = s->r[a] + rho;
+      keep = dR * dR + dZ * dZ <= t * t * (1.0 + 1e-9); /* a superset: rounding cannot drop one */
+    }
+    if (keep) {
       if (*count < cap) idx[*count] = a;
       (*count)++;
     }
     return *this;
   }
 };
+
+/* The nodes within r_a + rho of X (rho = 0: exactly within r_a), sorted. */
+ves_status search_near(const ves_geom_search *s, const double X[2], double rho, int cap, int *idx,
+                       int *count) {
+  *count = 0;
+  try {
+    for (const Search_class &c : s->cls) {
+      /* |X - x_a| <= r_a + rho puts the lift within rmax + rho of (X, 0) */
+      Sphere q(Point_3(X[0], X[1], 0.0), c.rq + rho * (1.0 + 1e-10), 0.0,
+               Traits(lift_map(c.lift.data())));
+      c.tree->search(Collect{s, c.node.data(), X[0], X[1], rho, cap, idx, count}, q);
+    }
+    if (*count <= cap) std::sort(idx, idx + *count); /* increasing index order */
+    return VES_OK;
+  } catch (...) {
+    return status_of_exception();
+  }
+}
 
 } // namespace
 
@@ -277,17 +309,29 @@ extern "C" ves_status ves_geom_search_query(const ves_geom_search *s, const doub
                                             int *idx, int *count) {
   VES_CHECK(s && X && count && cap >= 0 && (cap == 0 || idx), VES_ERR_ARG);
   VES_CHECK(std::isfinite(X[0]) && std::isfinite(X[1]), VES_ERR_ARG);
-  *count = 0;
-  try {
-    for (const Search_class &c : s->cls) {
-      Sphere q(Point_3(X[0], X[1], 0.0), c.rq, 0.0, Traits(lift_map(c.lift.data())));
-      c.tree->search(Collect{s, c.node.data(), X[0], X[1], cap, idx, count}, q);
-    }
-    if (*count <= cap) std::sort(idx, idx + *count); /* increasing index order */
-    return VES_OK;
-  } catch (...) {
-    return status_of_exception();
+  return search_near(s, X, 0.0, cap, idx, count);
+}
+
+extern "C" ves_status ves_geom_search_query_near(const ves_geom_search *s, const double X[2],
+                                                 double rho, int cap, int *idx, int *count) {
+  VES_CHECK(s && X && count && cap >= 0 && (cap == 0 || idx), VES_ERR_ARG);
+  VES_CHECK(std::isfinite(X[0]) && std::isfinite(X[1]), VES_ERR_ARG);
+  VES_CHECK(std::isfinite(rho) && rho >= 0.0, VES_ERR_ARG);
+  return search_near(s, X, rho, cap, idx, count);
+}
+
+extern "C" ves_status ves_geom_search_filter(const ves_geom_search *s, const double X[2], int ncand,
+                                             const int *cand, int *idx, int *count) {
+  VES_CHECK(s && X && count && ncand >= 0 && (ncand == 0 || (cand && idx)), VES_ERR_ARG);
+  VES_CHECK(std::isfinite(X[0]) && std::isfinite(X[1]), VES_ERR_ARG);
+  const int n = (int)s->r.size();
+  int c = 0;
+  for (int k = 0; k < ncand; k++) {
+    VES_CHECK(cand[k] >= 0 && cand[k] < n, VES_ERR_ARG);
+    if (within(s, cand[k], X[0], X[1])) idx[c++] = cand[k];
   }
+  *count = c;
+  return VES_OK;
 }
 
 extern "C" void ves_geom_search_destroy(ves_geom_search **s) {

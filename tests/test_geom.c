@@ -154,7 +154,8 @@ static int brute(int n, const double *x, const double *r, const double *X, int *
   return c;
 }
 
-/* Search with radii spread by 20x equals brute force exactly; count > cap; errors. */
+/* Search with radii spread by 20x equals brute force exactly; count > cap;
+ * candidates near a centre filtered at points around it; errors. */
 static void test_search(void **state) {
   (void)state;
   enum { N = 2002, Q = 1000 };
@@ -199,8 +200,57 @@ static void test_search(void **state) {
   assert_int_equal(c, cr);
   assert_int_equal(ves_geom_search_query(sr, X, c, got, &c), VES_OK);
   for (int k = 0; k < c; k++) assert_int_equal(got[k], ref[k]);
+  /* clusters: the candidates within rho of a centre, filtered at each of
+   * six points within rho of it, give exactly the brute-force set of that
+   * point (also for points on a circle through the node, and rho = 0 is the
+   * plain query) */
+  int *cand = malloc(sizeof(int) * N);
+  assert_non_null(cand);
+  long ncand = 0, nexact = 0;
+  for (int q = 0; q < Q / 10; q++) {
+    const double rho = q % 2 ? 0.02 : 0.002;
+    double C[2] = {-0.1 + 1.2 * uni(&s), -0.1 + 1.2 * uni(&s)};
+    if (q == 0) C[0] = 0.75 - rho, C[1] = 0.5; /* (0.75, 0.5) at distance rho: on a circle */
+    int nc = -1;
+    assert_int_equal(ves_geom_search_query_near(sr, C, rho, N, cand, &nc), VES_OK);
+    for (int k = 1; k < nc; k++) assert_true(cand[k] > cand[k - 1]);
+    ncand += nc;
+    for (int p = 0; p < 6; p++) {
+      const double t = 2 * M_PI * uni(&s), d = p ? rho * uni(&s) : rho;
+      double Xp[2] = {C[0] + d * cos(t), C[1] + d * sin(t)};
+      if (q == 0 && p == 0) Xp[0] = 0.75, Xp[1] = 0.5;
+      if (hypot(Xp[0] - C[0], Xp[1] - C[1]) > rho) continue; /* rounding pushed it out */
+      int cf = -1, cb = brute(N, x, r, Xp, ref);
+      assert_int_equal(ves_geom_search_filter(sr, Xp, nc, cand, got, &cf), VES_OK);
+      assert_int_equal(cf, cb);
+      for (int k = 0; k < cf; k++) assert_int_equal(got[k], ref[k]);
+      nexact += cb;
+    }
+    int c0 = -1, c1 = -1;
+    assert_int_equal(ves_geom_search_query_near(sr, C, 0.0, N, cand, &c0), VES_OK);
+    assert_int_equal(ves_geom_search_query(sr, C, N, got, &c1), VES_OK);
+    assert_int_equal(c0, c1);
+    for (int k = 0; k < c0; k++) assert_int_equal(cand[k], got[k]);
+  }
+  printf("search near: %.1f candidates per centre, %.1f hits per point\n", ncand / (Q / 10.0),
+         nexact / (6.0 * Q / 10.0));
+  /* the filter in place (idx = cand) */
+  int nc = -1, cf = -1;
+  assert_int_equal(ves_geom_search_query_near(sr, X, 0.01, N, cand, &nc), VES_OK);
+  assert_int_equal(ves_geom_search_filter(sr, X, nc, cand, cand, &cf), VES_OK);
+  assert_int_equal(cf, brute(N, x, r, X, ref));
+  for (int k = 0; k < cf; k++) assert_int_equal(cand[k], ref[k]);
   /* errors */
   assert_int_equal(ves_geom_search_query(sr, X, 3, NULL, &c), VES_ERR_ARG);
+  assert_int_equal(ves_geom_search_query_near(sr, X, -1.0, N, cand, &c), VES_ERR_ARG);
+  assert_int_equal(ves_geom_search_query_near(sr, X, NAN, N, cand, &c), VES_ERR_ARG);
+  assert_int_equal(ves_geom_search_query_near(NULL, X, 0.1, N, cand, &c), VES_ERR_ARG);
+  cand[0] = N;
+  assert_int_equal(ves_geom_search_filter(sr, X, 1, cand, got, &c), VES_ERR_ARG);
+  assert_int_equal(ves_geom_search_filter(sr, X, 1, NULL, got, &c), VES_ERR_ARG);
+  assert_int_equal(ves_geom_search_filter(sr, X, 0, NULL, NULL, &c), VES_OK);
+  assert_int_equal(c, 0);
+  free(cand);
   ves_geom_search_destroy(&sr);
   assert_null(sr);
   ves_geom_search_destroy(&sr);

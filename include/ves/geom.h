@@ -41,6 +41,21 @@ ves_status ves_geom_search_create(int n, const double *x, const double *radius,
 ves_status ves_geom_search_query(const ves_geom_search *s, const double X[2],
                                  int cap, int *idx, int *count);
 
+/* Candidates for every point within rho (>= 0) of X: all a with
+ * |X - x_a| <= radius_a + rho, and possibly a few up to a relative 1e-9
+ * beyond; same conventions as ves_geom_search_query (increasing index order,
+ * cap, count). With ves_geom_search_filter, one query serves a cluster of
+ * points (a triangle's quadrature points) with the same result as a query
+ * at each. */
+ves_status ves_geom_search_query_near(const ves_geom_search *s, const double X[2], double rho,
+                                      int cap, int *idx, int *count);
+
+/* Of the candidates cand[ncand] (borrowed), those a with |X - x_a| <= radius_a,
+ * by the test of ves_geom_search_query, in their order, into idx (room for
+ * ncand); *count their number. idx may alias cand. */
+ves_status ves_geom_search_filter(const ves_geom_search *s, const double X[2], int ncand,
+                                  const int *cand, int *idx, int *count);
+
 /* Free; accepts NULL and sets *s to NULL. */
 void ves_geom_search_destroy(ves_geom_search **s);
 
