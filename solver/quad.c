@@ -14,6 +14,9 @@
 #include <string.h>
 #include <time.h>
 #include "clock_impl.h"
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 
 #define QA1 0.4459484909159648863183292538830519883991
 #define QW1 0.2233815896780114656950070084331228043703
@@ -156,24 +159,123 @@ static int grow(void **buf, size_t *cap, size_t need, size_t sz) {
   return 0;
 }
 
+static int n_threads(void) {
+#ifdef _OPENMP
+  return omp_get_max_threads();
+#else
+  return 1;
+#endif
+}
+
+static int thread_id(void) {
+#ifdef _OPENMP
+  return omp_get_thread_num();
+#else
+  return 0;
+#endif
+}
+
+static int team_size(void) {
+#ifdef _OPENMP
+  return omp_get_num_threads();
+#else
+  return 1;
+#endif
+}
+
+/* One thread's part of the tables build. */
+typedef struct {
+  int *idx;      /* query output, cap entries */
+  int cap;       /* capacity of idx */
+  int *nb;       /* the thread's neighbour lists (extended indices), one after the other */
+  size_t cap_nb; /* capacity of nb */
+  int g0, g1;    /* its groups [g0, g1) in pass 1 */
+  int m_max;     /* longest list among them */
+  ves_status s;  /* first failure in pass 1 */
+} tables_ws;
+
+/* Query the search at X (near != 0: the candidates within rho of X) into
+ * w->idx, enlarging it as needed; *cnt the number of hits. */
+static ves_status tables_query(const ves_geom_search *search, const double X[2], int near,
+                               double rho, tables_ws *w, int *cnt) {
+  for (;;) {
+    ves_status s = near ? ves_geom_search_query_near(search, X, rho, w->cap, w->idx, cnt)
+                        : ves_geom_search_query(search, X, w->cap, w->idx, cnt);
+    if (s != VES_OK || *cnt <= w->cap) return s;
+    int *tmp = realloc(w->idx, 2 * (size_t)*cnt * sizeof *tmp); /* rare: enlarge, ask again */
+    if (!tmp) return VES_ERR_ALLOC;
+    w->idx = tmp, w->cap = 2 * *cnt;
+  }
+}
+
+/* Pass 1 for the groups [w->g0, w->g1) of gs points (a triangle's, or single
+ * points): every point's neighbours a (real and ghost) with |X - x_a| <= r_a,
+ * ascending, appended to w->nb, the counts in cnt[p]. A triangle's points are
+ * found among the candidates of one query at their centre C, within
+ * rho = max |X - C| of it (|X - x_a| <= r_a implies |C - x_a| <= r_a + rho),
+ * by the same exact test as a query at each point: the same lists. */
+static void tables_search(const ves_quad *q, const ves_geom_search *search, int gs, tables_ws *w,
+                          int *cnt) {
+  size_t used = 0;
+  for (int g = w->g0; g < w->g1; g++) {
+    const int p0 = gs * g, p1 = p0 + gs < q->nq ? p0 + gs : q->nq;
+    double C[2] = {0.0, 0.0}, rho = 0.0;
+    int nc = 0;
+    ves_status s = VES_OK;
+    if (p1 - p0 > 1) {
+      for (int p = p0; p < p1; p++) C[0] += q->x[2 * p], C[1] += q->x[2 * p + 1];
+      C[0] /= p1 - p0, C[1] /= p1 - p0;
+      for (int p = p0; p < p1; p++)
+        rho = fmax(rho, hypot(q->x[2 * p] - C[0], q->x[2 * p + 1] - C[1]));
+      s = tables_query(search, C, 1, rho * (1.0 + 1e-12), w, &nc); /* rho rounded up */
+    }
+    for (int p = p0; p < p1 && s == VES_OK; p++) {
+      int c = 0;
+      if (p1 - p0 > 1) { /* filter the candidates (they have room for all) */
+        if (grow((void **)&w->nb, &w->cap_nb, used + nc, sizeof *w->nb))
+          s = VES_ERR_ALLOC;
+        else if (nc > 0)
+          s = ves_geom_search_filter(search, q->x + 2 * p, nc, w->idx, w->nb + used, &c);
+      } else {
+        s = tables_query(search, q->x + 2 * p, 0, 0.0, w, &c);
+        if (s == VES_OK && grow((void **)&w->nb, &w->cap_nb, used + c, sizeof *w->nb))
+          s = VES_ERR_ALLOC;
+        if (s == VES_OK && c > 0) memcpy(w->nb + used, w->idx, (size_t)c * sizeof *w->idx);
+      }
+      if (s != VES_OK) break;
+      used += c;
+      cnt[p] = c;
+      if (c > w->m_max) w->m_max = c;
+    }
+    if (s != VES_OK) {
+      w->s = s;
+      return;
+    }
+  }
+}
+
 /* For each point: neighbours a (real and ghost) with |X - X_a| <= r_a, then
- * the LME table at X over exactly those neighbours. */
+ * the LME table at X over exactly those neighbours. Both passes run on the
+ * OpenMP threads: pass 1 (one search query per triangle, tables_search) in
+ * contiguous blocks of triangles whose lists are then concatenated in point
+ * order, pass 2 (the LME evaluations) over triangles, a triangle's points in
+ * order with the warm start of lambda passed along them and lambda = 0 at its
+ * first point. Every table therefore depends on its own triangle only, and
+ * the tables are bit for bit the same for any number of threads. */
 ves_status ves_quad_tables(ves_quad *q, const ves_nodes *nodes,
                            const ves_lme_params *lme, ves_quad_info *info) {
   VES_CHECK(q && nodes && lme, VES_ERR_ARG);
   double t0 = ves_wall_seconds();
   tables_free(q);
-  int n = nodes->n, ne = nodes->n + nodes->ng;
+  const int n = nodes->n, ne = nodes->n + nodes->ng, nt = n_threads();
   ves_status s = VES_OK;
   ves_geom_search *search = NULL;
   double *xe = malloc(2 * (size_t)ne * sizeof *xe);
   double *rad = malloc((size_t)ne * sizeof *rad);
   double *beta_e = malloc((size_t)ne * sizeof *beta_e);
-  int *idx = NULL, *all = NULL;
-  double *xa = NULL, *beta = NULL, *work = NULL;
-  size_t cap_all = 0;
+  tables_ws *ws = calloc((size_t)nt, sizeof *ws);
   q->ptr = malloc(((size_t)q->nq + 1) * sizeof *q->ptr);
-  if (!xe || !rad || !beta_e || !q->ptr) {
+  if (!xe || !rad || !beta_e || !ws || !q->ptr) {
     s = VES_ERR_ALLOC;
     goto done;
   }
@@ -186,74 +288,114 @@ ves_status ves_quad_tables(ves_quad *q, const ves_nodes *nodes,
   s = ves_geom_search_create(ne, xe, rad, &search);
   if (s != VES_OK) goto done;
 
-  /* Pass 1: neighbour lists (extended indices), kept in `all`. */
-  int cap = 256, m_max = 0;
-  idx = malloc((size_t)cap * sizeof *idx);
-  if (!idx) {
-    s = VES_ERR_ALLOC;
-    goto done;
-  }
-  q->ptr[0] = 0;
-  for (int p = 0; p < q->nq; p++) {
-    int cnt;
-    s = ves_geom_search_query(search, q->x + 2 * p, cap, idx, &cnt);
-    if (s != VES_OK) goto done;
-    if (cnt > cap) { /* rare: enlarge and ask again */
-      cap = 2 * cnt;
-      int *tmp = realloc(idx, (size_t)cap * sizeof *idx);
-      if (!tmp) {
-        s = VES_ERR_ALLOC;
-        goto done;
-      }
-      idx = tmp;
-      s = ves_geom_search_query(search, q->x + 2 * p, cap, idx, &cnt);
-      if (s != VES_OK) goto done;
-    }
-    if (grow((void **)&all, &cap_all, (size_t)q->ptr[p] + cnt, sizeof *all)) {
+  /* Pass 1: the neighbour lists (extended indices) of thread k's block of
+   * groups in ws[k].nb, counts in ptr[p + 1]; then concatenated into nbr. A
+   * group is a triangle's points (their lists come from one query), or a
+   * single point for a point set without triangles. */
+  const int gsize = q->ntri ? VES_QUAD_NPT : 1, ngroup = (q->nq + gsize - 1) / gsize;
+  for (int k = 0; k < nt; k++) {
+    ws[k].cap = 256;
+    ws[k].idx = malloc((size_t)ws[k].cap * sizeof *ws[k].idx);
+    if (!ws[k].idx) {
       s = VES_ERR_ALLOC;
       goto done;
     }
-    memcpy(all + q->ptr[p], idx, (size_t)cnt * sizeof *idx);
-    q->ptr[p + 1] = q->ptr[p] + cnt;
-    if (cnt > m_max) m_max = cnt;
   }
-
-  /* Pass 2: fold ghost indices and evaluate the basis. */
+#pragma omp parallel num_threads(nt)
+  {
+    const int k = thread_id(), T = team_size();
+    ws[k].g0 = (int)((long)ngroup * k / T);
+    ws[k].g1 = (int)((long)ngroup * (k + 1) / T);
+    tables_search(q, search, gsize, ws + k, q->ptr + 1);
+  }
+  int m_max = 0;
+  for (int k = 0; k < nt; k++) {
+    if (ws[k].s != VES_OK && s == VES_OK) s = ws[k].s; /* the first block's failure */
+    if (ws[k].m_max > m_max) m_max = ws[k].m_max;
+  }
+  if (s != VES_OK) goto done;
+  q->ptr[0] = 0;
+  for (int p = 0; p < q->nq; p++) q->ptr[p + 1] += q->ptr[p];
   size_t nnz = (size_t)q->ptr[q->nq];
-  q->nbr = malloc(nnz * sizeof *q->nbr);
-  q->mirror = malloc(nnz);
-  q->tab = malloc(6 * nnz * sizeof *q->tab);
-  xa = malloc(2 * (size_t)m_max * sizeof *xa);
-  beta = malloc((size_t)m_max * sizeof *beta);
-  work = malloc((size_t)ves_lme_work_size(m_max) * sizeof *work);
-  if (!q->nbr || !q->mirror || !q->tab || !xa || !beta || !work) {
+  q->nbr = malloc((nnz ? nnz : 1) * sizeof *q->nbr);
+  q->mirror = malloc(nnz ? nnz : 1);
+  q->tab = malloc(6 * (nnz ? nnz : 1) * sizeof *q->tab);
+  if (!q->nbr || !q->mirror || !q->tab) {
     s = VES_ERR_ALLOC;
     goto done;
   }
+  for (int k = 0; k < nt; k++) {
+    const int p0 = gsize * ws[k].g0 < q->nq ? gsize * ws[k].g0 : q->nq;
+    const int p1 = gsize * ws[k].g1 < q->nq ? gsize * ws[k].g1 : q->nq;
+    if (q->ptr[p1] > q->ptr[p0])
+      memcpy(q->nbr + q->ptr[p0], ws[k].nb, (size_t)(q->ptr[p1] - q->ptr[p0]) * sizeof *q->nbr);
+    free(ws[k].nb);
+    ws[k].nb = NULL;
+  }
+
+  /* Pass 2: fold ghost indices and evaluate the basis, one group of points
+   * (a triangle's, or a single point for a point set without triangles: it
+   * is not ordered in space) per task. An error is reported for the lowest
+   * failing point: groups above the lowest failure seen so far are skipped,
+   * those below it all run, so the outcome does not depend on the threads. */
+  int bad = q->nq;
+  ves_status bad_s = VES_OK;
   long iter_sum = 0;
   int iter_max = 0;
-  double lambda[2] = {0.0, 0.0};
-  for (int p = 0; p < q->nq; p++) {
-    int m = q->ptr[p + 1] - q->ptr[p];
-    const int *nb = all + q->ptr[p];
-    for (int k = 0; k < m; k++) {
-      int a = nb[k];
-      q->nbr[q->ptr[p] + k] = a < n ? a : nodes->ghost_of[a - n];
-      q->mirror[q->ptr[p] + k] = a >= n;
-      xa[2 * k] = xe[2 * a];
-      xa[2 * k + 1] = xe[2 * a + 1];
-      beta[k] = beta_e[a];
+#pragma omp parallel num_threads(nt) reduction(+ : iter_sum) reduction(max : iter_max)
+  {
+    double *xa = malloc(2 * (size_t)(m_max ? m_max : 1) * sizeof *xa);
+    double *beta = malloc((size_t)(m_max ? m_max : 1) * sizeof *beta);
+    double *work = malloc((size_t)(m_max ? ves_lme_work_size(m_max) : 1) * sizeof *work);
+    if (!xa || !beta || !work) {
+#pragma omp critical(ves_quad_tables_bad)
+      {
+#pragma omp atomic write
+        bad = -1; /* ranks before every point: all groups are skipped */
+        bad_s = VES_ERR_ALLOC;
+      }
     }
-    /* warm start within a triangle only: a point set without triangles (points
-     * at the nodes) is not ordered in space */
-    if (q->ntri == 0 || p % VES_QUAD_NPT == 0) lambda[0] = lambda[1] = 0.0;
-    ves_lme_info li;
-    s = ves_lme_eval(lme, q->x + 2 * p, m, xa, beta, lambda, 2, q->tab + 6 * (size_t)q->ptr[p],
-                     work, &li);
-    if (s != VES_OK) goto done;
-    iter_sum += li.iterations;
-    if (li.iterations > iter_max) iter_max = li.iterations;
+#pragma omp for schedule(dynamic, 16)
+    for (int g = 0; g < ngroup; g++) {
+      int lowest;
+#pragma omp atomic read
+      lowest = bad;
+      if (gsize * g > lowest) continue;
+      double lambda[2] = {0.0, 0.0}; /* warm start along the group's points */
+      const int pend = gsize * (g + 1) < q->nq ? gsize * (g + 1) : q->nq;
+      for (int p = gsize * g; p < pend; p++) {
+        const int m = q->ptr[p + 1] - q->ptr[p];
+        int *nb = q->nbr + q->ptr[p];
+        unsigned char *mir = q->mirror + q->ptr[p];
+        for (int k = 0; k < m; k++) {
+          const int a = nb[k];
+          xa[2 * k] = xe[2 * a];
+          xa[2 * k + 1] = xe[2 * a + 1];
+          beta[k] = beta_e[a];
+          nb[k] = a < n ? a : nodes->ghost_of[a - n]; /* fold: the ghost's real node */
+          mir[k] = a >= n;
+        }
+        ves_lme_info li;
+        ves_status sp = ves_lme_eval(lme, q->x + 2 * p, m, xa, beta, lambda, 2,
+                                     q->tab + 6 * (size_t)q->ptr[p], work, &li);
+        if (sp != VES_OK) {
+#pragma omp critical(ves_quad_tables_bad)
+          if (p < bad) {
+#pragma omp atomic write
+            bad = p;
+            bad_s = sp;
+          }
+          break;
+        }
+        iter_sum += li.iterations;
+        if (li.iterations > iter_max) iter_max = li.iterations;
+      }
+    }
+    free(xa);
+    free(beta);
+    free(work);
   }
+  if ((s = bad_s) != VES_OK) goto done;
   q->lme = *lme;
   if (info) {
     info->m_mean = q->nq ? (double)nnz / q->nq : 0.0;
@@ -268,11 +410,9 @@ done:
   free(xe);
   free(rad);
   free(beta_e);
-  free(idx);
-  free(all);
-  free(xa);
-  free(beta);
-  free(work);
+  if (ws)
+    for (int k = 0; k < nt; k++) free(ws[k].idx), free(ws[k].nb);
+  free(ws);
   return s;
 }
 

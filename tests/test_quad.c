@@ -11,6 +11,9 @@
 
 #include "ves/quad.h"
 
+#include <omp.h>
+#include <string.h>
+
 /* Deterministic uniform numbers in [0, 1) (xorshift64*). */
 static double urand(uint64_t *s) {
   *s ^= *s >> 12;
@@ -214,6 +217,108 @@ static void test_tables(void **state) {
   ves_nodes_destroy(&nodes);
 }
 
+/* ves_quad_tables with the thread count at k. */
+static ves_status tables_on(int k, ves_quad *q, const ves_nodes *nodes, const ves_lme_params *lp,
+                            ves_quad_info *info) {
+  const int was = omp_get_max_threads();
+  omp_set_num_threads(k);
+  ves_status s = ves_quad_tables(q, nodes, lp, info);
+  omp_set_num_threads(was);
+  return s;
+}
+
+/* The tables are those of the straightforward construction, bit for bit, for
+ * 1, 2 and 3 threads: at every point a query of its own, neighbours in
+ * increasing extended index, ghosts folded, and ves_lme_eval with lambda
+ * passed from point to point of a triangle, 0 at its first (for points
+ * without triangles, 0 at every point). A point outside the nodes' hull
+ * fails with the same status for any thread count, leaving no tables. */
+static void test_tables_threads(void **state) {
+  (void)state;
+  double eps = 0.1;
+  ves_nodes_params np;
+  ves_nodes_params_default(&np);
+  np.LR = 1.5;
+  np.LZ = 1.5;
+  np.h = sphere_h;
+  np.h_ctx = &eps;
+  ves_nodes *nodes = NULL;
+  assert_int_equal(ves_nodes_generate(&np, &nodes), VES_OK);
+  ves_lme_params lp;
+  ves_lme_params_default(&lp);
+  const int n = nodes->n, ne = n + nodes->ng;
+  double *xe = malloc(2 * (size_t)ne * sizeof *xe), *rad = malloc((size_t)ne * sizeof *rad);
+  double *beta_e = malloc((size_t)ne * sizeof *beta_e);
+  int *idx = malloc((size_t)ne * sizeof *idx);
+  assert_true(xe && rad && beta_e && idx);
+  ves_nodes_extended(nodes, xe);
+  for (int a = 0; a < ne; a++) {
+    const double h = nodes->h[a < n ? a : nodes->ghost_of[a - n]];
+    rad[a] = ves_lme_radius(&lp, h), beta_e[a] = lp.gamma / (h * h);
+  }
+  ves_geom_search *sr = NULL;
+  assert_int_equal(ves_geom_search_create(ne, xe, rad, &sr), VES_OK);
+  for (int set = 0; set < 2; set++) { /* triangles, then the points at the nodes */
+    ves_quad *q[3] = {NULL, NULL, NULL};
+    for (int k = 0; k < 3; k++) {
+      assert_int_equal(set ? ves_quad_create_at_nodes(nodes, q + k) : ves_quad_create(nodes, q + k),
+                       VES_OK);
+      ves_quad_info info;
+      assert_int_equal(tables_on(k + 1, q[k], nodes, &lp, &info), VES_OK);
+      if (k == 0)
+        printf("# tables (%s): %d points, m mean %.1f, Newton mean %.2f\n",
+               set ? "at the nodes" : "triangles", q[0]->nq, info.m_mean, info.iter_mean);
+    }
+    const ves_quad *q0 = q[0];
+    const size_t nnz = (size_t)q0->ptr[q0->nq];
+    for (int k = 1; k < 3; k++) {
+      assert_memory_equal(q[k]->ptr, q0->ptr, ((size_t)q0->nq + 1) * sizeof *q0->ptr);
+      assert_memory_equal(q[k]->nbr, q0->nbr, nnz * sizeof *q0->nbr);
+      assert_memory_equal(q[k]->mirror, q0->mirror, nnz);
+      assert_memory_equal(q[k]->tab, q0->tab, 6 * nnz * sizeof *q0->tab);
+    }
+    /* the reference construction */
+    double *xa = malloc(2 * (size_t)ne * sizeof *xa), *beta = malloc((size_t)ne * sizeof *beta);
+    double *work = malloc((size_t)ves_lme_work_size(ne) * sizeof *work);
+    double *tab = malloc(6 * (size_t)ne * sizeof *tab);
+    assert_true(xa && beta && work && tab);
+    double lambda[2] = {0.0, 0.0};
+    for (int p = 0; p < q0->nq; p++) {
+      int c = -1;
+      assert_int_equal(ves_geom_search_query(sr, q0->x + 2 * p, ne, idx, &c), VES_OK);
+      assert_int_equal(c, q0->ptr[p + 1] - q0->ptr[p]);
+      for (int j = 0; j < c; j++) {
+        const int a = idx[j];
+        assert_int_equal(q0->nbr[q0->ptr[p] + j], a < n ? a : nodes->ghost_of[a - n]);
+        assert_int_equal(q0->mirror[q0->ptr[p] + j], a >= n);
+        xa[2 * j] = xe[2 * a], xa[2 * j + 1] = xe[2 * a + 1], beta[j] = beta_e[a];
+      }
+      if (set || p % VES_QUAD_NPT == 0) lambda[0] = lambda[1] = 0.0;
+      assert_int_equal(ves_lme_eval(&lp, q0->x + 2 * p, c, xa, beta, lambda, 2, tab, work, NULL),
+                       VES_OK);
+      assert_memory_equal(tab, q0->tab + 6 * (size_t)q0->ptr[p], 6 * (size_t)c * sizeof *tab);
+    }
+    free(xa), free(beta), free(work), free(tab);
+    for (int k = 0; k < 3; k++) ves_quad_destroy(q + k);
+  }
+  /* a point far outside the hull: the same failure with 1 and 2 threads */
+  ves_status st[2];
+  for (int k = 0; k < 2; k++) {
+    ves_quad *qb = NULL;
+    double x[8] = {0.5, 0.0, 0.7, 0.3, 5.0, 5.0, 0.9, -0.2}, w[4] = {1, 1, 1, 1};
+    assert_int_equal(ves_quad_create_points(4, x, w, 0, NULL, &qb), VES_OK);
+    st[k] = tables_on(k + 1, qb, nodes, &lp, NULL);
+    assert_true(st[k] < 0);
+    assert_null(qb->ptr);
+    assert_null(qb->tab);
+    ves_quad_destroy(&qb);
+  }
+  assert_int_equal(st[0], st[1]);
+  ves_geom_search_destroy(&sr);
+  free(xe), free(rad), free(beta_e), free(idx);
+  ves_nodes_destroy(&nodes);
+}
+
 /* A structured grid on [0, L] x [-H, H], nr x nz nodes, two CCW triangles
  * a cell; x[2 nr nz], tri[6 (nr-1)(nz-1)] allocated here. */
 static void grid(int nr, int nz, double L, double H, double **x, int **tri) {
@@ -309,6 +414,7 @@ int main(void) {
       cmocka_unit_test(test_triangulation_area),
       cmocka_unit_test(test_errors),
       cmocka_unit_test(test_tables),
+      cmocka_unit_test(test_tables_threads),
       cmocka_unit_test(test_level_set),
   };
   return cmocka_run_group_tests_name("quad", tests, NULL, NULL);
