@@ -15,6 +15,8 @@
 
 #include "ves/sparse.h"
 
+#include <omp.h>
+
 #define U 0x1.0p-52 /* double unit roundoff (2u, machine epsilon) */
 
 /* Deterministic uniform numbers in [0, 1) (xorshift64*). */
@@ -314,7 +316,8 @@ static int teardown_tables(void **state) {
 
 /* The pattern is exactly the set of pairs b <= a that share a point
  * (brute force over a dense n x n map); dof numbering, triplets, extract and
- * symv against a dense matrix over the free dofs. */
+ * symv against a dense matrix over the free dofs; the same arrays with 1 and
+ * 2 threads; with a second point set, the union. */
 static void test_pattern(void **state) {
   const fixture *fx = *state;
   const ves_quad *q = fx->q;
@@ -401,6 +404,51 @@ static void test_pattern(void **state) {
   ves_pattern_destroy(&p);
   assert_null(p);
   ves_pattern_destroy(NULL);
+  /* the same arrays with 1 and 2 threads */
+  for (int k = 1; k <= 2; k++) {
+    ves_pattern *pk = NULL;
+    const int was = omp_get_max_threads();
+    omp_set_num_threads(k);
+    assert_int_equal(ves_pattern_create(q, NULL, n, fixed, &pk), VES_OK);
+    omp_set_num_threads(was);
+    if (k == 1)
+      assert_non_null(p = pk);
+    else {
+      assert_int_equal(pk->ptr[n], p->ptr[n]);
+      assert_memory_equal(pk->ptr, p->ptr, ((size_t)n + 1) * sizeof *p->ptr);
+      assert_memory_equal(pk->col, p->col, (size_t)p->ptr[n] * sizeof *p->col);
+      assert_int_equal(pk->nnz, p->nnz);
+      assert_memory_equal(pk->irow, p->irow, (size_t)p->nnz * sizeof *p->irow);
+      assert_memory_equal(pk->jcol, p->jcol, (size_t)p->nnz * sizeof *p->jcol);
+      assert_memory_equal(pk->src, p->src, (size_t)p->nnz * sizeof *p->src);
+      ves_pattern_destroy(&pk);
+    }
+  }
+  /* the union with a second point set (the points at the nodes): brute force */
+  ves_quad *qn = NULL;
+  ves_lme_params lp;
+  ves_lme_params_default(&lp);
+  assert_int_equal(ves_quad_create_at_nodes(fx->nodes, &qn), VES_OK);
+  assert_int_equal(ves_quad_tables(qn, fx->nodes, &lp, NULL), VES_OK);
+  for (int al = 0; al < qn->nq; al++)
+    for (int k = qn->ptr[al]; k < qn->ptr[al + 1]; k++)
+      for (int l = qn->ptr[al]; l < qn->ptr[al + 1]; l++)
+        if (qn->nbr[l] <= qn->nbr[k]) coupled[(size_t)qn->nbr[k] * n + qn->nbr[l]] = 1;
+  ves_pattern *pu = NULL;
+  assert_int_equal(ves_pattern_create(q, qn, n, fixed, &pu), VES_OK);
+  long cu = 0;
+  for (int a = 0; a < n; a++) {
+    for (int t = pu->ptr[a] + 1; t < pu->ptr[a + 1]; t++) assert_true(pu->col[t] > pu->col[t - 1]);
+    for (int t = pu->ptr[a]; t < pu->ptr[a + 1]; t++)
+      assert_true(pu->col[t] <= a && coupled[(size_t)a * n + pu->col[t]]);
+    for (int b = 0; b <= a; b++) cu += coupled[(size_t)a * n + b];
+  }
+  assert_int_equal(cu, pu->ptr[n]);
+  printf("# pattern: %d blocks, %d with the points at the nodes\n", p->ptr[n], pu->ptr[n]);
+  assert_true(pu->ptr[n] >= p->ptr[n]);
+  ves_pattern_destroy(&pu);
+  ves_quad_destroy(&qn);
+  ves_pattern_destroy(&p);
   assert_int_equal(ves_pattern_create(NULL, NULL, n, fixed, &p), VES_ERR_ARG);
   assert_int_equal(ves_pattern_create(q, NULL, 0, fixed, &p), VES_ERR_ARG);
   assert_int_equal(ves_pattern_create(q, NULL, n, NULL, &p), VES_ERR_ARG);
@@ -469,6 +517,92 @@ static void test_project_folding(void **state) {
   /* rtol = 0 cannot be met: VES_MAXITER, c still the best iterate */
   assert_int_equal(ves_sparse_project_l2(&q, N, f, c, 0.0, 2, &refine, &relres), VES_MAXITER);
   assert_true(refine <= 2 && relres <= 1e-14);
+}
+
+/* Hand-made tables on two triangles (12 points in groups of 6) whose points
+ * see different nodes, some twice (real and ghost): the projection equals the
+ * dense normal-equation solution, and the pattern is the brute-force one. */
+static void test_project_groups(void **state) {
+  (void)state;
+  enum { NT = 2, NQ = 6 * NT, N = 9, M = 5 };
+  int nbr[NQ * M], ptr[NQ + 1], tri[3 * NT] = {0, 1, 2, 2, 1, 3};
+  unsigned char mirror[NQ * M] = {0};
+  double tab[6 * NQ * M], w[NQ], f[NQ], x[2 * NQ];
+  uint64_t seed = 57;
+  for (int al = 0; al <= NQ; al++) ptr[al] = M * al;
+  for (int al = 0; al < NQ; al++) { /* node al % N, then four more, one of them repeated */
+    for (int k = 0; k < M; k++) nbr[M * al + k] = (al + 2 * k) % N;
+    if (al % 3 == 1) nbr[M * al + 4] = nbr[M * al + 1], mirror[M * al + 4] = 1;
+    w[al] = 0.5 + urand(&seed), f[al] = cos(2.0 * al);
+    x[2 * al] = urand(&seed), x[2 * al + 1] = urand(&seed);
+  }
+  for (int i = 0; i < 6 * NQ * M; i++) tab[i] = 0.05 + urand(&seed);
+  ves_quad q = {.ntri = NT,
+                .nq = NQ,
+                .tri = tri,
+                .x = x,
+                .w = w,
+                .ptr = ptr,
+                .nbr = nbr,
+                .mirror = mirror,
+                .tab = tab};
+  double P[NQ * N] = {0}, Md[N * N] = {0}, b[N] = {0}, c[N];
+  unsigned char coupled[N * N] = {0};
+  for (int al = 0; al < NQ; al++)
+    for (int k = 0; k < M; k++) {
+      P[al * N + nbr[M * al + k]] += tab[6 * M * al + k]; /* value row */
+      for (int l = 0; l < M; l++) coupled[nbr[M * al + k] * N + nbr[M * al + l]] = 1;
+    }
+  for (int a = 0; a < N; a++) {
+    for (int al = 0; al < NQ; al++) b[a] += w[al] * P[al * N + a] * f[al];
+    for (int bb = 0; bb < N; bb++)
+      for (int al = 0; al < NQ; al++) Md[a * N + bb] += w[al] * P[al * N + a] * P[al * N + bb];
+  }
+  double anorm = LAPACKE_dlange(LAPACK_ROW_MAJOR, '1', N, N, Md, N), rcond;
+  assert_int_equal(LAPACKE_dposv(LAPACK_ROW_MAJOR, 'L', N, 1, Md, N, b, 1), 0);
+  assert_int_equal(LAPACKE_dpocon(LAPACK_ROW_MAJOR, 'L', N, Md, N, anorm, &rcond), 0);
+  int refine = -1;
+  double relres = -1;
+  assert_int_equal(ves_sparse_project_l2(&q, N, f, c, 1e-14, 3, &refine, &relres), VES_OK);
+  double worst = 0.0;
+  for (int a = 0; a < N; a++) worst = fmax(worst, fabs(c[a] - b[a]) / fmax(1.0, fabs(b[a])));
+  printf("# groups: cond_1(M) ~ %.1e, max |c - c_dense| = %.2e, relres %.2e\n", 1.0 / rcond, worst,
+         relres);
+  /* as in test_project_folding: both within ~ N u cond(M) of the exact solution */
+  assert_true(worst <= 10.0 * N * U / rcond);
+  unsigned char fixed[2 * N] = {0};
+  ves_pattern *p = NULL;
+  assert_int_equal(ves_pattern_create(&q, NULL, N, fixed, &p), VES_OK);
+  int count = 0;
+  for (int a = 0; a < N; a++)
+    for (int bb = 0; bb <= a; bb++)
+      if (coupled[a * N + bb]) assert_true(ves_pattern_find(p, a, bb) >= 0), count++;
+  assert_int_equal(count, p->ptr[N]);
+  ves_pattern_destroy(&p);
+  nbr[7] = N; /* a node outside [0, n) */
+  assert_int_equal(ves_pattern_create(&q, NULL, N, fixed, &p), VES_ERR_ARG);
+  assert_int_equal(ves_sparse_project_l2(&q, N, f, c, 1e-14, 3, NULL, NULL), VES_ERR_ARG);
+}
+
+/* The projection on the adapted node set gives the same coefficients, bit for
+ * bit, with 1 and 2 threads (the matrix and right-hand side are summed in the
+ * same order; MUMPS gets the same input). */
+static void test_project_threads(void **state) {
+  const fixture *fx = *state;
+  const ves_quad *q = fx->q;
+  const int n = fx->nodes->n, was = omp_get_max_threads();
+  double *f = malloc((size_t)q->nq * sizeof *f), *c[2];
+  c[0] = malloc((size_t)n * sizeof *c[0]), c[1] = malloc((size_t)n * sizeof *c[1]);
+  assert_true(f && c[0] && c[1]);
+  for (int al = 0; al < q->nq; al++)
+    f[al] = tanh((1.0 - hypot(q->x[2 * al], q->x[2 * al + 1])) / (sqrt(2.0) * 0.1));
+  for (int k = 0; k < 2; k++) {
+    omp_set_num_threads(k + 1);
+    assert_int_equal(ves_sparse_project_l2(q, n, f, c[k], 1e-12, 3, NULL, NULL), VES_OK);
+  }
+  omp_set_num_threads(was);
+  assert_memory_equal(c[0], c[1], (size_t)n * sizeof *c[0]);
+  free(f), free(c[0]), free(c[1]);
 }
 
 /* An even affine field f = 1 + 0.3 Z: LME reproduces it exactly (ghosts carry
@@ -557,14 +691,11 @@ static void test_project_smooth(void **state) {
 int main(void) {
   setvbuf(stdout, NULL, _IOLBF, 0); /* keep output in order with cmocka's stderr */
   const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_ldl_spd_vs_lapack),
-      cmocka_unit_test(test_ldl_kkt),
-      cmocka_unit_test(test_ldl_refactor),
-      cmocka_unit_test(test_ldl_singular),
-      cmocka_unit_test(test_ldl_errors),
-      cmocka_unit_test(test_project_folding),
-      cmocka_unit_test(test_pattern),
-      cmocka_unit_test(test_project_affine),
+      cmocka_unit_test(test_ldl_spd_vs_lapack), cmocka_unit_test(test_ldl_kkt),
+      cmocka_unit_test(test_ldl_refactor),      cmocka_unit_test(test_ldl_singular),
+      cmocka_unit_test(test_ldl_errors),        cmocka_unit_test(test_project_folding),
+      cmocka_unit_test(test_project_groups),    cmocka_unit_test(test_project_threads),
+      cmocka_unit_test(test_pattern),           cmocka_unit_test(test_project_affine),
       cmocka_unit_test(test_project_smooth),
   };
   /* the node set and tables are built once for the group (the tests only
