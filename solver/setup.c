@@ -118,8 +118,12 @@ ves_status ves_setup_create(const ves_config *cfg, ves_phi0_method method, ves_s
   s->phi0c = malloc((size_t)n * sizeof *s->phi0c);
   f = malloc((size_t)s->quad->nq * sizeof *f);
   if (!s->phi0c || !f) FAIL(VES_ERR_ALLOC, "out of memory");
+  /* phi0 at the nodes and points: independent evaluations of a read-only
+   * shape (each a search over the curve's samples), on the OpenMP threads */
+#pragma omp parallel for schedule(static)
   for (int a = 0; a < n; a++) s->phi0c[a] = ves_shape_phi0(s->shape, cfg->epsilon, s->nodes->x + 2 * a);
   if (method == VES_PHI0_L2) {
+#pragma omp parallel for schedule(static)
     for (int p = 0; p < s->quad->nq; p++) f[p] = ves_shape_phi0(s->shape, cfg->epsilon, s->quad->x + 2 * p);
     /* sparse Cholesky + at most 3 refinement steps (proj_refinements counts
      * them); 1e-12: the fit error then sits far below the discretization error */
