@@ -619,13 +619,15 @@ static void scatter_grad(const folded *f, const int *owner, int k, double c, con
 }
 
 /* The triangle's matrices B over its union, stacked point by point, and
- * their products with the local Hessians (workspace X, Y; column j = union
- * node j, column-major):
- *   Xr[(p nr + k) + j Kr] = b_r(p, k; j),  Xz[(p nz + k) + j Kz] = b_z(p, k; j)
+ * their products with the local Hessians (workspace X, Y; nu x K
+ * column-major: one contiguous column per row (p, k) of B, over the union
+ * nodes j):
+ *   Xr[(p nr + k) nu + j] = b_r(p, k; j),  Xz[(p nz + k) nu + j] = b_z(p, k; j)
  * (the folded table rows of map mp; zero where point p does not see node j),
- * Kr = NPT nr, Kz = NPT nz, and with cH_p = c_p d2e/dq2 at point p split by
- * the map into its rr, rz and zz parts,
- *   Yrr = diag_p(cH_rr) Xr,  Yrz = diag_p(cH_rz) Xz,  Yzz = diag_p(cH_zz) Xz.
+ * Kr = NPT nr, Kz = NPT nz columns, and with cH_p = c_p d2e/dq2 at point p
+ * split by the map into its rr, rz and zz parts,
+ *   Yrr = Xr diag_p(cH_rr),  Yrz = Xz diag_p(cH_zr),  Yzz = Xz diag_p(cH_zz)
+ * (axpys over the union, vectorized).
  * Hs holds the NPT local matrices (nl x nl each, c included). */
 #if defined(__GNUC__)
 __attribute__((always_inline))
@@ -642,33 +644,34 @@ triangle_xy_n(const local_map *mp, const int nr, const int nz, const folded f[NP
     const int mu = fp->mu;
     for (int v = 0; v < mu; v++) {
       const int j = slot[fp->un[v]];
-      for (int k = 0; k < nr; k++) Xr[p * nr + k + (size_t)j * Kr] = fp->Tr[mp->rr[k] * mu + v];
-      for (int k = 0; k < nz; k++) Xz[p * nz + k + (size_t)j * Kz] = fp->Tz[mp->rz[k] * mu + v];
+      for (int k = 0; k < nr; k++) Xr[(size_t)(p * nr + k) * nu + j] = fp->Tr[mp->rr[k] * mu + v];
+      for (int k = 0; k < nz; k++) Xz[(size_t)(p * nz + k) * nu + j] = fp->Tz[mp->rz[k] * mu + v];
     }
   }
   for (int p = 0; p < NPT; p++) {
     const double *H = Hs + (size_t)p * nl * nl;
-    double hrr[6][6], hrz[6][5], hzz[5][5]; /* nr <= 6, nz <= 5 */
-    for (int k = 0; k < nr; k++) {
-      for (int l = 0; l < nr; l++) hrr[k][l] = H[mp->qr[k] * nl + mp->qr[l]];
-      for (int l = 0; l < nz; l++) hrz[k][l] = H[mp->qr[k] * nl + mp->qz[l]];
-    }
-    for (int k = 0; k < nz; k++)
-      for (int l = 0; l < nz; l++) hzz[k][l] = H[mp->qz[k] * nl + mp->qz[l]];
-    for (int j = 0; j < nu; j++) {
-      const double *xr = Xr + p * nr + (size_t)j * Kr, *xz = Xz + p * nz + (size_t)j * Kz;
-      double *yrr = Yrr + p * nr + (size_t)j * Kr, *yrz = Yrz + p * nr + (size_t)j * Kr,
-             *yzz = Yzz + p * nz + (size_t)j * Kz;
-      for (int k = 0; k < nr; k++) {
-        double a = 0, b = 0;
-        for (int l = 0; l < nr; l++) a += hrr[k][l] * xr[l];
-        for (int l = 0; l < nz; l++) b += hrz[k][l] * xz[l];
-        yrr[k] = a, yrz[k] = b;
+    const double *xr = Xr + (size_t)p * nr * nu, *xz = Xz + (size_t)p * nz * nu;
+    for (int k = 0; k < nr; k++) { /* row (p, k) of Yrr and Yrz: axpys over the union */
+      double *yrr = Yrr + (size_t)(p * nr + k) * nu, *yrz = Yrz + (size_t)(p * nr + k) * nu;
+      for (int j = 0; j < nu; j++) yrr[j] = yrz[j] = 0.0;
+      for (int l = 0; l < nr; l++) {
+        const double h = H[mp->qr[k] * nl + mp->qr[l]], *x = xr + (size_t)l * nu;
+        OMP_SIMD
+        for (int j = 0; j < nu; j++) yrr[j] += h * x[j];
       }
-      for (int k = 0; k < nz; k++) {
-        double a = 0;
-        for (int l = 0; l < nz; l++) a += hzz[k][l] * xz[l];
-        yzz[k] = a;
+      for (int l = 0; l < nz; l++) {
+        const double h = H[mp->qr[k] * nl + mp->qz[l]], *x = xz + (size_t)l * nu;
+        OMP_SIMD
+        for (int j = 0; j < nu; j++) yrz[j] += h * x[j];
+      }
+    }
+    for (int k = 0; k < nz; k++) {
+      double *yzz = Yzz + (size_t)(p * nz + k) * nu;
+      for (int j = 0; j < nu; j++) yzz[j] = 0.0;
+      for (int l = 0; l < nz; l++) {
+        const double h = H[mp->qz[k] * nl + mp->qz[l]], *x = xz + (size_t)l * nu;
+        OMP_SIMD
+        for (int j = 0; j < nu; j++) yzz[j] += h * x[j];
       }
     }
   }
@@ -730,7 +733,7 @@ typedef enum { ASM_HESS, ASM_DISS } asm_kind;
 /* Triangle t's contribution to the rows of slab k: the local matrices of its
  * points (fac[3] = f_E cE, f_A cA, f_V cV for ASM_HESS), then its block
  * matrix sum_p B_p^T cH_p B_p over its union as three products
- *   Mrr = Xr^T Yrr,  Mrz = Xr^T Yrz,  Mzz = Xz^T Yzz   (triangle_xy)
+ *   Mrr = Xr Yrr^T,  Mrz = Xr Yrz^T,  Mzz = Xz Yzz^T   (triangle_xy)
  * by the BLAS (one thread: the caller runs the triangles in parallel), and
  * its owned rows into blk. */
 static ves_status triangle_blocks(const ves_model *m, model_ws *w, asm_kind kind,
@@ -771,12 +774,12 @@ static ves_status triangle_blocks(const ves_model *m, model_ws *w, asm_kind kind
   const double *Xr = w->X, *Xz = w->X + (size_t)Kr * nu;
   const double *Yrr = w->Y, *Yrz = w->Y + (size_t)Kr * nu, *Yzz = w->Y + 2 * (size_t)Kr * nu;
   double *M = w->M;
-  cblas_dgemm(CblasColMajor, CblasTrans, CblasNoTrans, nu, nu, Kr, 1.0, Xr, Kr, Yrr, Kr, 0.0, M,
-              nu); /* Mrr = Xr^T Yrr */
-  cblas_dgemm(CblasColMajor, CblasTrans, CblasNoTrans, nu, nu, Kr, 1.0, Xr, Kr, Yrz, Kr, 0.0,
-              M + (size_t)nu * nu, nu); /* Mrz = Xr^T Yrz */
-  cblas_dgemm(CblasColMajor, CblasTrans, CblasNoTrans, nu, nu, Kz, 1.0, Xz, Kz, Yzz, Kz, 0.0,
-              M + 2 * (size_t)nu * nu, nu); /* Mzz = Xz^T Yzz */
+  cblas_dgemm(CblasColMajor, CblasNoTrans, CblasTrans, nu, nu, Kr, 1.0, Xr, nu, Yrr, nu, 0.0, M,
+              nu); /* Mrr = Xr Yrr^T */
+  cblas_dgemm(CblasColMajor, CblasNoTrans, CblasTrans, nu, nu, Kr, 1.0, Xr, nu, Yrz, nu, 0.0,
+              M + (size_t)nu * nu, nu); /* Mrz = Xr Yrz^T */
+  cblas_dgemm(CblasColMajor, CblasNoTrans, CblasTrans, nu, nu, Kz, 1.0, Xz, nu, Yzz, nu, 0.0,
+              M + 2 * (size_t)nu * nu, nu); /* Mzz = Xz Yzz^T */
   triangle_scatter(m, U, nu, k, M, blk);
   return VES_OK;
 }
