@@ -420,6 +420,7 @@ done:
  * coefficient: the field is even in R). */
 void ves_quad_field(const ves_quad *q, const double *c, int nder, double *out) {
   int rows = nder <= 0 ? 1 : nder == 1 ? 3 : 6;
+#pragma omp parallel for schedule(static) /* points independent: the same sums on any threads */
   for (int p = 0; p < q->nq; p++) {
     int m = q->ptr[p + 1] - q->ptr[p];
     const int *nb = q->nbr + q->ptr[p];

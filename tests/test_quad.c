@@ -232,7 +232,8 @@ static ves_status tables_on(int k, ves_quad *q, const ves_nodes *nodes, const ve
  * increasing extended index, ghosts folded, and ves_lme_eval with lambda
  * passed from point to point of a triangle, 0 at its first (for points
  * without triangles, 0 at every point). A point outside the nodes' hull
- * fails with the same status for any thread count, leaving no tables. */
+ * fails with the same status for any thread count, leaving no tables.
+ * ves_quad_field gives the same values with 1 and 2 threads. */
 static void test_tables_threads(void **state) {
   (void)state;
   double eps = 0.1;
@@ -277,6 +278,20 @@ static void test_tables_threads(void **state) {
       assert_memory_equal(q[k]->mirror, q0->mirror, nnz);
       assert_memory_equal(q[k]->tab, q0->tab, 6 * nnz * sizeof *q0->tab);
     }
+    /* ves_quad_field: the same values with 1 and 2 threads */
+    double *cf = malloc((size_t)n * sizeof *cf), *fld[2];
+    fld[0] = malloc(6 * (size_t)q0->nq * sizeof *fld[0]);
+    fld[1] = malloc(6 * (size_t)q0->nq * sizeof *fld[1]);
+    assert_true(cf && fld[0] && fld[1]);
+    for (int a = 0; a < n; a++) cf[a] = sin(3.0 * nodes->x[2 * a]) * nodes->x[2 * a + 1];
+    for (int k = 0; k < 2; k++) {
+      const int was = omp_get_max_threads();
+      omp_set_num_threads(k + 1);
+      ves_quad_field(q0, cf, 2, fld[k]);
+      omp_set_num_threads(was);
+    }
+    assert_memory_equal(fld[0], fld[1], 6 * (size_t)q0->nq * sizeof *fld[0]);
+    free(cf), free(fld[0]), free(fld[1]);
     /* the reference construction */
     double *xa = malloc(2 * (size_t)ne * sizeof *xa), *beta = malloc((size_t)ne * sizeof *beta);
     double *work = malloc((size_t)ves_lme_work_size(ne) * sizeof *work);
