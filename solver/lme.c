@@ -89,6 +89,10 @@
 #define LME_ARMIJO 1e-4
 #define LME_MAX_HALVINGS 60
 
+/* Neighbours whose derivative quantities are kept between the two passes
+ * over them (ves_lme_eval; 144 bytes each on the stack); more are recomputed. */
+#define LME_KEEP 256
+
 /* Accumulators and the derivative algebra run in extended precision. */
 typedef long double xreal;
 
@@ -236,9 +240,10 @@ typedef struct {
   xreal g[2]; /* g_a = r_beta - M_a = grad log p_a */
 } lme_node;
 
-/* v_a = J^{-1} e_a, M_a = 2 beta_a e_a - (J_beta - I) v_a, g_a = r_beta - M_a;
- * recomputed in each pass rather than stored, so that they keep extended
- * precision without extra scratch. */
+/* v_a = J^{-1} e_a, M_a = 2 beta_a e_a - (J_beta - I) v_a, g_a = r_beta - M_a,
+ * in extended precision: kept between the two derivative passes in a stack
+ * buffer of LME_KEEP nodes (the caller's work holds doubles only), recomputed
+ * beyond it. */
 static void lme_node_eval(const lme_moments *mo, double p, const double d[2],
                           double beta, lme_node *n) {
   n->P = p * mo->ip;
@@ -367,40 +372,47 @@ ves_status ves_lme_eval(const ves_lme_params *par, const double X[2], int m,
   mo.B[1] = 2 * jb01;
   mo.B[2] = 2 * jb11 - 1;
 
-  xreal S[3] = {0, 0, 0}, T0[3] = {0, 0, 0}, T1[3] = {0, 0, 0};
+  /* The node quantities of this pass are kept (on the stack, in extended
+   * precision) for the Hessian pass when m <= LME_KEEP, else recomputed; the
+   * sums S, T_R, T_Z run in scalars, which the compiler can hold in registers
+   * (the same operations in the same order either way). */
+  lme_node keep[LME_KEEP], tmp;
+  xreal S0 = 0, S1 = 0, S2 = 0, TR0 = 0, TR1 = 0, TR2 = 0, TZ0 = 0, TZ1 = 0, TZ2 = 0;
   for (int a = 0; a < m; a++) {
-    lme_node n;
-    lme_node_eval(&mo, p[a], d + 2 * a, beta[a], &n);
-    tab[m + a] = (double)(n.P * n.g[0]);     /* dp/dR = p g_R */
-    tab[2 * m + a] = (double)(n.P * n.g[1]); /* dp/dZ = p g_Z */
+    lme_node *n = m <= LME_KEEP ? keep + a : &tmp;
+    lme_node_eval(&mo, p[a], d + 2 * a, beta[a], n);
+    tab[m + a] = (double)(n->P * n->g[0]);     /* dp/dR = p g_R */
+    tab[2 * m + a] = (double)(n->P * n->g[1]); /* dp/dZ = p g_Z */
     if (nder < 2) continue;
-    xreal pm[3] = {n.P * n.M[0] * n.M[0], n.P * n.M[0] * n.M[1],
-                   n.P * n.M[1] * n.M[1]}; /* p M (x) M */
-    for (int k = 0; k < 3; k++) {
-      S[k] += pm[k];           /* S = sum p M (x) M */
-      T0[k] += pm[k] * n.e[0]; /* T_R = sum p e_R M (x) M */
-      T1[k] += pm[k] * n.e[1]; /* T_Z = sum p e_Z M (x) M */
-    }
+    const xreal pm0 = n->P * n->M[0] * n->M[0], pm1 = n->P * n->M[0] * n->M[1],
+                pm2 = n->P * n->M[1] * n->M[1]; /* p M (x) M */
+    S0 += pm0;                                  /* S = sum p M (x) M */
+    TR0 += pm0 * n->e[0];                       /* T_R = sum p e_R M (x) M */
+    TZ0 += pm0 * n->e[1];                       /* T_Z = sum p e_Z M (x) M */
+    S1 += pm1;
+    TR1 += pm1 * n->e[0];
+    TZ1 += pm1 * n->e[1];
+    S2 += pm2;
+    TR2 += pm2 * n->e[0];
+    TZ2 += pm2 * n->e[1];
   }
   if (nder < 2) return VES_OK;
 
-  const xreal *rb = mo.rb;
+  const xreal rb0 = mo.rb[0], rb1 = mo.rb[1], rb0x2 = 2 * rb0, rb1x2 = 2 * rb1;
+  const xreal rr00 = rb0 * rb0, rr01 = rb0 * rb1, rr11 = rb1 * rb1; /* r_b r_b^T */
   for (int a = 0; a < m; a++) {
-    lme_node n;
-    lme_node_eval(&mo, p[a], d + 2 * a, beta[a], &n);
-    const xreal *v = n.v, *g = n.g;
-    xreal dI = 2 * (sb - beta[a]) + rb[0] * v[0] + rb[1] * v[1]; /* I coeff. */
+    const lme_node *n = m <= LME_KEEP ? keep + a : &tmp;
+    if (m > LME_KEEP) lme_node_eval(&mo, p[a], d + 2 * a, beta[a], &tmp);
+    const xreal *v = n->v, *g = n->g;
+    xreal dI = 2 * (sb - beta[a]) + rb0 * v[0] + rb1 * v[1]; /* I coeff. */
     /* grad g_a = dI I - (S + v_R T_R + v_Z T_Z) + r_b v^T + v r_b^T + r_b r_b^T
      */
-    xreal h00 = dI - (S[0] + v[0] * T0[0] + v[1] * T1[0]) + 2 * rb[0] * v[0] +
-                rb[0] * rb[0];
-    xreal h01 = -(S[1] + v[0] * T0[1] + v[1] * T1[1]) + rb[0] * v[1] +
-                v[0] * rb[1] + rb[0] * rb[1];
-    xreal h11 = dI - (S[2] + v[0] * T0[2] + v[1] * T1[2]) + 2 * rb[1] * v[1] +
-                rb[1] * rb[1];
-    tab[3 * m + a] = (double)(n.P * (g[0] * g[0] + h00)); /* d2p/dR2 */
-    tab[4 * m + a] = (double)(n.P * (g[0] * g[1] + h01)); /* d2p/dRdZ */
-    tab[5 * m + a] = (double)(n.P * (g[1] * g[1] + h11)); /* d2p/dZ2 */
+    xreal h00 = dI - (S0 + v[0] * TR0 + v[1] * TZ0) + rb0x2 * v[0] + rr00;
+    xreal h01 = -(S1 + v[0] * TR1 + v[1] * TZ1) + rb0 * v[1] + v[0] * rb1 + rr01;
+    xreal h11 = dI - (S2 + v[0] * TR2 + v[1] * TZ2) + rb1x2 * v[1] + rr11;
+    tab[3 * m + a] = (double)(n->P * (g[0] * g[0] + h00)); /* d2p/dR2 */
+    tab[4 * m + a] = (double)(n->P * (g[0] * g[1] + h01)); /* d2p/dRdZ */
+    tab[5 * m + a] = (double)(n->P * (g[1] * g[1] + h11)); /* d2p/dZ2 */
   }
   return VES_OK;
 }

@@ -240,6 +240,35 @@ static void test_consistency_hex(void **state) {
   nodeset_free(&ns);
 }
 
+/* Wide supports (gamma = 0.15: m ~ 330 neighbours, more than ves_lme_eval
+ * keeps between its passes, so the node quantities are recomputed): the same
+ * consistency as with the default supports. */
+static void test_consistency_wide(void **state) {
+  (void)state;
+  ves_lme_params par;
+  ves_lme_params_default(&par);
+  par.gamma = 0.15;
+  nodeset ns;
+  hex_lattice(&ns, 0.1, 22, 1.6);
+  hood *H = malloc(sizeof *H);
+  assert_non_null(H);
+  consist c;
+  consist_init(&c);
+  uint64_t seed = 321;
+  int mmin = 512;
+  for (int k = 0; k < 40; k++) {
+    double X[2] = {-0.3 + 0.6 * urand(&seed), -0.3 + 0.6 * urand(&seed)};
+    check_point(&par, &ns, X, H, &c);
+    if (H->m < mmin) mmin = H->m;
+  }
+  printf("  hex lattice h = 0.1, gamma 0.15: m >= %d\n", mmin);
+  consist_report("hex wide", &c);
+  assert_true(mmin > 256);
+  assert_consist(&c);
+  free(H);
+  nodeset_free(&ns);
+}
+
 static void test_consistency_graded(void **state) {
   (void)state;
   ves_lme_params par;
@@ -663,6 +692,7 @@ int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_params),
       cmocka_unit_test(test_consistency_hex),
+      cmocka_unit_test(test_consistency_wide),
       cmocka_unit_test(test_consistency_graded),
       cmocka_unit_test(test_derivatives_fd),
       cmocka_unit_test(test_ghost_axis),
