@@ -55,7 +55,7 @@ static int team_size(void) {
  * points' lists, ascending, with a bit mask per node (bit k: the group's
  * point k sees it) and (with values) the dense gs x |U_g| matrix V_g of the
  * P_alpha,a, zero where point k does not see node a. A triangle's points see
- * nearly the same nodes (|U_g| ~ 1.2 m against gs m entries), so rows of the
+ * nearly the same nodes (|U_g| ~ 1.1 m against gs m entries), so rows of the
  * node-level matrices run over ~5 times fewer (group, node) incidences than
  * (point, node) ones, each over a contiguous list. */
 typedef struct {
