@@ -45,9 +45,7 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
-#ifdef _OPENMP
-#include <omp.h>
-#endif
+#include "omp_impl.h"
 
 #include <cblas.h>
 
@@ -120,30 +118,6 @@ struct ves_model {
   ves_quad *qn; /* n points at the nodes (ves_quad_create_at_nodes) */
   double *dblk; /* 4 ptr[n] block values of S in the pattern */
 };
-
-static int omp_threads(void) {
-#ifdef _OPENMP
-  return omp_get_max_threads();
-#else
-  return 1;
-#endif
-}
-
-static int omp_tid(void) {
-#ifdef _OPENMP
-  return omp_get_thread_num();
-#else
-  return 0;
-#endif
-}
-
-static int omp_nteam(void) {
-#ifdef _OPENMP
-  return omp_get_num_threads();
-#else
-  return 1;
-#endif
-}
 
 const ves_pattern *ves_model_pattern(const ves_model *m) { return m->pat; }
 
@@ -472,7 +446,7 @@ static ves_status model_build(const ves_nodes *nodes, const ves_quad *q, const d
   for (int al = 0; al < q->nq; al++)
     if (q->ptr[al + 1] - q->ptr[al] > m->mmax) m->mmax = q->ptr[al + 1] - q->ptr[al];
   m->cap = NPT * m->mmax;
-  m->nthr = omp_threads();
+  m->nthr = ves_omp_threads();
   if (m->nthr > 64) /* zcut[] in make_slabs; beyond 2 cores untested anyway */
     m->nthr = 64;
   if (m->nthr < 1) m->nthr = 1;
@@ -797,7 +771,7 @@ static ves_status assemble(ves_model *m, asm_kind kind, const double fac[3], con
   if (blas_threads != 1) openblas_set_num_threads(1);
 #pragma omp parallel num_threads(m->nthr)
   {
-    const int tid = omp_tid(), nt = omp_nteam();
+    const int tid = ves_omp_tid(), nt = ves_omp_nteam();
     model_ws *w = m->ws + tid;
     for (int k = tid; k < m->nthr; k += nt)
       for (int it = 0; it < m->q->ntri && st[k] == VES_OK; it++) {
@@ -852,7 +826,7 @@ ves_status ves_model_eval(ves_model *m, const double *y, int which, double *E, d
   for (int k = 0; k < m->nthr; k++) st[k] = VES_OK;
 #pragma omp parallel num_threads(m->nthr)
   {
-    const int tid = omp_tid(), nt = omp_nteam();
+    const int tid = ves_omp_tid(), nt = ves_omp_nteam();
     model_ws *w = m->ws + tid;
     for (int k = tid; k < m->nthr; k += nt)
       for (int t = 0; t < m->q->ntri && st[k] == VES_OK; t++) /* point order: the */
@@ -899,7 +873,7 @@ ves_status ves_model_pointwise_W(ves_model *m, const double *y, double *W) {
   for (int k = 0; k < m->nthr; k++) st[k] = VES_OK;
 #pragma omp parallel num_threads(m->nthr)
   {
-    const int tid = omp_tid(), nt = omp_nteam();
+    const int tid = ves_omp_tid(), nt = ves_omp_nteam();
     model_ws *w = m->ws + tid;
     for (int k = tid; k < m->nthr; k += nt)
       for (int t = 0; t < m->q->ntri && st[k] == VES_OK; t++) {

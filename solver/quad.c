@@ -14,9 +14,7 @@
 #include <string.h>
 #include <time.h>
 #include "clock_impl.h"
-#ifdef _OPENMP
-#include <omp.h>
-#endif
+#include "omp_impl.h"
 
 #define QA1 0.4459484909159648863183292538830519883991
 #define QW1 0.2233815896780114656950070084331228043703
@@ -159,30 +157,6 @@ static int grow(void **buf, size_t *cap, size_t need, size_t sz) {
   return 0;
 }
 
-static int n_threads(void) {
-#ifdef _OPENMP
-  return omp_get_max_threads();
-#else
-  return 1;
-#endif
-}
-
-static int thread_id(void) {
-#ifdef _OPENMP
-  return omp_get_thread_num();
-#else
-  return 0;
-#endif
-}
-
-static int team_size(void) {
-#ifdef _OPENMP
-  return omp_get_num_threads();
-#else
-  return 1;
-#endif
-}
-
 /* One thread's part of the tables build. */
 typedef struct {
   int *idx;      /* query output, cap entries */
@@ -267,7 +241,7 @@ ves_status ves_quad_tables(ves_quad *q, const ves_nodes *nodes,
   VES_CHECK(q && nodes && lme, VES_ERR_ARG);
   double t0 = ves_wall_seconds();
   tables_free(q);
-  const int n = nodes->n, ne = nodes->n + nodes->ng, nt = n_threads();
+  const int n = nodes->n, ne = nodes->n + nodes->ng, nt = ves_omp_threads();
   ves_status s = VES_OK;
   ves_geom_search *search = NULL;
   double *xe = malloc(2 * (size_t)ne * sizeof *xe);
@@ -303,7 +277,7 @@ ves_status ves_quad_tables(ves_quad *q, const ves_nodes *nodes,
   }
 #pragma omp parallel num_threads(nt)
   {
-    const int k = thread_id(), T = team_size();
+    const int k = ves_omp_tid(), T = ves_omp_nteam();
     ws[k].g0 = (int)((long)ngroup * k / T);
     ws[k].g1 = (int)((long)ngroup * (k + 1) / T);
     tables_search(q, search, gsize, ws + k, q->ptr + 1);

@@ -8,9 +8,7 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
-#ifdef _OPENMP
-#include <omp.h>
-#endif
+#include "omp_impl.h"
 
 void ves_pattern_destroy(ves_pattern **p) {
   if (!p || !*p) return;
@@ -22,30 +20,6 @@ void ves_pattern_destroy(ves_pattern **p) {
   free((*p)->src);
   free(*p);
   *p = NULL;
-}
-
-static int n_threads(void) {
-#ifdef _OPENMP
-  return omp_get_max_threads();
-#else
-  return 1;
-#endif
-}
-
-static int thread_id(void) {
-#ifdef _OPENMP
-  return omp_get_thread_num();
-#else
-  return 0;
-#endif
-}
-
-static int team_size(void) {
-#ifdef _OPENMP
-  return omp_get_num_threads();
-#else
-  return 1;
-#endif
 }
 
 /* The tables' value rows folded over ghosts, by groups of points: a
@@ -157,7 +131,7 @@ static int fold_group(const ves_quad *q, int n, int gs, int m_max, int g, fold_w
  * transpose (pass 3) comes out in group order for any number of threads. */
 static ves_status folded_create(const ves_quad *q, int n, int with_values, folded *fo) {
   memset(fo, 0, sizeof *fo);
-  const int nt = n_threads();
+  const int nt = ves_omp_threads();
   fo->gs = q->ntri > 0 && q->nq == VES_QUAD_NPT * q->ntri ? VES_QUAD_NPT : 1;
   fo->ng = q->nq / fo->gs;
   const int gs = fo->gs, ng = fo->ng;
@@ -182,7 +156,7 @@ static ves_status folded_create(const ves_quad *q, int n, int with_values, folde
   fo->uptr[0] = 0;
 #pragma omp parallel num_threads(nt)
   {
-    const int k = thread_id(), T = team_size();
+    const int k = ves_omp_tid(), T = ves_omp_nteam();
     const int g0 = (int)((long)ng * k / T), g1 = (int)((long)ng * (k + 1) / T);
     fold_ws *w = ws + k;
     double *vk = w->v;
@@ -353,7 +327,7 @@ static int pattern_row(const folded *fos, int nfo, int a, pattern_ws *w) {
  * into place in row order: the same arrays for any number of threads. Once
  * per configuration. */
 static ves_status node_pattern(const folded *fos, int nfo, int n, int **ptr_out, int **col_out) {
-  const int nt = n_threads(), nchunk = (n + PATTERN_CHUNK - 1) / PATTERN_CHUNK;
+  const int nt = ves_omp_threads(), nchunk = (n + PATTERN_CHUNK - 1) / PATTERN_CHUNK;
   int *ptr = calloc((size_t)n + 1, sizeof *ptr), *col = NULL;
   int *chunk_thr = malloc(((size_t)nchunk + 1) * sizeof *chunk_thr);
   size_t *chunk_off = malloc(((size_t)nchunk + 1) * sizeof *chunk_off);
@@ -370,10 +344,10 @@ static ves_status node_pattern(const folded *fos, int nfo, int n, int **ptr_out,
   if (fail) goto done;
 #pragma omp parallel num_threads(nt)
   {
-    pattern_ws *w = ws + thread_id();
+    pattern_ws *w = ws + ves_omp_tid();
 #pragma omp for schedule(dynamic, 1)
     for (int c = 0; c < nchunk; c++) {
-      chunk_thr[c] = thread_id();
+      chunk_thr[c] = ves_omp_tid();
       chunk_off[c] = w->used;
       const int a1 = (c + 1) * PATTERN_CHUNK < n ? (c + 1) * PATTERN_CHUNK : n;
       for (int a = c * PATTERN_CHUNK; a < a1 && !w->fail; a++) {
@@ -701,7 +675,7 @@ ves_status ves_sparse_project_l2(const ves_quad *q, int n, const double *f, doub
    * and it is scattered back. Every entry is thus summed in point order, the
    * same sums for any number of threads. */
   int fail = 0;
-#pragma omp parallel num_threads(n_threads())
+#pragma omp parallel num_threads(ves_omp_threads())
   {
     int *pos = malloc((size_t)n * sizeof *pos); /* column -> slot in row a */
     double *acc = malloc((size_t)(fo.umax ? fo.umax : 1) * sizeof *acc); /* a head of a row */
