@@ -24,6 +24,7 @@
 #include "ves/quad.h"
 #include "ves/reconnect.h"
 #include "ves/setup.h"
+#include "ves/study.h"
 #include "blas_core_impl.h"
 #include "clock_impl.h"
 
@@ -51,6 +52,9 @@ static void usage(FILE *f) {
           "           [--vectors F]\n"
           "                     the linearized flow at a stored state: slow and unstable\n"
           "                     modes, forward Euler's stability limit\n"
+          "  study STUDY.ini [--jobs N] [--out DIR] [--retry-failed] [--emit slurm]\n"
+          "        [--cell K] [--collect]\n"
+          "                     a grid of runs (robustness studies, sweeps): one table, figures\n"
           "  keys               print every problem-file key with its default and range\n"
           "  --version          print the version\n"
           "  --help             this text (also: vesica COMMAND --help)\n"
@@ -1433,6 +1437,214 @@ done:
   return rc;
 }
 
+/* --------------------------------------------------------------------------
+ * study */
+
+static void usage_study(FILE *f) {
+  fprintf(f,
+          "usage: vesica study STUDY.ini [--jobs N] [--out DIR] [--retry-failed] [--max-cells N]\n"
+          "       vesica study STUDY.ini [--out DIR] --emit slurm | --cell K | --collect\n"
+          "Runs the grid of a study file (problems/README.md, 'Study files'): every cell is its\n"
+          "own 'vesica run' of the base problem with the cell's --set overrides, writing\n"
+          "DIR/cells/NAME.h5 and its log; then DIR/study.csv (one row per cell: the swept\n"
+          "values, status and reason, steps, iterations, evaluations, seconds, memory, E*)\n"
+          "and, with a time.dt_initial axis, DIR/study_frontier.png and DIR/study_cost.png.\n"
+          "A rerun skips the cells that ended (failed ones too: --retry-failed reruns them).\n"
+          "  --jobs N        cells at a time (default: the number of cores)\n"
+          "  --out DIR       the study folder (default: the study file's name, here)\n"
+          "  --max-cells N   allow a grid of up to N cells (default %d)\n"
+          "  --emit slurm    write DIR/study.sbatch: a job array, one cell per task (sbatch it,\n"
+          "                  then --collect)\n"
+          "  --cell K        run cell K (0-based) only, as an array task does\n"
+          "  --collect       write the table and figures from the cells that have ended\n"
+          "  --quiet         no progress line\n"
+          "Exit 0 when every cell ran (whatever its outcome: see the table), 2 on bad input\n"
+          "(nothing run), 3 when the folder or table cannot be written, 130/143 when stopped\n"
+          "by SIGINT/SIGTERM (running cells are stopped and rerun next time).\n",
+          VES_STUDY_MAX_CELLS);
+}
+
+static volatile sig_atomic_t study_stop = 0;
+static void on_study_signal(int sig) { study_stop = sig; }
+
+typedef struct {
+  int tty, quiet;
+  const ves_study *s;
+} study_view;
+
+/* The progress line: cells done, failed, running, ETA; a line per ended cell. */
+static void study_progress(void *ctx, const ves_study_progress *p) {
+  const study_view *v = ctx;
+  if (v->quiet) return;
+  if (p->cell >= 0 && p->result && (!v->tty || strcmp(p->result->outcome, "converged"))) {
+    char name[PATH_MAX / 2];
+    ves_study_cell_name(v->s, p->cell, name, sizeof name);
+    fprintf(stderr, "%scell %s: %s%s%s (%.1f s)\n", v->tty ? "\r\033[K" : "", name,
+            p->result->outcome, p->result->reason[0] ? ": " : "", p->result->reason,
+            p->result->wall_seconds);
+  }
+  char eta[32] = "?";
+  if (p->eta >= 0) snprintf(eta, sizeof eta, "%.0f s", p->eta);
+  if (v->tty || p->cell < 0)
+    fprintf(stderr, "%sstudy: %ld/%ld cells done (%ld before), %ld failed, %d running, ETA %s%s",
+            v->tty ? "\r\033[K" : "", p->skipped + p->done, p->total, p->skipped, p->failed,
+            p->running, eta, v->tty ? "" : "\n");
+}
+
+/* Table and figures of the study in dir; returns the exit code. */
+static int study_collect(const ves_study *s, const char *dir, int quiet) {
+  char err[1024] = "";
+  ves_study_table t;
+  if (ves_study_collect(s, dir, &t, err, sizeof err) != VES_OK) {
+    fprintf(stderr, "vesica study: %s\n", err);
+    return 3;
+  }
+  printf("%s/study.csv: %ld of %ld cells, %ld converged\n", dir, t.rows, t.cells, t.converged);
+  ves_status st = ves_study_plot(s, dir, err, sizeof err);
+  if (st == VES_OK)
+    printf("%s/study_frontier.png\n%s/study_cost.png\n", dir, dir);
+  else if (!quiet || st != VES_STEP_REJECTED)
+    fprintf(stderr, "vesica study: figures: %s\n", err);
+  return st < 0 ? 3 : 0;
+}
+
+static int cmd_study(int argc, char **argv) {
+  const char *path = NULL, *out = NULL, *emit = NULL;
+  long jobs = sysconf(_SC_NPROCESSORS_ONLN), max_cells = VES_STUDY_MAX_CELLS, cell = -1;
+  int retry = 0, collect = 0, quiet = 0, rc;
+  for (int i = 0; i < argc; i++) {
+    const char *a = argv[i];
+    if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
+      usage_study(stdout);
+      return 0;
+    } else if (!strcmp(a, "--jobs") || !strcmp(a, "--out") || !strcmp(a, "--max-cells") ||
+               !strcmp(a, "--cell") || !strcmp(a, "--emit")) {
+      if (i + 1 >= argc) {
+        fprintf(stderr, "vesica study: %s needs a value (see vesica study --help)\n", a);
+        return 2;
+      }
+      const char *v = argv[++i];
+      if (!strcmp(a, "--out"))
+        out = v;
+      else if (!strcmp(a, "--emit"))
+        emit = v;
+      else if ((rc = parse_long("study", a, v, !strcmp(a, "--cell") ? 0 : 1,
+                                !strcmp(a, "--jobs") ? 1024 : 1000000000L,
+                                !strcmp(a, "--jobs")    ? &jobs
+                                : !strcmp(a, "--cell") ? &cell
+                                                       : &max_cells)))
+        return rc;
+    } else if (!strcmp(a, "--retry-failed")) {
+      retry = 1;
+    } else if (!strcmp(a, "--collect")) {
+      collect = 1;
+    } else if (!strcmp(a, "--quiet")) {
+      quiet = 1;
+    } else if (a[0] == '-') {
+      fprintf(stderr, "vesica study: unknown option '%s' (see vesica study --help)\n", a);
+      return 2;
+    } else if (path) {
+      fprintf(stderr, "vesica study: more than one study file ('%s')\n", a);
+      return 2;
+    } else {
+      path = a;
+    }
+  }
+  if (!path) {
+    usage_study(stderr);
+    return 2;
+  }
+  if (emit && strcmp(emit, "slurm")) {
+    fprintf(stderr, "vesica study: --emit '%s': only slurm\n", emit);
+    return 2;
+  }
+  if ((emit != NULL) + collect + (cell >= 0) > 1) {
+    fprintf(stderr, "vesica study: --emit, --cell and --collect exclude each other\n");
+    return 2;
+  }
+  char err[1024] = "", dir[PATH_MAX], self[PATH_MAX];
+  ves_study *s = NULL;
+  ves_status st = ves_study_load(path, max_cells, &s, err, sizeof err);
+  if (st != VES_OK) {
+    fprintf(stderr, "vesica study: %s\n", err);
+    return 2;
+  }
+  if (cell >= s->ncells) {
+    fprintf(stderr, "vesica study: --cell %ld: the grid has %ld cells (0 to %ld)\n", cell,
+            s->ncells, s->ncells - 1);
+    ves_study_destroy(&s);
+    return 2;
+  }
+  if (out) {
+    snprintf(dir, sizeof dir, "%s", out);
+  } else { /* the study file's name without .ini, here */
+    const char *base = strrchr(path, '/') ? strrchr(path, '/') + 1 : path;
+    size_t l = strlen(base);
+    if (l > 4 && !strcmp(base + l - 4, ".ini")) l -= 4;
+    snprintf(dir, sizeof dir, "%.*s", (int)l, base);
+  }
+  ssize_t n = readlink("/proc/self/exe", self, sizeof self - 1);
+  if (n <= 0) {
+    fprintf(stderr, "vesica study: cannot find this program's path: %s\n", strerror(errno));
+    ves_study_destroy(&s);
+    return 3;
+  }
+  self[n] = 0;
+  rc = 0;
+  if (collect) {
+    struct stat sb;
+    if (stat(dir, &sb) != 0 || !S_ISDIR(sb.st_mode)) {
+      fprintf(stderr, "vesica study: --collect: %s: no such folder (--out DIR?)\n", dir);
+      rc = 2;
+    } else {
+      rc = study_collect(s, dir, quiet);
+    }
+  } else if (emit) {
+    struct stat sb;
+    if ((stat(dir, &sb) != 0 && mkdir(dir, 0777) != 0) ||
+        ves_study_write_sbatch(s, self, dir, err, sizeof err) != VES_OK) {
+      fprintf(stderr, "vesica study: %s: %s\n", dir, err[0] ? err : strerror(errno));
+      rc = 3;
+    } else {
+      printf("%s/study.sbatch: %ld array tasks; sbatch it, then vesica study %s --out %s "
+             "--collect\n",
+             dir, s->ncells, path, dir);
+    }
+  } else {
+    study_view view = {.tty = isatty(2), .quiet = quiet || cell >= 0, .s = s};
+    ves_study_run_opts o = {.program = self,
+                            .dir = dir,
+                            .jobs = cell >= 0 ? 1 : (int)jobs,
+                            .retry_failed = retry,
+                            .only = cell,
+                            .grace = 10,
+                            .stop = &study_stop,
+                            .progress = study_progress,
+                            .ctx = &view};
+    struct sigaction sa;
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = on_study_signal;
+    sigaction(SIGINT, &sa, NULL);
+    sigaction(SIGTERM, &sa, NULL);
+    st = ves_study_run(s, &o, err, sizeof err);
+    if (view.tty && !view.quiet) fputc('\n', stderr);
+    if (st == VES_STEP_REJECTED) {
+      fprintf(stderr,
+              "vesica study: stopped by signal %d; the cells that ended are kept, rerun to "
+              "continue\n",
+              (int)study_stop);
+      rc = 128 + (int)study_stop;
+    } else if (st != VES_OK) {
+      fprintf(stderr, "vesica study: %s\n", err[0] ? err : ves_status_str(st));
+      rc = 3;
+    } else if (cell < 0) {
+      rc = study_collect(s, dir, quiet);
+    }
+  }
+  ves_study_destroy(&s);
+  return rc;
+}
+
 int main(int argc, char **argv) {
   ves_blas_core_fix(argv); /* returns unless OpenBLAS needs a restart */
   if (argc < 2) {
@@ -1452,6 +1664,7 @@ int main(int argc, char **argv) {
   if (!strcmp(argv[1], "info")) return cmd_info(argc - 2, argv + 2);
   if (!strcmp(argv[1], "plot")) return cmd_plot(argc - 2, argv + 2);
   if (!strcmp(argv[1], "spectrum")) return cmd_spectrum(argc - 2, argv + 2);
+  if (!strcmp(argv[1], "study")) return cmd_study(argc - 2, argv + 2);
   if (!strcmp(argv[1], "keys")) {
     if (argc > 2 && (!strcmp(argv[2], "--help") || !strcmp(argv[2], "-h"))) {
       printf("usage: vesica keys\nPrints every problem-file key as a Markdown table: section, "
