@@ -849,7 +849,7 @@ static void gp_quote(FILE *f, const char *s) {
 static void gp_escape(char *out, size_t n, const char *s) {
   size_t k = 0;
   for (; *s && k + 3 < n; s++) {
-    if (strchr("_^@&~{}\\", *s)) out[k++] = '\\', out[k++] = '\\';
+    if (strchr("_^@&~{}\\", *s)) out[k++] = '\\';
     out[k++] = *s;
   }
   out[k] = 0;
@@ -918,7 +918,7 @@ ves_status ves_study_plot(const ves_study *s, const char *dir, char *err, size_t
   gp_escape(title, sizeof title, base);
   fprintf(f, "set terminal pngcairo size 900,%ld font ',10'\nset logscale x\nset format x '10^{%%L}'\n",
           480 + 24 * (G > 8 ? G - 8 : 0));
-  fprintf(f, "set grid\nset key outside right top\n");
+  fprintf(f, "set grid\nset key outside right top\nset offsets graph 0.04, graph 0.04\n");
   snprintf(path, sizeof path, "%s/study_frontier.png", dir);
   fputs("set output ", f), gp_quote(f, path), fputc('\n', f);
   fprintf(f, "set title 'robustness frontier: %s (circled: the largest converged dt*)'\n", title);
