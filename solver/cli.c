@@ -430,6 +430,12 @@ static void eta_text(char *buf, size_t len, const ves_config *c, double t, doubl
     snprintf(buf, len, "%.0f-%.0f s", lo, hi);
 }
 
+/* Why a write to the output failed: the cause the io module recorded (no
+ * space, the file-size limit, the failing write's errno), else the status. */
+static const char *io_cause(const ves_io *io, ves_status st) {
+  return ves_io_error(io) ? ves_io_error(io) : ves_status_str(st);
+}
+
 /* The time loop: steps, rows, snapshots, progress. Returns the exit code. */
 static int loop(run_ctx *r) {
   double t0 = ves_wall_seconds(), tend = r->cfg.t_end;
@@ -437,7 +443,7 @@ static int loop(run_ctx *r) {
   int tty = isatty(2), code = 0;
   long iters = 0, steps = 0;
   ves_step_report rep;
-  ves_status st = VES_OK, wst = VES_OK;
+  ves_status st = VES_OK, wst = VES_OK, room = VES_OK;
   struct sigaction sa;
   memset(&sa, 0, sizeof sa);
   sa.sa_handler = on_signal;
@@ -449,6 +455,12 @@ static int loop(run_ctx *r) {
     ves_sim_get_state(r->sim, &now, NULL);
     if (r->max_steps > 0 && now.nstep >= r->max_steps) break;
     if (stop_signal) break;
+    /* room for this step's writes and a last snapshot after them: a run on a
+     * filling disk stops here, between complete writes (io.h) */
+    const int due = (now.nstep + 1) % r->cfg.snapshot_every == 0;
+    const ves_config *c = &r->cfg;
+    const int resets = c->reconnect_every > 0 || c->reconnect_cond_max > 0 || c->reconnect_det_min > 0;
+    if ((room = ves_io_room(r->io, 1 + due, resets ? r->setup->quad->nq : 0)) != VES_OK) break;
     if ((st = ves_sim_step(r->sim, &rep)) != VES_OK) break;
     steps++;
     iters += rep.stats.iterations;
@@ -525,11 +537,21 @@ static int loop(run_ctx *r) {
   ves_sim_state fin;
   ves_sim_get_state(r->sim, &fin, NULL);
   const char *status = "finished";
-  if (wst != VES_OK) {
-    fprintf(stderr, "vesica run: %s: cannot write: %s\n", r->out, ves_status_str(wst));
+  if (wst != VES_OK) { /* a write failed half-way: nothing more is written */
+    fprintf(stderr,
+            "vesica run: %s: cannot write: %s; continue from its last complete snapshot with "
+            "vesica run --restart %s\n",
+            r->out, io_cause(r->io, wst), r->out);
     return 3; /* the file holds every step written before */
   }
-  if (st < 0) {
+  if (room != VES_OK) {
+    fprintf(stderr,
+            "vesica run: %s: stopped at step %ld, t* = %.6g: %s; the state is saved as the last "
+            "snapshot: free some space (or move the file) and continue with vesica run "
+            "--restart %s\n",
+            r->out, fin.nstep, fin.t, io_cause(r->io, room), r->out);
+    status = "failed", code = 3;
+  } else if (st < 0) {
     fprintf(stderr,
             "vesica run: %s: no acceptable step at t* = %.6g down to dt* = %g (%s); the last "
             "good state (step %ld) is the last snapshot of %s\n",
@@ -546,11 +568,11 @@ static int loop(run_ctx *r) {
   }
   if (fin.nstep != r->last_snapshot_step && (wst = snapshot(r, wall)) != VES_OK) {
     fprintf(stderr, "vesica run: %s: cannot write the last snapshot: %s\n", r->out,
-            ves_status_str(wst));
+            io_cause(r->io, wst));
     return 3;
   }
   if ((wst = ves_io_set_status(r->io, status)) != VES_OK) {
-    fprintf(stderr, "vesica run: %s: cannot write: %s\n", r->out, ves_status_str(wst));
+    fprintf(stderr, "vesica run: %s: cannot write: %s\n", r->out, io_cause(r->io, wst));
     return 3;
   }
   if (!r->quiet && code == 0)
@@ -620,7 +642,7 @@ static int run_new(run_ctx *r, const char *path, const char *out, const char *ba
   }
   if ((st = snapshot(r, 0.0)) != VES_OK) { /* nothing half-written stays behind */
     fprintf(stderr, "vesica run: %s: cannot write the first snapshot: %s\n", r->out,
-            ves_status_str(st));
+            io_cause(r->io, st));
     ves_io_close(&r->io);
     remove_output(r->out);
     return 2;
@@ -768,7 +790,7 @@ static int run_restart(run_ctx *r, const char *file, int nset, const char *const
       (nset && (st = ves_io_set_problem(r->io, &r->cfg)) != VES_OK) ||
       (st = ves_io_set_setup_seconds(r->io, r->setup->seconds_total)) != VES_OK ||
       (st = ves_io_set_status(r->io, "running")) != VES_OK) {
-    fprintf(stderr, "vesica run: --restart %s: cannot write: %s\n", file, ves_status_str(st));
+    fprintf(stderr, "vesica run: --restart %s: cannot write: %s\n", file, io_cause(r->io, st));
     return 3;
   }
   r->wall_offset = si.wall_seconds;
@@ -1667,8 +1689,13 @@ int main(int argc, char **argv) {
   if (!strcmp(argv[1], "study")) return cmd_study(argc - 2, argv + 2);
   if (!strcmp(argv[1], "keys")) {
     if (argc > 2 && (!strcmp(argv[2], "--help") || !strcmp(argv[2], "-h"))) {
-      printf("usage: vesica keys\nPrints every problem-file key as a Markdown table: section, "
-             "key, type,\ndefault, allowed values and meaning (as in problems/README.md).\n");
+      printf("usage: vesica keys [--study]\nPrints every problem-file key (--study: every "
+             "study-file key) as a Markdown\ntable: section, key, type, default, allowed values "
+             "and meaning (as in\nproblems/README.md).\n");
+      return 0;
+    }
+    if (argc == 3 && !strcmp(argv[2], "--study")) {
+      ves_study_print_keys(stdout);
       return 0;
     }
     if (argc > 2) {

@@ -11,6 +11,9 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/resource.h>
+#include <sys/stat.h>
+#include <sys/statvfs.h>
 
 #define IO_CHUNK 512 /* rows per chunk of a series (4 KiB of doubles) */
 
@@ -60,6 +63,7 @@ struct ves_io {
   int nsnap;             /* complete snapshots */
   double *snap_t;        /* nsnap times (for the XDMF file) */
   int snap_cap;          /* capacity of snap_t */
+  char error[2 * PATH_MAX]; /* the cause of the last failed write ("" none) */
 };
 
 static void say(char *err, size_t errlen, const char *fmt, ...) {
@@ -70,8 +74,42 @@ static void say(char *err, size_t errlen, const char *fmt, ...) {
   va_end(ap);
 }
 
-/* HDF5 prints its error stack by default: the library stays silent. */
-static void quiet_hdf5(void) { H5Eset_auto2(H5E_DEFAULT, NULL, NULL); }
+/* HDF5 prints its error stack by default: the library stays silent. Its
+ * exit-time cleanup is declined: after a failed write (a full disk) H5Fclose
+ * fails and leaves the file half-closed, and that cleanup then crashes
+ * (SIGSEGV in H5F__close_cb, HDF5 1.10.8); every file is closed explicitly
+ * anyway. H5dont_atexit acts only as the process's first HDF5 call (vesica's
+ * case) and is otherwise a harmless no-op. */
+static void quiet_hdf5(void) {
+  H5dont_atexit();
+  H5Eset_auto2(H5E_DEFAULT, NULL, NULL);
+}
+
+/* H5Ewalk2 callback: the system's reason of the innermost failing file
+ * operation, from the sec2 driver's "..., errno = 28, error message = 'No
+ * space left on device', ..." (errno itself does not survive HDF5's error
+ * handling). */
+static herr_t sys_reason(unsigned n, const H5E_error2_t *e, void *data) {
+  (void)n;
+  char *out = data;
+  const char *p = e->desc ? strstr(e->desc, "error message = '") : NULL;
+  if (p && !out[0]) {
+    p += strlen("error message = '");
+    snprintf(out, 128, "%.*s", (int)strcspn(p, "'"), p);
+  }
+  return 0;
+}
+
+/* Record the cause of a failed write: the system's reason from HDF5's error
+ * stack, errno as the failing write left it (the XDMF file), or the status. */
+static ves_status io_failed(ves_io *io, ves_status st, int errnum) {
+  if (st == VES_OK || st == VES_ERR_ALLOC) return st;
+  char reason[128] = "";
+  H5Ewalk2(H5E_DEFAULT, H5E_WALK_UPWARD, sys_reason, reason);
+  snprintf(io->error, sizeof io->error, "%s",
+           reason[0] ? reason : errnum ? strerror(errnum) : ves_status_str(st));
+  return st;
+}
 
 /* ---- attributes ----------------------------------------------------------- */
 
@@ -444,10 +482,14 @@ ves_status ves_io_create(const char *path, const ves_io_header *h, ves_io **out,
     return VES_ERR_IO;
   }
   fill_info(io, h);
+  errno = 0;
   ves_status st = io->info.problem && io->info.source ? write_header(io, h) : VES_ERR_ALLOC;
-  if (st != VES_OK) {
-    say(err, errlen, "%s: cannot write the header: %s", path, ves_status_str(st));
+  if (st != VES_OK) { /* the file is ours (just created): nothing half-written stays */
+    int e = errno;
+    say(err, errlen, "%s: cannot write the header: %s", path,
+        e && st == VES_ERR_IO ? strerror(e) : ves_status_str(st));
     ves_io_close(&io);
+    remove(path);
     return st;
   }
   *out = io;
@@ -574,8 +616,7 @@ const ves_io_info *ves_io_get_info(const ves_io *io) { return &io->info; }
 
 /* ---- series ----------------------------------------------------------------- */
 
-ves_status ves_io_append(ves_io *io, const ves_io_row *row) {
-  VES_CHECK(io && row && io->writable, VES_ERR_ARG);
+static ves_status append(ves_io *io, const ves_io_row *row) {
   for (int i = 0; i < NSERIES; i++) {
     hid_t d = io->series[i];
     hsize_t len = dset_len(d), one = 1, next = len + 1;
@@ -591,6 +632,12 @@ ves_status ves_io_append(ves_io *io, const ves_io_row *row) {
     if (e < 0) return VES_ERR_IO;
   }
   return H5Fflush(io->file, H5F_SCOPE_LOCAL) < 0 ? VES_ERR_IO : VES_OK;
+}
+
+ves_status ves_io_append(ves_io *io, const ves_io_row *row) {
+  VES_CHECK(io && row && io->writable, VES_ERR_ARG);
+  errno = 0;
+  return io_failed(io, append(io, row), errno);
 }
 
 long ves_io_rows(const ves_io *io) {
@@ -701,9 +748,8 @@ static ves_status snapshot_attrs(hid_t g, const ves_io_snapinfo *si) {
   return attr_int(g, "reconnections", si->reconnections);
 }
 
-ves_status ves_io_snapshot(ves_io *io, const double *y, const double *x, const double *phi,
+static ves_status snapshot(ves_io *io, const double *y, const double *x, const double *phi,
                            const ves_io_snapinfo *si) {
-  VES_CHECK(io && y && x && phi && si && io->writable, VES_ERR_ARG);
   if (io->nsnap == io->snap_cap) {
     int cap = io->snap_cap ? 2 * io->snap_cap : 16;
     double *t = realloc(io->snap_t, (size_t)cap * sizeof *t);
@@ -721,6 +767,13 @@ ves_status ves_io_snapshot(ves_io *io, const double *y, const double *x, const d
   VES_CALL(counted_close(io->file, s, g, io->nsnap, st));
   io->snap_t[io->nsnap++] = si->state.t;
   return xdmf_write(io);
+}
+
+ves_status ves_io_snapshot(ves_io *io, const double *y, const double *x, const double *phi,
+                           const ves_io_snapinfo *si) {
+  VES_CHECK(io && y && x && phi && si && io->writable, VES_ERR_ARG);
+  errno = 0;
+  return io_failed(io, snapshot(io, y, x, phi, si), errno);
 }
 
 ves_status ves_io_read_snapshot(ves_io *io, int k, double *y, double *x, double *phi,
@@ -791,10 +844,7 @@ int ves_io_references(const ves_io *io) {
   return count;
 }
 
-ves_status ves_io_write_reference(ves_io *io, const ves_io_reference *ref) {
-  VES_CHECK(io && ref && io->writable && ref->x && ref->h && ref->xq && ref->wq && ref->pd,
-            VES_ERR_ARG);
-  VES_CHECK(ref->nq > 0 && ref->step >= 0, VES_ERR_ARG);
+static ves_status write_reference(ves_io *io, const ves_io_reference *ref) {
   const int k = ves_io_references(io);
   hid_t s, g;
   VES_CALL(counted_open(io->file, "references", k, &s, &g));
@@ -807,6 +857,14 @@ ves_status ves_io_write_reference(ves_io *io, const ves_io_reference *ref) {
   if (st == VES_OK) st = dset_write(g, "phi0", F, M, nq, 6, ref->pd);
   if (st == VES_OK) st = attr_long(g, "step", ref->step);
   return counted_close(io->file, s, g, k, st);
+}
+
+ves_status ves_io_write_reference(ves_io *io, const ves_io_reference *ref) {
+  VES_CHECK(io && ref && io->writable && ref->x && ref->h && ref->xq && ref->wq && ref->pd,
+            VES_ERR_ARG);
+  VES_CHECK(ref->nq > 0 && ref->step >= 0, VES_ERR_ARG);
+  errno = 0;
+  return io_failed(io, write_reference(io, ref), errno);
 }
 
 ves_status ves_io_read_reference(ves_io *io, int k, ves_io_reference_buf *out) {
@@ -848,9 +906,11 @@ ves_status ves_io_truncate_references(ves_io *io, int count) {
 
 ves_status ves_io_set_status(ves_io *io, const char *status) {
   VES_CHECK(io && status && io->writable && strlen(status) < sizeof io->info.status, VES_ERR_ARG);
-  VES_CALL(attr_str(io->file, "status", status));
-  snprintf(io->info.status, sizeof io->info.status, "%s", status);
-  return H5Fflush(io->file, H5F_SCOPE_LOCAL) < 0 ? VES_ERR_IO : VES_OK;
+  errno = 0;
+  ves_status st = attr_str(io->file, "status", status);
+  if (st == VES_OK && H5Fflush(io->file, H5F_SCOPE_LOCAL) < 0) st = VES_ERR_IO;
+  if (st == VES_OK) snprintf(io->info.status, sizeof io->info.status, "%s", status);
+  return io_failed(io, st, errno);
 }
 
 ves_status ves_io_set_problem(ves_io *io, const ves_config *cfg) {
@@ -876,3 +936,60 @@ ves_status ves_io_set_setup_seconds(ves_io *io, double seconds) {
   return VES_OK;
 }
 
+
+/* ---- room for the next writes ------------------------------------------- */
+
+/* Bytes HDF5 adds for metadata beyond the data of one step's writes (object
+ * headers growing, group link storage turning dense, B-tree nodes): a bound
+ * measured with room to spare (a 64-snapshot file grows by < 8 KiB a
+ * snapshot beyond its data). */
+#define IO_ROOM_MARGIN (64 * 1024)
+
+/* What the next writes of a run need at most, in bytes: one series row (a
+ * new chunk of every series every IO_CHUNK rows, with its B-tree node),
+ * `snapshots` snapshots (y, x, phi and the XDMF file rewritten beside its
+ * old copy) and, with nq > 0, a reference of nq points. */
+static double room_needed(const ves_io *io, int snapshots, int nq) {
+  const double n = io->info.n;
+  double need = IO_ROOM_MARGIN;
+  if (ves_io_rows(io) % IO_CHUNK == 0) need += NSERIES * (IO_CHUNK * 8.0 + 4096);
+  const double xdmf = 2.0 * (io->nsnap + snapshots) * (1024 + 4.0 * strlen(io->path));
+  need += snapshots * (5 * 8 * n + 4096) + (snapshots ? 2 * xdmf : 0);
+  if (nq > 0) need += 8 * (3 * n + 9.0 * nq) + 4096;
+  return need;
+}
+
+ves_status ves_io_room(ves_io *io, int snapshots, int nq) {
+  VES_CHECK(io && io->writable && snapshots >= 0 && nq >= 0, VES_ERR_ARG);
+  const double need = room_needed(io, snapshots, nq);
+  char dir[PATH_MAX];
+  const char *slash = strrchr(io->path, '/');
+  if (!slash)
+    snprintf(dir, sizeof dir, ".");
+  else
+    snprintf(dir, sizeof dir, "%.*s", slash == io->path ? 1 : (int)(slash - io->path), io->path);
+  struct statvfs vs;
+  if (statvfs(dir, &vs) == 0) {
+    const double avail = (double)vs.f_bavail * (double)vs.f_frsize;
+    if (avail < need) {
+      snprintf(io->error, sizeof io->error,
+               "no space left on device (%.0f KiB free in %s, the next step's output needs up "
+               "to %.0f KiB)",
+               avail / 1024, dir, need / 1024);
+      return VES_ERR_IO;
+    }
+  }
+  struct rlimit rl;
+  struct stat sb;
+  if (getrlimit(RLIMIT_FSIZE, &rl) == 0 && rl.rlim_cur != RLIM_INFINITY &&
+      stat(io->path, &sb) == 0 && (double)sb.st_size + need > (double)rl.rlim_cur) {
+    snprintf(io->error, sizeof io->error,
+             "file size limit reached (ulimit -f: %.0f KiB; %s holds %.0f KiB, the next step's "
+             "output needs up to %.0f KiB)",
+             (double)rl.rlim_cur / 1024, io->path, (double)sb.st_size / 1024, need / 1024);
+    return VES_ERR_IO;
+  }
+  return VES_OK;
+}
+
+const char *ves_io_error(const ves_io *io) { return io && io->error[0] ? io->error : NULL; }

@@ -21,6 +21,8 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/mount.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <time.h>
@@ -31,6 +33,7 @@
 
 static char vesica[PATH_MAX]; /* the program under test */
 static char tmpdir[64];       /* this test's scratch folder */
+static rlim_t fsize_limit;    /* > 0: the children's RLIMIT_FSIZE (bytes) */
 
 /* A small out-of-equilibrium vesicle that steps fast (331 nodes, ~0.3 s a
  * step): sphere with a P2 bump at eps = 0.2, coarse band and far field. */
@@ -68,6 +71,11 @@ static pid_t spawn_tag(char *const *args, const char *path_env, const char *tag)
     if (fo < 0 || fe < 0) _exit(127);
     dup2(fo, 1), dup2(fe, 2);
     if (path_env) setenv("PATH", path_env, 1);
+    if (fsize_limit > 0) { /* a real failing write (EFBIG), as a full disk's ENOSPC */
+      struct rlimit rl = {.rlim_cur = fsize_limit, .rlim_max = RLIM_INFINITY};
+      signal(SIGXFSZ, SIG_IGN);
+      if (setrlimit(RLIMIT_FSIZE, &rl) != 0) _exit(126);
+    }
     char *argv[64];
     int n = 0;
     argv[n++] = vesica;
@@ -994,6 +1002,72 @@ static void test_sigkill(void **state) {
   tmp_path(copy, sizeof copy, "killed_copy.xdmf"), unlink(copy);
 }
 
+/* ---- a full disk: exit 3, the state saved, restartable elsewhere ---------- */
+
+/* Run the small problem into out until the output cannot grow (the room
+ * check before each step, io.h): exit 3 naming the cause (frag), status
+ * "failed", the last snapshot at the last step written, every row
+ * complete; the file copied elsewhere continues (3 more steps). */
+static void expect_full(const char *out, const char *frag) {
+  char ini[128], copy[128], cmd[640];
+  tmp_path(ini, sizeof ini, "full.ini");
+  write_file(ini, "[time]\nt_end = 100\nadaptive = 0\ndt_max = 5e-3\n"
+                  "[output]\nsnapshot_every = 1\n");
+  result r;
+  run(&r, "run", ini, TINY, "--out", out, "--quiet", NULL);
+  fsize_limit = 0;
+  printf("# full -> %d: %s", r.code, r.err);
+  assert_int_equal(r.code, 3); /* not 139 (SIGSEGV), not 0 */
+  assert_non_null(strstr(r.err, frag));
+  assert_non_null(strstr(r.err, "--restart"));
+  ves_io *io = open_ro(out);
+  const long R = ves_io_rows(io);
+  const int S = ves_io_snapshots(io);
+  ves_io_snapinfo si;
+  assert_string_equal(ves_io_get_info(io)->status, "failed");
+  assert_int_equal(ves_io_read_snapshot(io, S - 1, NULL, NULL, NULL, &si), VES_OK);
+  printf("# the file holds %ld steps, %d snapshots (the last at step %ld)\n", R, S, si.state.nstep);
+  assert_true(R >= 1);
+  assert_int_equal(si.state.nstep, R); /* the last state saved */
+  ves_io_close(&io);
+  tmp_path(copy, sizeof copy, "full_copy.h5");
+  snprintf(cmd, sizeof cmd, "cp %s %s", out, copy);
+  assert_int_equal(system(cmd), 0);
+  char max[32];
+  snprintf(max, sizeof max, "%ld", R + 3);
+  run(&r, "run", "--restart", copy, "--max-steps", max, "--quiet", NULL);
+  if (r.code) fail_msg("restart elsewhere: exit %d: %s", r.code, r.err);
+  io = open_ro(copy);
+  assert_int_equal(ves_io_rows(io), R + 3);
+  ves_io_close(&io);
+  unlink(ini), unlink(copy);
+  tmp_path(copy, sizeof copy, "full_copy.xdmf"), unlink(copy);
+}
+
+static void test_full_disk(void **state) {
+  (void)state;
+  char out[256], x[128];
+  /* the file-size limit (ulimit -f): 340 KiB hold the header, the first
+   * snapshot, the first chunk of every series and a few steps */
+  tmp_path(out, sizeof out, "full.h5");
+  fsize_limit = 340 * 1024;
+  expect_full(out, "file size limit reached");
+  unlink(out);
+  tmp_path(x, sizeof x, "full.xdmf"), unlink(x);
+  /* a real full disk: a 380 KiB tmpfs (needs root; issue 21's case) */
+  char mnt[128];
+  tmp_path(mnt, sizeof mnt, "tmpfs");
+  assert_int_equal(mkdir(mnt, 0755), 0);
+  if (mount("tmpfs", mnt, "tmpfs", 0, "size=380k") != 0) {
+    printf("# tmpfs: not mounted (%s): the file-size limit stands in\n", strerror(errno));
+  } else {
+    snprintf(out, sizeof out, "%s/full.h5", mnt);
+    expect_full(out, "no space left on device");
+    umount(mnt);
+  }
+  rmdir(mnt);
+}
+
 int main(int argc, char **argv) {
   setvbuf(stdout, NULL, _IOLBF, 0); /* keep output in order with cmocka's stderr */
   (void)argc;
@@ -1026,6 +1100,7 @@ int main(int argc, char **argv) {
       cmocka_unit_test(test_sigterm),
       cmocka_unit_test(test_sigkill),
       cmocka_unit_test(test_problem_files_check),
+      cmocka_unit_test(test_full_disk),
   };
   return cmocka_run_group_tests_name("cli", tests, setup_all, teardown_all);
 }

@@ -13,7 +13,12 @@
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <errno.h>
+#include <signal.h>
 #include <string.h>
+#include <sys/resource.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include "ves/io.h"
@@ -683,13 +688,78 @@ static void test_restart_chain(void **state) {
   ves_setup_destroy(&s);
 }
 
-int main(void) {
+/* ---- a write that fails (a full disk) ------------------------------------ */
+
+static char self[4096]; /* this program, re-executed for the child below */
+
+/* The child of test_write_failure, a fresh process whose first HDF5 call is
+ * the io module's (as in vesica): open path writable, limit the size of the
+ * files it writes to the current size plus 1 KiB (RLIMIT_FSIZE: a real
+ * failing write, EFBIG, as a full disk's ENOSPC), and append rows past the
+ * room check until a write fails. Prints what it saw; exits 0 unless it
+ * crashes on the way out (HDF5's exit-time cleanup after the failed
+ * H5Fclose segfaulted, issue 21). */
+static int write_fail_child(const char *path) {
+  char err[512] = "";
+  ves_io *io = NULL;
+  struct stat sb;
+  if (ves_io_open(path, 1, &io, err, sizeof err) != VES_OK || stat(path, &sb) != 0) return 10;
+  signal(SIGXFSZ, SIG_IGN); /* the write then fails with EFBIG */
+  struct rlimit rl = {.rlim_cur = (rlim_t)sb.st_size + 1024, .rlim_max = RLIM_INFINITY};
+  if (setrlimit(RLIMIT_FSIZE, &rl) != 0) return 11;
+  printf("room: %s\n", ves_io_room(io, 1, 0) == VES_ERR_IO ? ves_io_error(io) : "ok");
+  ves_status st = VES_OK;
+  for (long i = 0; i < 2000 && st == VES_OK; i++) {
+    ves_io_row r = row_of(i);
+    st = ves_io_append(io, &r);
+  }
+  printf("append: %s: %s\n", ves_status_str(st), ves_io_error(io) ? ves_io_error(io) : "-");
+  fflush(stdout);
+  ves_io_close(&io);
+  return 0;
+}
+
+/* A write that fails: the room check sees the limit first; a write past
+ * it fails with the cause recorded (strerror(EFBIG)), and the process
+ * closes the file and exits without crashing. */
+static void test_write_failure(void **state) {
+  (void)state;
+  fake f;
+  char path[128], out[128], cmd[4096 + 512];
+  ves_io *io = fake_file(&f, "full.h5", path, sizeof path);
+  double y[8] = {0}, phi[4] = {0};
+  ves_io_snapinfo s0 = snap_of(0);
+  assert_int_equal(ves_io_snapshot(io, y, y, phi, &s0), VES_OK);
+  assert_int_equal(ves_io_room(io, 1, 100), VES_OK); /* no limit here */
+  assert_null(ves_io_error(io));
+  ves_io_close(&io);
+  free(f.problem);
+  path_in(out, sizeof out, "full.out");
+  snprintf(cmd, sizeof cmd, "%s --write-fail %s > %s 2>&1", self, path, out);
+  int rc = system(cmd);
+  char text[1024] = "";
+  FILE *fo = fopen(out, "r");
+  size_t k = fo ? fread(text, 1, sizeof text - 1, fo) : 0;
+  text[k] = 0;
+  if (fo) fclose(fo);
+  printf("# child exit %d:\n%s", WIFEXITED(rc) ? WEXITSTATUS(rc) : 128 + WTERMSIG(rc), text);
+  assert_true(WIFEXITED(rc) && WEXITSTATUS(rc) == 0); /* not 139 */
+  assert_non_null(strstr(text, "room: file size limit reached"));
+  char want[128];
+  snprintf(want, sizeof want, "append: input/output error: %s\n", strerror(EFBIG));
+  assert_non_null(strstr(text, want));
+}
+
+int main(int argc, char **argv) {
+  if (argc == 3 && !strcmp(argv[1], "--write-fail")) return write_fail_child(argv[2]);
+  snprintf(self, sizeof self, "%s", argv[0]);
   setvbuf(stdout, NULL, _IOLBF, 0); /* keep output in order with cmocka's stderr */
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_roundtrip),     cmocka_unit_test(test_truncate_continue),
       cmocka_unit_test(test_killed_writer),
       cmocka_unit_test(test_references), cmocka_unit_test(test_refusals),
       cmocka_unit_test(test_node_material),     cmocka_unit_test(test_restart_chain),
+      cmocka_unit_test(test_write_failure),
   };
   return cmocka_run_group_tests_name("io", tests, setup_all, teardown_all);
 }

@@ -156,6 +156,19 @@ ves_status ves_io_append(ves_io *io, const ves_io_row *row);
 ves_status ves_io_snapshot(ves_io *io, const double *y, const double *x, const double *phi,
                            const ves_io_snapinfo *si);
 
+/* Whether the folder of the file and the file-size limit (RLIMIT_FSIZE)
+ * leave room for what a run writes next: one series row, `snapshots`
+ * snapshots and (nq > 0) a reference of nq quadrature points, with a margin
+ * for HDF5's metadata. VES_ERR_IO when not, the cause in ves_io_error.
+ * Checked before each step, so a run on a filling disk stops between
+ * complete writes (a write that fails half-way can leave HDF5 metadata
+ * pointing past the end of the file). */
+ves_status ves_io_room(ves_io *io, int snapshots, int nq);
+
+/* The cause of the last failed write or room check ("no space left on
+ * device ...", strerror of the failing write), or NULL. */
+const char *ves_io_error(const ves_io *io);
+
 /* Set the root attribute status (at most 15 characters) and flush. */
 ves_status ves_io_set_status(ves_io *io, const char *status);
 
