@@ -1689,8 +1689,13 @@ int main(int argc, char **argv) {
   if (!strcmp(argv[1], "study")) return cmd_study(argc - 2, argv + 2);
   if (!strcmp(argv[1], "keys")) {
     if (argc > 2 && (!strcmp(argv[2], "--help") || !strcmp(argv[2], "-h"))) {
-      printf("usage: vesica keys\nPrints every problem-file key as a Markdown table: section, "
-             "key, type,\ndefault, allowed values and meaning (as in problems/README.md).\n");
+      printf("usage: vesica keys [--study]\nPrints every problem-file key (--study: every "
+             "study-file key) as a Markdown\ntable: section, key, type, default, allowed values "
+             "and meaning (as in\nproblems/README.md).\n");
+      return 0;
+    }
+    if (argc == 3 && !strcmp(argv[2], "--study")) {
+      ves_study_print_keys(stdout);
       return 0;
     }
     if (argc > 2) {

@@ -552,6 +552,37 @@ ves_status ves_study_load(const char *path, long max_cells, ves_study **out, cha
   return VES_OK;
 }
 
+void ves_study_print_keys(FILE *f) {
+  static const char *const rows[][6] = {
+      {"study", "problem", "text", "(required)", "a file",
+       "the base problem file, relative to the study file's folder"},
+      {"study", "run", "text", "t_end", "step\\|steps\\|t_end",
+       "what a cell runs: one step of constant dt = time.dt_initial from the initial state "
+       "with no halving (time.adaptive = 0, dt_min = dt_max = t_end = dt_initial are added), "
+       "`steps` accepted steps, or the problem to its t_end"},
+      {"study", "steps", "integer", "1", "1 to 1e9", "run = steps: accepted steps per cell"},
+      {"study", "time_limit", "real", "3600", "0 to 1e9",
+       "wall seconds per cell (0: none); then SIGTERM, SIGKILL 10 s later: status timeout"},
+      {"set", "section.key", "as the key", "", "as the key",
+       "a problem key fixed for every cell (as --set section.key=value)"},
+      {"axes", "section.key", "list or range", "", "as the key",
+       "a problem key swept: `a, b, c`, `log(from, to, count)` (geometric) or "
+       "`lin(from, to, count)`; the cells are every combination, the first axis varying "
+       "slowest (at most 8 axes, 256 values each)"},
+      {"slurm", "partition", "text", "(the cluster's)", "letters, digits, . _ - ,",
+       "--emit slurm: #SBATCH --partition"},
+      {"slurm", "account", "text", "(none)", "letters, digits, . _ - ,",
+       "--emit slurm: #SBATCH --account"},
+      {"slurm", "mem", "text", "4G", "letters, digits, . _ - ,", "--emit slurm: #SBATCH --mem"},
+      {"slurm", "cpus_per_task", "integer", "1", "1 to 1024",
+       "--emit slurm: #SBATCH --cpus-per-task, the cell's OMP_NUM_THREADS"},
+  };
+  fprintf(f, "| section | key | type | default | allowed | meaning |\n|---|---|---|---|---|---|\n");
+  for (size_t i = 0; i < sizeof rows / sizeof rows[0]; i++)
+    fprintf(f, "| %s | %s | %s | %s | %s | %s |\n", rows[i][0], rows[i][1], rows[i][2],
+            rows[i][3], rows[i][4], rows[i][5]);
+}
+
 void ves_study_destroy(ves_study **s) {
   if (!s) return;
   free(*s);

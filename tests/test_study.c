@@ -738,6 +738,94 @@ static void test_program(void **state) {
   assert_non_null(strstr(r.err, "real.ini: [axes] solver.bakend: unknown problem key"));
 }
 
+/* Killed with SIGKILL mid-way (no chance to clean up): the rerun keeps
+ * every cell that had ended (their .result files unchanged) and runs only
+ * the others. Also the command's usage errors. */
+static void test_program_kill(void **state) {
+  (void)state;
+  char study[PATH_MAX], dir[PATH_MAX], cells[PATH_MAX + 8], text[2048];
+  tmp_path(study, sizeof study, "kill.ini");
+  tmp_path(dir, sizeof dir, "kill");
+  snprintf(cells, sizeof cells, "%s/cells", dir);
+  snprintf(text, sizeof text,
+           "[study]\nproblem = base.ini\nrun = step\n[set]\n%s[axes]\n"
+           "time.dt_initial = 1e-3, 2e-3, 3e-3, 4e-3\n",
+           TINY_SET);
+  write_file(study, text);
+  pid_t pid = fork();
+  assert_true(pid >= 0);
+  if (pid == 0) {
+    int fd = open("/dev/null", O_WRONLY);
+    if (fd >= 0) dup2(fd, 1), dup2(fd, 2);
+    execl(vesica, vesica, "study", study, "--out", dir, "--jobs", "1", (char *)NULL);
+    _exit(127);
+  }
+  /* wait for two ended cells (up to 120 s), then kill the study at once */
+  ves_study *s = NULL;
+  char err[1024];
+  assert_int_equal(ves_study_load(study, 1000, &s, err, sizeof err), VES_OK);
+  int ended = 0;
+  struct timespec nap = {0, 20000000};
+  for (int i = 0; i < 6000 && ended < 2; i++) {
+    nanosleep(&nap, NULL);
+    ended = 0;
+    for (long k = 0; k < 4; k++) ended += ves_study_cell_done(s, k, dir, 0);
+  }
+  assert_int_equal(kill(pid, SIGKILL), 0);
+  int status;
+  assert_int_equal(waitpid(pid, &status, 0), pid);
+  char before[4][2048], path[PATH_MAX];
+  ended = 0;
+  for (long k = 0; k < 4; k++) {
+    ves_study_cell_path(s, k, dir, ".result", path, sizeof path);
+    before[k][0] = 0;
+    if (ves_study_cell_done(s, k, dir, 0)) ended++, slurp(path, before[k], sizeof before[k]);
+  }
+  printf("# killed with %d cell(s) ended\n", ended);
+  assert_true(ended >= 2 && ended < 4);
+  result r;
+  char *again[] = {vesica, "study", study, "--out", dir, "--jobs", "1", NULL};
+  run_prog(&r, again, NULL);
+  printf("# rerun -> %d\n%s", r.code, r.err);
+  assert_int_equal(r.code, 0);
+  char want[64]; /* the start line counts the kept cells among the done ones */
+  snprintf(want, sizeof want, "%d/4 cells done (%d before)", ended, ended);
+  assert_non_null(strstr(r.err, want));
+  int started = 0;
+  for (const char *p = r.err; (p = strstr(p, "\ncell ")) != NULL; p++) started++;
+  assert_int_equal(started, 4 - ended); /* one line per cell run */
+  for (long k = 0; k < 4; k++) {
+    char now[2048];
+    ves_study_cell_path(s, k, dir, ".result", path, sizeof path);
+    assert_true(slurp(path, now, sizeof now) > 0);
+    if (before[k][0]) assert_string_equal(before[k], now); /* kept, not rerun */
+  }
+  ves_study_destroy(&s);
+
+  /* usage */
+  char *bad[][8] = {{vesica, "study", NULL},
+                    {vesica, "study", study, "--emit", "pbs", NULL},
+                    {vesica, "study", study, "--cell", "4", NULL},
+                    {vesica, "study", study, "--jobs", "0", NULL},
+                    {vesica, "study", study, "--cell", "1", "--collect", NULL},
+                    {vesica, "study", study, "--out", "/nonexistent/x", "--collect", NULL},
+                    {vesica, "study", study, "--frobnicate", NULL}};
+  for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+    run_prog(&r, bad[i], NULL);
+    printf("# usage %zu -> %d: %s", i, r.code, r.err);
+    assert_int_equal(r.code, 2);
+    assert_true(r.err[0] != 0);
+  }
+  char *help[] = {vesica, "study", "--help", NULL};
+  run_prog(&r, help, NULL);
+  assert_int_equal(r.code, 0);
+  assert_non_null(strstr(r.out, "usage: vesica study"));
+  char *keys[] = {vesica, "keys", "--study", NULL};
+  run_prog(&r, keys, NULL);
+  assert_int_equal(r.code, 0);
+  assert_non_null(strstr(r.out, "| study | time_limit | real | 3600 |"));
+}
+
 int main(int argc, char **argv) {
   setvbuf(stdout, NULL, _IOLBF, 0);
   (void)argc;
@@ -759,7 +847,7 @@ int main(int argc, char **argv) {
       cmocka_unit_test(test_bad_studies),   cmocka_unit_test(test_result_resume),
       cmocka_unit_test(test_classify),      cmocka_unit_test(test_csv),
       cmocka_unit_test(test_run_fake),      cmocka_unit_test(test_run_stop),
-      cmocka_unit_test(test_program),
+      cmocka_unit_test(test_program),       cmocka_unit_test(test_program_kill),
   };
   return cmocka_run_group_tests_name("study", tests, setup_all, teardown_all);
 }

@@ -73,6 +73,10 @@ typedef struct {
 ves_status ves_study_load(const char *path, long max_cells, ves_study **out, char *err,
                           size_t errlen);
 
+/* Print the study file's sections and keys as a Markdown table (section,
+ * key, type, default, allowed, meaning), as problems/README.md has it. */
+void ves_study_print_keys(FILE *f);
+
 /* Free a study; accepts NULL and nulls the pointer. */
 void ves_study_destroy(ves_study **s);
 
