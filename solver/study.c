@@ -21,6 +21,8 @@
 /* One step "raised E*" above this relative rounding (vesica info's
  * energy_monotone uses the same margin). */
 #define STUDY_RISE_TOL 1e-10
+/* Longest cell name: NAME.result must fit a file name (255 bytes). */
+#define STUDY_NAME_MAX 200
 
 static void say(char *err, size_t errlen, const char *fmt, ...) {
   if (!err || !errlen) return;
@@ -298,6 +300,12 @@ static ves_status check_cells(const ves_study *s, char *err, size_t errlen) {
     char msg[1024] = "", name[PATH_MAX / 2];
     int n = 0;
     ves_study_cell_name(s, k, name, sizeof name);
+    if (strlen(name) > STUDY_NAME_MAX) { /* + ".result" within a file name's 255 */
+      say(err, errlen, "%s: [axes] cell %.40s...: a name of %zu characters, more than %d "
+          "(shorter values or fewer axes)", s->path, name, strlen(name), STUDY_NAME_MAX);
+      st = VES_ERR_CONFIG;
+      break;
+    }
     if ((st = ves_study_cell_sets(s, k, sets, &n, msg, sizeof msg)) != VES_OK) {
       say(err, errlen, "%s: [axes] cell %s: %s", s->path, name, msg);
       break;

@@ -216,7 +216,7 @@ static void test_grid(void **state) {
   ves_study_destroy(NULL);
 }
 
-/* Every bad study file: VES_ERR_CONFIG (or _IO for a missing file) with one
+/* Every bad study file (21 kinds): VES_ERR_CONFIG (or _IO for a missing file) with one
  * message naming the file and what is wrong, before anything runs. */
 static void test_bad_studies(void **state) {
   (void)state;
@@ -243,6 +243,11 @@ static void test_bad_studies(void **state) {
       {"[set]\n", "[axes]: no axis", 1000},
       {"[axes]\ngeometry.epsilon = 0.04, 0.4\n", "too large for the box", 1000}, /* a cell */
       {"[axes]\nshape.points = a b, a_b\n", "two cells are both named", 1000},
+      {"[axes]\nmaterial.c0 = 0.10000000000000000000000000000000000000000000000000000001\n"
+       "material.k = 1.0000000000000000000000000000000000000000000000000000001\n"
+       "material.mu = 1.0000000000000000000000000000000000000000000000000000001\n"
+       "shape.delta = 0.0000000000000000000000000000000000000000000000000000001\n",
+       "more than 200", 1000},
       {"[slurm]\nmem = 4G$(reboot)\n[axes]\nmaterial.c0 = 0, 1\n", "[slurm] mem", 1000},
       {"[slurm]\ncpus_per_task = 0\n[axes]\nmaterial.c0 = 0, 1\n", "[slurm] cpus_per_task", 1000},
       {"!x = 1\n[study]\nproblem = base.ini\n", "key outside a section", 1000},
