@@ -119,12 +119,13 @@ bench: deps
 
 # The default run: the oblate relaxation of problems/oblate.ini (paper
 # Figs. 3-4, ~1.5 min on 2 cores) to results/oblate.h5 (+ .xdmf) and its
-# figures results/oblate_*.png.
+# figures results/oblate_*.png (replacing those of an earlier make run:
+# --force).
 run: deps
 	@$(MAKE) --no-print-directory $(BUILD)/vesica
 	@mkdir -p results
-	OPENBLAS_NUM_THREADS=1 $(BUILD)/vesica run problems/oblate.ini --out results/oblate.h5
-	$(BUILD)/vesica plot results/oblate.h5 --outdir results
+	OPENBLAS_NUM_THREADS=1 $(BUILD)/vesica run problems/oblate.ini --out results/oblate.h5 --force
+	$(BUILD)/vesica plot results/oblate.h5 --outdir results --force
 
 format:
 	clang-format -i include/ves/*.h solver/*.c solver/*.cpp tests/*.c bench/*.c

@@ -40,13 +40,13 @@ static void usage(FILE *f) {
           "commands:\n"
           "  run CONFIG.ini [--backend ipopt|nlopt|newton|euler] [--out FILE.h5]\n"
           "                 [--set section.key=value]... [--max-steps N] [--series FILE.tsv]\n"
-          "                 [--quiet]\n"
+          "                 [--quiet] [--force]\n"
           "  run --restart FILE.h5 [--set solver.KEY=V|time.t_end=T]... [--max-steps N] [--quiet]\n"
           "                     integrate in time, writing FILE.h5 (+ FILE.xdmf)\n"
           "  check CONFIG.ini [--set section.key=value]... [--phi0 l2|sampled]\n"
           "                     build the initial state and print its derived quantities\n"
           "  info FILE.h5       summary of a run, one 'key = value' per line\n"
-          "  plot FILE.h5 [--outdir DIR] [--times T1,T2,...]\n"
+          "  plot FILE.h5 [--outdir DIR] [--times T1,T2,...] [--force]\n"
           "                     PNG figures: energy and dt, node snapshots, constraints\n"
           "  spectrum FILE.h5 [--snapshot K] [--above MU] [--modes M] [--lanczos N]\n"
           "           [--vectors F]\n"
@@ -207,7 +207,7 @@ static void usage_run(FILE *f) {
   fprintf(f,
           "usage: vesica run CONFIG.ini [--backend ipopt|nlopt|newton|euler] [--out FILE.h5]\n"
           "                 [--set section.key=value]... [--max-steps N] [--series FILE.tsv]\n"
-          "                 [--quiet]\n"
+          "                 [--quiet] [--force]\n"
           "       vesica run --restart FILE.h5 [--set KEY=VALUE]... [--max-steps N] [--quiet]\n"
           "Builds the initial state as 'check' does and integrates to [time] t_end with the\n"
           "chosen backend (default [solver] backend).\n"
@@ -224,6 +224,9 @@ static void usage_run(FILE *f) {
           "                    A/A0-1 V/Vtarget-1 lambda_A lambda_V iterations f_evals g_evals\n"
           "                    h_evals seconds retries resets (reference resets so far)\n"
           "                    rejected_iterations rejected_seconds (attempts retried at dt/2)\n"
+          "  --force           overwrite an existing FILE.h5, FILE.xdmf or --series file\n"
+          "                    (without it they are refused, exit 2; the problem file and\n"
+          "                    its points file are never overwritten)\n"
           "  --quiet           no progress line (otherwise one line on stderr: step, t*, dt*,\n"
           "                    E*, iterations, ETA (a range lo-hi while adaptive steps\n"
           "                    are below dt_max); updated in place on a terminal)\n"
@@ -396,6 +399,33 @@ static int check_writable(const char *cmd, const char *what, const char *path) {
   }
   if (stat(path, &sb) == 0 && !S_ISREG(sb.st_mode)) {
     fprintf(stderr, "vesica %s: %s %s: exists and is not a regular file\n", cmd, what, path);
+    return 2;
+  }
+  return 0;
+}
+
+/* Whether a and b name the same existing file. */
+static int same_file(const char *a, const char *b) {
+  struct stat sa, sb;
+  return a && b && stat(a, &sa) == 0 && stat(b, &sb) == 0 && sa.st_dev == sb.st_dev &&
+         sa.st_ino == sb.st_ino;
+}
+
+/* An output path: never one of the inputs in[nin] (NULL entries skipped),
+ * and not an existing file unless force. 0 ok, else 2 (message printed;
+ * hint, if any, says how to keep the file instead). */
+static int check_new(const char *cmd, const char *what, const char *path, int force,
+                     const char *const *in, int nin, const char *hint) {
+  for (int i = 0; i < nin; i++)
+    if (same_file(path, in[i])) {
+      fprintf(stderr, "vesica %s: %s %s: is the input file %s: an input is never overwritten\n",
+              cmd, what, path, in[i]);
+      return 2;
+    }
+  struct stat sb;
+  if (!force && lstat(path, &sb) == 0) {
+    fprintf(stderr, "vesica %s: %s %s: exists; --force overwrites it%s\n", cmd, what, path,
+            hint ? hint : "");
     return 2;
   }
   return 0;
@@ -586,7 +616,7 @@ static int loop(run_ctx *r) {
 
 /* A new run: CONFIG.ini [options]. */
 static int run_new(run_ctx *r, const char *path, const char *out, const char *backend, int nset,
-                   const char *const *set, const char *series) {
+                   const char *const *set, const char *series, int force) {
   int rc = load_problem("run", path, usage_run, nset, set, &r->cfg);
   if (rc) return rc;
   r->label = path;
@@ -604,11 +634,26 @@ static int run_new(run_ctx *r, const char *path, const char *out, const char *ba
     if (l > 4 && !strcmp(base + l - 4, ".ini")) l -= 4;
     snprintf(r->out, sizeof r->out, "%.*s.h5", (int)l, base);
   }
-  char xdmf[PATH_MAX];
+  char xdmf[PATH_MAX], points[PATH_MAX + 600] = "", hint[PATH_MAX + 64];
   ves_io_xdmf_path(r->out, xdmf, sizeof xdmf);
   if ((rc = check_writable("run", "--out", r->out)) || (rc = check_writable("run", "--out", xdmf)))
     return rc;
   if (series && (rc = check_writable("run", "--series", series))) return rc;
+  if (r->cfg.points[0]) { /* a curve's points file, found as ves_config_read_points does */
+    const char *sl = r->cfg.points[0] == '/' ? NULL : strrchr(path, '/');
+    snprintf(points, sizeof points, "%.*s%s%s", sl ? (int)(sl - path) : 0, path, sl ? "/" : "",
+             r->cfg.points);
+  }
+  const char *inputs[] = {path, points[0] ? points : NULL};
+  snprintf(hint, sizeof hint, ", or vesica run --restart %s continues it", r->out);
+  if ((rc = check_new("run", "--out", r->out, force, inputs, 2, hint)) ||
+      (rc = check_new("run", "--out", xdmf, force, inputs, 2, NULL)) ||
+      (series && (rc = check_new("run", "--series", series, force, inputs, 2, NULL))))
+    return rc;
+  if (series && (same_file(series, r->out) || !strcmp(series, r->out) || !strcmp(series, xdmf))) {
+    fprintf(stderr, "vesica run: --series %s: is the run's output file\n", series);
+    return 2;
+  }
   char abs[PATH_MAX], *problem = NULL, err[1024] = "";
   if (!realpath(path, abs)) snprintf(abs, sizeof abs, "%s", path);
   if (ves_config_to_text(&r->cfg, &problem) != VES_OK) {
@@ -807,7 +852,7 @@ static int run_restart(run_ctx *r, const char *file, int nset, const char *const
 static int cmd_run(int argc, char **argv) {
   const char *path = NULL, *set[MAX_SET] = {0}, *backend = NULL, *series = NULL, *out = NULL;
   const char *restart = NULL;
-  int nset = 0, quiet = 0, rc;
+  int nset = 0, quiet = 0, force = 0, rc;
   long max_steps = 0;
   for (int i = 0; i < argc; i++) {
     const char *a = argv[i];
@@ -843,6 +888,8 @@ static int cmd_run(int argc, char **argv) {
       }
     } else if (!strcmp(a, "--quiet")) {
       quiet = 1;
+    } else if (!strcmp(a, "--force")) {
+      force = 1;
     } else if (a[0] == '-') {
       fprintf(stderr, "vesica run: unknown option '%s' (see vesica run --help)\n", a);
       return 2;
@@ -853,10 +900,10 @@ static int cmd_run(int argc, char **argv) {
       return 2;
     }
   }
-  if (restart && (path || backend || out || series)) {
+  if (restart && (path || backend || out || series || force)) {
     fprintf(stderr,
             "vesica run: --restart %s continues the stored problem: no CONFIG.ini, "
-            "--backend, --out or --series with it\n",
+            "--backend, --out, --series or --force with it\n",
             restart);
     return 2;
   }
@@ -869,7 +916,7 @@ static int cmd_run(int argc, char **argv) {
   memset(&r, 0, sizeof r);
   r.quiet = quiet, r.max_steps = max_steps, r.last_snapshot_step = -1;
   rc = restart ? run_restart(&r, restart, nset, set)
-               : run_new(&r, path, out, backend, nset, set, series);
+               : run_new(&r, path, out, backend, nset, set, series, force);
   run_free(&r);
   return rc;
 }
@@ -1049,7 +1096,7 @@ static int cmd_info(int argc, char **argv) {
 
 static void usage_plot(FILE *f) {
   fprintf(f,
-          "usage: vesica plot FILE.h5 [--outdir DIR] [--times T1,T2,...]\n"
+          "usage: vesica plot FILE.h5 [--outdir DIR] [--times T1,T2,...] [--force]\n"
           "Writes three PNG figures (gnuplot, pngcairo) named after FILE:\n"
           "  FILE_energy.png       E* and dt* against t* on a log time axis (paper Fig. 4)\n"
           "  FILE_snapshots.png    the nodes at chosen times, mirrored across the axis,\n"
@@ -1057,8 +1104,23 @@ static void usage_plot(FILE *f) {
           "  FILE_constraints.png  |A/A0 - 1|, |V/V_target - 1| and V/V0 against t*\n"
           "--outdir DIR    where (default: the folder of FILE.h5; created if missing)\n"
           "--times LIST    the snapshots nearest to these times t* (at most %d; default: the\n"
-          "                first, the last and two between them on a log time scale)\n",
+          "                first, the last and two between them on a log time scale)\n"
+          "--force         overwrite existing figures (without it they are refused, exit 2)\n"
+          "Exit 0 ok, 2 bad input, 3 when gnuplot fails or a figure cannot be written.\n",
           VES_PLOT_MAXTIMES);
+}
+
+/* mkdir -p: dir and every missing folder above it (0 ok, else -1, errno). */
+static int mkdir_p(const char *dir) {
+  char d[PATH_MAX];
+  if (snprintf(d, sizeof d, "%s", dir) >= (int)sizeof d) return errno = ENAMETOOLONG, -1;
+  for (char *c = d + 1; *c; c++)
+    if (*c == '/') {
+      *c = 0;
+      if (mkdir(d, 0777) != 0 && errno != EEXIST) return -1;
+      *c = '/';
+    }
+  return mkdir(d, 0777) != 0 && errno != EEXIST ? -1 : 0;
 }
 
 /* "t1,t2,..." into p->times. 0 ok, else 2 (message printed). */
@@ -1088,12 +1150,15 @@ static int parse_times(const char *s, ves_plot_params *p) {
 
 static int cmd_plot(int argc, char **argv) {
   const char *path = NULL, *outdir = NULL;
+  int force = 0;
   ves_plot_params p;
   memset(&p, 0, sizeof p);
   for (int i = 0; i < argc; i++) {
     if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
       usage_plot(stdout);
       return 0;
+    } else if (!strcmp(argv[i], "--force")) {
+      force = 1;
     } else if (!strcmp(argv[i], "--outdir") || !strcmp(argv[i], "--times")) {
       if (i + 1 >= argc) {
         fprintf(stderr, "vesica plot: %s needs a value\n", argv[i]);
@@ -1134,7 +1199,7 @@ static int cmd_plot(int argc, char **argv) {
     return 2;
   }
   struct stat sb;
-  if (stat(dir, &sb) != 0 && mkdir(dir, 0777) != 0) {
+  if (stat(dir, &sb) != 0 && mkdir_p(dir) != 0) {
     fprintf(stderr, "vesica plot: --outdir %s: cannot create: %s\n", dir, strerror(errno));
     ves_io_close(&io);
     return 2;
@@ -1143,6 +1208,15 @@ static int cmd_plot(int argc, char **argv) {
     fprintf(stderr, "vesica plot: --outdir %s: not a writable folder\n", dir);
     ves_io_close(&io);
     return 2;
+  }
+  for (int k = 0; k < VES_PLOT_NFIG; k++) {
+    char png[2 * PATH_MAX + 64];
+    snprintf(png, sizeof png, "%s/%s_%s.png", dir, stem, ves_plot_figures[k]);
+    const char *in[] = {path};
+    if (check_new("plot", "figure", png, force, in, 1, NULL)) {
+      ves_io_close(&io);
+      return 2;
+    }
   }
   p.outdir = dir, p.stem = stem;
   ves_status st = ves_plot_write(io, &p, err, sizeof err);
@@ -1161,7 +1235,7 @@ static int cmd_plot(int argc, char **argv) {
 static void usage_spectrum(FILE *f) {
   fprintf(f,
           "usage: vesica spectrum FILE.h5 [--snapshot K] [--above MU] [--modes M] [--lanczos N]\n"
-          "                       [--vectors F]\n"
+          "                       [--vectors F [--force]]\n"
           "The linearized flow at a stored state: K dy/dt = -A (y - y_s) on the tangent space\n"
           "of the held constraints, A = Hess E + sigma_A Hess A + sigma_V Hess V with sigma\n"
           "the flow's constraint forces at the state. Along an eigenvector (A v = mu K v) a\n"
@@ -1175,7 +1249,9 @@ static void usage_spectrum(FILE *f) {
           "  --modes M     how many (default 6)      --lanczos N  Lanczos steps (default 80)\n"
           "  --vectors F   write the modes to the text file F: one row a node (a, its material\n"
           "                position r z, phi, h), then per mode the coefficients' components\n"
-          "                u_r u_z and the motion they give at the node du_r du_z\n"
+          "                u_r u_z and the motion they give at the node du_r du_z (an\n"
+          "                existing F is refused unless --force; F is written whole or not\n"
+          "                at all)\n"
           "Prints key = value lines: file, snapshot, step, t, energy (E*), reconnections, nodes,\n"
           "sigma_A, sigma_V, dissipation (-dE*/dt* of the flow: ydot^T K ydot),\n"
           "ydot_max (largest nodal speed, R0/t*), mu_max, mu_max_residual, fe_dt_limit,\n"
@@ -1248,9 +1324,11 @@ static ves_status mode_places(run_ctx *r, const double *vec, int nmodes, int nv,
     }
     q->band = band / tot, q->axis = axis / tot, q->material = sqrt(mat / tot);
   }
+  char part[PATH_MAX + 8] = ""; /* written whole, then renamed to vpath */
   if (st == VES_OK && vpath) {
+    snprintf(part, sizeof part, "%s.part", vpath);
     errno = 0;
-    if (!(f = fopen(vpath, "w"))) st = VES_ERR_IO;
+    if (!(f = fopen(part, "w"))) st = VES_ERR_IO;
   }
   if (f) {
     fprintf(f, "# vesica spectrum: the modes of %s, one row a node\n# a r z phi h", r->label);
@@ -1266,7 +1344,15 @@ static ves_status mode_places(run_ctx *r, const double *vec, int nmodes, int nv,
       }
       fputc('\n', f);
     }
-    if (ferror(f) | fclose(f)) st = VES_ERR_IO;
+    errno = 0;
+    int bad = fflush(f) != 0 || ferror(f), e = errno; /* the first failure's cause */
+    if (fclose(f) != 0) bad = 1, e = e ? e : errno;
+    if (!bad && rename(part, vpath) != 0) bad = 1, e = errno;
+    if (bad) { /* nothing partial stays behind */
+      remove(part);
+      errno = e ? e : EIO;
+      st = VES_ERR_IO;
+    }
   }
   free(u), free(du);
   return st;
@@ -1276,11 +1362,14 @@ static int cmd_spectrum(int argc, char **argv) {
   const char *path = NULL, *vpath = NULL;
   long snap = -1, modes = 6, lanczos = 80;
   double above = -1;
+  int force = 0;
   for (int i = 0; i < argc; i++) {
     const char *a = argv[i];
     if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
       usage_spectrum(stdout);
       return 0;
+    } else if (!strcmp(a, "--force")) {
+      force = 1;
     } else if (!strcmp(a, "--snapshot") || !strcmp(a, "--above") || !strcmp(a, "--modes") ||
                !strcmp(a, "--lanczos") || !strcmp(a, "--vectors")) {
       if (i + 1 >= argc) {
@@ -1324,7 +1413,16 @@ static int cmd_spectrum(int argc, char **argv) {
     fprintf(stderr, "vesica spectrum: --modes %ld is more than --lanczos %ld\n", modes, lanczos);
     return 2;
   }
-  if (vpath && check_writable("spectrum", "--vectors", vpath)) return 2;
+  if (vpath) {
+    const char *in[] = {path};
+    if (check_writable("spectrum", "--vectors", vpath) ||
+        check_new("spectrum", "--vectors", vpath, force, in, 1, NULL))
+      return 2;
+    if (!strcmp(vpath, path)) {
+      fprintf(stderr, "vesica spectrum: --vectors %s: is the input file\n", vpath);
+      return 2;
+    }
+  }
   run_ctx r;
   memset(&r, 0, sizeof r);
   r.label = path, r.quiet = 1;

@@ -48,9 +48,36 @@ static void gp_escape(char *out, size_t n, const char *s) {
   out[k] = 0;
 }
 
+/* Figure fig's file, final (part = 0) or as gnuplot writes it (part = 1:
+ * renamed to the final name once checked complete, fig_check). */
+static void fig_path(char *path, size_t n, const ves_plot_params *p, int fig, int part) {
+  snprintf(path, n, "%s/%s_%s.png%s", p->outdir, p->stem, ves_plot_figures[fig],
+           part ? ".part" : "");
+}
+
+/* Whether path holds a complete PNG: the signature, and the IEND chunk as
+ * its last 12 bytes (gnuplot's cairo terminal exits 0 after a failed write,
+ * leaving an empty or truncated file). 0 ok, else errno-like reason in why. */
+static int png_complete(const char *path, char *why, size_t n) {
+  static const unsigned char sig[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
+  static const unsigned char iend[12] = {0, 0, 0, 0, 'I', 'E', 'N', 'D', 0xae, 0x42, 0x60, 0x82};
+  unsigned char head[8], tail[12];
+  FILE *f = fopen(path, "rb");
+  if (!f) {
+    snprintf(why, n, "not written (%s)", strerror(errno));
+    return -1;
+  }
+  int ok = fread(head, 1, 8, f) == 8 && !memcmp(head, sig, 8) && fseek(f, -12, SEEK_END) == 0 &&
+           fread(tail, 1, 12, f) == 12 && !memcmp(tail, iend, 12);
+  long size = fseek(f, 0, SEEK_END) == 0 ? ftell(f) : -1;
+  fclose(f);
+  if (!ok) snprintf(why, n, "incomplete (%ld bytes; a full disk?)", size);
+  return ok ? 0 : -1;
+}
+
 static void gp_output(FILE *f, const ves_plot_params *p, int fig) {
   char path[PATH_MAX];
-  snprintf(path, sizeof path, "%s/%s_%s.png", p->outdir, p->stem, ves_plot_figures[fig]);
+  fig_path(path, sizeof path, p, fig, 1);
   fputs("set output ", f);
   gp_quote(f, path);
   fputc('\n', f);
@@ -323,8 +350,32 @@ ves_status ves_plot_write(ves_io *io, const ves_plot_params *p, char *err, size_
     st = VES_ERR_IO;
     goto done;
   }
+  /* every figure complete, then all renamed into place: a failed plot
+   * leaves the earlier figures as they were */
   st = VES_OK;
+  for (int k = 0; k < VES_PLOT_NFIG && st == VES_OK; k++) {
+    char part[PATH_MAX], why[128];
+    fig_path(part, sizeof part, p, k, 1);
+    if (png_complete(part, why, sizeof why)) {
+      say(err, errlen, "figure %s: %s", part, why);
+      st = VES_ERR_IO;
+    }
+  }
+  for (int k = 0; k < VES_PLOT_NFIG && st == VES_OK; k++) {
+    char part[PATH_MAX], final[PATH_MAX];
+    fig_path(part, sizeof part, p, k, 1);
+    fig_path(final, sizeof final, p, k, 0);
+    if (rename(part, final) != 0) {
+      say(err, errlen, "cannot rename %s to %s: %s", part, final, strerror(errno));
+      st = VES_ERR_IO;
+    }
+  }
 done:
+  for (int k = 0; k < VES_PLOT_NFIG; k++) { /* no partial figure stays behind */
+    char part[PATH_MAX];
+    fig_path(part, sizeof part, p, k, 1);
+    unlink(part);
+  }
   if (f) fclose(f);
   if (script[0]) unlink(script);
   free(buf), free(T), free(ls), free(ok);

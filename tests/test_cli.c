@@ -385,7 +385,7 @@ static void test_spectrum(void **state) {
   tmp_path(tsv, sizeof tsv, "modes.tsv");
   for (int c = 0; c < 2; c++) {
     run(&r, "spectrum", h5, "--snapshot", snaps[c], "--modes", "4", "--lanczos", "60", "--vectors",
-        tsv, NULL);
+        tsv, "--force", NULL);
     if (r.code) fail_msg("spectrum: exit %d: %s", r.code, r.err);
     printf("# spectrum --snapshot %s:\n%s", snaps[c], r.out);
     /* where the modes live: shares in [0, 1]; mu's parts add up to mu: they
@@ -764,7 +764,7 @@ static void test_progress_eta(void **state) {
   /* adaptive, dt growing at most 1.2x a step from 5e-3: at step 10 dt <=
    * 0.031 and t <= 0.2, so 26+ steps are left at that dt, 1 at dt_max = 10 */
   write_file(ini, "[time]\nt_end = 1\ndt_max = 10\ngrowth_max = 1.2\n");
-  run(&r, "run", ini, TINY, "--out", out, "--max-steps", "10", NULL);
+  run(&r, "run", ini, TINY, "--out", out, "--max-steps", "10", "--force", NULL);
   if (r.code) fail_msg("run: exit %d: %s", r.code, r.err);
   printf("# adaptive steps:\n%s", r.err);
   l10 = strstr(r.err, "step 10 ");
@@ -776,7 +776,8 @@ static void test_progress_eta(void **state) {
   /* a step with retries says what its rejected attempts were and cost:
    * adaptive Euler grows dt until a step raises E (test_integrate.c) */
   write_file(ini, "[time]\nt_end = 1\ndt_max = 1\n");
-  run(&r, "run", ini, TINY, "--backend", "euler", "--out", out, "--max-steps", "30", NULL);
+  run(&r, "run", ini, TINY, "--backend", "euler", "--out", out, "--max-steps", "30", "--force",
+      NULL);
   if (r.code) fail_msg("run: exit %d: %s", r.code, r.err);
   e = strstr(r.err, "attempt(s) rejected from dt* ");
   if (!e) fail_msg("no line for the rejected attempts:\n%s", r.err);
@@ -910,9 +911,10 @@ static void test_sigterm(void **state) {
   char *args[] = {"run", ini, TINY, "--out", out, "--quiet", NULL};
   pid_t pid = spawn(args, NULL);
   assert_true(wait_rows(out, 2) >= 2);
-  /* the file of a running run is neither overwritten nor continued */
+  /* the file of a running run is neither overwritten (even with --force)
+   * nor continued */
   result r;
-  char *again[] = {"run", ini, TINY, "--out", out, "--quiet", NULL};
+  char *again[] = {"run", ini, TINY, "--out", out, "--quiet", "--force", NULL};
   collect_tag(spawn_tag(again, NULL, "again"), &r, "again");
   assert_int_equal(r.code, 2);
   assert_non_null(strstr(r.err, "in use"));
@@ -1000,6 +1002,122 @@ static void test_sigkill(void **state) {
   unlink(ini), unlink(out), unlink(copy);
   tmp_path(out, sizeof out, "killed.xdmf"), unlink(out);
   tmp_path(copy, sizeof copy, "killed_copy.xdmf"), unlink(copy);
+}
+
+/* ---- nothing overwritten without --force, inputs never ------------------- */
+
+/* Run vesica with RLIMIT_FSIZE = limit bytes (SIGXFSZ ignored: the write
+ * fails with EFBIG, as on a full disk). */
+static void run_limited(result *r, rlim_t limit, char *const *args) {
+  fsize_limit = limit;
+  collect(spawn(args, NULL), r);
+  fsize_limit = 0;
+}
+
+static long file_size(const char *path) {
+  struct stat sb;
+  return stat(path, &sb) == 0 ? (long)sb.st_size : -1;
+}
+
+/* The files in folder d (not . and ..). */
+static int files_in(const char *d) {
+  DIR *dd = opendir(d);
+  int n = 0;
+  struct dirent *e;
+  while (dd && (e = readdir(dd)))
+    n += strcmp(e->d_name, ".") && strcmp(e->d_name, "..");
+  if (dd) closedir(dd);
+  return n;
+}
+
+static void test_no_overwrite(void **state) {
+  (void)state;
+  char ini[128], out[128], xdmf[128], tsv[128], cmd[512];
+  tmp_path(ini, sizeof ini, "ow.ini");
+  tmp_path(out, sizeof out, "ow.h5");
+  tmp_path(xdmf, sizeof xdmf, "ow.xdmf");
+  tmp_path(tsv, sizeof tsv, "ow.tsv");
+  const char *text = "[time]\nt_end = 1\nadaptive = 0\n";
+  write_file(ini, text);
+  result r;
+  run(&r, "run", ini, TINY, "--out", out, "--quiet", "--max-steps", "2", NULL);
+  if (r.code) fail_msg("run: exit %d: %s", r.code, r.err);
+  const long size = file_size(out);
+  /* an existing run: refused, named, untouched */
+  run(&r, "run", ini, TINY, "--out", out, "--quiet", "--max-steps", "1", NULL);
+  printf("# again -> %d: %s", r.code, r.err);
+  assert_int_equal(r.code, 2);
+  assert_non_null(strstr(r.err, "exists; --force overwrites it"));
+  assert_non_null(strstr(r.err, "--restart"));
+  assert_int_equal(file_size(out), size);
+  /* the XDMF file alone, and an existing --series file: refused too */
+  rename(out, tsv);
+  run(&r, "run", ini, TINY, "--out", out, "--quiet", NULL);
+  assert_int_equal(r.code, 2);
+  assert_non_null(strstr(r.err, xdmf));
+  rename(tsv, out);
+  write_file(tsv, "keep\n");
+  run(&r, "run", ini, TINY, "--out", out, "--series", tsv, "--force", "--quiet", "--max-steps",
+      "1", NULL);
+  assert_int_equal(r.code, 0); /* --force: out, xdmf and the series overwritten */
+  assert_true(file_size(tsv) > 5);
+  unlink(tsv);
+  /* the problem file as --out or --series: refused even with --force */
+  const char *frag = "is the input file";
+  run(&r, "run", ini, TINY, "--out", ini, "--force", "--quiet", NULL);
+  printf("# --out = the problem file -> %d: %s", r.code, r.err);
+  assert_int_equal(r.code, 2);
+  assert_non_null(strstr(r.err, frag));
+  run(&r, "run", ini, TINY, "--out", out, "--series", ini, "--force", "--quiet", NULL);
+  assert_int_equal(r.code, 2);
+  assert_non_null(strstr(r.err, frag));
+  char got[256] = "";
+  slurp(ini, got, sizeof got);
+  assert_string_equal(got, text); /* untouched */
+  /* plot: existing figures refused without --force; --outdir a/b/c created */
+  char dir[160], png[256];
+  snprintf(dir, sizeof dir, "%s/a/b/c", tmpdir);
+  run(&r, "plot", out, "--outdir", dir, NULL);
+  if (r.code) fail_msg("plot --outdir a/b/c: exit %d: %s", r.code, r.err);
+  snprintf(png, sizeof png, "%s/ow_energy.png", dir);
+  assert_true(file_size(png) > 0);
+  run(&r, "plot", out, "--outdir", dir, NULL);
+  assert_int_equal(r.code, 2);
+  assert_non_null(strstr(r.err, "exists; --force"));
+  run(&r, "plot", out, "--outdir", dir, "--force", NULL);
+  assert_int_equal(r.code, 0);
+  /* a PNG write that fails (file-size limit: gnuplot exits 0 and leaves a
+   * truncated file): exit 3, the figure named, no figure or part left */
+  char dir2[160];
+  snprintf(dir2, sizeof dir2, "%s/full", tmpdir);
+  char *pargs[] = {"plot", out, "--outdir", dir2, NULL};
+  run_limited(&r, 28 * 1024, pargs); /* the script (< 24 KiB) fits, a figure (> 32 KiB) not */
+  printf("# plot into a 28 KiB file-size limit -> %d: %s", r.code, r.err);
+  assert_int_equal(r.code, 3);
+  assert_non_null(strstr(r.err, "incomplete"));
+  assert_int_equal(files_in(dir2), 0);
+  rmdir(dir2);
+  /* spectrum --vectors: an existing file refused, the input never, and a
+   * write that fails leaves nothing */
+  write_file(tsv, "keep\n");
+  run(&r, "spectrum", out, "--modes", "2", "--lanczos", "10", "--vectors", tsv, NULL);
+  assert_int_equal(r.code, 2);
+  assert_non_null(strstr(r.err, "exists; --force"));
+  run(&r, "spectrum", out, "--modes", "2", "--lanczos", "10", "--vectors", out, "--force", NULL);
+  assert_int_equal(r.code, 2);
+  assert_non_null(strstr(r.err, frag));
+  unlink(tsv);
+  char *sargs[] = {"spectrum", out, "--modes", "2", "--lanczos", "10", "--vectors", tsv, NULL};
+  run_limited(&r, 16 * 1024, sargs);
+  printf("# spectrum --vectors into a 16 KiB file-size limit -> %d: %s", r.code, r.err);
+  assert_int_equal(r.code, 2);
+  assert_non_null(strstr(r.err, "cannot write"));
+  assert_false(exists(tsv));
+  snprintf(cmd, sizeof cmd, "%s.part", tsv);
+  assert_false(exists(cmd));
+  snprintf(cmd, sizeof cmd, "rm -rf %s/a", tmpdir);
+  assert_int_equal(system(cmd), 0);
+  unlink(ini), unlink(out), unlink(xdmf);
 }
 
 /* ---- a full disk: exit 3, the state saved, restartable elsewhere ---------- */
@@ -1101,6 +1219,7 @@ int main(int argc, char **argv) {
       cmocka_unit_test(test_sigkill),
       cmocka_unit_test(test_problem_files_check),
       cmocka_unit_test(test_full_disk),
+      cmocka_unit_test(test_no_overwrite),
   };
   return cmocka_run_group_tests_name("cli", tests, setup_all, teardown_all);
 }

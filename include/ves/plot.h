@@ -48,8 +48,11 @@ ves_status ves_plot_interface(ves_io *io, ves_level_set *ls, unsigned char *ok);
 
 /* Write the three figures. VES_ERR_ARG for bad parameters (no rows or no
  * snapshots in the file included: message in err); VES_ERR_IO when a
- * temporary file cannot be written or gnuplot fails (its exit status and
- * first message in err). */
+ * temporary file cannot be written, gnuplot fails (its exit status and
+ * first message in err) or a figure is not a complete PNG (gnuplot exits 0
+ * on a full disk). Figures are written as NAME.png.part and renamed into
+ * place only when all three are complete; a failure leaves no .part file
+ * and the earlier figures unchanged. */
 ves_status ves_plot_write(ves_io *io, const ves_plot_params *par, char *err, size_t errlen);
 
 #endif
