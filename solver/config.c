@@ -2,13 +2,14 @@
  * documentation) drives defaults, parsing, validation and the key listing. */
 #include "ves/config.h"
 
+#include <ctype.h>
 #include <errno.h>
-#include <iniparser/iniparser.h>
 #include <math.h>
 #include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 typedef enum { KEY_DOUBLE, KEY_INT, KEY_STRING } key_type;
@@ -180,9 +181,10 @@ static const key_spec *find_key(const char *section, const char *key) {
   return NULL;
 }
 
+/* 1 + the index of the section's first key in KEYS, 0 for an unknown one. */
 static int known_section(const char *section) {
   for (int i = 0; i < NKEYS; i++)
-    if (!strcasecmp(KEYS[i].section, section)) return 1;
+    if (!strcasecmp(KEYS[i].section, section)) return i + 1;
   return 0;
 }
 
@@ -192,13 +194,6 @@ void ves_config_default(ves_config *cfg) {
     const char *why;
     (void)set_value(cfg, &KEYS[i], KEYS[i].def, &why); /* defaults are valid by construction */
   }
-}
-
-/* iniparser reports syntax problems through a global callback; keep the
- * library silent (the caller gets our own message). */
-static int ini_quiet(const char *fmt, ...) {
-  (void)fmt;
-  return 0;
 }
 
 static ves_status range_msg(char *err, size_t errlen, const char *src, const key_spec *k,
@@ -212,60 +207,168 @@ static ves_status range_msg(char *err, size_t errlen, const char *src, const key
   return VES_ERR_CONFIG;
 }
 
-/* Read the INI file `path` over cfg; messages name `name` (the file itself,
- * or where its text came from). */
+/* The largest problem file read (a problem file is a few KiB; anything
+ * larger is not one). */
+#define INI_MAX_BYTES (1 << 20)
+
+/* Lower-case copy of s[0, n) into out (INI names are case-insensitive, as
+ * iniparser had them); 0 when it does not fit. */
+static int ini_name(char *out, size_t len, const char *s, size_t n) {
+  if (n == 0 || n >= len) return 0;
+  for (size_t i = 0; i < n; i++) out[i] = (char)tolower((unsigned char)s[i]);
+  out[n] = 0;
+  return 1;
+}
+
+/* s[0, *n) without leading and trailing blanks. */
+static const char *ini_trim(const char *s, size_t *n) {
+  while (*n && isspace((unsigned char)*s)) s++, (*n)--;
+  while (*n && isspace((unsigned char)s[*n - 1])) (*n)--;
+  return s;
+}
+
+/* Parse the text of a problem file over cfg; messages name `name` and the
+ * line. The format: "[section]" headers, "key = value" lines (a value in
+ * double or single quotes is taken verbatim; otherwise it ends at a ';' or
+ * '#'), comment lines starting with ';' or '#', blank lines, CRLF line ends
+ * and a UTF-8 byte-order mark accepted. Refused, with the line and the
+ * cause: a key outside a section, an unknown or repeated section, an
+ * unknown or repeated key, a header without its ']', a line without '=',
+ * a NUL byte (not a text file). */
+static ves_status parse_ini(const char *text, size_t len, const char *name, ves_config *cfg,
+                            char *err, size_t errlen) {
+  int sec_line[NKEYS] = {0}; /* where each section began (by known_section - 1) */
+  int key_line[NKEYS] = {0}; /* where each key was set */
+  char sec[64] = "";         /* the current section ("" before the first) */
+  int line = 0;
+  if (len >= 3 && !memcmp(text, "\xef\xbb\xbf", 3)) text += 3, len -= 3; /* UTF-8 BOM */
+  if (memchr(text, 0, len)) {
+    size_t at = (const char *)memchr(text, 0, len) - text;
+    int l = 1;
+    for (size_t i = 0; i < at; i++) l += text[i] == '\n';
+    say(err, errlen, "%s: line %d: a NUL byte: not a text file", name, l);
+    return VES_ERR_CONFIG;
+  }
+  for (size_t pos = 0; pos < len;) {
+    const char *ln = text + pos, *nl = memchr(ln, '\n', len - pos);
+    size_t n = nl ? (size_t)(nl - ln) : len - pos;
+    pos += n + (nl ? 1 : 0);
+    line++;
+    const char *t = ini_trim(ln, &n);
+    if (n == 0 || t[0] == ';' || t[0] == '#') continue;
+    if (t[0] == '[') { /* a section header */
+      if (t[n - 1] != ']') {
+        say(err, errlen, "%s: line %d: '%.*s': a section header needs a closing ']'", name, line,
+            (int)(n > 60 ? 60 : n), t);
+        return VES_ERR_CONFIG;
+      }
+      size_t m = n - 2;
+      const char *sn = ini_trim(t + 1, &m);
+      if (!ini_name(sec, sizeof sec, sn, m)) {
+        say(err, errlen, "%s: line %d: '%.*s': not a section name", name, line,
+            (int)(n > 60 ? 60 : n), t);
+        return VES_ERR_CONFIG;
+      }
+      int k = known_section(sec);
+      if (!k) {
+        say(err, errlen, "%s: line %d: [%s]: unknown section", name, line, sec);
+        return VES_ERR_CONFIG;
+      }
+      if (sec_line[k - 1]) {
+        say(err, errlen, "%s: line %d: [%s]: duplicate section (first at line %d)", name, line,
+            sec, sec_line[k - 1]);
+        return VES_ERR_CONFIG;
+      }
+      sec_line[k - 1] = line;
+      continue;
+    }
+    const char *eq = memchr(t, '=', n);
+    if (!eq) {
+      say(err, errlen, "%s: line %d: '%.*s%s': expected key = value", name, line,
+          (int)(n > 60 ? 60 : n), t, n > 60 ? "..." : "");
+      return VES_ERR_CONFIG;
+    }
+    size_t kn = (size_t)(eq - t), vn = n - kn - 1;
+    const char *kt = ini_trim(t, &kn), *v = ini_trim(eq + 1, &vn);
+    char key[64], val[VES_CONFIG_STR];
+    if (!ini_name(key, sizeof key, kt, kn)) {
+      say(err, errlen, "%s: line %d: '%.*s': not a key name", name, line, (int)(n > 60 ? 60 : n),
+          t);
+      return VES_ERR_CONFIG;
+    }
+    if (!sec[0]) {
+      say(err, errlen, "%s: line %d: %s: key outside a section", name, line, key);
+      return VES_ERR_CONFIG;
+    }
+    if (vn >= 2 && (v[0] == '"' || v[0] == '\'') && v[vn - 1] == v[0]) {
+      v++, vn -= 2; /* quoted: verbatim */
+    } else {
+      vn = strcspn(v, ";#") < vn ? strcspn(v, ";#") : vn; /* an inline comment */
+      v = ini_trim(v, &vn);
+    }
+    const key_spec *k = find_key(sec, key);
+    if (!k) {
+      say(err, errlen, "%s: line %d: [%s] %s: unknown key", name, line, sec, key);
+      return VES_ERR_CONFIG;
+    }
+    const size_t ki = (size_t)(k - KEYS);
+    if (key_line[ki]) {
+      say(err, errlen, "%s: line %d: [%s] %s: duplicate key (first at line %d)", name, line, sec,
+          key, key_line[ki]);
+      return VES_ERR_CONFIG;
+    }
+    key_line[ki] = line;
+    if (vn >= sizeof val) {
+      say(err, errlen, "%s: line %d: [%s] %s: value longer than %d characters", name, line, sec,
+          key, (int)sizeof val - 1);
+      return VES_ERR_CONFIG;
+    }
+    memcpy(val, v, vn);
+    val[vn] = 0;
+    const char *why;
+    if (set_value(cfg, k, val, &why)) {
+      char where[600];
+      snprintf(where, sizeof where, "%s: line %d", name, line);
+      return range_msg(err, errlen, where, k, val, vn ? why : "no value");
+    }
+  }
+  return VES_OK;
+}
+
+/* Read the problem file `path` over cfg: a regular file of at most
+ * INI_MAX_BYTES (a folder or a device is refused); messages name `name`. */
 static ves_status load_ini(const char *path, const char *name, ves_config *cfg, char *err,
                            size_t errlen) {
-  FILE *f = fopen(path, "r");
+  FILE *f = fopen(path, "rb");
   if (!f) {
     say(err, errlen, "%s: cannot open: %s", name, strerror(errno));
     return VES_ERR_IO;
   }
-  fclose(f);
-  iniparser_set_error_callback(ini_quiet);
-  dictionary *d = iniparser_load(path);
-  if (!d) {
-    say(err, errlen, "%s: not a readable INI file", name);
+  struct stat sb;
+  memset(&sb, 0, sizeof sb);
+  if (fstat(fileno(f), &sb) != 0 || !S_ISREG(sb.st_mode)) {
+    say(err, errlen, "%s: %s", name,
+        S_ISDIR(sb.st_mode) ? "is a folder, not a problem file" : "not a regular file");
+    fclose(f);
+    return VES_ERR_IO;
+  }
+  if (sb.st_size > INI_MAX_BYTES) {
+    say(err, errlen, "%s: %lld bytes: too large for a problem file (at most %d)", name,
+        (long long)sb.st_size, INI_MAX_BYTES);
+    fclose(f);
     return VES_ERR_CONFIG;
   }
-  ves_status s = VES_OK;
-  /* keys before the first section header: iniparser stores a key as
-   * "section:key", these as ":key" */
-  for (ssize_t i = 0; i < d->size && s == VES_OK; i++)
-    if (d->key[i] && d->key[i][0] == ':') {
-      say(err, errlen, "%s: %s: key outside a section", name, d->key[i] + 1);
-      s = VES_ERR_CONFIG;
-    }
-  for (int i = 0; i < iniparser_getnsec(d) && s == VES_OK; i++) {
-    const char *sec = iniparser_getsecname(d, i);
-    if (!known_section(sec)) {
-      say(err, errlen, "%s: [%s]: unknown section", name, sec);
-      s = VES_ERR_CONFIG;
-      break;
-    }
-    int nk = iniparser_getsecnkeys(d, sec);
-    const char **keys = nk > 0 ? malloc((size_t)nk * sizeof *keys) : NULL;
-    if (nk > 0 && !keys) {
-      s = VES_ERR_ALLOC;
-      break;
-    }
-    if (nk > 0) iniparser_getseckeys(d, sec, keys);
-    for (int j = 0; j < nk && s == VES_OK; j++) {
-      const char *full = keys[j], *dot = strchr(full, ':');
-      const char *kname = dot ? dot + 1 : full;
-      const key_spec *k = find_key(sec, kname);
-      const char *val = iniparser_getstring(d, full, NULL);
-      const char *why;
-      if (!k) {
-        say(err, errlen, "%s: [%s] %s: unknown key", name, sec, kname);
-        s = VES_ERR_CONFIG;
-      } else if (!val || set_value(cfg, k, val, &why)) {
-        s = range_msg(err, errlen, name, k, val ? val : "", val ? why : "no value");
-      }
-    }
-    free(keys);
+  char *text = malloc((size_t)sb.st_size + 1);
+  size_t len = text ? fread(text, 1, (size_t)sb.st_size, f) : 0;
+  int bad = !text || ferror(f);
+  fclose(f);
+  if (bad) {
+    free(text);
+    say(err, errlen, "%s: cannot read: %s", name, text ? strerror(errno) : "out of memory");
+    return text ? VES_ERR_IO : VES_ERR_ALLOC;
   }
-  iniparser_freedict(d);
+  ves_status s = parse_ini(text, len, name, cfg, err, errlen);
+  free(text);
   return s;
 }
 
@@ -318,26 +421,7 @@ ves_status ves_config_load_text(const char *text, const char *name, ves_config *
   VES_CHECK(text && name && cfg, VES_ERR_ARG);
   ves_config_default(cfg);
   snprintf(cfg->source, sizeof cfg->source, "%s", name);
-  /* iniparser reads files only: a private temporary copy of the text */
-  const char *dir = getenv("TMPDIR");
-  char tmp[512];
-  snprintf(tmp, sizeof tmp, "%s/vesica_cfg_XXXXXX", dir && *dir ? dir : "/tmp");
-  int fd = mkstemp(tmp);
-  if (fd < 0) {
-    say(err, errlen, "%s: cannot create a temporary file in %s: %s", name,
-        dir && *dir ? dir : "/tmp", strerror(errno));
-    return VES_ERR_IO;
-  }
-  FILE *f = fdopen(fd, "w");
-  size_t len = strlen(text);
-  int ok = f && fwrite(text, 1, len, f) == len;
-  if (f)
-    ok = (fclose(f) == 0) && ok;
-  else
-    close(fd);
-  ves_status s = ok ? load_ini(tmp, name, cfg, err, errlen) : VES_ERR_IO;
-  if (!ok) say(err, errlen, "%s: cannot write a temporary file %s", name, tmp);
-  unlink(tmp);
+  ves_status s = parse_ini(text, strlen(text), name, cfg, err, errlen);
   if (s != VES_OK) return s;
   return ves_config_validate(cfg, err, errlen);
 }

@@ -268,12 +268,15 @@ static void test_malformed_input(void **state) {
       "[geometry]\nepsilon = 0.08\nband = 5.5\nbox_z = 2.5\n",
       "band*epsilon = 0.44", "radius of curvature");
   BAD("epsilon = 0.1\n[geometry]\n", "epsilon", "outside a section");
-  BAD("[geometry\nepsilon = 0.1\n", ini, "not a readable INI file");
+  BAD("[geometry\nepsilon = 0.1\n", ini, "line 1: '[geometry': a section header needs a");
+  BAD("[geometry]\nepsilon = 0.1\nepsilon = 0.2\n", "line 3", "duplicate key");
+  BAD("[time]\nt_end = 1\n[time]\n", "line 3: [time]", "duplicate section");
   BAD("[shape]\ntype = curve\n", "points", "needs a points file");
   BAD("[shape]\ntype = curve\npoints = nowhere.txt\n", "nowhere.txt", "cannot open");
   /* arguments */
   BAD(NULL, "usage", NULL);
   BADX(NULL, "/nonexistent/problem.ini", "cannot open", "/nonexistent/problem.ini");
+  BADX(NULL, tmpdir, "is a folder, not a problem file", tmpdir); /* no DIR.h5 run */
   BADX("[geometry]\n", "--backend 'cg'", "not one of", "--backend", "cg");
   BADX("[geometry]\n", "--set", "section.key=value", "--set", "geometry.epsilon");
   BADX("[geometry]\n", "[geometry] nope", "unknown key", "--set", "geometry.nope=1");

@@ -86,7 +86,8 @@ static void test_errors(void **state) {
   expect_error("[constraints]\narea = 2\n", 0, NULL, VES_ERR_CONFIG, "out of range");
   expect_error("[geometry]\nepsilon = 0.3\n", 0, NULL, VES_ERR_CONFIG, "too large for the box");
   expect_error("epsilon = 0.1\n[geometry]\n", 0, NULL, VES_ERR_CONFIG, "outside a section");
-  expect_error("[geometry\nepsilon = 0.1\n", 0, NULL, VES_ERR_CONFIG, "not a readable INI");
+  expect_error("[geometry\nepsilon = 0.1\n", 0, NULL, VES_ERR_CONFIG,
+               "line 1: '[geometry': a section header needs a closing ']'");
   expect_error("[protocol]\nvolume_rate = -1\nvolume_final = 0.8\n[constraints]\nvolume = 0\n", 0,
                NULL, VES_ERR_CONFIG, "volume_rate");
   expect_error("[protocol]\nvolume_rate = -1\n", 0, NULL, VES_ERR_CONFIG, "must be below 1");
@@ -111,6 +112,70 @@ static void test_errors(void **state) {
   expect_error("", 1, s4, VES_ERR_CONFIG, "section.key=value");
   ves_config c;
   assert_int_equal(ves_config_load(NULL, 1, NULL, &c, NULL, 0), VES_ERR_ARG);
+}
+
+/* The problem-file syntax: every error names the line and the cause;
+ * what INI files in the wild hold (a byte-order mark, CRLF, long comment
+ * lines, inline comments, quotes, upper case) is accepted. */
+static void test_syntax(void **state) {
+  (void)state;
+  char big[6000], longval[700];
+  memset(big, 'x', sizeof big);
+  big[0] = ';', big[sizeof big - 1] = 0;
+  memset(longval, '1', sizeof longval);
+  longval[sizeof longval - 1] = 0;
+  struct {
+    const char *text, *frag;
+  } bad[] = {
+      {"[geometry]\nepsilon = 0.02\nepsilon = 0.03\n",
+       "line 3: [geometry] epsilon: duplicate key (first at line 2)"},
+      {"[geometry]\nepsilon = 0.02\n[shape]\n[geometry]\nband = 4\n",
+       "line 4: [geometry]: duplicate section (first at line 1)"},
+      {"[geometry]\nEPSILON = 0.02\nepsilon = 0.03\n", "line 3: [geometry] epsilon: duplicate key"},
+      {"[geometry]\nepsilon 0.02\n", "line 2: 'epsilon 0.02': expected key = value"},
+      {"[geometry]\n= 0.02\n", "line 2: '= 0.02': not a key name"},
+      {"[]\n", "line 1: '[]': not a section name"},
+      {"\n\n[geometry]\nepsilon = abc\n", "line 4: [geometry] epsilon = 'abc': not a number"},
+      {"[geometry]\nepsilon = 0.02\n[nope]\n", "line 3: [nope]: unknown section"},
+      {"[shape]\nnope = 1\n", "line 2: [shape] nope: unknown key"},
+      {"\xef\xbb\xbf[geometry]\nepsilon = 0.9\n", "line 2: [geometry] epsilon = '0.9'"},
+      {"a = 1\n", "line 1: a: key outside a section"},
+      {"[geometry]\r\nepsilon = 2e\r\n", "line 2: [geometry] epsilon = '2e': not a number"},
+  };
+  for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++)
+    expect_error(bad[i].text, 0, NULL, VES_ERR_CONFIG, bad[i].frag);
+  char text[8000];
+  snprintf(text, sizeof text, "[shape]\npoints = %s\n", longval);
+  expect_error(text, 0, NULL, VES_ERR_CONFIG, "line 2: [shape] points: value longer than");
+  /* a NUL byte: not a text file, the line named */
+  char path[64], err[512] = "";
+  snprintf(path, sizeof path, "/tmp/vesica_cfg_XXXXXX");
+  int fd = mkstemp(path);
+  assert_true(fd >= 0);
+  assert_int_equal(write(fd, "[geometry]\nepsilon = 0.1\0\n", 26), 26);
+  close(fd);
+  ves_config c;
+  assert_int_equal(ves_config_load(path, 0, NULL, &c, err, sizeof err), VES_ERR_CONFIG);
+  assert_non_null(strstr(err, "line 2: a NUL byte"));
+  unlink(path);
+  /* a folder is not a problem file */
+  assert_int_equal(ves_config_load("/tmp", 0, NULL, &c, err, sizeof err), VES_ERR_IO);
+  assert_non_null(strstr(err, "/tmp: is a folder"));
+  assert_int_equal(ves_config_load("/dev/null", 0, NULL, &c, err, sizeof err), VES_ERR_IO);
+  assert_non_null(strstr(err, "not a regular file"));
+  /* accepted: a BOM, CRLF, a 6,000-character comment line, inline comments,
+   * quotes, upper case, blanks around names */
+  snprintf(text, sizeof text,
+           "\xef\xbb\xbf%s\r\n# c\r\n[ Geometry ]\r\nEpsilon = 0.02 ; inline\r\n"
+           "band=4.5# inline\n[shape]\ntype = \"spheroid\"\nreduced_volume = '0.9'\n"
+           "orientation = prolate",
+           big);
+  write_tmp(path, sizeof path, text);
+  assert_int_equal(ves_config_load(path, 0, NULL, &c, err, sizeof err), VES_OK);
+  assert_true(c.epsilon == 0.02 && c.band == 4.5 && c.reduced_volume == 0.9);
+  assert_string_equal(c.shape_type, "spheroid");
+  assert_string_equal(c.orientation, "prolate");
+  unlink(path);
 }
 
 /* Points files: read relative to the problem file's folder; bad lines and
@@ -178,7 +243,7 @@ static void test_text_roundtrip(void **state) {
   /* errors in stored text name the given name */
   assert_int_equal(ves_config_load_text("[geometry]\nnope = 1\n", "stored.h5", &d, err, sizeof err),
                    VES_ERR_CONFIG);
-  assert_non_null(strstr(err, "stored.h5: [geometry] nope: unknown key"));
+  assert_non_null(strstr(err, "stored.h5: line 2: [geometry] nope: unknown key"));
   char buf[32];
   ves_config_format_real(0.1, buf, sizeof buf);
   assert_string_equal(buf, "0.1");
@@ -204,6 +269,7 @@ int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_defaults_and_overrides),
       cmocka_unit_test(test_errors),
+      cmocka_unit_test(test_syntax),
       cmocka_unit_test(test_points_file),
       cmocka_unit_test(test_text_roundtrip),
       cmocka_unit_test(test_key_listing),
