@@ -578,6 +578,65 @@ void ves_config_print_keys(FILE *f) {
   }
 }
 
+/* Orientation of the triangle a, b, c: > 0 counter-clockwise. */
+static double orient(const double *a, const double *b, const double *c) {
+  return (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
+}
+
+/* Whether the closed segments [a, b] and [c, d] share a point. */
+static int segments_meet(const double *a, const double *b, const double *c, const double *d) {
+  const double o1 = orient(a, b, c), o2 = orient(a, b, d), o3 = orient(c, d, a),
+               o4 = orient(c, d, b);
+  if (((o1 > 0 && o2 < 0) || (o1 < 0 && o2 > 0)) && ((o3 > 0 && o4 < 0) || (o3 < 0 && o4 > 0)))
+    return 1; /* a proper crossing */
+  /* touching or collinear overlap: an endpoint on the other segment */
+  const double *e[4][3] = {{a, b, c}, {a, b, d}, {c, d, a}, {c, d, b}};
+  const double o[4] = {o1, o2, o3, o4};
+  for (int i = 0; i < 4; i++)
+    if (o[i] == 0 && fmin(e[i][0][0], e[i][1][0]) <= e[i][2][0] &&
+        e[i][2][0] <= fmax(e[i][0][0], e[i][1][0]) && fmin(e[i][0][1], e[i][1][1]) <= e[i][2][1] &&
+        e[i][2][1] <= fmax(e[i][0][1], e[i][1][1]))
+      return 1;
+  return 0;
+}
+
+/* A generating curve the shape can use: from the north pole (larger Z) to
+ * the south pole, on the axis only at its ends, no point repeated, and
+ * not crossing or touching itself (the polygon through the points; the
+ * spline through them follows it). Names the lines of the points at fault. */
+static ves_status check_curve(const char *path, int n, const double *p, const int *lines,
+                              char *err, size_t errlen) {
+  if (p[1] <= p[2 * n - 1]) {
+    say(err, errlen,
+        "%s: the points run from Z = %g (line %d) to Z = %g (line %d): a curve goes from the "
+        "north pole (the larger Z) to the south pole; reverse the file's lines",
+        path, p[1], lines[0], p[2 * n - 1], lines[n - 1]);
+    return VES_ERR_CONFIG;
+  }
+  for (int i = 1; i < n; i++) {
+    if (i < n - 1 && p[2 * i] == 0.0) {
+      say(err, errlen,
+          "%s: line %d: R = 0 inside the curve: it meets the axis only at its first and last "
+          "points",
+          path, lines[i]);
+      return VES_ERR_CONFIG;
+    }
+    if (p[2 * i] == p[2 * i - 2] && p[2 * i + 1] == p[2 * i - 1]) {
+      say(err, errlen, "%s: line %d: repeats the point of line %d", path, lines[i], lines[i - 1]);
+      return VES_ERR_CONFIG;
+    }
+  }
+  for (int i = 0; i + 1 < n; i++) /* segment i: points i, i + 1 */
+    for (int j = i + 2; j + 1 < n; j++)
+      if (segments_meet(p + 2 * i, p + 2 * i + 2, p + 2 * j, p + 2 * j + 2)) {
+        say(err, errlen,
+            "%s: the curve crosses itself: the segment of lines %d-%d meets that of lines %d-%d",
+            path, lines[i], lines[i + 1], lines[j], lines[j + 1]);
+        return VES_ERR_CONFIG;
+      }
+  return VES_OK;
+}
+
 ves_status ves_config_read_points(const ves_config *cfg, int *n, double **pts, char *err,
                                   size_t errlen) {
   VES_CHECK(cfg && n && pts, VES_ERR_ARG);
@@ -594,12 +653,17 @@ ves_status ves_config_read_points(const ves_config *cfg, int *n, double **pts, c
         strerror(errno));
     return VES_ERR_IO;
   }
-  int cap = 0, cnt = 0, line = 0;
+  int cap = 0, cnt = 0, line = 0, *lines = NULL; /* lines[i]: the file line of point i */
   double *p = NULL;
   char buf[512];
   ves_status st = VES_OK;
   while (fgets(buf, sizeof buf, f)) {
     line++;
+    if (!strchr(buf, '\n') && !feof(f)) {
+      say(err, errlen, "%s: line %d: longer than %d characters", path, line, (int)sizeof buf - 2);
+      st = VES_ERR_CONFIG;
+      break;
+    }
     char *s = buf;
     while (*s == ' ' || *s == '\t') s++;
     if (*s == '#' || *s == '\n' || *s == 0) continue;
@@ -613,13 +677,15 @@ ves_status ves_config_read_points(const ves_config *cfg, int *n, double **pts, c
     if (cnt == cap) {
       cap = cap ? 2 * cap : 256;
       double *q = realloc(p, 2 * (size_t)cap * sizeof *q);
-      if (!q) {
+      int *ql = realloc(lines, (size_t)cap * sizeof *ql);
+      if (q) p = q;
+      if (ql) lines = ql;
+      if (!q || !ql) {
         st = VES_ERR_ALLOC;
         break;
       }
-      p = q;
     }
-    p[2 * cnt] = R, p[2 * cnt + 1] = Z;
+    p[2 * cnt] = R, p[2 * cnt + 1] = Z, lines[cnt] = line;
     cnt++;
   }
   fclose(f);
@@ -628,6 +694,8 @@ ves_status ves_config_read_points(const ves_config *cfg, int *n, double **pts, c
         cnt);
     st = VES_ERR_CONFIG;
   }
+  if (st == VES_OK) st = check_curve(path, cnt, p, lines, err, errlen);
+  free(lines);
   if (st != VES_OK) {
     free(p);
     return st;

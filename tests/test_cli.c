@@ -273,6 +273,19 @@ static void test_malformed_input(void **state) {
   BAD("[time]\nt_end = 1\n[time]\n", "line 3: [time]", "duplicate section");
   BAD("[shape]\ntype = curve\n", "points", "needs a points file");
   BAD("[shape]\ntype = curve\npoints = nowhere.txt\n", "nowhere.txt", "cannot open");
+  /* curves the shape cannot use: named before any setup (issue 21: a
+   * self-crossing curve ran with band_layers = 0, area 63.6 for 12.57) */
+  char cross[160], north[160];
+  snprintf(cross, sizeof cross, "%s/cross.txt", tmpdir);
+  snprintf(north, sizeof north, "%s/north.txt", tmpdir);
+  write_file(cross, "0 1\n1 0\n1 1\n0.3 -0.5\n0 -1\n");
+  write_file(north, "0 -1\n0.7 -0.7\n1 0\n0.7 0.7\n0 1\n");
+  BAD("[shape]\ntype = curve\npoints = cross.txt\n[geometry]\nband_layers = 0\n", "cross.txt",
+      "crosses itself");
+  BAD("[shape]\ntype = curve\npoints = cross.txt\n", "cross.txt", "crosses itself");
+  BAD("[shape]\ntype = curve\npoints = north.txt\n", "north.txt",
+      "from the north pole (the larger Z) to the south pole");
+  unlink(cross), unlink(north);
   /* arguments */
   BAD(NULL, "usage", NULL);
   BADX(NULL, "/nonexistent/problem.ini", "cannot open", "/nonexistent/problem.ini");

@@ -208,6 +208,38 @@ static void test_points_file(void **state) {
   snprintf(c.points, sizeof c.points, "/nonexistent/points.txt");
   assert_int_equal(ves_config_read_points(&c, &n, &p, err, sizeof err), VES_ERR_IO);
   assert_null(p);
+  /* curves the shape cannot use, each refused with the lines at fault */
+  struct {
+    const char *text, *frag;
+  } bad[] = {
+      /* segment (0,1)-(1,0) crossed by (1,1)-(0.3,-0.5) */
+      {"0 1\n1 0\n1 1\n0.3 -0.5\n0 -1\n",
+       "crosses itself: the segment of lines 1-2 meets that of lines 3-4"},
+      /* a figure-eight: the lower lobe comes back across the upper */
+      {"0 1\n0.8 0.5\n0.2 0\n0.8 -0.5\n0.5 0.6\n0 -1\n", "crosses itself"},
+      /* touching itself at a point */
+      {"0 1\n1 0\n0.5 0.5\n0.2 0\n0 -1\n", "crosses itself"},
+      {"# south to north\n0 -1\n0.7 -0.7\n1 0\n0.7 0.7\n0 1\n",
+       "run from Z = -1 (line 2) to Z = 1 (line 6): a curve goes from the north pole"},
+      {"0 1\n0.7 0.7\n0 0\n0.7 -0.7\n0 -1\n", "line 3: R = 0 inside the curve"},
+      {"0 1\n0.7 0.7\n0.7 0.7\n1 0\n0 -1\n", "line 3: repeats the point of line 2"},
+  };
+  for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+    write_tmp(pts, sizeof pts, bad[i].text);
+    snprintf(c.points, sizeof c.points, "%s", pts);
+    err[0] = 0;
+    assert_int_equal(ves_config_read_points(&c, &n, &p, err, sizeof err), VES_ERR_CONFIG);
+    if (!strstr(err, bad[i].frag) || !strstr(err, pts))
+      fail_msg("curve %zu: '%s' (want '%s')", i, err, bad[i].frag);
+    assert_null(p);
+    unlink(pts);
+  }
+  /* the project's cup passes */
+  snprintf(c.source, sizeof c.source, "data/x.ini");
+  snprintf(c.points, sizeof c.points, "cup.txt");
+  assert_int_equal(ves_config_read_points(&c, &n, &p, err, sizeof err), VES_OK);
+  assert_true(n > 200);
+  free(p);
 }
 
 /* Text round trip: every key back bit for bit (reals in their shortest
