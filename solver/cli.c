@@ -58,7 +58,10 @@ static void usage(FILE *f) {
           "  keys               print every problem-file key with its default and range\n"
           "  --version          print the version\n"
           "  --help             this text (also: vesica COMMAND --help)\n"
-          "exit codes: 0 ok, 2 bad input, 3 numerical failure (last good state saved)\n");
+          "  help [COMMAND]     this text, or the command's (as vesica COMMAND --help)\n"
+          "exit codes: 0 ok, 2 bad input (nothing written), 3 numerical failure or an output\n"
+          "that cannot be written (last good state saved), 130/143 a run stopped by\n"
+          "SIGINT/SIGTERM after its current step (state saved; continue with --restart)\n");
 }
 
 /* --------------------------------------------------------------------------
@@ -89,6 +92,52 @@ static void setup_error(const char *cmd, const char *label, const char *err) {
  * unreadable points file) 2, anything numerical 3. */
 static int exit_for(ves_status st) {
   return st == VES_ERR_CONFIG || st == VES_ERR_ARG || st == VES_ERR_IO ? 2 : 3;
+}
+
+/* The node count of a problem's setup, estimated before building it: the
+ * band |d| < band eps on both sides of a meridian of length L = pi R (R0 = 1;
+ * a sphere: its radius) at the hexagonal density 2 / (sqrt(3) h^2) of
+ * h_band eps, the graded zone from there to h_far at `slope` (its integral
+ * halved: the zones overlap), and the box at h_far. Calibrated on four
+ * measured setups: 19,391 / 2,225 / 1,203 / 331 nodes estimated within 8%. */
+static double estimate_nodes(const ves_config *c) {
+  const double L = M_PI * (strcmp(c->shape_type, "sphere") ? 1.0 : c->radius);
+  const double h0 = c->h_band * c->epsilon, rho = 2 / sqrt(3.0);
+  const double band = L * 2 * c->band * c->epsilon * rho / (h0 * h0);
+  const double grade = c->h_far > h0 ? L * rho * (1 / h0 - 1 / c->h_far) / c->slope : 0.0;
+  return band + grade + 2 * c->box_r * 2 * c->box_z * rho / (c->h_far * c->h_far);
+}
+
+/* Rates measured at the paper's scale (19,391 nodes, bench/RESULTS.md, the
+ * scale table, one thread): setup 23 s, peak memory of the run 3.0 GB, a
+ * Newton step 22 s growing as n^1.23. */
+#define EST_NODES 19391.0
+#define EST_SETUP_S 23.0
+#define EST_PEAK_GB 3.0
+#define EST_STEP_S 22.0
+#define EST_LARGE 10000 /* nodes from which the estimate is printed */
+
+/* Before a setup: a line with the estimated size and cost when the problem
+ * is large (not with quiet); a refusal when its estimated memory exceeds
+ * the machine's. 0 ok, else 2 (message printed). */
+static int setup_estimate(const char *cmd, const ves_config *c, int quiet) {
+  const double n = estimate_nodes(c), x = n / EST_NODES, gb = EST_PEAK_GB * x;
+  const long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGESIZE);
+  const double have = pages > 0 && page > 0 ? (double)pages * (double)page / 1e9 : 0.0;
+  if (have > 0 && gb > have) {
+    fprintf(stderr,
+            "vesica %s: about %.3g nodes (estimated from epsilon, band, h_band, slope, h_far and "
+            "the box) would need about %.3g GB; this machine has %.3g GB: coarsen the problem\n",
+            cmd, n, gb, have);
+    return 2;
+  }
+  if (!quiet && n >= EST_LARGE)
+    fprintf(stderr,
+            "vesica %s: setting up about %.0f nodes (an estimate): ~%.0f s of setup on one thread, "
+            "~%.1f GB peak memory in a run, ~%.0f s a Newton step (scaled from %.0f nodes: "
+            "bench/RESULTS.md)\n",
+            cmd, n, EST_SETUP_S * x, gb, EST_STEP_S * pow(x, 1.23), EST_NODES);
+  return 0;
 }
 
 /* The tail shared by the commands that take a problem file: a path must have
@@ -150,6 +199,7 @@ static int cmd_check(int argc, char **argv) {
   ves_config cfg;
   char err[1024] = "";
   if ((rc = load_problem("check", path, usage_check, nset, set, &cfg))) return rc;
+  if ((rc = setup_estimate("check", &cfg, 0))) return rc;
   ves_setup *s = NULL;
   ves_status st = ves_setup_create(&cfg, method, &s, err, sizeof err);
   if (st != VES_OK) {
@@ -229,7 +279,8 @@ static void usage_run(FILE *f) {
           "                    its points file are never overwritten)\n"
           "  --quiet           no progress line (otherwise one line on stderr: step, t*, dt*,\n"
           "                    E*, iterations, ETA (a range lo-hi while adaptive steps\n"
-          "                    are below dt_max); updated in place on a terminal)\n"
+          "                    are below dt_max, 'unknown' when that range spans more than\n"
+          "                    10x; --max-steps counted); updated in place on a terminal)\n"
           "Exit 0 at t_end (or --max-steps), 2 on bad input (nothing written), 3 when a step\n"
           "fails down to dt_min (the last good state is saved as the last snapshot), 130/143 on\n"
           "SIGINT/SIGTERM after the current step (state saved; a second signal kills).\n");
@@ -439,25 +490,34 @@ static void remove_output(const char *out) {
   remove(x);
 }
 
-/* The progress line's time to t_end, from the mean wall time w of the
- * recent steps: (t_end - t) / dt steps of w with constant steps; with
- * adaptive ones the step count lies between (t_end - t) / dt_max (dt grows
- * to its cap) and (t_end - t) / dt (it stays): a range, or one value once
- * the two are within 1.5x. A linear extrapolation in t* (the earlier line)
- * is off by the growth of dt, orders of magnitude early in a run. */
+/* The progress line's time to the end of the run, from the mean wall time
+ * w of the recent steps: (t_end - t) / dt steps of w with constant steps;
+ * with adaptive ones the step count lies between (t_end - t) / dt_max (dt
+ * grows to its cap) and (t_end - t) / dt (it stays); --max-steps caps both.
+ * One value once the two are within 1.5x, a range lo-hi within 10x, and
+ * "unknown" beyond (a range over orders of magnitude says nothing). A
+ * linear extrapolation in t* is off by the growth of dt, orders of
+ * magnitude early in a run. */
 static double steps_left(double left, double dt) {
   double n = ceil(left / dt - 1e-9); /* a step that ends at t_end up to rounding is the last */
   return n > 0 ? n : 0.0;            /* not -0 */
 }
 
-static void eta_text(char *buf, size_t len, const ves_config *c, double t, double dt, double w) {
+static void eta_text(char *buf, size_t len, const ves_config *c, double t, double dt, double w,
+                     long nstep, long max_steps) {
   const double left = c->t_end - t;
-  const double hi = w * steps_left(left, dt),
-               lo = c->adaptive ? w * steps_left(left, c->dt_max) : hi;
-  if (hi <= 1.5 * lo)
+  double nhi = steps_left(left, dt), nlo = c->adaptive ? steps_left(left, c->dt_max) : nhi;
+  if (max_steps > 0) { /* --max-steps stops the run first when it comes first */
+    const double m = max_steps > nstep ? (double)(max_steps - nstep) : 0.0;
+    nhi = fmin(nhi, m), nlo = fmin(nlo, m);
+  }
+  const double hi = w * nhi, lo = w * nlo;
+  if (hi <= 1.5 * lo || floor(hi + 0.5) == floor(lo + 0.5))
     snprintf(buf, len, "%.0f s", hi);
-  else
+  else if (hi <= 10 * lo)
     snprintf(buf, len, "%.0f-%.0f s", lo, hi);
+  else
+    snprintf(buf, len, "unknown (dt* adapting)");
 }
 
 /* Why a write to the output failed: the cause the io module recorded (no
@@ -536,7 +596,7 @@ static int loop(run_ctx *r) {
     recent[steps % 10] = el;
     if (!r->quiet && (tty || rep.step % 10 == 0)) {
       char eta[64];
-      eta_text(eta, sizeof eta, &r->cfg, rep.t, rep.dt, w);
+      eta_text(eta, sizeof eta, &r->cfg, rep.t, rep.dt, w, rep.step, r->max_steps);
       fprintf(stderr, "%sstep %ld  t* %.4g/%.4g  dt* %.3g  E* %.6f  iter %d  ETA %s%s",
               tty ? "\r" : "", rep.step, rep.t, tend, rep.dt, rep.E, rep.stats.iterations, eta,
               tty ? "   " : "\n");
@@ -660,7 +720,7 @@ static int run_new(run_ctx *r, const char *path, const char *out, const char *ba
     fprintf(stderr, "vesica run: out of memory\n");
     return 3;
   }
-  if ((rc = build(r))) {
+  if ((rc = setup_estimate("run", &r->cfg, r->quiet)) || (rc = build(r))) {
     free(problem);
     return rc;
   }
@@ -928,7 +988,8 @@ static void usage_info(FILE *f) {
   fprintf(f, "usage: vesica info FILE.h5\n"
              "Summary of a run, one 'key = value' per line (stable keys, for scripts):\n"
              "  file, format_version, version, status (running = still running or killed,\n"
-             "  finished, stopped, failed), backend, nodes, triangles, snapshots, steps,\n"
+             "  finished, stopped, failed), backend, nodes, triangles, snapshots,\n"
+             "  references (stored reference configurations, one per reset), steps,\n"
              "  t_final, t_end, energy_initial, energy_final (E*), energy_monotone (yes/no: E*\n"
              "  never rose by more than 1e-10 relative between accepted steps on the same C0\n"
              "  and volume target),\n"
@@ -1771,7 +1832,15 @@ int main(int argc, char **argv) {
     usage(stderr);
     return 2;
   }
-  if (!strcmp(argv[1], "--help") || !strcmp(argv[1], "-h")) {
+  char *help_argv[4] = {argv[0], NULL, "--help", NULL};
+  if (!strcmp(argv[1], "help") && argc == 3) { /* vesica help CMD = vesica CMD --help */
+    help_argv[1] = argv[2];
+    argc = 3, argv = help_argv;
+  } else if (!strcmp(argv[1], "help") && argc > 3) {
+    fprintf(stderr, "vesica help: one command at most (see vesica help)\n");
+    return 2;
+  }
+  if (!strcmp(argv[1], "--help") || !strcmp(argv[1], "-h") || !strcmp(argv[1], "help")) {
     usage(stdout);
     return 0;
   }

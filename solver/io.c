@@ -100,6 +100,15 @@ static herr_t sys_reason(unsigned n, const H5E_error2_t *e, void *data) {
   return 0;
 }
 
+/* H5Ewalk2 callback: the description of the innermost error that says why
+ * a file cannot be opened ("truncated file: eof = ..., stored_eof = ..."). */
+static herr_t hdf5_reason(unsigned n, const H5E_error2_t *e, void *data) {
+  char *out = data;
+  if (n == 0 && e->desc) snprintf(out, 128, "%s", e->desc);
+  if (e->desc && strstr(e->desc, "truncated")) snprintf(out, 128, "%s", e->desc);
+  return 0;
+}
+
 /* Record the cause of a failed write: the system's reason from HDF5's error
  * stack, errno as the failing write left it (the XDMF file), or the status. */
 static ves_status io_failed(ves_io *io, ves_status st, int errnum) {
@@ -584,10 +593,26 @@ ves_status ves_io_open(const char *path, int writable, ves_io **out, char *err, 
   /* readers take no lock: `vesica info` works on the file of a running run */
   if (fapl >= 0 && !writable) H5Pset_file_locking(fapl, 0, 1);
   io->file = H5Fopen(path, writable ? H5F_ACC_RDWR : H5F_ACC_RDONLY, fapl);
+  char why[128] = ""; /* read before the next call clears HDF5's error stack */
+  if (io->file < 0) H5Ewalk2(H5E_DEFAULT, H5E_WALK_UPWARD, hdf5_reason, why);
   if (fapl >= 0) H5Pclose(fapl);
   if (io->file < 0) {
-    say(err, errlen, "%s: cannot open the HDF5 file%s", path,
-        writable ? " for writing (in use by a running vesica?)" : "");
+    /* a file HDF5 cannot open read-only without a lock is damaged (cut
+     * short: its end of file before the end of its data), not in use */
+    hid_t ro = H5Pcreate(H5P_FILE_ACCESS), f = -1;
+    if (ro >= 0 && writable) {
+      H5Pset_file_locking(ro, 0, 1);
+      f = H5Fopen(path, H5F_ACC_RDONLY, ro);
+    }
+    if (ro >= 0) H5Pclose(ro);
+    if (f >= 0) {
+      H5Fclose(f);
+      say(err, errlen, "%s: cannot open the HDF5 file for writing (in use by a running vesica?)",
+          path);
+    } else {
+      say(err, errlen, "%s: the HDF5 file is damaged: %s%s", path, why[0] ? why : "unreadable",
+          strstr(why, "truncated") ? " (cut short: a copy interrupted, or a full disk)" : "");
+    }
     ves_io_close(&io);
     return VES_ERR_IO;
   }

@@ -750,6 +750,29 @@ static void test_write_failure(void **state) {
   assert_non_null(strstr(text, want));
 }
 
+/* A file cut short (a copy interrupted, a full disk) is named damaged and
+ * truncated, not "in use by a running vesica" (issue 21), writable or not. */
+static void test_truncated(void **state) {
+  (void)state;
+  fake f;
+  char path[128], err[512] = "";
+  ves_io *io = fake_file(&f, "cut.h5", path, sizeof path);
+  double y[8] = {0}, phi[4] = {0};
+  ves_io_snapinfo s0 = snap_of(0);
+  assert_int_equal(ves_io_snapshot(io, y, y, phi, &s0), VES_OK);
+  ves_io_close(&io);
+  free(f.problem);
+  struct stat sb;
+  assert_int_equal(stat(path, &sb), 0);
+  assert_int_equal(truncate(path, sb.st_size / 2), 0);
+  for (int w = 0; w < 2; w++) {
+    assert_int_equal(ves_io_open(path, w, &io, err, sizeof err), VES_ERR_IO);
+    printf("# cut to half, writable %d: %s\n", w, err);
+    assert_non_null(strstr(err, "damaged: truncated file"));
+    assert_null(strstr(err, "in use"));
+  }
+}
+
 int main(int argc, char **argv) {
   if (argc == 3 && !strcmp(argv[1], "--write-fail")) return write_fail_child(argv[2]);
   snprintf(self, sizeof self, "%s", argv[0]);
@@ -759,7 +782,7 @@ int main(int argc, char **argv) {
       cmocka_unit_test(test_killed_writer),
       cmocka_unit_test(test_references), cmocka_unit_test(test_refusals),
       cmocka_unit_test(test_node_material),     cmocka_unit_test(test_restart_chain),
-      cmocka_unit_test(test_write_failure),
+      cmocka_unit_test(test_write_failure), cmocka_unit_test(test_truncated),
   };
   return cmocka_run_group_tests_name("io", tests, setup_all, teardown_all);
 }
