@@ -176,8 +176,12 @@ static void test_problem_files_check(void **state) {
   struct dirent *e;
   while ((e = readdir(d)) && count < 64) {
     size_t l = strlen(e->d_name);
-    if (l > 4 && !strcmp(e->d_name + l - 4, ".ini"))
-      snprintf(paths[count++], sizeof paths[0], "problems/%.*s", (int)(PATH_MAX - 16), e->d_name);
+    if (l > 4 && !strcmp(e->d_name + l - 4, ".ini")) {
+      snprintf(paths[count], sizeof paths[0], "problems/%.*s", (int)(PATH_MAX - 16), e->d_name);
+      char text[4096] = ""; /* study files (a [study] section) are for vesica study */
+      slurp(paths[count], text, sizeof text);
+      if (!strstr(text, "\n[study]") && strncmp(text, "[study]", 7)) count++;
+    }
   }
   closedir(d);
   for (int i = 0; i < count; i += 2) {
