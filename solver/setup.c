@@ -30,14 +30,72 @@ void ves_setup_destroy(ves_setup **s) {
     goto fail;                                                                                     \
   } while (0)
 
+/* The node set of cfg's discretization adapted to a shape: the band and
+ * box check, the sizing field, the interface-aligned band layers and
+ * ves_nodes_generate (used by the setup and by a remeshing, remesh.h). */
+ves_status ves_setup_nodes(const ves_config *cfg, const ves_shape *shape, ves_sizing **sizing,
+                           ves_nodes **nodes, char *err, size_t errlen) {
+  VES_CHECK(cfg && shape && sizing && nodes && err && errlen, VES_ERR_ARG);
+  *sizing = NULL, *nodes = NULL;
+  ves_status st;
+  double *bx = NULL;
+  int *bflag = NULL;
+  /* the refined band (and its layers) must fit in the box with a spacing to spare */
+  double rmax, zmax, margin = (cfg->band + 1) * cfg->epsilon;
+  ves_shape_extent(shape, &rmax, &zmax);
+  if (rmax + margin >= cfg->box_r || zmax + margin >= cfg->box_z)
+    FAIL(VES_ERR_CONFIG,
+         "[geometry] box_r = %g, box_z = %g: the shape (R up to %.3f, |Z| up to %.3f) with its band "
+         "of (band + 1) eps = %.3f does not fit",
+         cfg->box_r, cfg->box_z, rmax, zmax, margin);
+
+  /* band layers: lattice layers up to band*eps; strip and CVT nodes keep half
+   * a layer spacing beyond the last layer */
+  double hb = cfg->h_band * cfg->epsilon, dl = 0.5 * sqrt(3.0) * hb;
+  double halfwidth = cfg->band * cfg->epsilon;
+  double reserve = cfg->band_layers ? (floor(halfwidth / dl + 1e-9) + 0.5) * dl + 0.25 * hb : 0.0;
+  ves_sizing_params zp = {.eps = cfg->epsilon, .h_band = hb, .band = cfg->band, .slope = cfg->slope,
+                          .h_far = cfg->h_far, .reserve = reserve};
+  if ((st = ves_sizing_create(shape, &zp, cfg->box_r, cfg->box_z, sizing)) != VES_OK)
+    FAIL(st, "sizing: %s", ves_status_str(st));
+  ves_nodes_params np;
+  ves_nodes_params_default(&np);
+  np.LR = cfg->box_r, np.LZ = cfg->box_z;
+  np.h = ves_sizing_eval, np.h_ctx = *sizing;
+  np.axis_spacings = cfg->axis_spacings;
+  np.lloyd_iter = cfg->lloyd_iterations;
+  np.seed = (unsigned)cfg->seed;
+  if (cfg->band_layers) {
+    if ((st = ves_shape_band_nodes(shape, hb, halfwidth, &np.nfixed, &bx, &bflag)) != VES_OK)
+      /* a fold of the offset curves is bad input (the band is too wide for
+       * the shape), not a failure of the numerics: exit code 2 */
+      FAIL(st == VES_ERR_GEOM ? VES_ERR_CONFIG : st,
+           "band layers: %s: band*epsilon = %g exceeds a radius of curvature of the shape "
+           "(set a smaller [geometry] band, or band_layers = 0)",
+           ves_status_str(st), halfwidth);
+    np.xfixed = bx, np.fixed_flag = bflag;
+    np.reserved = ves_sizing_reserved, np.reserved_ctx = *sizing;
+  }
+  if ((st = ves_nodes_generate(&np, nodes)) != VES_OK)
+    FAIL(st, "node generation: %s", ves_status_str(st));
+  free(bx);
+  free(bflag);
+  return VES_OK;
+fail:
+  free(bx);
+  free(bflag);
+  ves_sizing_destroy(sizing);
+  ves_nodes_destroy(nodes);
+  return st;
+}
+
 ves_status ves_setup_create(const ves_config *cfg, ves_phi0_method method, ves_setup **out,
                             char *err, size_t errlen) {
   VES_CHECK(cfg && out && err && errlen, VES_ERR_ARG);
   *out = NULL;
   double t0 = ves_wall_seconds(), t;
   ves_status st;
-  double *f = NULL, *bx = NULL, *cpts = NULL;
-  int *bflag = NULL;
+  double *f = NULL, *cpts = NULL;
   ves_setup *s = calloc(1, sizeof *s);
   if (!s) return VES_ERR_ALLOC;
 
@@ -61,45 +119,9 @@ ves_status ves_setup_create(const ves_config *cfg, ves_phi0_method method, ves_s
   cpts = NULL;
   if (st != VES_OK) FAIL(st, "shape: %s", ves_status_str(st));
   ves_shape_sharp(s->shape, &s->area_sharp, &s->volume_sharp);
-  /* the refined band (and its layers) must fit in the box with a spacing to spare */
-  double rmax, zmax, margin = (cfg->band + 1) * cfg->epsilon;
-  ves_shape_extent(s->shape, &rmax, &zmax);
-  if (rmax + margin >= cfg->box_r || zmax + margin >= cfg->box_z)
-    FAIL(VES_ERR_CONFIG,
-         "[geometry] box_r = %g, box_z = %g: the shape (R up to %.3f, |Z| up to %.3f) with its band "
-         "of (band + 1) eps = %.3f does not fit",
-         cfg->box_r, cfg->box_z, rmax, zmax, margin);
-
-  /* band layers: lattice layers up to band*eps; strip and CVT nodes keep half
-   * a layer spacing beyond the last layer */
-  double hb = cfg->h_band * cfg->epsilon, dl = 0.5 * sqrt(3.0) * hb;
-  double halfwidth = cfg->band * cfg->epsilon;
-  double reserve = cfg->band_layers ? (floor(halfwidth / dl + 1e-9) + 0.5) * dl + 0.25 * hb : 0.0;
-  ves_sizing_params zp = {.eps = cfg->epsilon, .h_band = hb, .band = cfg->band, .slope = cfg->slope,
-                          .h_far = cfg->h_far, .reserve = reserve};
-  if ((st = ves_sizing_create(s->shape, &zp, cfg->box_r, cfg->box_z, &s->sizing)) != VES_OK)
-    FAIL(st, "sizing: %s", ves_status_str(st));
-  ves_nodes_params np;
-  ves_nodes_params_default(&np);
-  np.LR = cfg->box_r, np.LZ = cfg->box_z;
-  np.h = ves_sizing_eval, np.h_ctx = s->sizing;
-  np.axis_spacings = cfg->axis_spacings;
-  np.lloyd_iter = cfg->lloyd_iterations;
-  np.seed = (unsigned)cfg->seed;
   t = ves_wall_seconds();
-  if (cfg->band_layers) {
-    if ((st = ves_shape_band_nodes(s->shape, hb, halfwidth, &np.nfixed, &bx, &bflag)) != VES_OK)
-      /* a fold of the offset curves is bad input (the band is too wide for
-       * the shape), not a failure of the numerics: exit code 2 */
-      FAIL(st == VES_ERR_GEOM ? VES_ERR_CONFIG : st,
-           "band layers: %s: band*epsilon = %g exceeds a radius of curvature of the shape "
-           "(set a smaller [geometry] band, or band_layers = 0)",
-           ves_status_str(st), halfwidth);
-    np.xfixed = bx, np.fixed_flag = bflag;
-    np.reserved = ves_sizing_reserved, np.reserved_ctx = s->sizing;
-  }
-  if ((st = ves_nodes_generate(&np, &s->nodes)) != VES_OK)
-    FAIL(st, "node generation: %s", ves_status_str(st));
+  if ((st = ves_setup_nodes(cfg, s->shape, &s->sizing, &s->nodes, err, errlen)) != VES_OK)
+    goto fail;
   s->seconds_nodes = ves_wall_seconds() - t;
 
   t = ves_wall_seconds();
@@ -143,15 +165,11 @@ ves_status ves_setup_create(const ves_config *cfg, ves_phi0_method method, ves_s
     FAIL(st, "model: %s", ves_status_str(st));
   s->seconds_total = ves_wall_seconds() - t0;
   free(f);
-  free(bx);
-  free(bflag);
   *out = s;
   return VES_OK;
 fail:
   free(cpts);
   free(f);
-  free(bx);
-  free(bflag);
   ves_setup_destroy(&s);
   return st;
 }

@@ -46,6 +46,9 @@ void ves_shape_params_default(ves_shape_params *par) {
   par->prolate = 0;
   par->mode = 0;
   par->delta = 0.0;
+  par->npts = 0;
+  par->pts = NULL;
+  par->keep_scale = 0;
 }
 
 /* Legendre P_l(x) and its first two derivatives by the three-term recurrences
@@ -294,7 +297,7 @@ ves_status ves_shape_create(const ves_shape_params *par, ves_shape **out) {
     s->a = k, s->c = k * rho;
   } else if (par->kind == VES_SHAPE_CURVE) {
     ves_status st = curve_setup(s, par->npts, par->pts);
-    if (st == VES_OK) { /* scale to area 4 pi */
+    if (st == VES_OK && !par->keep_scale) { /* scale to area 4 pi */
       double A, V;
       sharp_integrals(s, &A, &V);
       double k = sqrt(4 * M_PI / A);

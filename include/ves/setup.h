@@ -38,4 +38,13 @@ ves_status ves_setup_create(const ves_config *cfg, ves_phi0_method method, ves_s
                             char *err, size_t errlen);
 void ves_setup_destroy(ves_setup **s);
 
+/* The node set of cfg's discretization ([geometry]: epsilon, h_band, band,
+ * slope, h_far, box, band_layers, axis_spacings, lloyd_iterations, seed)
+ * adapted to a shape (borrowed), exactly as the setup builds it: *sizing
+ * and *nodes are taken by the caller (the nodes do not borrow the sizing).
+ * VES_ERR_CONFIG when the shape with its band does not fit the box or the
+ * band layers fold; errors of node generation. One line in err on error. */
+ves_status ves_setup_nodes(const ves_config *cfg, const ves_shape *shape, ves_sizing **sizing,
+                           ves_nodes **nodes, char *err, size_t errlen);
+
 #endif

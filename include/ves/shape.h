@@ -26,6 +26,9 @@ typedef struct {
   double delta;   /* perturbation amplitude (|delta| < 0.5) */
   int npts;       /* curve: number of points (>= 4), first and last on the axis */
   const double *pts; /* curve: 2 npts coordinates (R >= 0, Z), copied */
+  int keep_scale; /* curve: 1 keeps the points' own scale (an interface
+                     extracted from a state, remesh.h), 0 (default) scales
+                     the curve to area 4 pi */
 } ves_shape_params;
 
 typedef struct ves_shape ves_shape;

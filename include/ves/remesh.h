@@ -1,0 +1,154 @@
+/* vesica — full remeshing with field projection (paper Secs. 1 and 3.3;
+ * DESIGN.md §4): from the current state, a new node set adapted to the
+ * current interface, new quadrature and LME tables, the phase field
+ * projected onto the new basis, and the constraints the projection disturbs
+ * restored by a minimal correction of the positions.
+ *
+ * Given a model (reference nodes X_a, points Xh_alpha, weights w_alpha,
+ * point data of phi0) and positions y:
+ *   1. the interface: the material at the old nodes, y(X_a), with phi there
+ *      (the L2 fit of the model's point values of phi0 onto its basis,
+ *      evaluated at the nodes); the zero line of phi on the old triangles
+ *      moved to y(X_a), the crossing on each edge interpolated linearly in
+ *      d = sqrt2 eps atanh(phi) (exact for the tanh profile), chained from
+ *      the north pole to the south pole, resampled at equal arclength
+ *      (curve_spacing) and made a sharp curve shape (shape.h, CURVE, at its
+ *      own scale);
+ *   2. nodes adapted to that curve exactly as the setup adapts them to the
+ *      initial shape (ves_setup_nodes: band, grading, axis lattice, band
+ *      layers, ghosts; the same [geometry] keys and seed), the Delaunay
+ *      quadrature on them and the LME tables with the old tables' parameters;
+ *   3. phi0' = the L2 projection (ves_sparse_project_l2, as the setup fits
+ *      phi0) of the current phi onto the new basis, c minimizing
+ *        sum_alpha w_alpha det F(Xh_alpha) (sum_a p'_a(y(Xh_alpha)) c_a - phi0(Xh_alpha))^2,
+ *      i.e. over the old quadrature moved with the material (points y(Xh),
+ *      weights w det F: the measure of the current configuration), where
+ *      the current phi is known exactly as the old model sees it;
+ *   4. the new model on the new nodes with phi0' (its motion the identity,
+ *      y' = X'), then the correction: y' + delta with delta the minimal
+ *      Euclidean norm (over the free dofs) that restores A(y') = A_target
+ *      and, when held, V(y') = V_target: Newton on the constraints,
+ *      delta = -G^T (G G^T)^-1 c, G the constraint gradients;
+ *   5. the report: E, A, V of the old state, of the projected one before the
+ *      correction and after it, the correction's size, and the interface's
+ *      displacement (distance of the new state's interface points from the
+ *      curve of step 1).
+ * A single vesicle is assumed: an interface of more than one piece (a
+ * pinched-off pearl, an island of phi > 0) is refused (VES_ERR_GEOM). */
+#ifndef VES_REMESH_H
+#define VES_REMESH_H
+
+#include <stddef.h>
+
+#include "ves/config.h"
+#include "ves/geom.h"
+#include "ves/model.h"
+#include "ves/quad.h"
+#include "ves/shape.h"
+#include "ves/status.h"
+
+/* What a remeshing restores and how. */
+typedef struct {
+  int hold_area;        /* 1: restore A = A_target */
+  double A_target;      /* area target (units R0^2) */
+  int hold_volume;      /* 1: restore V = V_target */
+  double V_target;      /* volume target (units R0^3) */
+  double ctol;          /* relative tolerance of the correction (default 1e-14) */
+  int max_iter;         /* Newton iterations of the correction (default 10) */
+  double curve_spacing; /* resampling spacing of the interface curve, units eps
+                           (default 1: a spline knot every eps) */
+} ves_remesh_params;
+
+/* Defaults: no constraint held, ctol 1e-14, max_iter 10, curve_spacing 1. */
+void ves_remesh_params_default(ves_remesh_params *par);
+
+/* What a remeshing changed. E in units of k (E*). */
+typedef struct {
+  int n_old, n_new;          /* real nodes before and after */
+  int nq_old, nq_new;        /* quadrature points before and after */
+  int curve_points;          /* knots of the interface curve */
+  double curve_length;       /* its length (units R0) */
+  double E_old, A_old, V_old;    /* the old model at y */
+  double E_proj, A_proj, V_proj; /* the new model at the identity, before the correction */
+  double E, A, V;                /* the new model at the corrected positions */
+  double dE, dA, dV;         /* E_proj - E_old, A_proj / A_old - 1, V_proj / V_old - 1 */
+  double corr_max;           /* max_a |delta_a| / h_a, the correction at the nodes */
+  double corr_norm;          /* |delta| (units R0, all dofs) */
+  int corr_iter;             /* Newton iterations of the correction */
+  double res_A, res_V;       /* |A / A_target - 1|, |V / V_target - 1| after it (0 when
+                                not held) */
+  double disp_max, disp_mean;/* distance of the new interface's points from the old
+                                interface curve: max and mean (units R0) */
+  ves_quad_info qinfo;       /* the new tables */
+  int proj_refinements;      /* refinement steps of the projection */
+  double proj_residual;      /* its relative residual */
+  double seconds_interface, seconds_nodes, seconds_tables, seconds_project,
+      seconds_correct, seconds; /* wall times: the steps and the whole */
+} ves_remesh_info;
+
+/* A remeshed reference: it owns its nodes, quadrature (with tables), phi0
+ * coefficients, model (which borrows the others) and the corrected
+ * positions. It borrows nothing from the model it was made from. */
+typedef struct ves_remesh ves_remesh;
+
+/* Remesh the state y of model m (both borrowed; m is evaluated, not changed).
+ *   cfg   the discretization keys ([geometry]; borrowed); its box must be
+ *         m's
+ *   par   targets and tolerances (copied)
+ *   out   taken by the caller (ves_remesh_destroy)
+ * The new model's parameters are m's (c0 as in force); its tables use m's
+ * LME parameters. Allocates (~ the cost of a setup and a half).
+ * Returns VES_OK; VES_MAXITER when the correction did not reach ctol in
+ * max_iter iterations (out is made; res_A, res_V say how far);
+ * VES_ERR_ARG (NULL, non-finite y, a box not m's); VES_ERR_DOMAIN (det F
+ * <= 0 or r <= 0 at an old point); VES_ERR_GEOM (no interface from pole to
+ * pole, or one of more than one piece); VES_ERR_CONFIG (the band does not
+ * fit in the box or the band layers fold on the curve); errors of the node
+ * generation, tables and projection. On error a line in err. */
+ves_status ves_remesh_create(const ves_config *cfg, ves_model *m, const double *y,
+                             const ves_remesh_params *par, ves_remesh **out, char *err,
+                             size_t errlen);
+
+/* Rebuild a remeshed reference from what defines it (a restart): a model m
+ * on the same box and discretization (its parameters and LME parameters are
+ * used), n nodes x[2n] (r >= 0), spacings h[n], flags flag[n] and phi0
+ * coefficients phi0c[n] (ves_remesh_nodes and ves_remesh_phi0c of a remesh):
+ * the nodes, tables and model are then those of that remesh, bit for bit
+ * (the same code builds them). The positions (ves_remesh_y) are the nodes
+ * (no correction) and the info holds the node and point counts only.
+ * VES_ERR_ARG for invalid arrays; errors as ves_remesh_create. */
+ves_status ves_remesh_restore(const ves_model *m, int n, const double *x, const double *h,
+                              const int *flag, const double *phi0c, ves_remesh **out);
+
+/* Free everything; accepts NULL and sets *r to NULL. The model must no
+ * longer be in use. */
+void ves_remesh_destroy(ves_remesh **r);
+
+ves_model *ves_remesh_model(ves_remesh *r);              /* owned by r */
+const ves_model *ves_remesh_model_const(const ves_remesh *r);
+const ves_nodes *ves_remesh_nodes(const ves_remesh *r);  /* owned by r */
+const ves_quad *ves_remesh_quad(const ves_remesh *r);    /* owned by r */
+const double *ves_remesh_phi0c(const ves_remesh *r);     /* n phi0 coefficients */
+const double *ves_remesh_y(const ves_remesh *r);         /* 2n corrected positions */
+void ves_remesh_get_info(const ves_remesh *r, ves_remesh_info *info);
+
+/* The interface of the state y of model m as a polyline from the north
+ * pole to the south pole (step 1 above, before resampling): *pts (2 *npts,
+ * (r, z), first and last with r = 0 exactly) taken by the caller;
+ * *pieces (may be NULL) receives the number of pieces the zero line has
+ * (1 for a single vesicle; the polyline is the pole-to-pole one).
+ * phi0c (may be NULL): nodal coefficients of phi0 on m's basis when known
+ * (the fit is then skipped). VES_ERR_GEOM when no piece runs from the axis
+ * to the axis. */
+ves_status ves_remesh_interface(const ves_model *m, const double *y, const double *phi0c,
+                                int *npts, double **pts, int *pieces);
+
+/* When to remesh (the integrator's policy; due when any enabled criterion
+ * holds). */
+typedef struct {
+  int every;       /* accepted steps between remeshings (0: off) */
+  double cond_max; /* remesh when max cond_2 F exceeds this (> 1; 0: off) */
+  double det_min;  /* remesh when min det F drops below this (in (0, 1); 0: off) */
+} ves_remesh_policy;
+
+#endif
