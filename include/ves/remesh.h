@@ -149,6 +149,7 @@ typedef struct {
   int every;       /* accepted steps between remeshings (0: off) */
   double cond_max; /* remesh when max cond_2 F exceeds this (> 1; 0: off) */
   double det_min;  /* remesh when min det F drops below this (in (0, 1); 0: off) */
+  int on_failed_reset; /* 1: remesh when a reset of the reference was due and failed */
 } ves_remesh_policy;
 
 #endif
