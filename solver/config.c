@@ -130,6 +130,16 @@ static const key_spec KEYS[] = {
      "coefficients|motion",
      "new reference nodes: the nodal coefficients y^a (paper) or the motion y(X_a) of the "
      "old nodes"},
+    {"remesh", "every", KEY_INT, OFF(remesh_every), "0", 0, 1000000, NULL,
+     "full remeshing (new adapted nodes, quadrature, phi projected, A and V restored) every "
+     "this many accepted steps (paper Fig. 6; 0: off; library and bench_remesh only: vesica "
+     "run refuses it, its output records one node set)"},
+    {"remesh", "cond_max", KEY_DOUBLE, OFF(remesh_cond_max), "0", 0, 1e12, NULL,
+     "remesh when max cond_2 F since the last reference exceeds this; 0: off, else > 1"},
+    {"remesh", "det_min", KEY_DOUBLE, OFF(remesh_det_min), "0", 0, 1, NULL,
+     "remesh when min det F since the last reference drops below this; 0: off, else below 1"},
+    {"remesh", "on_failed_reset", KEY_INT, OFF(remesh_on_failed_reset), "0", 0, 1, NULL,
+     "1: remesh when a reset of the reference configuration was due and failed"},
     {"output", "snapshot_every", KEY_INT, OFF(snapshot_every), "10", 1, 1000000, NULL,
      "accepted steps between snapshots of nodes and phi"},
 };
@@ -489,6 +499,16 @@ ves_status ves_config_validate(const ves_config *cfg, char *err, size_t errlen) 
   if (cfg->reconnect_det_min >= 1) {
     say(err, errlen, "%s: [reconnect] det_min = %g: must be below 1 (0: off)", src,
         cfg->reconnect_det_min);
+    return VES_ERR_CONFIG;
+  }
+  if (cfg->remesh_cond_max > 0 && cfg->remesh_cond_max <= 1) {
+    say(err, errlen, "%s: [remesh] cond_max = %g: must be 0 (off) or above 1 (cond F >= 1)", src,
+        cfg->remesh_cond_max);
+    return VES_ERR_CONFIG;
+  }
+  if (cfg->remesh_det_min >= 1) {
+    say(err, errlen, "%s: [remesh] det_min = %g: must be below 1 (0: off)", src,
+        cfg->remesh_det_min);
     return VES_ERR_CONFIG;
   }
   if (cfg->c0_time > cfg->t_end) {

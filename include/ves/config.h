@@ -70,6 +70,11 @@ typedef struct {
   double reconnect_det_min;  /* reset when min det F drops below this (0: off, else < 1) */
   char reconnect_nodes[VES_CONFIG_STR]; /* new nodes: "coefficients" (y^a, paper) or "motion"
                                            (y(X_a)) */
+  /* [remesh] full remeshing (remesh.h; all 0: none) */
+  int remesh_every;           /* accepted steps between remeshings (0: off) */
+  double remesh_cond_max;     /* remesh when max cond_2 F exceeds this (0: off, else > 1) */
+  double remesh_det_min;      /* remesh when min det F drops below this (0: off, else < 1) */
+  int remesh_on_failed_reset; /* 1: remesh when a due reset failed */
   /* [output] */
   int snapshot_every; /* accepted steps between snapshots */
 } ves_config;
