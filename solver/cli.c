@@ -679,6 +679,16 @@ static int run_new(run_ctx *r, const char *path, const char *out, const char *ba
                    const char *const *set, const char *series, int force) {
   int rc = load_problem("run", path, usage_run, nset, set, &r->cfg);
   if (rc) return rc;
+  const ves_config *c = &r->cfg;
+  if (c->remesh_every || c->remesh_cond_max > 0 || c->remesh_det_min > 0 ||
+      c->remesh_on_failed_reset) { /* the output format records one node set */
+    fprintf(stderr,
+            "vesica run: %s: [remesh]: remeshing changes the node set, which the output file "
+            "cannot record yet (no snapshot, restart or plot across it); run it with "
+            "bench_remesh (bench/RESULTS.md) or leave [remesh] off\n",
+            path);
+    return 2;
+  }
   r->label = path;
   r->bk = ves_backend_find(backend ? backend : r->cfg.backend);
   if (!r->bk) {

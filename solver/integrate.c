@@ -43,6 +43,7 @@
 
 #include "ves/quad.h"
 #include "ves/reconnect.h"
+#include "ves/remesh.h"
 #include "ves/sparse.h"
 
 struct ves_sim {
@@ -72,6 +73,13 @@ struct ves_sim {
   double *node_phi;                 /* n: phi of the material at those nodes */
   int node_phi_ok;                  /* node_phi holds the current reference's values */
   long reset_step;                  /* the step of the last reset (0: none) */
+  ves_remesh *mesh;                 /* the last remeshing's reference (owned; NULL if none
+                                       or a reset came after it) */
+  const ves_config *rcfg;           /* remeshing: the discretization keys (borrowed; NULL:
+                                       off, ves_sim_set_remesh) */
+  ves_remesh_policy rmp;            /* when to remesh */
+  long rsince;                      /* accepted steps since the last remeshing (or t = 0) */
+  int remeshings;                   /* remeshings so far */
   double dt_rejected;               /* smallest recently rejected dt (0: none) */
   long since_rejected;              /* accepted steps since then */
 };
@@ -107,6 +115,7 @@ void ves_sim_destroy(ves_sim **s) {
   if (p->backend && p->bstate) p->backend->destroy(&p->bstate);
   ves_step_destroy(&p->step);
   ves_reconnect_destroy(&p->ref); /* after the step problem and backend built on it */
+  ves_remesh_destroy(&p->mesh);
   ves_quad_destroy(&p->at_nodes);
   free(p->node_phi);
   free(p->y);
@@ -200,6 +209,7 @@ static ves_status switch_reference(ves_sim *s, ves_reconnect *nr, const ves_step
   s->backend->destroy(&s->bstate); /* the old pattern's objects, then their model */
   ves_step_destroy(&s->step);
   ves_reconnect_destroy(&s->ref);
+  ves_remesh_destroy(&s->mesh); /* nr borrows nothing from it */
   s->ref = nr, s->model = m, s->step = step, s->bstate = bstate;
   memcpy(s->y, y, 2 * (size_t)s->n * sizeof *s->y);
   s->E = E, s->A = A, s->V = V;
@@ -256,6 +266,98 @@ static double volume_target(const ves_sim *s, double t) {
   if (s->ip.volume_rate > 0) r = fmin(r, s->ip.volume_final);
   return s->V0 * r;
 }
+
+/* Remesh s->y (remesh.h) and continue on the new reference: the node count
+ * changes, so the positions, trial buffers, step problem and backend are all
+ * made anew first and swapped in only once everything exists; E, A, V
+ * re-evaluated at the corrected positions. On failure s is unchanged. */
+static ves_status remesh(ves_sim *s, ves_remesh_info *info) {
+  ves_remesh_params rp;
+  ves_remesh_params_default(&rp);
+  rp.hold_area = s->ip.hold_area, rp.A_target = s->A0;
+  rp.hold_volume = s->ip.hold_volume, rp.V_target = volume_target(s, s->t);
+  ves_remesh *nm = NULL;
+  ves_step *step = NULL;
+  void *bstate = NULL;
+  double *y = NULL, *ynew = NULL, *x = NULL, E, A, V;
+  char err[256];
+  ves_status st = ves_remesh_create(s->rcfg, s->model, s->y, &rp, &nm, err, sizeof err);
+  if (st > 0) st = VES_OK; /* the correction short of ctol: its residuals are reported */
+  ves_model *m = st == VES_OK ? ves_remesh_model(nm) : NULL;
+  const int n = st == VES_OK ? ves_remesh_nodes(nm)->n : 0;
+  if (st == VES_OK) st = ves_step_create(m, &step);
+  if (st == VES_OK) {
+    y = malloc(2 * (size_t)n * sizeof *y), ynew = malloc(2 * (size_t)n * sizeof *ynew);
+    x = malloc((size_t)ves_step_nvar(step) * sizeof *x);
+    st = y && ynew && x ? VES_OK : VES_ERR_ALLOC;
+  }
+  if (st == VES_OK) {
+    memcpy(y, ves_remesh_y(nm), 2 * (size_t)n * sizeof *y);
+    ves_step_params sp = {.dt = s->dt, .hold_area = s->ip.hold_area, .A0 = s->A0,
+                          .hold_volume = s->ip.hold_volume, .V_target = rp.V_target};
+    st = ves_step_set(step, y, &sp); /* the backend needs a set problem */
+  }
+  if (st == VES_OK) st = s->backend->create(&s->bopt, step, &bstate);
+  if (st == VES_OK) st = ves_model_set_c0(m, s->c0);
+  if (st == VES_OK)
+    st = ves_model_eval(m, y, VES_F_E | VES_F_A | VES_F_V, &E, &A, &V, NULL, NULL, NULL);
+  if (st != VES_OK) {
+    if (bstate) s->backend->destroy(&bstate);
+    ves_step_destroy(&step);
+    ves_remesh_destroy(&nm);
+    free(y), free(ynew), free(x);
+    return st;
+  }
+  ves_remesh_get_info(nm, info);
+  s->backend->destroy(&s->bstate); /* the old pattern's objects, then their model */
+  ves_step_destroy(&s->step);
+  ves_reconnect_destroy(&s->ref);
+  ves_remesh_destroy(&s->mesh);
+  s->mesh = nm, s->model = m, s->step = step, s->bstate = bstate;
+  free(s->y), free(s->ynew), free(s->x);
+  s->y = y, s->ynew = ynew, s->x = x;
+  s->n = n, s->nvar = ves_step_nvar(step);
+  s->E = E, s->A = A, s->V = V;
+  ves_quad_destroy(&s->at_nodes); /* built on the old nodes */
+  free(s->node_phi);
+  s->node_phi = NULL, s->node_phi_ok = 0;
+  s->since = 0, s->rsince = 0, s->reset_step = s->nstep; /* a new reference */
+  s->remeshings++;
+  return VES_OK;
+}
+
+/* After an accepted step (and its reset, if any): remesh when due
+ * (every rmp.every steps, the distortion past rmp's thresholds, or a reset
+ * that was due and failed). The step stands whatever happens here. */
+static void remesh_if_due(ves_sim *s, ves_step_report *rep) {
+  int due = 0;
+  s->rsince++;
+  if (s->rmp.every > 0 && s->rsince >= s->rmp.every) due = 1;
+  if (!due && (s->rmp.cond_max > 0 || s->rmp.det_min > 0)) {
+    double c = 1, d = 1;
+    rep->remesh_status = ves_reconnect_distortion(s->model, s->y, &c, &d);
+    if (rep->remesh_status != VES_OK) return;
+    due = (s->rmp.cond_max > 0 && c > s->rmp.cond_max) || (s->rmp.det_min > 0 && d < s->rmp.det_min);
+  }
+  if (!due && s->rmp.on_failed_reset && rep->reconnect_status < 0) due = 1;
+  if (!due) return;
+  rep->remesh_status = remesh(s, &rep->remesh);
+  if (rep->remesh_status == VES_OK) rep->remeshed = 1;
+}
+
+ves_status ves_sim_set_remesh(ves_sim *s, const ves_config *cfg, const ves_remesh_policy *pol) {
+  VES_CHECK(s && (!cfg || pol), VES_ERR_ARG);
+  if (cfg)
+    VES_CHECK(pol->every >= 0 && (pol->cond_max == 0 || pol->cond_max > 1) && pol->det_min >= 0 &&
+                  pol->det_min < 1,
+              VES_ERR_ARG);
+  s->rcfg = cfg;
+  if (cfg) s->rmp = *pol;
+  s->rsince = 0;
+  return VES_OK;
+}
+
+int ves_sim_remeshings(const ves_sim *s) { return s->remeshings; }
 
 ves_status ves_sim_step(ves_sim *s, ves_step_report *rep) {
   VES_CHECK(s && rep, VES_ERR_ARG);
@@ -345,6 +447,7 @@ ves_status ves_sim_step(ves_sim *s, ves_step_report *rep) {
           }
         }
       }
+      if (s->rcfg) remesh_if_due(s, rep);
       return VES_OK;
     }
     rep->solve_status = st;

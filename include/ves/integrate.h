@@ -9,6 +9,7 @@
 #include "ves/backend.h"
 #include "ves/lme.h"
 #include "ves/model.h"
+#include "ves/remesh.h"
 #include "ves/status.h"
 #include "ves/step.h"
 
@@ -71,6 +72,10 @@ typedef struct {
   double shift;                /* reconnected: max_a |y^a - y(X_a)| / h_a (ves_reconnect.h) */
   ves_status reconnect_status; /* VES_OK, or why a due reset failed (the step stands and
                                   the old reference stays in use; tried again next step) */
+  /* remeshing after the step (ves_sim_set_remesh; all zero when none) */
+  int remeshed;                /* 1: the state was remeshed (node count may change) */
+  ves_remesh_info remesh;      /* remeshed: what it changed (remesh.h) */
+  ves_status remesh_status;    /* VES_OK, or why a due remeshing failed (the step stands) */
 } ves_step_report;
 
 typedef struct ves_sim ves_sim;
@@ -149,6 +154,16 @@ const ves_reconnect *ves_sim_reference(const ves_sim *s);
 /* The model in use: the creation model, or the last reset's (owned by the
  * simulation or borrowed at create; valid until the next reset). */
 ves_model *ves_sim_model(ves_sim *s);
+
+/* Remeshing (remesh.h) after accepted steps when pol says so (pol->every,
+ * cond_max, det_min as for resets, on_failed_reset: also when a due reset
+ * failed); cfg holds the discretization keys (borrowed: it must outlive the
+ * simulation); cfg NULL turns it off. After a remeshing the node count,
+ * ves_sim_y and ves_sim_model change (the driver's buffers must follow
+ * ves_model_nodes(ves_sim_model(s))->n), and nothing of it is restored by
+ * ves_sim_adopt_reference. VES_ERR_ARG for invalid thresholds. */
+ves_status ves_sim_set_remesh(ves_sim *s, const ves_config *cfg, const ves_remesh_policy *pol);
+int ves_sim_remeshings(const ves_sim *s); /* remeshings so far */
 
 double ves_sim_time(const ves_sim *s);
 double ves_sim_dt(const ves_sim *s);         /* the next step's dt */
