@@ -81,6 +81,7 @@ static ves_status euler_solve(void *state, ves_step *s, double *x, double *lambd
   VES_CALL(ves_step_eval_jac(s, x, w->J));
   kkt_fill(&w->kkt, K, 0.0, NULL, w->J, ncon);
   ves_status st = kkt_factor(&w->kkt);
+  stt->factorizations = 1;
   if (st != VES_OK || w->kkt.neg != KKT_NROWS) {
     stt->solver_status = st != VES_OK ? (int)st : w->kkt.neg;
     stt->seconds = ves_wall_seconds() - t0;

@@ -18,9 +18,33 @@
  * Frozen Hessian (opt->freeze_hessian, the paper's practice): H (and J in the
  * matrix) assembled and factorized once at the start of the step; every
  * iteration recomputes only g, c and J for the residual (a chord method, whose
- * fixed point is still the exact KKT point). A fresh matrix is built when the
- * chord step stalls: no descent, a line search that had to cut the step, or a
- * residual that fell by less than half.
+ * fixed point is still the exact KKT point), accelerated by Anderson mixing
+ * of its last NEWTON_AA_DEPTH steps (anderson()). A fresh matrix is built
+ * when the chord stalls: no descent, a line search that had to cut the step,
+ * or a residual that did not halve over the last NEWTON_STALL_WINDOW
+ * iterations (fewer since the build: the Newton step of a fresh matrix must
+ * halve it at once). Measured at eps 0.01 (bench/RESULTS.md): after the
+ * Newton step the plain chord often stalled at ~1e-3 of the start residual
+ * and a second matrix was built in most steps; the accelerated chord gets
+ * through that in 2-4 more iterations (~1/15 of a build each). Close to the
+ * tolerance a step the merit function cannot judge is judged by the
+ * residual (tail_step).
+ *
+ * freeze_hessian = 2 keeps the factorization across steps as well: a step
+ * starts with the last one (K(y^m) + dt_m Hess E(y^m) + ..., m < n) as its
+ * chord matrix unless the step is marked fresh (ves_step_params.fresh: a
+ * restart point, a retried step), its dt differs from dt_m by more than
+ * NEWTON_REUSE_DT (the stiff modes, dt Hess E, would then contract at
+ * |1 - dt/dt_m| only), or the constraints held differ. The same stall rules
+ * rebuild it. At small dt the matrix of a step is within a few percent of
+ * the previous step's: one assembly (Hessian + K's share + factorization,
+ * ~10x a chord iteration at eps 0.01) serves several steps.
+ *
+ * Inertia correction memory (as Ipopt's): after a corrected factorization
+ * with delta, the next one that needs a correction starts at delta/10
+ * instead of NEWTON_DELTA0 (each rung of the ladder is a factorization:
+ * measured on an eps 0.02 oblate step at dt* 0.3, 7 factorizations for
+ * delta = 0, 1e-3, ..., 100). The memory is forgotten with the matrix.
  *
  * Convergence (both):
  *   |g + J^T lam|_inf <= max(tol * S, N),  S = max(|g(x_start)|_inf, |J^T lam|_inf),
@@ -48,8 +72,13 @@
 #define NEWTON_MAX_LS 40       /* backtracking halvings */
 #define NEWTON_DELTA0 1e-3     /* first inertia correction, units of K */
 #define NEWTON_DELTA_MAX 1e6   /* give up beyond this correction */
-#define NEWTON_STALL 0.5       /* frozen: refresh when |res| fell by less than this */
+#define NEWTON_STALL 0.5       /* frozen: refresh when |res| fell by less than this ... */
+#define NEWTON_STALL_WINDOW 3  /* ... over this many iterations (fewer since the build) */
+#define NEWTON_TAIL 1e3        /* the tail: |res| within this factor of the tolerance */
 #define NEWTON_FNOISE 1e2      /* merit values closer than this many eps_mach |phi| are equal */
+#define NEWTON_REUSE_DT 1.25   /* freeze 2: reuse while dt / dt_m is within [1/this, this] */
+#define NEWTON_AA_DEPTH 5      /* Anderson acceleration of the chord: steps remembered */
+#define NEWTON_AA_GROW 10.0    /* an accelerated step longer than this many chord steps is refused */
 
 typedef struct {
   ves_backend_options opt; /* copied */
@@ -63,6 +92,18 @@ typedef struct {
   double *soc;             /* nvar + KKT_NROWS second-order correction */
   double *xt;              /* nvar trial point */
   double noise;            /* eps_mach (|H| |x|)_inf at the last assembly */
+  int have_factor;         /* the KKT factorization holds a usable chord matrix */
+  double dt_factor;        /* the dt of the step whose matrix it is */
+  int ncon_factor;         /* the constraints held in it */
+  double delta_last;       /* the last inertia correction (0: none since the matrix was fresh) */
+  /* Anderson acceleration of the chord iteration (columns of nvar + KKT_NROWS) */
+  double *aa_du;           /* NEWTON_AA_DEPTH differences of the iterates u = (x, lam) */
+  double *aa_dg;           /* NEWTON_AA_DEPTH differences of their chord steps */
+  double *aa_q;            /* NEWTON_AA_DEPTH orthonormalized aa_dg (x part), workspace */
+  double *aa_u, *aa_g;     /* the previous iterate and its chord step */
+  double *aa_p;            /* the accelerated step */
+  int aa_n;                /* columns held (0: none; the newest at (aa_n - 1)) */
+  int aa_prev;             /* aa_u, aa_g hold the previous iterate of the same matrix */
 } newton_state;
 
 static void newton_destroy(void **state) {
@@ -70,6 +111,7 @@ static void newton_destroy(void **state) {
   newton_state *w = *state;
   kkt_destroy(&w->kkt);
   free(w->H), free(w->g), free(w->J), free(w->r), free(w->sol), free(w->soc), free(w->xt);
+  free(w->aa_du), free(w->aa_dg), free(w->aa_q), free(w->aa_u), free(w->aa_g), free(w->aa_p);
   free(w);
   *state = NULL;
 }
@@ -96,8 +138,15 @@ static ves_status newton_create(const ves_backend_options *opt, ves_step *s, voi
   w->sol = malloc(na * sizeof *w->sol);
   w->soc = malloc(na * sizeof *w->soc);
   w->xt = malloc(nv * sizeof *w->xt);
+  w->aa_du = malloc(NEWTON_AA_DEPTH * na * sizeof *w->aa_du);
+  w->aa_dg = malloc(NEWTON_AA_DEPTH * na * sizeof *w->aa_dg);
+  w->aa_q = malloc(NEWTON_AA_DEPTH * nv * sizeof *w->aa_q);
+  w->aa_u = malloc(na * sizeof *w->aa_u);
+  w->aa_g = malloc(na * sizeof *w->aa_g);
+  w->aa_p = malloc(na * sizeof *w->aa_p);
   *state = w;
-  if (!w->H || !w->g || !w->J || !w->r || !w->sol || !w->soc || !w->xt) {
+  if (!w->H || !w->g || !w->J || !w->r || !w->sol || !w->soc || !w->xt || !w->aa_du ||
+      !w->aa_dg || !w->aa_q || !w->aa_u || !w->aa_g || !w->aa_p) {
     newton_destroy(state);
     return VES_ERR_ALLOC;
   }
@@ -126,11 +175,18 @@ static ves_status assemble_factor(newton_state *w, ves_step *s, const double *x,
   }
   w->noise = DBL_EPSILON * norm_inf(w->nvar, acc);
   const double *K = ves_step_K(s);
-  for (double delta = 0; delta <= NEWTON_DELTA_MAX;
-       delta = delta == 0 ? NEWTON_DELTA0 : 10 * delta) {
+  const double d0 = fmax(NEWTON_DELTA0, w->delta_last / 10);
+  w->have_factor = 0;
+  for (double delta = 0; delta <= NEWTON_DELTA_MAX; delta = delta == 0 ? d0 : 10 * delta) {
     kkt_fill(&w->kkt, w->H, delta, K, w->J, ncon);
     ves_status st = kkt_factor(&w->kkt);
-    if (st == VES_OK && w->kkt.neg == KKT_NROWS) return VES_OK;
+    stt->factorizations++;
+    if (st == VES_OK && w->kkt.neg == KKT_NROWS) {
+      if (delta > 0) w->delta_last = delta;
+      w->have_factor = 1, w->ncon_factor = ncon;
+      w->dt_factor = ves_step_get_params(s)->dt;
+      return VES_OK;
+    }
     if (st != VES_OK && st != VES_ERR_SINGULAR) return st; /* not an inertia problem */
   }
   return VES_ERR_SINGULAR;
@@ -158,16 +214,143 @@ static double l1(int n, const double *c) {
   return a;
 }
 
+/* Anderson acceleration (type II, depth NEWTON_AA_DEPTH) of the chord
+ * iteration u <- u + g(u), g the step the frozen matrix gives at u: with
+ * dU, dG the differences of the last iterates and their steps,
+ *   gamma = argmin |g - dG gamma|_2 (x part),  p = g - (dU + dG) gamma.
+ * For a linear residual this is GMRES on the frozen-matrix-preconditioned
+ * system (Walker & Ni 2011): the chord's linear rate ||I - M0^-1 M|| becomes
+ * a Krylov one, at no extra evaluation. The least squares by modified
+ * Gram-Schmidt in fixed loops (deterministic: no BLAS threads); a column
+ * that is nearly dependent on the newer ones ends the history there.
+ * u = (x, lam) and g = (dx, dlam) over na = nvar + KKT_NROWS. Writes p into
+ * w->aa_p and returns 1, or 0 when no history is held (p = g then). */
+static int anderson(newton_state *w, const double *x, const double *lam, const double *g) {
+  const int nv = w->nvar, na = nv + KKT_NROWS;
+  if (w->aa_prev) { /* a new column: the differences to the previous iterate */
+    if (w->aa_n == NEWTON_AA_DEPTH) { /* drop the oldest */
+      memmove(w->aa_du, w->aa_du + na, (size_t)(NEWTON_AA_DEPTH - 1) * na * sizeof *w->aa_du);
+      memmove(w->aa_dg, w->aa_dg + na, (size_t)(NEWTON_AA_DEPTH - 1) * na * sizeof *w->aa_dg);
+      w->aa_n--;
+    }
+    double *du = w->aa_du + (size_t)w->aa_n * na, *dg = w->aa_dg + (size_t)w->aa_n * na;
+    for (int j = 0; j < nv; j++) du[j] = x[j] - w->aa_u[j];
+    for (int i = 0; i < KKT_NROWS; i++) du[nv + i] = lam[i] - w->aa_u[nv + i];
+    for (int j = 0; j < na; j++) dg[j] = g[j] - w->aa_g[j];
+    w->aa_n++;
+  }
+  memcpy(w->aa_u, x, (size_t)nv * sizeof *x);
+  memcpy(w->aa_u + nv, lam, KKT_NROWS * sizeof *lam);
+  memcpy(w->aa_g, g, (size_t)na * sizeof *g);
+  w->aa_prev = 1;
+  memcpy(w->aa_p, g, (size_t)na * sizeof *g);
+  if (w->aa_n == 0) return 0;
+  /* QR of the dG columns (x part), newest first; R upper triangular */
+  double R[NEWTON_AA_DEPTH][NEWTON_AA_DEPTH] = {{0}}, rhs[NEWTON_AA_DEPTH], gam[NEWTON_AA_DEPTH];
+  int m = 0;
+  for (int c = w->aa_n - 1; c >= 0; c--, m++) {
+    double *q = w->aa_q + (size_t)m * nv;
+    const double *dg = w->aa_dg + (size_t)c * na;
+    double n0 = 0;
+    for (int j = 0; j < nv; j++) q[j] = dg[j], n0 += dg[j] * dg[j];
+    for (int i = 0; i < m; i++) {
+      const double *qi = w->aa_q + (size_t)i * nv;
+      double d = 0;
+      for (int j = 0; j < nv; j++) d += qi[j] * q[j];
+      R[i][m] = d;
+      for (int j = 0; j < nv; j++) q[j] -= d * qi[j];
+    }
+    double nn = 0;
+    for (int j = 0; j < nv; j++) nn += q[j] * q[j];
+    if (!(nn > 1e-20 * n0) || n0 == 0) break; /* dependent: the older columns go too */
+    R[m][m] = sqrt(nn);
+    for (int j = 0; j < nv; j++) q[j] /= R[m][m];
+  }
+  if (m < w->aa_n) { /* keep the m newest columns */
+    const int drop = w->aa_n - m;
+    memmove(w->aa_du, w->aa_du + (size_t)drop * na, (size_t)m * na * sizeof *w->aa_du);
+    memmove(w->aa_dg, w->aa_dg + (size_t)drop * na, (size_t)m * na * sizeof *w->aa_dg);
+    w->aa_n = m;
+  }
+  if (m == 0) return 0;
+  for (int i = 0; i < m; i++) {
+    const double *qi = w->aa_q + (size_t)i * nv;
+    double d = 0;
+    for (int j = 0; j < nv; j++) d += qi[j] * g[j];
+    rhs[i] = d;
+  }
+  for (int i = m - 1; i >= 0; i--) { /* R gam = Q^T g */
+    double d = rhs[i];
+    for (int k = i + 1; k < m; k++) d -= R[i][k] * gam[k];
+    gam[i] = d / R[i][i];
+  }
+  double gn = 0, pn = 0;
+  for (int i = 0; i < m; i++) { /* column i of the QR is history column aa_n - 1 - i */
+    const size_t c = (size_t)(w->aa_n - 1 - i) * na;
+    for (int j = 0; j < na; j++) w->aa_p[j] -= gam[i] * (w->aa_du[c + j] + w->aa_dg[c + j]);
+  }
+  for (int j = 0; j < nv; j++) gn += g[j] * g[j], pn += w->aa_p[j] * w->aa_p[j];
+  if (!(pn <= NEWTON_AA_GROW * NEWTON_AA_GROW * gn)) { /* a wild extrapolation: plain chord */
+    memcpy(w->aa_p, g, (size_t)na * sizeof *g);
+    w->aa_n = 0;
+    return 0;
+  }
+  return 1;
+}
+
+/* The tail of a chord iteration: within NEWTON_TAIL of the tolerance the
+ * merit function's changes are at the rounding of f (dt E summed over all
+ * points), its directional derivative carries that noise, and a stale
+ * matrix's step can be refused as "no descent" although it converges; a
+ * rebuild for the last digits cost a whole Hessian and factorization
+ * (measured at eps 0.01: one of the two of a step). There the full step
+ * (dx, dlam) is judged by the KKT residual instead: taken when it falls by
+ * NEWTON_STALL. *ok = 1: x, lam, f, c and w->g, w->J are at the new point;
+ * 0: unchanged (w->g, w->J re-evaluated at x). */
+static ves_status tail_step(newton_state *w, ves_step *s, double *x, double *lam,
+                            const double *dx, const double *dlam, int ncon, double res,
+                            double *f, double *c, int *ok, ves_backend_stats *stt) {
+  const int nv = w->nvar;
+  double ft, ct[KKT_NROWS] = {0, 0};
+  *ok = 0;
+  for (int j = 0; j < nv; j++) w->xt[j] = x[j] + dx[j];
+  ves_step_eager_gradients(s, 1);
+  ves_status e = eval_fc(s, w->xt, &ft, ct, stt);
+  ves_step_eager_gradients(s, 0);
+  if (e == VES_ERR_DOMAIN) return VES_OK;
+  VES_CALL(e);
+  VES_CALL(eval_gJ(w, s, w->xt, stt));
+  double rt = 0;
+  for (int j = 0; j < nv; j++) {
+    double r = w->g[j];
+    for (int i = 0; i < ncon; i++) r += (lam[i] + dlam[i]) * w->J[(size_t)i * nv + j];
+    rt = fmax(rt, fabs(r));
+  }
+  if (rt <= NEWTON_STALL * res) {
+    memcpy(x, w->xt, (size_t)nv * sizeof *x);
+    for (int i = 0; i < ncon; i++) lam[i] += dlam[i], c[i] = ct[i];
+    *f = ft;
+    *ok = 1;
+    return VES_OK;
+  }
+  return eval_gJ(w, s, x, stt); /* back to x */
+}
+
 static ves_status newton_solve(void *state, ves_step *s, double *x, double *lambda,
                                ves_backend_stats *stt) {
   VES_CHECK(state && s && x && stt, VES_ERR_ARG);
   memset(stt, 0, sizeof *stt);
   const double t0 = ves_wall_seconds();
   newton_state *w = state;
-  w->noise = 0;
   const ves_step_params *par = ves_step_get_params(s);
   VES_CHECK(par, VES_ERR_ARG); /* ves_step_set not called */
   const int nv = w->nvar, ncon = ves_step_ncon(s);
+  /* the last step's matrix as this one's chord matrix (freeze 2) */
+  const int reuse = w->opt.freeze_hessian >= 2 && w->have_factor && !par->fresh &&
+                    w->ncon_factor == ncon && par->dt <= NEWTON_REUSE_DT * w->dt_factor &&
+                    w->dt_factor <= NEWTON_REUSE_DT * par->dt;
+  if (!reuse) w->have_factor = 0, w->noise = 0, w->delta_last = 0;
+  w->aa_n = 0, w->aa_prev = 0; /* a new step: a new residual */
   VES_CHECK(nv == ves_step_nvar(s), VES_ERR_ARG);
   VES_CHECK(ncon == 0 || lambda, VES_ERR_ARG);
   double tgt[KKT_NROWS] = {1, 1}, lam[KKT_NROWS] = {0, 0}, c[KKT_NROWS] = {0, 0},
@@ -183,8 +366,9 @@ static ves_status newton_solve(void *state, ves_step *s, double *x, double *lamb
   ves_status st = eval_fc(s, x, &f, c, stt);
   if (st == VES_OK) st = eval_gJ(w, s, x, stt);
   const double gscale = norm_inf(nv, w->g);
-  int fresh = 1;            /* build the matrix at the next iteration */
-  double res_prev = INFINITY;
+  int fresh = !reuse;       /* build the matrix at the next iteration */
+  double res_win[NEWTON_STALL_WINDOW]; /* residuals since the matrix was built, newest last */
+  int nwin = 0;
   ves_status result = VES_ERR_NOCONV;
   while (st == VES_OK) {
     /* residual r = g + J^T lam and the convergence test */
@@ -211,8 +395,11 @@ static ves_status newton_solve(void *state, ves_step *s, double *x, double *lamb
       result = VES_MAXITER;
       break;
     }
-    if (w->opt.freeze_hessian && !fresh && res > NEWTON_STALL * res_prev) fresh = 1;
-    res_prev = res;
+    /* the chord stalls: the residual has not halved over the window (since the
+     * build, at most NEWTON_STALL_WINDOW iterations back) */
+    if (w->opt.freeze_hessian && !fresh && nwin > 0 && res > NEWTON_STALL * res_win[0]) fresh = 1;
+    if (nwin == NEWTON_STALL_WINDOW) memmove(res_win, res_win + 1, --nwin * sizeof *res_win);
+    res_win[nwin++] = res;
     int built_now = 0;
     if (fresh || !w->opt.freeze_hessian) {
       if ((st = assemble_factor(w, s, x, lam, ncon, stt)) != VES_OK) break;
@@ -223,6 +410,15 @@ static ves_status newton_solve(void *state, ves_step *s, double *x, double *lamb
     for (int i = 0; i < KKT_NROWS; i++) w->sol[nv + i] = i < ncon ? -c[i] : 0.0;
     if ((st = kkt_solve(&w->kkt, w->sol)) != VES_OK) break;
     const double *dx = w->sol, *dlam = w->sol + nv;
+    int accel = 0;
+    if (built_now) { /* a new matrix: a new iteration map */
+      w->aa_n = 0, w->aa_prev = 0;
+      res_win[0] = res, nwin = 1;
+    }
+    if (w->opt.freeze_hessian) { /* the chord: accelerated when it has a history */
+      accel = anderson(w, x, lam, w->sol);
+      dx = w->aa_p, dlam = w->aa_p + nv;
+    }
     /* merit parameter and directional derivative of phi along dx (with the
      * current J: exact even when the matrix is frozen) */
     double lmax = 0;
@@ -235,7 +431,27 @@ static ves_status newton_solve(void *state, ves_step *s, double *x, double *lamb
       for (int j = 0; j < nv; j++) jd += w->J[(size_t)i * nv + j] * dx[j];
       D += mu * (c[i] > 0 ? jd : c[i] < 0 ? -jd : fabs(jd));
     }
+    if (D >= 0 && accel) { /* the accelerated step is no descent: the plain chord step */
+      w->aa_n = 0;
+      memcpy(w->aa_p, w->sol, (size_t)(nv + KKT_NROWS) * sizeof *w->aa_p);
+      accel = 0;
+      D = 0;
+      for (int j = 0; j < nv; j++) D += w->g[j] * dx[j];
+      for (int i = 0; i < ncon; i++) {
+        double jd = 0;
+        for (int j = 0; j < nv; j++) jd += w->J[(size_t)i * nv + j] * dx[j];
+        D += mu * (c[i] > 0 ? jd : c[i] < 0 ? -jd : fabs(jd));
+      }
+    }
     if (D >= 0 && !built_now) { /* a stale matrix gave no descent: rebuild */
+      if (res <= NEWTON_TAIL * w->opt.tol * scale) { /* unless the tail converges */
+        int ok = 0;
+        if ((st = tail_step(w, s, x, lam, dx, dlam, ncon, res, &f, c, &ok, stt)) != VES_OK) break;
+        if (ok) {
+          stt->iterations++;
+          continue;
+        }
+      }
       fresh = 1;
       continue;
     }
@@ -251,7 +467,10 @@ static ves_status newton_solve(void *state, ves_step *s, double *x, double *lamb
     int accepted = 0, used_soc = 0;
     for (int ls = 0; ls < NEWTON_MAX_LS && !accepted; ls++, a *= 0.5) {
       for (int j = 0; j < nv; j++) w->xt[j] = x[j] + a * dx[j];
+      /* the full step is usually taken: its gradients in the same model pass */
+      ves_step_eager_gradients(s, ls == 0);
       ves_status e = eval_fc(s, w->xt, &ft, ct, stt);
+      ves_step_eager_gradients(s, 0);
       if (e == VES_ERR_DOMAIN) continue;
       if (e != VES_OK) {
         st = e;
@@ -284,6 +503,16 @@ static ves_status newton_solve(void *state, ves_step *s, double *x, double *lamb
     if (st != VES_OK) break;
     if (!accepted) {
       if (!built_now) { /* a stale matrix: rebuild and retry */
+        if (res <= NEWTON_TAIL * w->opt.tol * scale) { /* unless the tail converges */
+          int ok = 0;
+          if ((st = eval_gJ(w, s, x, stt)) != VES_OK) break; /* the trials moved the cache */
+          if ((st = tail_step(w, s, x, lam, dx, dlam, ncon, res, &f, c, &ok, stt)) != VES_OK)
+            break;
+          if (ok) {
+            stt->iterations++;
+            continue;
+          }
+        }
         fresh = 1;
         continue;
       }
@@ -299,6 +528,7 @@ static ves_status newton_solve(void *state, ves_step *s, double *x, double *lamb
     st = eval_gJ(w, s, x, stt);
   }
   if (st != VES_OK) result = st == VES_ERR_SINGULAR ? VES_ERR_SOLVER : st; /* no usable KKT matrix */
+  if (result != VES_OK) w->have_factor = 0; /* a failed attempt's matrix is not carried over */
   for (int i = 0; i < ncon; i++) lambda[i] = lam[i];
   stt->solver_status = (int)result;
   stt->seconds = ves_wall_seconds() - t0;

@@ -377,6 +377,7 @@ static ves_status snapshot(run_ctx *r, double wall) {
                         .reconnections = ves_sim_reconnections(r->sim),
                         .rows = ves_io_rows(r->io)};
   ves_sim_get_state(r->sim, &si.state, r->y);
+  ves_sim_restart_point(r->sim); /* a restart from here repeats the next steps exactly */
   r->last_snapshot_step = si.state.nstep;
   ves_status st = ves_sim_node_material(r->sim, r->x, r->phi);
   if (st != VES_OK) { /* x and phi are for looking at: the run and its state go on */

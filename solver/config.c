@@ -112,8 +112,9 @@ static const key_spec KEYS[] = {
      "constraint tolerance, relative to A0 and V"},
     {"solver", "max_iter", KEY_INT, OFF(max_iter), "40", 1, 100000, NULL,
      "iterations per attempt of a step; an attempt that needs more is retried at dt/2"},
-    {"solver", "freeze_hessian", KEY_INT, OFF(freeze_hessian), "1", 0, 1, NULL,
-     "newton: assemble the Hessian once per step (paper)"},
+    {"solver", "freeze_hessian", KEY_INT, OFF(freeze_hessian), "1", 0, 2, NULL,
+     "newton: 0 a fresh Hessian every iteration; 1 assembled once per step, rebuilt when "
+     "the chord stalls (paper); 2 also kept across steps while the chord converges"},
     {"solver", "drift_damping", KEY_DOUBLE, OFF(drift_damping), "0", 0, 1e6, NULL,
      "viscous penalty alpha on the rate of the coefficient drift y^a - y(X_a), added to the "
      "dissipation (0: off; see bench/RESULTS.md)"},

@@ -82,6 +82,7 @@ struct ves_sim {
   int remeshings;                   /* remeshings so far */
   double dt_rejected;               /* smallest recently rejected dt (0: none) */
   long since_rejected;              /* accepted steps since then */
+  int fresh_next;                   /* the next step starts afresh (ves_step_params.fresh) */
 };
 
 void ves_integrate_params_default(ves_integrate_params *p) {
@@ -172,6 +173,7 @@ ves_status ves_sim_create(ves_model *model, const ves_backend_type *backend,
                         .hold_volume = ip->hold_volume, .V_target = s->V0};
   if ((st = ves_step_set(s->step, s->y, &sp)) != VES_OK) goto fail;
   if ((st = backend->create(&s->bopt, s->step, &s->bstate)) != VES_OK) goto fail;
+  s->fresh_next = 1;
   *out = s;
   return VES_OK;
 fail:
@@ -211,6 +213,7 @@ static ves_status switch_reference(ves_sim *s, ves_reconnect *nr, const ves_step
   ves_reconnect_destroy(&s->ref);
   ves_remesh_destroy(&s->mesh); /* nr borrows nothing from it */
   s->ref = nr, s->model = m, s->step = step, s->bstate = bstate;
+  s->fresh_next = 1;
   memcpy(s->y, y, 2 * (size_t)s->n * sizeof *s->y);
   s->E = E, s->A = A, s->V = V;
   ves_quad_destroy(&s->at_nodes); /* built on the old nodes */
@@ -373,6 +376,7 @@ ves_status ves_sim_step(ves_sim *s, ves_step_report *rep) {
     s->c0 = c0;
     s->dt = fmin(s->dt, s->ip.dt_initial);
     s->dt_rejected = 0, s->since_rejected = 0; /* rejections on the old landscape */
+    s->fresh_next = 1;
     VES_CALL(ves_model_set_c0(s->model, s->c0));
     VES_CALL(ves_model_eval(s->model, s->y, VES_F_E, &s->E, NULL, NULL, NULL, NULL, NULL));
   }
@@ -385,7 +389,8 @@ ves_status ves_sim_step(ves_sim *s, ves_step_report *rep) {
     double Vt = volume_target(s, s->t + dt);
     int fixed_targets = fabs(Vt - volume_target(s, s->t)) <= 1e-14 * s->V0;
     ves_step_params sp = {.dt = dt, .hold_area = s->ip.hold_area, .A0 = s->A0,
-                          .hold_volume = s->ip.hold_volume, .V_target = Vt};
+                          .hold_volume = s->ip.hold_volume, .V_target = Vt,
+                          .fresh = s->fresh_next || retries > 0};
     double lam[2] = {s->lambda[0], s->lambda[1]}, E, A, V;
     memset(&rep->stats, 0, sizeof rep->stats); /* this attempt's */
     st = ves_step_set(s->step, s->y, &sp);
@@ -406,6 +411,7 @@ ves_status ves_sim_step(ves_sim *s, ves_step_report *rep) {
     if (st == VES_OK) {
       double dE = fabs(E - s->E);
       memcpy(s->y, s->ynew, 2 * (size_t)s->n * sizeof *s->y);
+      s->fresh_next = 0;
       s->t += dt;
       s->nstep++;
       s->E = E, s->A = A, s->V = V;
@@ -515,7 +521,12 @@ ves_status ves_sim_set_state(ves_sim *s, const ves_sim_state *st, const double *
   s->lambda[0] = st->lambda[0], s->lambda[1] = st->lambda[1];
   s->c0 = st->c0;
   s->dt_rejected = st->dt_rejected, s->since_rejected = st->since_rejected;
+  s->fresh_next = 1;
   return VES_OK;
+}
+
+void ves_sim_restart_point(ves_sim *s) {
+  if (s) s->fresh_next = 1;
 }
 
 /* The point set at the reference's nodes with its tables (once per

@@ -34,6 +34,7 @@ struct ves_step {
   /* cache of the last model evaluation */
   double *xc;     /* nvar the cached point */
   int cache;      /* 0 nothing, 1 values, 2 values and gradients */
+  int eager;      /* 1: values always with their gradients (ves_step_eager_gradients) */
   ves_status cst; /* status of the cached evaluation (VES_OK or an error) */
   double E, A, V; /* values at xc */
   double dKd;     /* d^T K d at xc */
@@ -125,6 +126,7 @@ static ves_status ensure(ves_step *s, const double *x, int level) {
     for (size_t i = 0; i < nv; i++) q += s->d[i] * s->Kd[i];
     s->dKd = q; /* d^T K d */
   }
+  if (s->eager) level = 2;
   ves_step_expand(s, x, s->y);
   const size_t n2 = 2 * (size_t)s->n;
   double *gE = level >= 2 ? s->gfull : NULL;
@@ -134,6 +136,10 @@ static ves_status ensure(ves_step *s, const double *x, int level) {
   s->cst = st;
   s->cache = st == VES_OK ? level : 1; /* an error is remembered for this x */
   return st;
+}
+
+void ves_step_eager_gradients(ves_step *s, int on) {
+  if (s) s->eager = on != 0;
 }
 
 #define STEP_READY(s, x) VES_CHECK((s) && (x) && (s)->is_set, VES_ERR_ARG)

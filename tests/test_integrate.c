@@ -80,6 +80,85 @@ static void test_relaxation(void **state) {
   ves_setup_destroy(&s);
 }
 
+/* freeze_hessian = 2 (backend_newton.c): the factorization kept across
+ * steps. Eight steps at a fixed dt from the bump, against freeze 1:
+ *  - fewer factorizations (the point of it; with freeze 1 every step builds
+ *    at least one matrix);
+ *  - the same trajectory within the step tolerance: E* per step to 1e-9
+ *    relative (tol = 1e-9 on the KKT residual relative to the step's forces;
+ *    the two runs stop their iterations at different points of the same
+ *    contraction; measured 1e-12..1e-11);
+ *  - a step after ves_sim_restart_point builds its matrix (h_evals >= 1);
+ *  - a restart from that point (a new simulation, the state set) repeats
+ *    the next steps bit for bit. */
+static void run_fixed(ves_setup *s, int freeze, int nsteps, int mark_at, double *E, int *fact,
+                      int *h_after_mark, double *y_end, ves_sim_state *st_mark, double *y_mark) {
+  ves_integrate_params ip;
+  ves_integrate_params_default(&ip);
+  ip.t_end = 1.0, ip.adaptive = 0, ip.dt_initial = ip.dt_max = 0.01;
+  ves_backend_options bo;
+  ves_backend_options_default(&bo);
+  bo.freeze_hessian = freeze;
+  ves_sim *sim = NULL;
+  ves_status st = ves_sim_create(s->model, ves_backend_find("newton"), &bo, &ip, &sim);
+  if (st != VES_OK) fail_msg("sim: %s", ves_status_str(st));
+  *fact = 0;
+  ves_step_report rep;
+  for (int k = 0; k < nsteps; k++) {
+    assert_int_equal(ves_sim_step(sim, &rep), VES_OK);
+    E[k] = rep.E;
+    *fact += rep.stats.factorizations;
+    if (k == mark_at + 1 && h_after_mark) *h_after_mark = rep.stats.h_evals;
+    if (k == mark_at) {
+      if (st_mark) ves_sim_get_state(sim, st_mark, y_mark);
+      ves_sim_restart_point(sim);
+    }
+  }
+  ves_sim_get_state(sim, &(ves_sim_state){0}, y_end);
+  ves_sim_destroy(&sim);
+}
+
+static void test_freeze_across_steps(void **state) {
+  (void)state;
+  ves_setup *s = small_setup();
+  const int n2 = 2 * s->nodes->n, N = 8, M = 3;
+  double E1[8], E2[8], E3[8];
+  double *y1 = malloc(3 * (size_t)n2 * sizeof *y1), *y2 = y1 + n2, *ym = y2 + n2;
+  int f1, f2, h_mark = -1;
+  ves_sim_state smark;
+  run_fixed(s, 1, N, -2, E1, &f1, NULL, y1, NULL, NULL);
+  run_fixed(s, 2, N, M, E2, &f2, &h_mark, y2, &smark, ym);
+  printf("# freeze 1: %d factorizations, freeze 2: %d (8 steps at dt* 0.01)\n", f1, f2);
+  assert_true(f1 >= N);
+  assert_true(f2 < f1);
+  assert_true(h_mark >= 1);
+  double dmax = 0;
+  for (int k = 0; k < N; k++) dmax = fmax(dmax, fabs(E2[k] / E1[k] - 1));
+  printf("# max |E*(freeze 2) / E*(freeze 1) - 1| = %.2e\n", dmax);
+  assert_true(dmax <= 1e-9);
+  /* the restart: a new simulation from the state after step M */
+  ves_integrate_params ip;
+  ves_integrate_params_default(&ip);
+  ip.t_end = 1.0, ip.adaptive = 0, ip.dt_initial = ip.dt_max = 0.01;
+  ves_backend_options bo;
+  ves_backend_options_default(&bo);
+  bo.freeze_hessian = 2;
+  ves_sim *sim = NULL;
+  assert_int_equal(ves_sim_create(s->model, ves_backend_find("newton"), &bo, &ip, &sim), VES_OK);
+  assert_int_equal(ves_sim_set_state(sim, &smark, ym), VES_OK);
+  ves_step_report rep;
+  for (int k = M + 1; k < N; k++) {
+    assert_int_equal(ves_sim_step(sim, &rep), VES_OK);
+    E3[k] = rep.E;
+    assert_memory_equal(&E3[k], &E2[k], sizeof E3[k]); /* bit for bit */
+  }
+  ves_sim_get_state(sim, &(ves_sim_state){0}, ym);
+  assert_memory_equal(ym, y2, (size_t)n2 * sizeof *ym);
+  ves_sim_destroy(&sim);
+  free(y1);
+  ves_setup_destroy(&s);
+}
+
 /* Near equilibrium without constraints (as problems/mode2.ini): the step's
  * objective (1/2) d^T K d + dt E is ~dt 2 pi while its decrease per Newton
  * iteration falls below the rounding of E, so a strict Armijo test rejected
@@ -686,6 +765,7 @@ int main(void) {
       /* first in the process: see there */
       cmocka_unit_test(test_reconnect_off),       cmocka_unit_test(test_relaxation),
       cmocka_unit_test(test_near_equilibrium),    cmocka_unit_test(test_euler_adaptive),
+      cmocka_unit_test(test_freeze_across_steps),
       cmocka_unit_test(test_euler_stiffness),     cmocka_unit_test(test_flow_spectrum),
       cmocka_unit_test(test_protocols),           cmocka_unit_test(test_c0_switch_restarts_dt),
       cmocka_unit_test(test_failure_keeps_state), cmocka_unit_test(test_reconnect_every),

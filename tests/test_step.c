@@ -100,7 +100,7 @@ static int group_teardown(void **state) {
 
 /* Set the step problem at y^n with dt and both constraints held. */
 static void set_step(double dt, int hold_area, int hold_volume) {
-  ves_step_params par = {dt, hold_area, P->A0, hold_volume, P->V0};
+  ves_step_params par = {dt, hold_area, P->A0, hold_volume, P->V0, 0};
   assert_int_equal(ves_step_set(P->s, P->yn, &par), VES_OK);
 }
 
@@ -259,7 +259,7 @@ static void test_cache(void **state) {
   set_step(1e-2, 1, 1);
   ves_step *s2 = NULL;
   assert_int_equal(ves_step_create(P->m, &s2), VES_OK);
-  ves_step_params par = {1e-2, 1, P->A0, 1, P->V0};
+  ves_step_params par = {1e-2, 1, P->A0, 1, P->V0, 0};
   assert_int_equal(ves_step_set(s2, P->yn, &par), VES_OK);
   double *x = xmalloc(nv), *g1 = xmalloc(nv), *g2 = xmalloc(nv);
   perturbed_x(0.03, x);
@@ -441,12 +441,12 @@ static void test_errors(void **state) {
   assert_null(ves_step_get_params(s));
   assert_int_equal(ves_step_ncon(s), 0);
   assert_int_equal(ves_step_eval_f(s, x, &f), VES_ERR_ARG);
-  ves_step_params bad[] = {{0, 1, P->A0, 0, 0},     {-1e-3, 0, 0, 0, 0},
-                           {NAN, 0, 0, 0, 0},       {1e-3, 1, 0, 0, 0},
-                           {1e-3, 0, 0, 1, -1.0},   {INFINITY, 0, 0, 0, 0}};
+  ves_step_params bad[] = {{0, 1, P->A0, 0, 0, 0},   {-1e-3, 0, 0, 0, 0, 0},
+                           {NAN, 0, 0, 0, 0, 0},     {1e-3, 1, 0, 0, 0, 0},
+                           {1e-3, 0, 0, 1, -1.0, 0}, {INFINITY, 0, 0, 0, 0, 0}};
   for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++)
     assert_int_equal(ves_step_set(s, P->yn, bad + i), VES_ERR_ARG);
-  ves_step_params ok = {1e-3, 1, P->A0, 0, 0};
+  ves_step_params ok = {1e-3, 1, P->A0, 0, 0, 0};
   assert_int_equal(ves_step_set(NULL, P->yn, &ok), VES_ERR_ARG);
   assert_int_equal(ves_step_set(s, NULL, &ok), VES_ERR_ARG);
   assert_int_equal(ves_step_set(s, P->yn, NULL), VES_ERR_ARG);

@@ -17,7 +17,9 @@ typedef struct {
   double tol;          /* optimality / KKT residual tolerance (relative; default 1e-9) */
   double ctol;         /* constraint violation tolerance, relative to A0, V (default 1e-10) */
   int max_iter;        /* iteration limit per step (default 100) */
-  int freeze_hessian;  /* newton: 1 = assemble the Hessian once per step (paper) */
+  int freeze_hessian;  /* newton: 0 = a fresh Hessian every iteration; 1 = assembled
+                          once per step, rebuilt when the chord stalls (paper);
+                          2 = also kept across steps (backend_newton.c) */
   int verbose;         /* 0 quiet; > 0 lets the solver print (ipopt print_level) */
 } ves_backend_options;
 
@@ -27,6 +29,7 @@ typedef struct {
   int f_evals;         /* objective evaluations */
   int g_evals;         /* gradient evaluations */
   int h_evals;         /* Hessian assemblies */
+  int factorizations;  /* newton, euler: KKT factorizations (inertia corrections included) */
   double violation;    /* final max |c_i| / target_i */
   double seconds;      /* wall time */
   int solver_status;   /* the backend's own code (Ipopt ApplicationReturnStatus, nlopt_result) */

@@ -133,6 +133,13 @@ void ves_sim_get_state(const ves_sim *s, ves_sim_state *st, double *y);
  * then nothing changes. */
 ves_status ves_sim_set_state(ves_sim *s, const ves_sim_state *st, const double *y);
 
+/* The state now is a restart point (a snapshot was written): the next step
+ * carries nothing over from earlier steps (ves_step_params.fresh), so a run
+ * restarted from this state repeats the following steps bit for bit. The
+ * state set by ves_sim_set_state, a reset and a new C0 are restart points
+ * by themselves. */
+void ves_sim_restart_point(ves_sim *s);
+
 typedef struct ves_reconnect ves_reconnect; /* reconnect.h */
 
 /* A restart after resets: continue on ref (taken by the simulation on

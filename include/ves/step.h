@@ -20,6 +20,10 @@ typedef struct {
   double A0;       /* target area (units R0^2) */
   int hold_volume; /* 1: constraint V(y) = V_target */
   double V_target; /* target volume at t_{n+1} (units R0^3) */
+  int fresh;       /* 1: the solver may carry nothing over from earlier steps (a
+                      restart point: a run restarted from here repeats the next
+                      steps bit for bit only if the original run started them
+                      afresh too); 0: it may (the newton backend's factorization) */
 } ves_step_params;
 
 typedef struct ves_step ves_step;
@@ -47,6 +51,13 @@ ves_status ves_step_eval_f(ves_step *s, const double *x, double *f);
 ves_status ves_step_eval_grad(ves_step *s, const double *x, double *g); /* g[nvar] */
 ves_status ves_step_eval_c(ves_step *s, const double *x, double *c);    /* c[ncon] */
 ves_status ves_step_eval_jac(ves_step *s, const double *x, double *J); /* J[ncon*nvar], row-major */
+
+/* 1: every evaluation of values at a new x computes the gradients in the same
+ * model pass (about 3x a values-only pass, against 4x for a values pass and
+ * a gradient pass at the same point); for a solver that asks for gradients
+ * at almost every point whose value it asks for (newton: accepted full steps).
+ * 0 (default): values alone. */
+void ves_step_eager_gradients(ves_step *s, int on);
 
 /* Hessian of the Lagrangian sigma_f (K + dt Hess E) + sum_i lambda_i Hess c_i
  * in a fixed sparsity: hess_nnz entries, lower triangle (row >= col), structure
