@@ -4,6 +4,7 @@
 #   make            build build/libvesica.a and build/vesica
 #   make test       every test in tests/ (SAN=1: AddressSanitizer + UBSan)
 #   make valgrind   the small cases under valgrind (tests/valgrind.sh)
+#   make test-slurm a study through a real single-node Slurm (installs, starts daemons)
 #   make bench      the benchmarks in bench/, printing tables
 #   make run        the default problem (results/oblate.h5, .xdmf, PNG figures)
 #   make deps       install missing Debian packages (root) or print the command
@@ -47,7 +48,7 @@ BENCHES  = $(patsubst bench/%.c,$(BUILD)/bench/%,$(wildcard bench/bench_*.c))
 # command of every table, e.g. make bench BENCH_ONLY=bench_mode.
 BENCH_ONLY ?= 
 
-.PHONY: all deps test test-slow valgrind bench run clean format
+.PHONY: all deps test test-slow test-slurm valgrind bench run clean format
 # (a sub-make, as test and run do: the pkg-config flags above are read when
 # this Makefile is parsed, i.e. before deps installs ipopt and hdf5 on a
 # fresh machine)
@@ -102,6 +103,14 @@ valgrind: deps
 # the slow cases too (the full NLopt-vs-Ipopt step comparison, ~3 min)
 test-slow:
 	@VESICA_SLOW_TESTS=1 $(MAKE) --no-print-directory test
+
+# `vesica study` through a real Slurm on this machine (tests/slurm_roundtrip.sh,
+# root): installs slurm-wlm and munge if missing, starts a private munged,
+# slurmctld and slurmd, submits a 4-cell study, collects, compares with the
+# local run, stops the daemons. ~20 s once installed. Not part of make test.
+test-slurm: deps
+	@$(MAKE) --no-print-directory $(BUILD)/vesica
+	@sh tests/slurm_roundtrip.sh $(BUILD)/vesica
 
 bench: deps
 	@$(MAKE) --no-print-directory $(BUILD)/libvesica.a $(BUILD)/vesica $(BENCHES)
