@@ -112,6 +112,35 @@ test-slurm: deps
 	@$(MAKE) --no-print-directory $(BUILD)/vesica
 	@sh tests/slurm_roundtrip.sh $(BUILD)/vesica
 
+# Fuzzing (not part of make test): libFuzzer through clang (installed here if
+# missing, as root), with AddressSanitizer + UBSan, on the problem-file parser
+# and --set overrides (tests/fuzz/fuzz_config.c) and the points-file reader
+# with the curve shape built from it (tests/fuzz/fuzz_points.c), for
+# FUZZ_SECONDS each (default 120) from the seed FUZZ_SEED. Corpus: the seeds
+# tests/fuzz/seeds/, problems/*.ini and data/cup.txt, grown in
+# $(BUILD)/fuzz/corpus_*; a crash or a broken contract stops it (exit 1) and
+# leaves the input as $(BUILD)/fuzz/crash-*.
+FUZZ_SECONDS ?= 120
+FUZZ_SEED    ?= 1
+FUZZ_CFLAGS   = -std=c11 -D_XOPEN_SOURCE=700 -O1 -g -fno-omit-frame-pointer -Iinclude -Isolver \
+                -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all
+.PHONY: fuzz
+fuzz:
+	@[ "$$(dpkg-query -W -f='$${Status}\n' clang libclang-rt-14-dev 2>/dev/null | grep -c '^install ok installed$$')" = 2 ] || \
+	{ if [ "$$(id -u)" = 0 ]; then apt-get update -qq && DEBIAN_FRONTEND=noninteractive \
+	  apt-get install -y -qq --no-install-recommends clang libclang-rt-14-dev; \
+	  else echo "run as root: apt-get install -y --no-install-recommends clang libclang-rt-14-dev"; exit 1; fi; }
+	@mkdir -p $(BUILD)/fuzz/corpus_config $(BUILD)/fuzz/corpus_points
+	clang $(FUZZ_CFLAGS) -o $(BUILD)/fuzz/fuzz_config tests/fuzz/fuzz_config.c solver/status.c -lm
+	clang $(FUZZ_CFLAGS) -o $(BUILD)/fuzz/fuzz_points tests/fuzz/fuzz_points.c solver/config.c \
+	  solver/shape.c solver/status.c -lm
+	@cp problems/*.ini tests/fuzz/seeds/*.ini tests/fuzz/seeds/set_*.txt $(BUILD)/fuzz/corpus_config/
+	@cp data/cup.txt tests/fuzz/seeds/*.txt $(BUILD)/fuzz/corpus_points/
+	cd $(BUILD)/fuzz && UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 ./fuzz_config \
+	  -seed=$(FUZZ_SEED) -max_total_time=$(FUZZ_SECONDS) -max_len=8192 -print_final_stats=1 corpus_config
+	cd $(BUILD)/fuzz && UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 ./fuzz_points \
+	  -seed=$(FUZZ_SEED) -max_total_time=$(FUZZ_SECONDS) -max_len=8192 -print_final_stats=1 corpus_points
+
 bench: deps
 	@$(MAKE) --no-print-directory $(BUILD)/libvesica.a $(BUILD)/vesica $(BENCHES)
 	@$(MAKE) --no-print-directory $(BUILD)/bench/stokes_mode

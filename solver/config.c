@@ -314,7 +314,10 @@ static ves_status parse_ini(const char *text, size_t len, const char *name, ves_
     if (vn >= 2 && (v[0] == '"' || v[0] == '\'') && v[vn - 1] == v[0]) {
       v++, vn -= 2; /* quoted: verbatim */
     } else {
-      vn = strcspn(v, ";#") < vn ? strcspn(v, ";#") : vn; /* an inline comment */
+      size_t c = 0; /* an inline comment (searched within the line only: the text of a
+                       file is not NUL-terminated at the line's end) */
+      while (c < vn && v[c] != ';' && v[c] != '#') c++;
+      vn = c;
       v = ini_trim(v, &vn);
     }
     const key_spec *k = find_key(sec, key);
@@ -378,6 +381,7 @@ static ves_status load_ini(const char *path, const char *name, ves_config *cfg, 
     say(err, errlen, "%s: cannot read: %s", name, text ? strerror(errno) : "out of memory");
     return text ? VES_ERR_IO : VES_ERR_ALLOC;
   }
+  text[len] = 0;
   ves_status s = parse_ini(text, len, name, cfg, err, errlen);
   free(text);
   return s;

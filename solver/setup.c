@@ -117,6 +117,11 @@ ves_status ves_setup_create(const ves_config *cfg, ves_phi0_method method, ves_s
   st = ves_shape_create(&sp, &s->shape);
   free(cpts);
   cpts = NULL;
+  if (st == VES_ERR_GEOM && sp.kind == VES_SHAPE_CURVE) /* bad input: exit code 2 */
+    FAIL(VES_ERR_CONFIG,
+         "[shape] points = %s: the spline through the points crosses the axis (R < 0 between "
+         "the poles) or encloses no volume; add points along its longest segments",
+         cfg->points);
   if (st != VES_OK) FAIL(st, "shape: %s", ves_status_str(st));
   ves_shape_sharp(s->shape, &s->area_sharp, &s->volume_sharp);
   t = ves_wall_seconds();

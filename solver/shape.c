@@ -300,10 +300,20 @@ ves_status ves_shape_create(const ves_shape_params *par, ves_shape **out) {
     if (st == VES_OK && !par->keep_scale) { /* scale to area 4 pi */
       double A, V;
       sharp_integrals(s, &A, &V);
-      double k = sqrt(4 * M_PI / A);
-      for (int i = 0; i < 2 * (s->ns + 1); i++) s->kp[i] *= k;
-      for (int i = 0; i < 2 * s->ns; i++) s->m2[i] /= k;
-      for (int i = 0; i <= s->ns; i++) s->u[i] *= k;
+      /* the spline through a valid polygon can still swing across the axis
+       * (a long segment after short ones): no area, or R < 0 on the way */
+      if (!(isfinite(A) && A > 0 && isfinite(V) && V > 0)) st = VES_ERR_GEOM;
+      for (int i = 1; st == VES_OK && i < VES_SHAPE_NS - 1; i++) {
+        double P[2], D[2], DD[2];
+        curve(s, M_PI * i / (VES_SHAPE_NS - 1), P, D, DD);
+        if (!(P[0] > 0)) st = VES_ERR_GEOM;
+      }
+      if (st == VES_OK) {
+        double k = sqrt(4 * M_PI / A);
+        for (int i = 0; i < 2 * (s->ns + 1); i++) s->kp[i] *= k;
+        for (int i = 0; i < 2 * s->ns; i++) s->m2[i] /= k;
+        for (int i = 0; i <= s->ns; i++) s->u[i] *= k;
+      }
     }
     if (st != VES_OK) {
       ves_shape_destroy(&s);

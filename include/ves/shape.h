@@ -37,7 +37,10 @@ typedef struct ves_shape ves_shape;
 void ves_shape_params_default(ves_shape_params *par);
 
 /* Build the shape (for spheroids and discocytes: solve for the semi-axes /
- * scale with area 4 pi). par is copied. */
+ * scale with area 4 pi). par is copied. A curve scaled to area 4 pi whose
+ * spline leaves R > 0 between the poles or encloses no area or volume (it
+ * can, through a valid polygon: a long segment after short ones) is
+ * VES_ERR_GEOM. */
 ves_status ves_shape_create(const ves_shape_params *par, ves_shape **out);
 void ves_shape_destroy(ves_shape **s);
 
