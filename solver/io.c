@@ -24,32 +24,36 @@ typedef struct {
   const char *name;
   col_type type;
   size_t offset; /* into ves_io_row */
+  const char *units, *description; /* the dataset's attributes */
 } series_spec;
 
 #define ROW(f) offsetof(ves_io_row, f)
 /* "step" comes last: a row is complete once its step is written (rows i
  * holds step i + 1; ves_io_rows checks it). */
+#define STATUS_DOC_ \
+  "ves_status of the accepted solve: " VES_STATUS_LIST(STATUS_DOC_ITEM_)
+#define STATUS_DOC_ITEM_(name, value, msg) #value " " msg "; "
 static const series_spec SERIES[] = {
-    {"t", COL_DOUBLE, ROW(t)},
-    {"dt", COL_DOUBLE, ROW(dt)},
-    {"E", COL_DOUBLE, ROW(E)},
-    {"A", COL_DOUBLE, ROW(A)},
-    {"V", COL_DOUBLE, ROW(V)},
-    {"V_target", COL_DOUBLE, ROW(V_target)},
-    {"lambda_A", COL_DOUBLE, ROW(lambda_A)},
-    {"lambda_V", COL_DOUBLE, ROW(lambda_V)},
-    {"c0", COL_DOUBLE, ROW(c0)},
-    {"iterations", COL_INT, ROW(iterations)},
-    {"f_evals", COL_INT, ROW(f_evals)},
-    {"g_evals", COL_INT, ROW(g_evals)},
-    {"h_evals", COL_INT, ROW(h_evals)},
-    {"violation", COL_DOUBLE, ROW(violation)},
-    {"solve_seconds", COL_DOUBLE, ROW(solve_seconds)},
-    {"wall_seconds", COL_DOUBLE, ROW(wall_seconds)},
-    {"retries", COL_INT, ROW(retries)},
-    {"status", COL_INT, ROW(status)},
-    {"reconnections", COL_INT, ROW(reconnections)},
-    {"step", COL_LONG, ROW(step)},
+    {"t", COL_DOUBLE, ROW(t), "t*", "time at the end of the step, t* = t k/(mu R0^3)"},
+    {"dt", COL_DOUBLE, ROW(dt), "t*", "accepted time step"},
+    {"E", COL_DOUBLE, ROW(E), "k", "bending energy in model units (E* = E/k with [material] k)"},
+    {"A", COL_DOUBLE, ROW(A), "R0^2", "area of the phase-field vesicle"},
+    {"V", COL_DOUBLE, ROW(V), "R0^3", "enclosed volume of the phase-field vesicle"},
+    {"V_target", COL_DOUBLE, ROW(V_target), "R0^3", "volume the step held (V0, or the protocol's ramp)"},
+    {"lambda_A", COL_DOUBLE, ROW(lambda_A), "k/R0^2", "multiplier of the area constraint (tension)"},
+    {"lambda_V", COL_DOUBLE, ROW(lambda_V), "k/R0^3", "multiplier of the volume constraint (pressure)"},
+    {"c0", COL_DOUBLE, ROW(c0), "1/R0", "spontaneous curvature C0 in force during the step"},
+    {"iterations", COL_INT, ROW(iterations), "1", "solver iterations of the accepted attempt"},
+    {"f_evals", COL_INT, ROW(f_evals), "1", "energy evaluations of the accepted attempt"},
+    {"g_evals", COL_INT, ROW(g_evals), "1", "gradient evaluations of the accepted attempt"},
+    {"h_evals", COL_INT, ROW(h_evals), "1", "Hessian evaluations of the accepted attempt"},
+    {"violation", COL_DOUBLE, ROW(violation), "1", "constraint violation, relative to A0 and V"},
+    {"solve_seconds", COL_DOUBLE, ROW(solve_seconds), "s", "wall time of the accepted solve"},
+    {"wall_seconds", COL_DOUBLE, ROW(wall_seconds), "s", "wall time of the run's time loop so far"},
+    {"retries", COL_INT, ROW(retries), "1", "rejected attempts before the accepted one (each at dt/2)"},
+    {"status", COL_INT, ROW(status), "1", STATUS_DOC_},
+    {"reconnections", COL_INT, ROW(reconnections), "1", "resets of the reference configuration so far"},
+    {"step", COL_LONG, ROW(step), "1", "accepted step number (row i holds step i + 1; written last: a row is complete once its step is)"},
 };
 #define NSERIES ((int)(sizeof SERIES / sizeof SERIES[0]))
 
@@ -152,6 +156,23 @@ static ves_status attr_str(hid_t obj, const char *name, const char *s) {
   if (H5Tset_size(t, strlen(s) + 1) >= 0 && H5Tset_strpad(t, H5T_STR_NULLTERM) >= 0)
     st = attr_write(obj, name, t, t, s);
   H5Tclose(t);
+  return st;
+}
+
+/* The attributes `units` and `description` every group and dataset carries
+ * (added in format_version 2 files without a bump: readers need neither). */
+static ves_status describe(hid_t obj, const char *units, const char *description) {
+  VES_CALL(attr_str(obj, "units", units));
+  return attr_str(obj, "description", description);
+}
+
+/* The same on the object at `path` below loc. */
+static ves_status describe_at(hid_t loc, const char *path, const char *units,
+                              const char *description) {
+  hid_t o = H5Oopen(loc, path, H5P_DEFAULT);
+  if (o < 0) return VES_ERR_IO;
+  ves_status st = describe(o, units, description);
+  H5Oclose(o);
   return st;
 }
 
@@ -374,7 +395,9 @@ static ves_status write_parameters(hid_t file, const ves_config *cfg) {
                 ? H5Gopen2(file, "parameters", H5P_DEFAULT)
                 : H5Gcreate2(file, "parameters", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
   if (g < 0) return VES_ERR_IO;
-  ves_status st = VES_OK;
+  ves_status st = describe(g, "see vesica keys",
+                           "every problem-file key as an attribute section.key (units and "
+                           "meaning: vesica keys, problems/README.md)");
   for (int i = 0; i < ves_config_count() && st == VES_OK; i++) {
     ves_config_entry e;
     char name[128];
@@ -402,7 +425,10 @@ static ves_status create_series(ves_io *io) {
     io->series[i] = H5Dcreate2(g, SERIES[i].name, col_file_type(SERIES[i].type), sp, H5P_DEFAULT,
                                dcpl, H5P_DEFAULT);
     if (io->series[i] < 0) st = VES_ERR_IO;
+    if (st == VES_OK) st = describe(io->series[i], SERIES[i].units, SERIES[i].description);
   }
+  if (st == VES_OK)
+    st = describe(g, "per dataset", "one row per accepted step, flushed after every step");
   if (dcpl >= 0) H5Pclose(dcpl);
   if (sp >= 0) H5Sclose(sp);
   H5Gclose(g);
@@ -423,6 +449,11 @@ static ves_status write_header(ves_io *io, const ves_io_header *h) {
   VES_CALL(attr_double(f, "V0", h->V0));
   VES_CALL(attr_double(f, "setup_seconds", h->setup_seconds));
   VES_CALL(attr_str(f, "status", "running"));
+  VES_CALL(attr_str(f, "format_description",
+                    "vesica HDF5 output, layout format_version 2: include/ves/io.h and "
+                    "README.md (Output) of vesica"));
+  VES_CALL(describe(f, "lengths R0 = sqrt(A0/4 pi), time t* = t k/(mu R0^3), energy k (E* = E/k)",
+                    "a vesica run: header attributes, parameters, mesh, series, snapshots"));
   VES_CALL(write_parameters(f, h->cfg));
   hid_t g = H5Gcreate2(f, "mesh", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
   if (g < 0) return VES_ERR_IO;
@@ -435,12 +466,24 @@ static ves_status write_header(ves_io *io, const ves_io_header *h) {
     st = dset_write(g, "triangles", H5T_STD_I32LE, H5T_NATIVE_INT, (hsize_t)h->ntri, 3, h->tri);
   if (st == VES_OK)
     st = dset_write(g, "vertices", H5T_STD_I32LE, H5T_NATIVE_INT, (hsize_t)h->n, 0, v);
+  if (st == VES_OK) st = describe(g, "R0", "the reference configuration the run started from");
+  if (st == VES_OK)
+    st = describe_at(g, "X", "R0", "n x 2 reference node positions (R, Z)");
+  if (st == VES_OK)
+    st = describe_at(g, "triangles", "1",
+                     "ntri x 3 node indices of the reference Delaunay triangles (fixed "
+                     "connectivity)");
+  if (st == VES_OK) st = describe_at(g, "vertices", "1", "node indices 0..n-1 (XDMF points)");
   free(v);
   H5Gclose(g);
   VES_CALL(st);
   hid_t s = H5Gcreate2(f, "snapshots", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
   if (s < 0) return VES_ERR_IO;
   st = attr_int(s, "count", 0);
+  if (st == VES_OK)
+    st = describe(s, "per member",
+                  "states of the run, groups 0..count-1 (the initial state, every [output] "
+                  "snapshot_every steps, the last)");
   H5Gclose(s);
   VES_CALL(st);
   VES_CALL(create_series(io));
@@ -789,6 +832,13 @@ static ves_status snapshot(ves_io *io, const double *y, const double *x, const d
   if (st == VES_OK) st = dset_write(g, "x", F, M, n, 2, x);
   if (st == VES_OK) st = dset_write(g, "phi", F, M, n, 0, phi);
   if (st == VES_OK) st = snapshot_attrs(g, si);
+  if (st == VES_OK)
+    st = describe(g, "t, dt in t*; E in k; A in R0^2; V in R0^3; c0 in 1/R0",
+                  "one state: what a restart continues from; attributes the integrator state");
+  if (st == VES_OK) st = describe_at(g, "y", "R0", "n x 2 nodal coefficients y^a (r, z) of the motion");
+  if (st == VES_OK)
+    st = describe_at(g, "x", "R0", "n x 2 positions y(X_a) of the material at the nodes");
+  if (st == VES_OK) st = describe_at(g, "phi", "1", "phase field phi of that material (-1..1)");
   VES_CALL(counted_close(io->file, s, g, io->nsnap, st));
   io->snap_t[io->nsnap++] = si->state.t;
   return xdmf_write(io);
@@ -881,6 +931,17 @@ static ves_status write_reference(ves_io *io, const ves_io_reference *ref) {
   if (st == VES_OK) st = dset_write(g, "weights", F, M, nq, 0, ref->wq);
   if (st == VES_OK) st = dset_write(g, "phi0", F, M, nq, 6, ref->pd);
   if (st == VES_OK) st = attr_long(g, "step", ref->step);
+  if (st == VES_OK)
+    st = describe(s, "per member", "reference configurations, one per reset (groups 0..count-1)");
+  if (st == VES_OK)
+    st = describe(g, "R0", "the reference made after accepted step `step`: what a restart rebuilds");
+  if (st == VES_OK) st = describe_at(g, "x", "R0", "n x 2 node positions (R, Z)");
+  if (st == VES_OK) st = describe_at(g, "h", "R0", "n node spacings h_a");
+  if (st == VES_OK) st = describe_at(g, "points", "R0", "nq x 2 quadrature points (R, Z)");
+  if (st == VES_OK) st = describe_at(g, "weights", "R0^2", "nq quadrature weights");
+  if (st == VES_OK)
+    st = describe_at(g, "phi0", "1, 1/R0, 1/R0^2",
+                     "nq x 6 point data of phi0: value, gradient (2), Hessian (3)");
   return counted_close(io->file, s, g, k, st);
 }
 

@@ -773,6 +773,63 @@ static void test_truncated(void **state) {
   }
 }
 
+/* H5Ovisit callback: every group and dataset (the root included) has the
+ * string attributes units and description; counts them in *data. */
+static herr_t described(hid_t obj, const char *name, const H5O_info_t *info, void *data) {
+  int *count = data;
+  if (info->type != H5O_TYPE_GROUP && info->type != H5O_TYPE_DATASET) return 0;
+  for (int i = 0; i < 2; i++) {
+    const char *attr = i ? "description" : "units";
+    if (H5Aexists_by_name(obj, name, attr, H5P_DEFAULT) <= 0)
+      fail_msg("%s: no attribute %s", name, attr);
+    hid_t a = H5Aopen_by_name(obj, name, attr, H5P_DEFAULT, H5P_DEFAULT);
+    hid_t t = H5Aget_type(a);
+    assert_int_equal(H5Tget_class(t), H5T_STRING);
+    assert_true(H5Tget_size(t) > 1); /* not empty */
+    H5Tclose(t), H5Aclose(a);
+  }
+  (*count)++;
+  return 0;
+}
+
+/* Self-describing output: units and description on every group and
+ * dataset of a file with series, snapshots and references; the root names
+ * the program, version, problem and where the format is described. */
+static void test_self_describing(void **state) {
+  (void)state;
+  fake f;
+  char path[128];
+  ves_io *io = fake_file(&f, "desc.h5", path, sizeof path);
+  ves_io_row r = row_of(0);
+  assert_int_equal(ves_io_append(io, &r), VES_OK);
+  double y[8], x[8], phi[4] = {1, 0.5, -0.25, -1};
+  for (int j = 0; j < 8; j++) y[j] = x[j] = f.X[j];
+  ves_io_snapinfo si = snap_of(1);
+  assert_int_equal(ves_io_snapshot(io, y, x, phi, &si), VES_OK);
+  enum { NQ = 3 };
+  double h[4] = {0.1, 0.1, 0.1, 0.1}, xq[2 * NQ] = {0}, wq[NQ] = {1, 1, 1}, pd[6 * NQ] = {0};
+  ves_io_reference ref = {.step = 1, .nq = NQ, .x = x, .h = h, .xq = xq, .wq = wq, .pd = pd};
+  assert_int_equal(ves_io_write_reference(io, &ref), VES_OK);
+  ves_io_close(&io);
+  hid_t h5 = H5Fopen(path, H5F_ACC_RDONLY, H5P_DEFAULT);
+  assert_true(h5 >= 0);
+  int count = 0;
+  assert_true(H5Ovisit(h5, H5_INDEX_NAME, H5_ITER_INC, described, &count) >= 0);
+  /* root, parameters, mesh + 3, series + 20, snapshots + 0 + 3, references + 0 + 5 */
+  assert_int_equal(count, 1 + 1 + 4 + 21 + 5 + 7);
+  const char *root[] = {"program", "version", "problem", "source", "format_version",
+                        "format_description"};
+  for (size_t i = 0; i < sizeof root / sizeof root[0]; i++)
+    if (H5Aexists(h5, root[i]) <= 0) fail_msg("root: no attribute %s", root[i]);
+  H5Fclose(h5);
+  /* and the file still reads */
+  char err[512] = "";
+  assert_int_equal(ves_io_open(path, 0, &io, err, sizeof err), VES_OK);
+  assert_int_equal(ves_io_snapshots(io), 1);
+  ves_io_close(&io);
+  unlink(path);
+}
+
 int main(int argc, char **argv) {
   if (argc == 3 && !strcmp(argv[1], "--write-fail")) return write_fail_child(argv[2]);
   snprintf(self, sizeof self, "%s", argv[0]);
@@ -783,6 +840,7 @@ int main(int argc, char **argv) {
       cmocka_unit_test(test_references), cmocka_unit_test(test_refusals),
       cmocka_unit_test(test_node_material),     cmocka_unit_test(test_restart_chain),
       cmocka_unit_test(test_write_failure), cmocka_unit_test(test_truncated),
+      cmocka_unit_test(test_self_describing),
   };
   return cmocka_run_group_tests_name("io", tests, setup_all, teardown_all);
 }

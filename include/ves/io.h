@@ -20,6 +20,10 @@
  *     setup_seconds      wall time of the setup (last run or restart)
  *     status             running | finished | stopped | failed (a killed run
  *                        stays "running")
+ *     format_description where this layout is described (this header)
+ *   every group and dataset (the root too) has string attributes units and
+ *   description (the series' status lists the ves_status codes); files
+ *   without them (older writers) read the same: no format bump
  *   /parameters          every problem-file key as a typed attribute named
  *                        "section.key" (double, int or string)
  *   /mesh/X              n x 2 reference node positions (R, Z), units R0
