@@ -107,7 +107,7 @@ test-slow:
 # `vesica study` through a real Slurm on this machine (tests/slurm_roundtrip.sh,
 # root): installs slurm-wlm and munge if missing, starts a private munged,
 # slurmctld and slurmd, submits a 4-cell study, collects, compares with the
-# local run, stops the daemons. ~20 s once installed. Not part of make test.
+# local run, stops the daemons. 20-30 s once installed. Not part of make test.
 test-slurm: deps
 	@$(MAKE) --no-print-directory $(BUILD)/vesica
 	@sh tests/slurm_roundtrip.sh $(BUILD)/vesica

@@ -185,6 +185,7 @@ t0=$(date +%s)
 say "local study: $(($(date +%s) - t0)) s"
 
 "$V" study "$T/study.ini" --out "$T/slurm" --emit slurm || fail "--emit slurm failed"
+grep -E '^#SBATCH|^exec' "$T/slurm/study.sbatch" | sed 's/^/  /'
 cd "$T" || fail "cd $T"
 t0=$(date +%s)
 sub=$(sbatch "$T/slurm/study.sbatch" 2>&1) || fail "sbatch: $sub"
