@@ -828,6 +828,7 @@ static void test_self_describing(void **state) {
   assert_int_equal(ves_io_snapshots(io), 1);
   ves_io_close(&io);
   unlink(path);
+  free(f.problem);
 }
 
 int main(int argc, char **argv) {
