@@ -27,8 +27,7 @@ static void say(char *err, size_t errlen, const char *fmt, ...) {
   va_end(ap);
 }
 
-/* A gnuplot single-quoted string ('' stands for '). */
-static void gp_quote(FILE *f, const char *s) {
+void ves_plot_gp_quote(FILE *f, const char *s) {
   fputc('\'', f);
   for (; *s; s++) {
     if (*s == '\'') fputc('\'', f);
@@ -37,9 +36,7 @@ static void gp_quote(FILE *f, const char *s) {
   fputc('\'', f);
 }
 
-/* A file name for a title in gnuplot's enhanced text: its control
- * characters escaped ("run_1" would print "run" with a subscript 1). */
-static void gp_escape(char *out, size_t n, const char *s) {
+void ves_plot_gp_escape(char *out, size_t n, const char *s) {
   size_t k = 0;
   for (; *s && k + 2 < n; s++) {
     if (strchr("_^@&~{}\\", *s)) out[k++] = '\\';
@@ -79,7 +76,7 @@ static void gp_output(FILE *f, const ves_plot_params *p, int fig) {
   char path[PATH_MAX];
   fig_path(path, sizeof path, p, fig, 1);
   fputs("set output ", f);
-  gp_quote(f, path);
+  ves_plot_gp_quote(f, path);
   fputc('\n', f);
 }
 
@@ -128,10 +125,10 @@ static void fig_energy(FILE *f, const ves_plot_params *p, const ves_io_info *in,
   fprintf(f, "set multiplot layout 2,1 title ");
   char title[256];
   char stem[96]; /* a long name is cut: it is a title */
-  gp_escape(stem, sizeof stem, p->stem);
+  ves_plot_gp_escape(stem, sizeof stem, p->stem);
   snprintf(title, sizeof title, "%s: %d nodes, %s backend, %ld steps", stem, in->n, in->backend,
            R);
-  gp_quote(f, title);
+  ves_plot_gp_quote(f, title);
   fprintf(f,
           "\nset logscale x\nset format x '10^{%%L}'\nset grid\nset key top right\n"
           "set lmargin 12\nset ylabel 'E* = E/k'\n"
@@ -180,13 +177,13 @@ static ves_status fig_snapshots(FILE *f, ves_io *io, const ves_plot_params *p, c
   fprintf(f, "set multiplot layout %d,%d title ", rows, cols);
   char title[256];
   char stem[96]; /* a long name is cut: it is a title */
-  gp_escape(stem, sizeof stem, p->stem);
+  ves_plot_gp_escape(stem, sizeof stem, p->stem);
   snprintf(title, sizeof title, "%s: %s coloured by {/Symbol f} (%d nodes, mirrored at r = 0)",
            stem,
            in->format_version >= 2 ? "material at the nodes, y(X_a, t),"
                                    : "nodal coefficients y^a(t)",
            n);
-  gp_quote(f, title);
+  ves_plot_gp_quote(f, title);
   fprintf(f,
           "\nset size ratio -1\nset xrange [%g:%g]\nset yrange [%g:%g]\n"
           "set palette defined (-1 '#3b4cc0', 0 '#dddddd', 1 '#b40426')\nset cbrange [-1:1]\n"
@@ -255,10 +252,10 @@ static void fig_constraints(FILE *f, const ves_plot_params *p, const ves_io_info
   fprintf(f, "set multiplot layout 2,1 title ");
   char title[256];
   char stem[96]; /* a long name is cut: it is a title */
-  gp_escape(stem, sizeof stem, p->stem);
+  ves_plot_gp_escape(stem, sizeof stem, p->stem);
   snprintf(title, sizeof title, "%s: constraints (values below %g drawn at %g)", stem,
            PLOT_FLOOR, PLOT_FLOOR);
-  gp_quote(f, title);
+  ves_plot_gp_quote(f, title);
   fprintf(f, "\nset logscale x\nset format x '10^{%%L}'\nset grid\nset lmargin 12\n"
              "set logscale y\nset format y '10^{%%L}'\nset ylabel 'relative drift'\n"
              "set key right center\n"

@@ -3,6 +3,8 @@
  * job-array script. No process is started here (study_run.c runs cells). */
 #include "ves/study.h"
 
+#include "ves/plot.h"
+
 #include <ctype.h>
 #include <errno.h>
 #include <iniparser/iniparser.h>
@@ -874,26 +876,6 @@ ves_status ves_study_collect(const ves_study *s, const char *dir, ves_study_tabl
 
 /* ---- figures ---------------------------------------------------------------- */
 
-/* A gnuplot single-quoted string ('' stands for '). */
-static void gp_quote(FILE *f, const char *s) {
-  fputc('\'', f);
-  for (; *s; s++) {
-    if (*s == '\'') fputc('\'', f);
-    fputc(*s, f);
-  }
-  fputc('\'', f);
-}
-
-/* Text for gnuplot's enhanced mode: its control characters escaped. */
-static void gp_escape(char *out, size_t n, const char *s) {
-  size_t k = 0;
-  for (; *s && k + 3 < n; s++) {
-    if (strchr("_^@&~{}\\", *s)) out[k++] = '\\';
-    out[k++] = *s;
-  }
-  out[k] = 0;
-}
-
 ves_status ves_study_plot(const ves_study *s, const char *dir, char *err, size_t errlen) {
   VES_CHECK(s && dir, VES_ERR_ARG);
   int ad = -1;
@@ -936,7 +918,7 @@ ves_status ves_study_plot(const ves_study *s, const char *dir, char *err, size_t
     for (int a = 0; a < s->naxes && !named; a++) {
       if (a == ad) continue;
       char e[128];
-      gp_escape(e, sizeof e, s->axis[a].values[idx[a]]);
+      ves_plot_gp_escape(e, sizeof e, s->axis[a].values[idx[a]]);
       at += (size_t)snprintf(label[g] + at, sizeof label[g] - at, "%s%s", at ? " " : "", e);
       if (at >= sizeof label[g]) at = sizeof label[g] - 1;
     }
@@ -954,30 +936,30 @@ ves_status ves_study_plot(const ves_study *s, const char *dir, char *err, size_t
   fprintf(f, "EOD\n");
   char title[PATH_MAX + 64], path[PATH_MAX];
   const char *base = strrchr(s->path, '/') ? strrchr(s->path, '/') + 1 : s->path;
-  gp_escape(title, sizeof title, base);
+  ves_plot_gp_escape(title, sizeof title, base);
   fprintf(f, "set terminal pngcairo size 900,%ld font ',10'\nset logscale x\nset format x '10^{%%L}'\n",
           480 + 24 * (G > 8 ? G - 8 : 0));
   fprintf(f, "set grid\nset key outside right top\nset offsets graph 0.04, graph 0.04\n");
   snprintf(path, sizeof path, "%s/study_frontier.png", dir);
-  fputs("set output ", f), gp_quote(f, path), fputc('\n', f);
+  fputs("set output ", f), ves_plot_gp_quote(f, path), fputc('\n', f);
   fprintf(f, "set title 'robustness frontier: %s (circled: the largest converged dt*)'\n", title);
   fprintf(f, "set xlabel 'dt*'\nset ylabel ''\nset yrange [-0.5:%ld.5]\nset ytics (", G - 1);
   for (long g = 0; g < G; g++) {
     fprintf(f, "%s", g ? ", " : "");
-    gp_quote(f, label[g]);
+    ves_plot_gp_quote(f, label[g]);
     fprintf(f, " %ld", g);
   }
   fprintf(f, ")\nplot $d u 2:($3 == 1 ? $1 : NaN) w p pt 7 ps 1.5 lc rgb '#1a9850' "
              "t 'converged', \\\n  $d u 2:($3 == 0 ? $1 : NaN) w p pt 2 ps 1.5 lc rgb '#d73027' "
              "t 'not converged', \\\n  $front u 2:1 w p pt 6 ps 3 lc rgb 'black' t 'largest'\n");
   snprintf(path, sizeof path, "%s/study_cost.png", dir);
-  fputs("set output ", f), gp_quote(f, path), fputc('\n', f);
+  fputs("set output ", f), ves_plot_gp_quote(f, path), fputc('\n', f);
   fprintf(f, "set title 'cost: %s (converged cells)'\nset ytics auto\nset autoscale y\n"
              "set logscale y\nset ylabel 'seconds per step'\nplot ",
           title);
   for (long g = 0; g < G; g++) {
     fprintf(f, "%s$d u ($1 == %ld ? $2 : NaN):4 w lp pt 7 t ", g ? ", \\\n  " : "", g);
-    gp_quote(f, label[g]);
+    ves_plot_gp_quote(f, label[g]);
   }
   fputc('\n', f);
   free(front), free(label);

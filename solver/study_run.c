@@ -101,18 +101,18 @@ ves_status ves_study_run(const ves_study *s, const ves_study_run_opts *o, char *
     return VES_ERR_IO;
   }
   const long first = o->only >= 0 ? o->only : 0, last = o->only >= 0 ? o->only : s->ncells - 1;
-  long *todo = malloc((size_t)(last - first + 1) * sizeof *todo), ntodo = 0;
+  long *pending = malloc((size_t)(last - first + 1) * sizeof *pending), npending = 0;
   slot *sl = calloc((size_t)o->jobs, sizeof *sl);
-  if (!todo || !sl) {
-    free(todo), free(sl);
+  if (!pending || !sl) {
+    free(pending), free(sl);
     return VES_ERR_ALLOC;
   }
   for (long k = first; k <= last; k++)
-    if (!ves_study_cell_done(s, k, o->dir, o->retry_failed)) todo[ntodo++] = k;
+    if (!ves_study_cell_done(s, k, o->dir, o->retry_failed)) pending[npending++] = k;
   long cores = sysconf(_SC_NPROCESSORS_ONLN);
   const int threads = cores > o->jobs ? (int)(cores / o->jobs) : 1;
   ves_study_progress p = {.total = last - first + 1,
-                          .skipped = last - first + 1 - ntodo,
+                          .skipped = last - first + 1 - npending,
                           .eta = -1,
                           .cell = -1};
   if (o->progress) o->progress(o->ctx, &p);
@@ -127,9 +127,9 @@ ves_status ves_study_run(const ves_study *s, const ves_study_run_opts *o, char *
       for (int j = 0; j < o->jobs; j++)
         if (sl[j].pid) kill(sl[j].pid, SIGTERM), sl[j].term_at = ves_wall_seconds();
     }
-    for (int j = 0; j < o->jobs && next < ntodo && !stopping && st == VES_OK; j++)
+    for (int j = 0; j < o->jobs && next < npending && !stopping && st == VES_OK; j++)
       if (!sl[j].pid) {
-        if (start_cell(s, o, todo[next], threads, &sl[j], err, errlen)) {
+        if (start_cell(s, o, pending[next], threads, &sl[j], err, errlen)) {
           st = VES_ERR_IO;
           stopping = 1;
           for (int i = 0; i < o->jobs; i++)
@@ -183,13 +183,13 @@ ves_status ves_study_run(const ves_study *s, const ves_study_run_opts *o, char *
       spent += r.wall_seconds;
       p.done++;
       p.failed += strcmp(r.outcome, "converged") != 0;
-      p.eta = spent / (double)p.done * (double)(ntodo - p.done) / (double)o->jobs;
+      p.eta = spent / (double)p.done * (double)(npending - p.done) / (double)o->jobs;
       p.cell = k, p.result = &r;
       if (o->progress) o->progress(o->ctx, &p);
       p.cell = -1, p.result = NULL;
     }
   }
-  free(todo), free(sl);
+  free(pending), free(sl);
   if (st == VES_OK && stopping) st = VES_STEP_REJECTED;
   return st;
 }

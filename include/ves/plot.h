@@ -16,6 +16,7 @@
 #define VES_PLOT_H
 
 #include <stddef.h>
+#include <stdio.h>
 
 #include "ves/io.h"
 #include "ves/quad.h"
@@ -26,6 +27,12 @@
 
 /* The suffixes of the figures, in the order above ("energy", ...). */
 extern const char *const ves_plot_figures[VES_PLOT_NFIG];
+
+/* gnuplot text helpers (plot.c, study.c): a single-quoted string written to
+ * f ('' stands for '), and s with the control characters of gnuplot's
+ * enhanced text escaped into out[n] ("run_1" would print a subscript). */
+void ves_plot_gp_quote(FILE *f, const char *s);
+void ves_plot_gp_escape(char *out, size_t n, const char *s);
 
 typedef struct {
   const char *outdir;              /* existing folder for the PNGs (borrowed) */
