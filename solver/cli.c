@@ -315,6 +315,7 @@ typedef struct {
   FILE *series;               /* --series file or NULL */
   int quiet;                  /* --quiet */
   long max_steps;             /* --max-steps (0: none) */
+  int ncap;                   /* nodes phi, y, x have room for */
   double wall_offset;         /* wall time of the time loop before this process */
   long last_snapshot_step;    /* step of the last snapshot written */
 } run_ctx;
@@ -329,6 +330,29 @@ static void run_free(run_ctx *r) {
   if (r->series) fclose(r->series);
 }
 
+/* The scratch buffers for n nodes (the node count changes at a remeshing). */
+static ves_status ensure_nodes(run_ctx *r, int n) {
+  if (n <= r->ncap) return VES_OK;
+  double *phi = realloc(r->phi, (size_t)n * sizeof *phi);
+  if (phi) r->phi = phi;
+  double *y = realloc(r->y, 2 * (size_t)n * sizeof *y);
+  if (y) r->y = y;
+  double *x = realloc(r->x, 2 * (size_t)n * sizeof *x);
+  if (x) r->x = x;
+  if (!phi || !y || !x) return VES_ERR_ALLOC;
+  r->ncap = n;
+  return VES_OK;
+}
+
+/* Nodes of the reference in use. */
+static int nodes_now(run_ctx *r) { return ves_model_nodes(ves_sim_model(r->sim))->n; }
+
+/* Whether [remesh] asks for remeshings. */
+static int remeshing(const ves_config *c) {
+  return c->remesh_every > 0 || c->remesh_cond_max > 0 || c->remesh_det_min > 0 ||
+         c->remesh_on_failed_reset;
+}
+
 /* Setup, phi at the nodes and the integrator for r->cfg and r->bk. */
 static int build(run_ctx *r) {
   char err[1024] = "";
@@ -337,11 +361,7 @@ static int build(run_ctx *r) {
     setup_error("run", r->label, err);
     return exit_for(st);
   }
-  int n = r->setup->nodes->n;
-  r->phi = malloc((size_t)n * sizeof *r->phi);
-  r->y = malloc(2 * (size_t)n * sizeof *r->y);
-  r->x = malloc(2 * (size_t)n * sizeof *r->x);
-  if (!r->phi || !r->y || !r->x) {
+  if (ensure_nodes(r, r->setup->nodes->n) != VES_OK) {
     fprintf(stderr, "vesica run: out of memory\n");
     return 3;
   }
@@ -368,20 +388,33 @@ static int build(run_ctx *r) {
             ves_status_str(st));
     return exit_for(st);
   }
+  if (remeshing(c)) { /* r->cfg outlives the simulation */
+    ves_remesh_policy pol = {.every = c->remesh_every,
+                             .cond_max = c->remesh_cond_max,
+                             .det_min = c->remesh_det_min,
+                             .on_failed_reset = c->remesh_on_failed_reset};
+    if ((st = ves_sim_set_remesh(r->sim, &r->cfg, &pol)) != VES_OK) {
+      fprintf(stderr, "vesica run: %s: [remesh]: %s\n", r->label, ves_status_str(st));
+      return exit_for(st);
+    }
+  }
   return 0;
 }
+
+
 
 /* A snapshot of the current state. */
 static ves_status snapshot(run_ctx *r, double wall) {
   ves_io_snapinfo si = {.wall_seconds = wall,
                         .reconnections = ves_sim_reconnections(r->sim),
                         .rows = ves_io_rows(r->io)};
+  const int n = nodes_now(r);
+  VES_CALL(ensure_nodes(r, n));
   ves_sim_get_state(r->sim, &si.state, r->y);
   ves_sim_restart_point(r->sim); /* a restart from here repeats the next steps exactly */
   r->last_snapshot_step = si.state.nstep;
   ves_status st = ves_sim_node_material(r->sim, r->x, r->phi);
   if (st != VES_OK) { /* x and phi are for looking at: the run and its state go on */
-    const int n = r->setup->nodes->n;
     for (int i = 0; i < 2 * n; i++) r->x[i] = NAN;
     for (int a = 0; a < n; a++) r->phi[a] = NAN;
     fprintf(stderr,
@@ -410,9 +443,9 @@ static ves_status write_reference(run_ctx *r, long step) {
 /* A restart after resets: reference k of the file rebuilt and adopted, with
  * phi of the snapshot (its material at the reference's nodes). */
 static ves_status restore_reference(run_ctx *r, int k, int reconnections, const double *phi) {
-  const ves_quad *q0 = r->setup->quad;
-  const int n = r->setup->nodes->n, nq = q0->nq;
-  ves_io_reference_buf b = {.nq = nq};
+  ves_model *m = ves_sim_model(r->sim); /* the setup's, or a remeshing's */
+  const int n = ves_model_nodes(m)->n, nq = ves_model_quad(m)->nq;
+  ves_io_reference_buf b = {.nq = nq, .n = n};
   b.x = malloc(2 * (size_t)n * sizeof *b.x), b.h = malloc((size_t)n * sizeof *b.h);
   b.xq = malloc(2 * (size_t)nq * sizeof *b.xq), b.wq = malloc((size_t)nq * sizeof *b.wq);
   b.pd = malloc(6 * (size_t)nq * sizeof *b.pd);
@@ -420,9 +453,46 @@ static ves_status restore_reference(run_ctx *r, int k, int reconnections, const 
   ves_reconnect *ref = NULL;
   if (st == VES_OK) st = ves_io_read_reference(r->io, k, &b);
   if (st == VES_OK)
-    st = ves_reconnect_restore(r->setup->model, b.x, b.h, nq, b.xq, b.wq, b.pd, &ref);
+    st = ves_reconnect_restore(m, b.x, b.h, nq, b.xq, b.wq, b.pd, &ref);
   if (st == VES_OK) st = ves_sim_adopt_reference(r->sim, ref, reconnections, b.step, phi);
   free(b.x), free(b.h), free(b.xq), free(b.wq), free(b.pd);
+  return st;
+}
+
+/* The remeshing just made, for a restart and for the record (io.h). */
+static ves_status write_remesh(run_ctx *r, long step, const ves_remesh_info *info) {
+  const ves_remesh *rm = ves_sim_remesh(r->sim);
+  const ves_nodes *nd = ves_remesh_nodes(rm);
+  const ves_quad *q = ves_remesh_quad(rm);
+  ves_io_remesh io_rm = {.step = step,
+                         .n = nd->n,
+                         .x = nd->x,
+                         .h = nd->h,
+                         .flag = nd->flag,
+                         .phi0c = ves_remesh_phi0c(rm),
+                         .ntri = q->ntri,
+                         .tri = q->tri,
+                         .info = info};
+  return ves_io_write_remesh(r->io, &io_rm);
+}
+
+/* A restart after remeshings: remeshing k of the file (the remeshings-th,
+ * made with reconnections resets behind it) rebuilt on the setup's model
+ * and adopted. */
+static ves_status restore_remesh(run_ctx *r, int k, int remeshings, int reconnections) {
+  long step = 0;
+  int n = 0;
+  ves_status st = ves_io_remesh_size(r->io, k, &step, &n, NULL);
+  if (st != VES_OK) return st;
+  ves_io_remesh_buf b = {.n = n};
+  b.x = malloc(2 * (size_t)n * sizeof *b.x), b.h = malloc((size_t)n * sizeof *b.h);
+  b.flag = malloc((size_t)n * sizeof *b.flag), b.phi0c = malloc((size_t)n * sizeof *b.phi0c);
+  st = b.x && b.h && b.flag && b.phi0c ? VES_OK : VES_ERR_ALLOC;
+  ves_remesh *nm = NULL;
+  if (st == VES_OK) st = ves_io_read_remesh(r->io, k, &b);
+  if (st == VES_OK) st = ves_remesh_restore(r->setup->model, n, b.x, b.h, b.flag, b.phi0c, &nm);
+  if (st == VES_OK) st = ves_sim_adopt_remesh(r->sim, nm, remeshings, b.step, reconnections);
+  free(b.x), free(b.h), free(b.flag), free(b.phi0c);
   return st;
 }
 
@@ -550,8 +620,10 @@ static int loop(run_ctx *r) {
      * filling disk stops here, between complete writes (io.h) */
     const int due = (now.nstep + 1) % r->cfg.snapshot_every == 0;
     const ves_config *c = &r->cfg;
-    const int resets = c->reconnect_every > 0 || c->reconnect_cond_max > 0 || c->reconnect_det_min > 0;
-    if ((room = ves_io_room(r->io, 1 + due, resets ? r->setup->quad->nq : 0)) != VES_OK) break;
+    const int resets = c->reconnect_every > 0 || c->reconnect_cond_max > 0 ||
+                       c->reconnect_det_min > 0 || remeshing(c); /* a remeshing is smaller */
+    const int nq = ves_model_quad(ves_sim_model(r->sim))->nq;
+    if ((room = ves_io_room(r->io, 1 + due, resets ? nq : 0)) != VES_OK) break;
     if ((st = ves_sim_step(r->sim, &rep)) != VES_OK) break;
     steps++;
     iters += rep.stats.iterations;
@@ -578,6 +650,7 @@ static int loop(run_ctx *r) {
                       .reconnections = ves_sim_reconnections(r->sim)};
     if ((wst = ves_io_append(r->io, &row)) != VES_OK) break;
     if (rep.reconnected && (wst = write_reference(r, rep.step)) != VES_OK) break;
+    if (rep.remeshed && (wst = write_remesh(r, rep.step, &rep.remesh)) != VES_OK) break;
     if (rep.step % r->cfg.snapshot_every == 0 && (wst = snapshot(r, wall)) != VES_OK) break;
     if (r->series) {
       double A0, V0;
@@ -615,6 +688,22 @@ static int loop(run_ctx *r) {
               "|y^a - y(X_a)|/h_a %.3g, %d node(s) mirrored across the axis, E* %.9g -> %.9g)\n",
               tty ? "\n" : "", rep.step, ves_sim_reconnections(r->sim), rep.cond, rep.det_min,
               rep.shift, rep.mirrored, rep.E, rep.E_reset);
+    if (rep.remeshed && !r->quiet) {
+      const ves_remesh_info *m = &rep.remesh;
+      fprintf(stderr,
+              "%sstep %ld: remeshing #%d (%d -> %d nodes; before the correction dE* %.3g, "
+              "dA/A %.3g, dV/V %.3g; correction max |delta|/h %.3g, |delta| %.3g in %d "
+              "iteration(s), then |A/A0 - 1| %.2g, |V/Vt - 1| %.2g; interface moved max %.3g, "
+              "mean %.3g; E* %.9g -> %.9g; %.1f s)\n",
+              tty ? "\n" : "", rep.step, ves_sim_remeshings(r->sim), m->n_old, m->n_new, m->dE,
+              m->dA, m->dV, m->corr_max, m->corr_norm, m->corr_iter, m->res_A, m->res_V,
+              m->disp_max, m->disp_mean, m->E_old, m->E, m->seconds);
+    }
+    if (rep.remesh_status != VES_OK) /* a warning even with --quiet: a remeshing was skipped */
+      fprintf(stderr,
+              "%svesica run: warning: step %ld: the remeshing that was due failed (%s); "
+              "continuing on the old nodes, retried after the next step\n",
+              tty ? "\n" : "", rep.step, ves_status_str(rep.remesh_status));
     if (rep.reconnect_status != VES_OK) /* a warning even with --quiet: a reset was skipped */
       fprintf(stderr,
               "%svesica run: warning: step %ld: the reference reset that was due failed (%s); "
@@ -680,16 +769,6 @@ static int run_new(run_ctx *r, const char *path, const char *out, const char *ba
                    const char *const *set, const char *series, int force) {
   int rc = load_problem("run", path, usage_run, nset, set, &r->cfg);
   if (rc) return rc;
-  const ves_config *c = &r->cfg;
-  if (c->remesh_every || c->remesh_cond_max > 0 || c->remesh_det_min > 0 ||
-      c->remesh_on_failed_reset) { /* the output format records one node set */
-    fprintf(stderr,
-            "vesica run: %s: [remesh]: remeshing changes the node set, which the output file "
-            "cannot record yet (no snapshot, restart or plot across it); run it with "
-            "bench_remesh (bench/RESULTS.md) or leave [remesh] off\n",
-            path);
-    return 2;
-  }
   r->label = path;
   r->bk = ves_backend_find(backend ? backend : r->cfg.backend);
   if (!r->bk) {
@@ -827,14 +906,39 @@ static int rebuild_at(run_ctx *r, const char *pre, int S, ves_io_snapinfo *si) {
             pre);
     return 2;
   }
-  if ((st = ves_io_read_snapshot(r->io, S, r->y, NULL, r->phi, si)) != VES_OK ||
+  /* after remeshings the snapshot is on the last one made at or before its
+   * step (and on a later reset's reference when there is one) */
+  const int ns = ves_io_snapshot_nodes(r->io, S);
+  if (ns < 1 || ensure_nodes(r, ns) != VES_OK ||
+      (st = ves_io_read_snapshot_n(r->io, S, ns, r->y, NULL, r->phi, si)) != VES_OK ||
       si->rows > ves_io_rows(r->io) || si->rows != si->state.nstep) {
     fprintf(stderr, "%s: snapshot %d is unreadable or inconsistent\n", pre, S);
     return 2;
   }
-  int phi_ok = 1; /* NaN when the snapshot could not evaluate it: refitted when needed */
-  for (int a = 0; a < n && phi_ok; a++) phi_ok = isfinite(r->phi[a]);
+  int R = 0; /* remeshings before the snapshot */
+  long rstep = 0, fstep = 0;
+  while (R < ves_io_remeshes(r->io) &&
+         ves_io_remesh_size(r->io, R, &rstep, NULL, NULL) == VES_OK && rstep <= si->state.nstep)
+    R++, fstep = rstep;
+  if (R > 0 && (st = restore_remesh(r, R - 1, R, si->reconnections)) != VES_OK) {
+    fprintf(stderr, "%s: remeshing %d (step %ld) cannot be rebuilt: %s\n", pre, R - 1, fstep,
+            ves_status_str(st));
+    return 2;
+  }
+  long fref = 0; /* the reset of the reference in force came after the remeshing */
   if (si->reconnections > 0 &&
+      (st = ves_io_reference_step(r->io, si->reconnections - 1, &fref)) != VES_OK) {
+    fprintf(stderr, "%s: reference %d is unreadable: %s\n", pre, si->reconnections - 1,
+            ves_status_str(st));
+    return 2;
+  }
+  if (ns != nodes_now(r)) { /* a reset keeps the node count */
+    fprintf(stderr, "%s: snapshot %d has %d nodes, its node set %d\n", pre, S, ns, nodes_now(r));
+    return 2;
+  }
+  int phi_ok = 1; /* NaN when the snapshot could not evaluate it: refitted when needed */
+  for (int a = 0; a < ns && phi_ok; a++) phi_ok = isfinite(r->phi[a]);
+  if (si->reconnections > 0 && (R == 0 || fref > fstep) &&
       (st = restore_reference(r, si->reconnections - 1, si->reconnections,
                               phi_ok ? r->phi : NULL)) != VES_OK) {
     fprintf(stderr, "%s: reference %d (reset #%d) cannot be rebuilt: %s\n", pre,
@@ -903,6 +1007,7 @@ static int run_restart(run_ctx *r, const char *file, int nset, const char *const
   if ((rc = rebuild_at(r, pre, S - 1, &si))) return rc;
   if ((st = ves_io_truncate(r->io, si.rows)) != VES_OK ||
       (st = ves_io_truncate_references(r->io, si.reconnections)) != VES_OK ||
+      (st = ves_io_truncate_remeshes(r->io, ves_sim_remeshings(r->sim))) != VES_OK ||
       (nset && (st = ves_io_set_problem(r->io, &r->cfg)) != VES_OK) ||
       (st = ves_io_set_setup_seconds(r->io, r->setup->seconds_total)) != VES_OK ||
       (st = ves_io_set_status(r->io, "running")) != VES_OK) {
@@ -1000,7 +1105,8 @@ static void usage_info(FILE *f) {
              "Summary of a run, one 'key = value' per line (stable keys, for scripts):\n"
              "  file, format_version, version, status (running = still running or killed,\n"
              "  finished, stopped, failed), backend, nodes, triangles, snapshots,\n"
-             "  references (stored reference configurations, one per reset), steps,\n"
+             "  references (stored reference configurations, one per reset), remeshings\n"
+             "  (full remeshings, [remesh]), nodes_final (the last snapshot's nodes), steps,\n"
              "  t_final, t_end, energy_initial, energy_final (E*), energy_monotone (yes/no: E*\n"
              "  never rose by more than 1e-10 relative between accepted steps on the same C0\n"
              "  and volume target),\n"
@@ -1130,6 +1236,9 @@ static int cmd_info(int argc, char **argv) {
            in->version, in->status, in->backend);
     printf("nodes = %d\ntriangles = %d\nsnapshots = %d\nreferences = %d\nsteps = %ld\n", in->n,
            in->ntri, ves_io_snapshots(io), ves_io_references(io), R);
+    const int S = ves_io_snapshots(io); /* full remeshings: the last snapshot's node count */
+    printf("remeshings = %d\nnodes_final = %d\n", ves_io_remeshes(io),
+           S > 0 ? ves_io_snapshot_nodes(io, S - 1) : in->n);
     printf("t_final = %.12g\nt_end = %.12g\n", R ? t[R - 1] : 0.0, cfg.t_end);
     printf("energy_initial = %.12g\nenergy_final = %.12g\n", in->E0, R ? E[R - 1] : in->E0);
     printf("energy_monotone = %s\n", monotone ? "yes" : "no");

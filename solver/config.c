@@ -133,8 +133,8 @@ static const key_spec KEYS[] = {
      "old nodes"},
     {"remesh", "every", KEY_INT, OFF(remesh_every), "0", 0, 1000000, NULL,
      "full remeshing (new adapted nodes, quadrature, phi projected, A and V restored) every "
-     "this many accepted steps (paper Fig. 6; 0: off; library and bench_remesh only: vesica "
-     "run refuses it, its output records one node set)"},
+     "this many accepted steps (paper Fig. 6; 0: off; each is stored in the output's "
+     "/remeshes, and a restart continues across it)"},
     {"remesh", "cond_max", KEY_DOUBLE, OFF(remesh_cond_max), "0", 0, 1e12, NULL,
      "remesh when max cond_2 F since the last reference exceeds this; 0: off, else > 1"},
     {"remesh", "det_min", KEY_DOUBLE, OFF(remesh_det_min), "0", 0, 1, NULL,

@@ -79,6 +79,7 @@ struct ves_sim {
                                        off, ves_sim_set_remesh) */
   ves_remesh_policy rmp;            /* when to remesh */
   long rsince;                      /* accepted steps since the last remeshing (or t = 0) */
+  long remesh_step;                 /* the step of the last remeshing (0: none) */
   int remeshings;                   /* remeshings so far */
   double dt_rejected;               /* smallest recently rejected dt (0: none) */
   long since_rejected;              /* accepted steps since then */
@@ -270,25 +271,40 @@ static double volume_target(const ves_sim *s, double t) {
   return s->V0 * r;
 }
 
-/* Remesh s->y (remesh.h) and continue on the new reference: the node count
- * changes, so the positions, trial buffers, step problem and backend are all
- * made anew first and swapped in only once everything exists; E, A, V
- * re-evaluated at the corrected positions. On failure s is unchanged. */
+static ves_status switch_remesh(ves_sim *s, ves_remesh *nm, double V_target);
+
+/* Remesh s->y (remesh.h) and continue on the new reference (switch_remesh).
+ * On failure s is unchanged. */
 static ves_status remesh(ves_sim *s, ves_remesh_info *info) {
   ves_remesh_params rp;
   ves_remesh_params_default(&rp);
   rp.hold_area = s->ip.hold_area, rp.A_target = s->A0;
   rp.hold_volume = s->ip.hold_volume, rp.V_target = volume_target(s, s->t);
   ves_remesh *nm = NULL;
-  ves_step *step = NULL;
-  void *bstate = NULL;
-  double *y = NULL, *ynew = NULL, *x = NULL, E, A, V;
   char err[256];
   ves_status st = ves_remesh_create(s->rcfg, s->model, s->y, &rp, &nm, err, sizeof err);
   if (st > 0) st = VES_OK; /* the correction short of ctol: its residuals are reported */
-  ves_model *m = st == VES_OK ? ves_remesh_model(nm) : NULL;
-  const int n = st == VES_OK ? ves_remesh_nodes(nm)->n : 0;
-  if (st == VES_OK) st = ves_step_create(m, &step);
+  if (st == VES_OK) ves_remesh_get_info(nm, info);
+  if (st == VES_OK) st = switch_remesh(s, nm, rp.V_target);
+  else ves_remesh_destroy(&nm);
+  if (st != VES_OK) return st;
+  s->rsince = 0, s->remesh_step = s->nstep;
+  s->remeshings++;
+  return VES_OK;
+}
+
+/* Put the simulation on the remeshed reference nm (taken; freed on
+ * failure, s then unchanged) at its positions ves_remesh_y: the node count
+ * changes, so the positions, trial buffers, step problem and backend are all
+ * made anew first and swapped in only once everything exists; E, A, V
+ * re-evaluated there. */
+static ves_status switch_remesh(ves_sim *s, ves_remesh *nm, double V_target) {
+  ves_step *step = NULL;
+  void *bstate = NULL;
+  double *y = NULL, *ynew = NULL, *x = NULL, E, A, V;
+  ves_model *m = ves_remesh_model(nm);
+  const int n = ves_remesh_nodes(nm)->n;
+  ves_status st = ves_step_create(m, &step);
   if (st == VES_OK) {
     y = malloc(2 * (size_t)n * sizeof *y), ynew = malloc(2 * (size_t)n * sizeof *ynew);
     x = malloc((size_t)ves_step_nvar(step) * sizeof *x);
@@ -297,7 +313,7 @@ static ves_status remesh(ves_sim *s, ves_remesh_info *info) {
   if (st == VES_OK) {
     memcpy(y, ves_remesh_y(nm), 2 * (size_t)n * sizeof *y);
     ves_step_params sp = {.dt = s->dt, .hold_area = s->ip.hold_area, .A0 = s->A0,
-                          .hold_volume = s->ip.hold_volume, .V_target = rp.V_target};
+                          .hold_volume = s->ip.hold_volume, .V_target = V_target};
     st = ves_step_set(step, y, &sp); /* the backend needs a set problem */
   }
   if (st == VES_OK) st = s->backend->create(&s->bopt, step, &bstate);
@@ -311,7 +327,6 @@ static ves_status remesh(ves_sim *s, ves_remesh_info *info) {
     free(y), free(ynew), free(x);
     return st;
   }
-  ves_remesh_get_info(nm, info);
   s->backend->destroy(&s->bstate); /* the old pattern's objects, then their model */
   ves_step_destroy(&s->step);
   ves_reconnect_destroy(&s->ref);
@@ -324,10 +339,24 @@ static ves_status remesh(ves_sim *s, ves_remesh_info *info) {
   ves_quad_destroy(&s->at_nodes); /* built on the old nodes */
   free(s->node_phi);
   s->node_phi = NULL, s->node_phi_ok = 0;
-  s->since = 0, s->rsince = 0, s->reset_step = s->nstep; /* a new reference */
-  s->remeshings++;
+  s->since = 0, s->reset_step = s->nstep; /* a new reference */
+  s->fresh_next = 1;
   return VES_OK;
 }
+
+ves_status ves_sim_adopt_remesh(ves_sim *s, ves_remesh *nm, int remeshings, long remesh_step,
+                                int reconnections) {
+  if (!s || !nm || remeshings < 1 || remesh_step < 1 || reconnections < 0) {
+    ves_remesh_destroy(&nm); /* taken, as on every failure */
+    return VES_ERR_ARG;
+  }
+  VES_CALL(switch_remesh(s, nm, volume_target(s, s->t)));
+  s->reset_step = s->remesh_step = remesh_step, s->remeshings = remeshings;
+  s->reconnections = reconnections;
+  return VES_OK;
+}
+
+const ves_remesh *ves_sim_remesh(const ves_sim *s) { return s ? s->mesh : NULL; }
 
 /* After an accepted step (and its reset, if any): remesh when due
  * (every rmp.every steps, the distortion past rmp's thresholds, or a reset
@@ -511,11 +540,13 @@ ves_status ves_sim_set_state(ves_sim *s, const ves_sim_state *st, const double *
   VES_CHECK(st->t >= 0 && st->dt > 0 && st->nstep >= 0 && st->A0 > 0 && st->V0 > 0, VES_ERR_ARG);
   VES_CHECK(st->dt_rejected >= 0 && st->since_rejected >= 0, VES_ERR_ARG);
   for (int i = 0; i < 2 * s->n; i++) VES_CHECK(isfinite(y[i]), VES_ERR_ARG);
-  VES_CHECK(st->nstep >= s->reset_step, VES_ERR_ARG); /* not before the reference's reset */
+  VES_CHECK(st->nstep >= s->reset_step && st->nstep >= s->remesh_step,
+            VES_ERR_ARG); /* not before the reference's reset or remeshing */
   VES_CALL(ves_model_set_c0(s->model, st->c0));
   memcpy(s->y, y, 2 * (size_t)s->n * sizeof *s->y);
   s->t = st->t, s->dt = st->dt, s->nstep = st->nstep;
   s->since = st->nstep - s->reset_step; /* as in the uninterrupted run */
+  s->rsince = st->nstep - s->remesh_step;
   s->E = st->E, s->A = st->A, s->V = st->V;
   s->E0 = st->E0, s->A0 = st->A0, s->V0 = st->V0;
   s->lambda[0] = st->lambda[0], s->lambda[1] = st->lambda[1];

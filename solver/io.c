@@ -302,6 +302,8 @@ static void xdmf_item(FILE *f, const char *h5, const char *dims, const char *num
   fprintf(f, ":%s</DataItem>\n", dset);
 }
 
+static int nodes_now(const ves_io *io);
+
 /* Two temporal collections over the snapshots: the reference triangles at
  * the material positions x of their nodes, with phi, and the nodes alone as
  * points. Written to
@@ -313,14 +315,19 @@ static ves_status xdmf_write(const ves_io *io) {
   snprintf(tmp, sizeof tmp, "%s.tmp", io->xdmf);
   FILE *f = fopen(tmp, "w");
   if (!f) return VES_ERR_IO;
-  int n = io->info.n, nt = io->info.ntri;
   fprintf(f, "<?xml version=\"1.0\" ?>\n<!DOCTYPE Xdmf SYSTEM \"Xdmf.dtd\" []>\n"
              "<Xdmf Version=\"2.0\">\n <Domain>\n");
   for (int pass = 0; pass < 2; pass++) {
     fprintf(f, "  <Grid Name=\"%s\" GridType=\"Collection\" CollectionType=\"Temporal\">\n",
             pass ? "nodes" : "mesh");
     for (int k = 0; k < io->nsnap; k++) {
-      char y[64], phi[64];
+      char y[64], phi[64], tri[64] = "/mesh/triangles", vert[64] = "/mesh/vertices";
+      int n = io->info.n, nt = io->info.ntri;
+      const int j = ves_io_snapshot_mesh(io, k, &n, &nt); /* after remeshings: their node sets */
+      if (j >= 0) {
+        snprintf(tri, sizeof tri, "/remeshes/%d/triangles", j);
+        snprintf(vert, sizeof vert, "/remeshes/%d/vertices", j);
+      }
       snprintf(y, sizeof y, "/snapshots/%d/x", k);
       snprintf(phi, sizeof phi, "/snapshots/%d/phi", k);
       fprintf(f, "   <Grid Name=\"%s_%d\" GridType=\"Uniform\">\n    <Time Value=\"%.17g\"/>\n",
@@ -331,14 +338,14 @@ static ves_status xdmf_write(const ves_io *io) {
                 "NodesPerElement=\"3\">\n",
                 nt);
         snprintf(dims, sizeof dims, "%d 3", nt);
-        xdmf_item(f, h5, dims, "Int", 4, "/mesh/triangles");
+        xdmf_item(f, h5, dims, "Int", 4, tri);
       } else {
         fprintf(f,
                 "    <Topology TopologyType=\"Polyvertex\" NumberOfElements=\"%d\" "
                 "NodesPerElement=\"1\">\n",
                 n);
         snprintf(dims, sizeof dims, "%d", n);
-        xdmf_item(f, h5, dims, "Int", 4, "/mesh/vertices");
+        xdmf_item(f, h5, dims, "Int", 4, vert);
       }
       fprintf(f, "    </Topology>\n    <Geometry GeometryType=\"XY\">\n");
       snprintf(dims, sizeof dims, "%d 2", n);
@@ -826,7 +833,7 @@ static ves_status snapshot(ves_io *io, const double *y, const double *x, const d
   }
   hid_t s, g;
   VES_CALL(counted_open(io->file, "snapshots", io->nsnap, &s, &g));
-  const hsize_t n = (hsize_t)io->info.n;
+  const hsize_t n = (hsize_t)nodes_now(io); /* the last remeshing's node set */
   const hid_t F = H5T_IEEE_F64LE, M = H5T_NATIVE_DOUBLE;
   ves_status st = dset_write(g, "y", F, M, n, 2, y);
   if (st == VES_OK) st = dset_write(g, "x", F, M, n, 2, x);
@@ -853,12 +860,18 @@ ves_status ves_io_snapshot(ves_io *io, const double *y, const double *x, const d
 
 ves_status ves_io_read_snapshot(ves_io *io, int k, double *y, double *x, double *phi,
                                 ves_io_snapinfo *si) {
-  VES_CHECK(io && k >= 0 && k < io->nsnap, VES_ERR_ARG);
+  VES_CHECK(io, VES_ERR_ARG);
+  return ves_io_read_snapshot_n(io, k, io->info.n, y, x, phi, si);
+}
+
+ves_status ves_io_read_snapshot_n(ves_io *io, int k, int nbuf, double *y, double *x, double *phi,
+                                  ves_io_snapinfo *si) {
+  VES_CHECK(io && k >= 0 && k < io->nsnap && nbuf > 0, VES_ERR_ARG);
   char name[48];
   snprintf(name, sizeof name, "snapshots/%d", k);
   hid_t g = H5Gopen2(io->file, name, H5P_DEFAULT);
   if (g < 0) return VES_ERR_IO;
-  hsize_t n = (hsize_t)io->info.n;
+  hsize_t n = (hsize_t)nbuf; /* the datasets must have exactly this size */
   ves_status st = VES_OK;
   if (y) st = dset_read(g, "y", H5T_NATIVE_DOUBLE, 2 * n, y);
   /* format 1 has no x: its snapshots showed the coefficients */
@@ -923,7 +936,7 @@ static ves_status write_reference(ves_io *io, const ves_io_reference *ref) {
   const int k = ves_io_references(io);
   hid_t s, g;
   VES_CALL(counted_open(io->file, "references", k, &s, &g));
-  const hsize_t n = (hsize_t)io->info.n, nq = (hsize_t)ref->nq;
+  const hsize_t n = (hsize_t)nodes_now(io), nq = (hsize_t)ref->nq;
   const hid_t F = H5T_IEEE_F64LE, M = H5T_NATIVE_DOUBLE;
   ves_status st = dset_write(g, "x", F, M, n, 2, ref->x);
   if (st == VES_OK) st = dset_write(g, "h", F, M, n, 0, ref->h);
@@ -960,7 +973,7 @@ ves_status ves_io_read_reference(ves_io *io, int k, ves_io_reference_buf *out) {
   snprintf(name, sizeof name, "references/%d", k);
   hid_t g = H5Gopen2(io->file, name, H5P_DEFAULT);
   if (g < 0) return VES_ERR_IO;
-  const hsize_t n = (hsize_t)io->info.n, nq = (hsize_t)out->nq;
+  const hsize_t n = (hsize_t)(out->n > 0 ? out->n : io->info.n), nq = (hsize_t)out->nq;
   const hid_t M = H5T_NATIVE_DOUBLE;
   ves_status st = dset_read(g, "x", M, 2 * n, out->x);
   if (st == VES_OK) st = dset_read(g, "h", M, n, out->h);
@@ -1036,7 +1049,7 @@ ves_status ves_io_set_setup_seconds(ves_io *io, double seconds) {
  * `snapshots` snapshots (y, x, phi and the XDMF file rewritten beside its
  * old copy) and, with nq > 0, a reference of nq points. */
 static double room_needed(const ves_io *io, int snapshots, int nq) {
-  const double n = io->info.n;
+  const double n = nodes_now(io);
   double need = IO_ROOM_MARGIN;
   if (ves_io_rows(io) % IO_CHUNK == 0) need += NSERIES * (IO_CHUNK * 8.0 + 4096);
   const double xdmf = 2.0 * (io->nsnap + snapshots) * (1024 + 4.0 * strlen(io->path));
@@ -1079,3 +1092,213 @@ ves_status ves_io_room(ves_io *io, int snapshots, int nq) {
 }
 
 const char *ves_io_error(const ves_io *io) { return io && io->error[0] ? io->error : NULL; }
+
+/* ---- remeshings (full remeshing, remesh.h) -------------------------------- */
+
+/* The complete remeshings: /remeshes attribute count (0 without the group). */
+int ves_io_remeshes(const ves_io *io) {
+  if (!io || H5Lexists(io->file, "remeshes", H5P_DEFAULT) <= 0) return 0;
+  hid_t g = H5Gopen2(io->file, "remeshes", H5P_DEFAULT);
+  int count = 0;
+  if (g >= 0 && attr_read(g, "count", H5T_NATIVE_INT, &count) != VES_OK) count = 0;
+  if (g >= 0) H5Gclose(g);
+  return count;
+}
+
+/* The first dimension of dataset `name` in loc (0 when absent or unreadable). */
+static hsize_t dset_rows(hid_t loc, const char *name) {
+  hid_t d = H5Dopen2(loc, name, H5P_DEFAULT);
+  if (d < 0) return 0;
+  hsize_t dims[2] = {0, 0};
+  hid_t sp = H5Dget_space(d);
+  if (sp < 0 || H5Sget_simple_extent_ndims(sp) < 1 ||
+      H5Sget_simple_extent_dims(sp, dims, NULL) < 0 || dims[0] > INT_MAX)
+    dims[0] = 0;
+  if (sp >= 0) H5Sclose(sp);
+  H5Dclose(d);
+  return dims[0];
+}
+
+ves_status ves_io_remesh_size(const ves_io *io, int k, long *step, int *n, int *ntri) {
+  VES_CHECK(io && k >= 0 && k < ves_io_remeshes(io), VES_ERR_ARG);
+  char name[48];
+  snprintf(name, sizeof name, "remeshes/%d", k);
+  hid_t g = H5Gopen2(io->file, name, H5P_DEFAULT);
+  if (g < 0) return VES_ERR_IO;
+  long s = 0;
+  ves_status st = attr_read(g, "step", H5T_NATIVE_LONG, &s);
+  const int nn = (int)dset_rows(g, "x"), nt = (int)dset_rows(g, "triangles");
+  H5Gclose(g);
+  if (st == VES_OK && (nn < 3 || nt < 1)) st = VES_ERR_IO;
+  if (st != VES_OK) return st;
+  if (step) *step = s;
+  if (n) *n = nn;
+  if (ntri) *ntri = nt;
+  return VES_OK;
+}
+
+/* Real nodes of the state now: the last remeshing's, or the header's. */
+static int nodes_now(const ves_io *io) {
+  const int R = ves_io_remeshes(io);
+  int n = io->info.n;
+  if (R > 0 && ves_io_remesh_size(io, R - 1, NULL, &n, NULL) != VES_OK) n = io->info.n;
+  return n;
+}
+
+int ves_io_snapshot_nodes(const ves_io *io, int k) {
+  if (!io || k < 0 || k >= io->nsnap) return -1;
+  char name[48];
+  snprintf(name, sizeof name, "snapshots/%d", k);
+  hid_t g = H5Gopen2(io->file, name, H5P_DEFAULT);
+  if (g < 0) return -1;
+  const hsize_t n = dset_rows(g, "y");
+  H5Gclose(g);
+  return n > 0 ? (int)n : -1;
+}
+
+int ves_io_snapshot_mesh(const ves_io *io, int k, int *n, int *ntri) {
+  if (n) *n = io->info.n;
+  if (ntri) *ntri = io->info.ntri;
+  const int R = ves_io_remeshes(io);
+  if (R == 0) return -1;
+  char name[48];
+  snprintf(name, sizeof name, "snapshots/%d", k);
+  hid_t g = H5Gopen2(io->file, name, H5P_DEFAULT);
+  long step = 0;
+  if (g < 0) return -1;
+  ves_status st = attr_read(g, "step", H5T_NATIVE_LONG, &step);
+  H5Gclose(g);
+  for (int j = R - 1; st == VES_OK && j >= 0; j--) {
+    long sj;
+    int nj, tj;
+    if (ves_io_remesh_size(io, j, &sj, &nj, &tj) != VES_OK) return -1;
+    if (sj <= step) {
+      if (n) *n = nj;
+      if (ntri) *ntri = tj;
+      return j;
+    }
+  }
+  return -1;
+}
+
+static ves_status write_remesh(ves_io *io, const ves_io_remesh *rm) {
+  const int k = ves_io_remeshes(io);
+  hid_t s, g;
+  VES_CALL(counted_open(io->file, "remeshes", k, &s, &g));
+  const hsize_t n = (hsize_t)rm->n, nt = (hsize_t)rm->ntri;
+  const hid_t F = H5T_IEEE_F64LE, M = H5T_NATIVE_DOUBLE;
+  int *v = malloc((size_t)rm->n * sizeof *v);
+  for (int a = 0; v && a < rm->n; a++) v[a] = a;
+  ves_status st = v ? VES_OK : VES_ERR_ALLOC;
+  if (st == VES_OK) st = dset_write(g, "x", F, M, n, 2, rm->x);
+  if (st == VES_OK) st = dset_write(g, "h", F, M, n, 0, rm->h);
+  if (st == VES_OK) st = dset_write(g, "flag", H5T_STD_I32LE, H5T_NATIVE_INT, n, 0, rm->flag);
+  if (st == VES_OK) st = dset_write(g, "phi0c", F, M, n, 0, rm->phi0c);
+  if (st == VES_OK) st = dset_write(g, "triangles", H5T_STD_I32LE, H5T_NATIVE_INT, nt, 3, rm->tri);
+  if (st == VES_OK) st = dset_write(g, "vertices", H5T_STD_I32LE, H5T_NATIVE_INT, n, 0, v);
+  free(v);
+  if (st == VES_OK) st = attr_long(g, "step", rm->step);
+  const ves_remesh_info *in = rm->info;
+  const struct {
+    const char *name;
+    double v;
+  } a[] = {{"n_old", in->n_old},         {"n_new", in->n_new},
+           {"nq_old", in->nq_old},       {"nq_new", in->nq_new},
+           {"E_old", in->E_old},         {"A_old", in->A_old},
+           {"V_old", in->V_old},         {"E_proj", in->E_proj},
+           {"A_proj", in->A_proj},       {"V_proj", in->V_proj},
+           {"E", in->E},                 {"A", in->A},
+           {"V", in->V},                 {"dE", in->dE},
+           {"dA", in->dA},               {"dV", in->dV},
+           {"corr_max", in->corr_max},   {"corr_norm", in->corr_norm},
+           {"corr_iter", in->corr_iter}, {"res_A", in->res_A},
+           {"res_V", in->res_V},         {"disp_max", in->disp_max},
+           {"disp_mean", in->disp_mean}, {"seconds", in->seconds}};
+  for (size_t i = 0; i < sizeof a / sizeof a[0] && st == VES_OK; i++)
+    st = attr_double(g, a[i].name, a[i].v);
+  if (st == VES_OK)
+    st = describe(s, "per member",
+                  "full remeshings, one per member (groups 0..count-1): the new node sets");
+  if (st == VES_OK)
+    st = describe(g, "R0; E in k",
+                  "the node set made after accepted step `step`: what a restart rebuilds "
+                  "(ves_remesh_restore); attributes what it changed: E_old/E_proj/E (E*), "
+                  "A, V before (old), projected (proj, before the correction) and corrected; "
+                  "dE = E_proj - E_old, dA = A_proj/A_old - 1, dV = V_proj/V_old - 1; "
+                  "corr_max (max |delta_a|/h_a), corr_norm (|delta|, R0), corr_iter, res_A, "
+                  "res_V (|A/A_target - 1|, |V/V_target - 1| after it), disp_max, disp_mean "
+                  "(the interface's displacement, R0), seconds (wall)");
+  if (st == VES_OK) st = describe_at(g, "x", "R0", "n x 2 node positions (R, Z)");
+  if (st == VES_OK) st = describe_at(g, "h", "R0", "n node spacings h_a");
+  if (st == VES_OK) st = describe_at(g, "flag", "1", "n node flags (1 axis, 2 wall, 4 lattice, 8 band)");
+  if (st == VES_OK) st = describe_at(g, "phi0c", "1", "n nodal coefficients of the projected phi0");
+  if (st == VES_OK)
+    st = describe_at(g, "triangles", "1", "ntri x 3 Delaunay triangles of the new nodes");
+  if (st == VES_OK) st = describe_at(g, "vertices", "1", "n int 0..n-1 (the nodes as XDMF points)");
+  return counted_close(io->file, s, g, k, st);
+}
+
+ves_status ves_io_write_remesh(ves_io *io, const ves_io_remesh *rm) {
+  VES_CHECK(io && rm && io->writable && rm->x && rm->h && rm->flag && rm->phi0c && rm->tri &&
+                rm->info,
+            VES_ERR_ARG);
+  VES_CHECK(rm->n >= 3 && rm->ntri > 0 && rm->step >= 1, VES_ERR_ARG);
+  errno = 0;
+  return io_failed(io, write_remesh(io, rm), errno);
+}
+
+ves_status ves_io_read_remesh(ves_io *io, int k, ves_io_remesh_buf *out) {
+  VES_CHECK(io && out && out->x && out->h && out->flag && out->phi0c && out->n > 0, VES_ERR_ARG);
+  VES_CHECK(k >= 0 && k < ves_io_remeshes(io), VES_ERR_ARG);
+  char name[48];
+  snprintf(name, sizeof name, "remeshes/%d", k);
+  hid_t g = H5Gopen2(io->file, name, H5P_DEFAULT);
+  if (g < 0) return VES_ERR_IO;
+  const hsize_t n = (hsize_t)out->n;
+  const hid_t M = H5T_NATIVE_DOUBLE;
+  ves_status st = dset_read(g, "x", M, 2 * n, out->x);
+  if (st == VES_OK) st = dset_read(g, "h", M, n, out->h);
+  if (st == VES_OK) st = dset_read(g, "flag", H5T_NATIVE_INT, n, out->flag);
+  if (st == VES_OK) st = dset_read(g, "phi0c", M, n, out->phi0c);
+  if (st == VES_OK) st = attr_read(g, "step", H5T_NATIVE_LONG, &out->step);
+  H5Gclose(g);
+  return st;
+}
+
+ves_status ves_io_truncate_remeshes(ves_io *io, int count) {
+  VES_CHECK(io && io->writable && count >= 0, VES_ERR_ARG);
+  const int have = ves_io_remeshes(io);
+  VES_CHECK(count <= have, VES_ERR_ARG);
+  if (count == have) return VES_OK;
+  hid_t s = H5Gopen2(io->file, "remeshes", H5P_DEFAULT);
+  if (s < 0) return VES_ERR_IO;
+  ves_status st = attr_int(s, "count", count); /* first: the rest is then stray */
+  for (int k = count; k < have && st == VES_OK; k++) {
+    char name[32];
+    snprintf(name, sizeof name, "%d", k);
+    if (H5Ldelete(s, name, H5P_DEFAULT) < 0) st = VES_ERR_IO;
+  }
+  H5Gclose(s);
+  VES_CALL(st);
+  return H5Fflush(io->file, H5F_SCOPE_LOCAL) < 0 ? VES_ERR_IO : VES_OK;
+}
+
+ves_status ves_io_reference_step(const ves_io *io, int k, long *step) {
+  VES_CHECK(io && step && k >= 0 && k < ves_io_references(io), VES_ERR_ARG);
+  char name[48];
+  snprintf(name, sizeof name, "references/%d", k);
+  hid_t g = H5Gopen2(io->file, name, H5P_DEFAULT);
+  if (g < 0) return VES_ERR_IO;
+  ves_status st = attr_read(g, "step", H5T_NATIVE_LONG, step);
+  H5Gclose(g);
+  return st;
+}
+
+ves_status ves_io_read_remesh_triangles(ves_io *io, int k, int *tri) {
+  int nt = 0;
+  VES_CHECK(tri, VES_ERR_ARG);
+  VES_CALL(ves_io_remesh_size(io, k, NULL, NULL, &nt));
+  char name[48];
+  snprintf(name, sizeof name, "remeshes/%d/triangles", k);
+  return dset_read(io->file, name, H5T_NATIVE_INT, 3 * (hsize_t)nt, tri);
+}

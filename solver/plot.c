@@ -145,8 +145,10 @@ static void fig_energy(FILE *f, const ves_plot_params *p, const ves_io_info *in,
 static ves_status fig_snapshots(FILE *f, ves_io *io, const ves_plot_params *p, const int *sel,
                                 int nsel) {
   const ves_io_info *in = ves_io_get_info(io);
-  int n = in->n;
-  double *y = malloc(2 * (size_t)n * sizeof *y), *phi = malloc((size_t)n * sizeof *phi);
+  int n = in->n, nmax = in->n; /* snapshots after a remeshing have their own count */
+  for (int j = 0; j < nsel; j++)
+    if (ves_io_snapshot_nodes(io, sel[j]) > nmax) nmax = ves_io_snapshot_nodes(io, sel[j]);
+  double *y = malloc(2 * (size_t)nmax * sizeof *y), *phi = malloc((size_t)nmax * sizeof *phi);
   double *X = malloc(2 * (size_t)n * sizeof *X);
   ves_status st = y && phi && X ? ves_io_read_mesh(io, X, NULL) : VES_ERR_ALLOC;
   double LR = 0, LZ = 0, ts[VES_PLOT_MAXTIMES];
@@ -154,8 +156,9 @@ static ves_status fig_snapshots(FILE *f, ves_io *io, const ves_plot_params *p, c
     LR = fmax(LR, X[2 * a]), LZ = fmax(LZ, fabs(X[2 * a + 1]));
   for (int j = 0; j < nsel && st == VES_OK; j++) {
     ves_io_snapinfo si;
+    n = ves_io_snapshot_nodes(io, sel[j]);
     /* x: where the material at the nodes is (format 1 files: the coefficients) */
-    if ((st = ves_io_read_snapshot(io, sel[j], NULL, y, phi, &si)) != VES_OK) break;
+    if ((st = ves_io_read_snapshot_n(io, sel[j], n, NULL, y, phi, &si)) != VES_OK) break;
     ts[j] = si.state.t;
     fprintf(f, "$snap%d << EOD\n", j);
     for (int a = 0; a < n; a++) fprintf(f, "%.7g %.7g %.5g\n", y[2 * a], y[2 * a + 1], phi[a]);
@@ -213,16 +216,32 @@ static ves_status fig_snapshots(FILE *f, ves_io *io, const ves_plot_params *p, c
 ves_status ves_plot_interface(ves_io *io, ves_level_set *ls, unsigned char *ok) {
   VES_CHECK(io && ls && ok, VES_ERR_ARG);
   const ves_io_info *in = ves_io_get_info(io);
-  const int S = ves_io_snapshots(io), n = in->n;
+  const int S = ves_io_snapshots(io);
   memset(ok, 0, (size_t)S);
   if (in->format_version < 2 || S < 1) return VES_OK;
+  int n = in->n, nt = in->ntri, cur = -2; /* cur: the node set in tri (-1 the initial mesh) */
+  for (int k = 0; k < S; k++) { /* room for the largest node set (remeshings) */
+    int nk, tk;
+    ves_io_snapshot_mesh(io, k, &nk, &tk);
+    n = nk > n ? nk : n, nt = tk > nt ? tk : nt;
+  }
   double *x = malloc(2 * (size_t)n * sizeof *x), *phi = malloc((size_t)n * sizeof *phi);
-  int *tri = malloc(3 * (size_t)in->ntri * sizeof *tri);
-  ves_status st = VES_ERR_ALLOC;
-  if (x && phi && tri && (st = ves_io_read_mesh(io, NULL, tri)) == VES_OK)
-    for (int k = 0; k < S; k++)
-      ok[k] = ves_io_read_snapshot(io, k, NULL, x, phi, NULL) == VES_OK &&
-              ves_quad_level_set(n, in->ntri, tri, x, phi, ls + k) == VES_OK;
+  int *tri = malloc(3 * (size_t)nt * sizeof *tri);
+  if (!x || !phi || !tri) {
+    free(x), free(phi), free(tri);
+    return VES_ERR_ALLOC;
+  }
+  ves_status st = VES_OK;
+  for (int k = 0; k < S && st == VES_OK; k++) {
+    int nk, tk;
+    const int j = ves_io_snapshot_mesh(io, k, &nk, &tk);
+    if (j != cur) {
+      st = j < 0 ? ves_io_read_mesh(io, NULL, tri) : ves_io_read_remesh_triangles(io, j, tri);
+      cur = j;
+    }
+    ok[k] = st == VES_OK && ves_io_read_snapshot_n(io, k, nk, NULL, x, phi, NULL) == VES_OK &&
+            ves_quad_level_set(nk, tk, tri, x, phi, ls + k) == VES_OK;
+  }
   free(x), free(phi), free(tri);
   return st;
 }

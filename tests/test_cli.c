@@ -657,6 +657,103 @@ static void test_restart_after_reset(void **state) {
   unlink(ini), unlink(part), unlink(full);
 }
 
+/* A run with full remeshings (io.h /remeshes) continues across them bit for
+ * bit: resets every 2 steps and remeshings every 3 (reset after step 2,
+ * remeshing after 3, reset after 5, remeshing after 6). Stopped after step 4
+ * (its snapshot on the remeshing of step 3; the reset before it no longer in
+ * force), restarted up to step 5 (the snapshot on the reset made after the
+ * remeshing, rebuilt on the remeshing's model), restarted to the end, and
+ * compared with the uninterrupted run: the series, the remeshings' node
+ * sets, the last y, x, phi and integrator state with ==. The remeshings must
+ * change the node set (else the test shows nothing about rebuilding it). */
+static void test_restart_after_remesh(void **state) {
+  (void)state;
+  char ini[128], part[128], full[128];
+  tmp_path(ini, sizeof ini, "remesh.ini");
+  tmp_path(part, sizeof part, "remesh.h5");
+  tmp_path(full, sizeof full, "remesh_full.h5");
+  write_file(ini, "[time]\nt_end = 0.03\nadaptive = 0\n[output]\nsnapshot_every = 2\n"
+                  "[reconnect]\nevery = 2\n[remesh]\nevery = 3\n");
+  result r;
+  run(&r, "run", ini, TINY, "--out", full, NULL);
+  if (r.code) fail_msg("run: exit %d: %s", r.code, r.err);
+  printf("# %s", strstr(r.err, "step 3: remeshing") ? strstr(r.err, "step 3: remeshing") : r.err);
+  assert_non_null(strstr(r.err, "step 3: remeshing #1 ("));
+  assert_non_null(strstr(r.err, "step 6: remeshing #2 ("));
+  run(&r, "run", ini, TINY, "--out", part, "--quiet", "--max-steps", "4", NULL);
+  if (r.code) fail_msg("run: exit %d: %s", r.code, r.err);
+  run(&r, "run", "--restart", part, "--quiet", "--max-steps", "5", NULL);
+  if (r.code) fail_msg("restart on a remeshing: exit %d: %s", r.code, r.err);
+  ves_io *b = open_ro(part);
+  ves_io_snapinfo si;
+  assert_int_equal(ves_io_read_snapshot_n(b, ves_io_snapshots(b) - 1,
+                                          ves_io_snapshot_nodes(b, ves_io_snapshots(b) - 1), NULL,
+                                          NULL, NULL, &si),
+                   VES_OK);
+  printf("# stopped at step %ld: %d resets, %d remeshings\n", si.state.nstep, si.reconnections,
+         ves_io_remeshes(b));
+  assert_true(si.state.nstep == 5 && si.reconnections == 2 && ves_io_remeshes(b) == 1);
+  ves_io_close(&b);
+  run(&r, "run", "--restart", part, "--quiet", NULL);
+  if (r.code) fail_msg("restart on a reset after a remeshing: exit %d: %s", r.code, r.err);
+
+  ves_io *a = open_ro(full);
+  b = open_ro(part);
+  const long R = ves_io_rows(a);
+  assert_int_equal(R, 6); /* t_end 0.03 at the TINY dt 5e-3 */
+  assert_int_equal(ves_io_rows(b), R);
+  same_series(a, b, R);
+  assert_int_equal(ves_io_remeshes(a), 2);
+  assert_int_equal(ves_io_remeshes(b), 2);
+  const int n0 = ves_io_get_info(a)->n;
+  for (int k = 0; k < 2; k++) { /* the node sets: the same, and not the initial one */
+    long sa_, sb_;
+    int na, nb, ta, tb;
+    assert_int_equal(ves_io_remesh_size(a, k, &sa_, &na, &ta), VES_OK);
+    assert_int_equal(ves_io_remesh_size(b, k, &sb_, &nb, &tb), VES_OK);
+    assert_true(sa_ == 3 * (k + 1) && sb_ == sa_ && na == nb && ta == tb);
+    ves_io_remesh_buf ba = {.n = na}, bb = {.n = nb};
+    double *d = malloc(8 * (size_t)na * sizeof *d);
+    int *fl = malloc(2 * (size_t)na * sizeof *fl);
+    ba.x = d, ba.h = d + 2 * na, ba.phi0c = d + 3 * na, ba.flag = fl;
+    bb.x = d + 4 * na, bb.h = d + 6 * na, bb.phi0c = d + 7 * na, bb.flag = fl + na;
+    assert_int_equal(ves_io_read_remesh(a, k, &ba), VES_OK);
+    assert_int_equal(ves_io_read_remesh(b, k, &bb), VES_OK);
+    assert_memory_equal(d, d + 4 * na, 4 * (size_t)na * sizeof *d);
+    assert_memory_equal(fl, fl + na, (size_t)na * sizeof *fl);
+    if (k == 0) {
+      double *X = malloc(2 * (size_t)n0 * sizeof *X);
+      assert_int_equal(ves_io_read_mesh(a, X, NULL), VES_OK);
+      printf("# remeshing 1: %d -> %d nodes\n", n0, na);
+      assert_true(na != n0 || memcmp(X, ba.x, 2 * (size_t)n0 * sizeof *X)); /* a new node set */
+      free(X);
+    }
+    free(d), free(fl);
+  }
+  const int S = ves_io_snapshots(a), n = ves_io_snapshot_nodes(a, S - 1);
+  assert_int_equal(ves_io_snapshot_nodes(b, ves_io_snapshots(b) - 1), n);
+  double *va = malloc(5 * (size_t)n * sizeof *va), *vb = malloc(5 * (size_t)n * sizeof *vb);
+  ves_io_snapinfo sa, sb;
+  assert_int_equal(ves_io_read_snapshot_n(a, S - 1, n, va, va + 2 * n, va + 4 * n, &sa), VES_OK);
+  assert_int_equal(
+      ves_io_read_snapshot_n(b, ves_io_snapshots(b) - 1, n, vb, vb + 2 * n, vb + 4 * n, &sb),
+      VES_OK);
+  assert_true(sa.state.nstep == R && sb.state.nstep == R);
+  assert_memory_equal(va, vb, 5 * (size_t)n * sizeof *va); /* y, x, phi bit for bit */
+  assert_memory_equal(&sa.state, &sb.state, sizeof sa.state);
+  /* the header's node count no longer reads such a snapshot: an error, not an overrun */
+  if (n != n0) assert_int_equal(ves_io_read_snapshot(a, S - 1, va, NULL, NULL, NULL), VES_ERR_IO);
+  free(va), free(vb);
+  ves_io_close(&a), ves_io_close(&b);
+  run(&r, "info", part, NULL);
+  assert_int_equal(r.code, 0);
+  assert_non_null(strstr(r.out, "remeshings = 2\n"));
+  assert_non_null(strstr(r.out, "interface_area_final = "));
+  unlink(ini), unlink(part), unlink(full);
+  tmp_path(full, sizeof full, "remesh_full.xdmf"), unlink(full);
+  tmp_path(part, sizeof part, "remesh.xdmf"), unlink(part);
+}
+
 /* freeze_hessian = 2 keeps the factorization across steps; every snapshot
  * is a restart point (the next step builds its matrix), so a restart from
  * a regular snapshot repeats the uninterrupted run bit for bit. Fixed dt
@@ -1330,6 +1427,7 @@ int main(int argc, char **argv) {
       cmocka_unit_test(test_restart_bitwise),
       cmocka_unit_test(test_restart_bitwise_freeze2),
       cmocka_unit_test(test_restart_after_reset),
+      cmocka_unit_test(test_restart_after_remesh),
       cmocka_unit_test(test_restart_set),
       cmocka_unit_test(test_spectrum),
       cmocka_unit_test(test_progress_eta),

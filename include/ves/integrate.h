@@ -167,10 +167,25 @@ ves_model *ves_sim_model(ves_sim *s);
  * failed); cfg holds the discretization keys (borrowed: it must outlive the
  * simulation); cfg NULL turns it off. After a remeshing the node count,
  * ves_sim_y and ves_sim_model change (the driver's buffers must follow
- * ves_model_nodes(ves_sim_model(s))->n), and nothing of it is restored by
- * ves_sim_adopt_reference. VES_ERR_ARG for invalid thresholds. */
+ * ves_model_nodes(ves_sim_model(s))->n); a restart restores it with
+ * ves_sim_adopt_remesh. VES_ERR_ARG for invalid thresholds. */
 ves_status ves_sim_set_remesh(ves_sim *s, const ves_config *cfg, const ves_remesh_policy *pol);
 int ves_sim_remeshings(const ves_sim *s); /* remeshings so far */
+
+/* The last remeshing's reference (owned by the simulation), NULL before any
+ * or once a reset has replaced it: its nodes, flags, phi0 coefficients
+ * (ves_remesh_nodes, ves_remesh_phi0c) are what io.h stores for a restart. */
+const ves_remesh *ves_sim_remesh(const ves_sim *s);
+
+/* A restart after remeshings: continue on nm (taken by the simulation, also
+ * on failure), a remesh rebuilt by ves_remesh_restore, which the run made
+ * as its remeshings-th at step remesh_step after reconnections resets; then (after a later reset)
+ * ves_sim_adopt_reference on its model, and ves_sim_set_state with
+ * positions of nm's node count. The step problem and the backend are
+ * rebuilt on nm's model. On failure the simulation is unchanged.
+ * VES_ERR_ARG for remeshings < 1, remesh_step < 1 or reconnections < 0. */
+ves_status ves_sim_adopt_remesh(ves_sim *s, ves_remesh *nm, int remeshings, long remesh_step,
+                                int reconnections);
 
 double ves_sim_time(const ves_sim *s);
 double ves_sim_dt(const ves_sim *s);         /* the next step's dt */

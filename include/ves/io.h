@@ -59,6 +59,14 @@
  *     points, weights    nq x 2 quadrature points and nq weights
  *     phi0               nq x 6 point data of phi0 (value, gradient, Hessian)
  *     attribute step     the accepted step after which the reset was made
+ *   /remeshes            (runs with [remesh]) attribute count; groups "0", ...
+ *                        one per full remeshing, what ves_remesh_restore
+ *                        rebuilds it from: x (n' x 2), h, flag, phi0c (n'),
+ *                        triangles (ntri' x 3), vertices (n'); attribute step
+ *                        and what it changed (ves_io_remesh). Snapshots and
+ *                        references after it have n' nodes (their datasets'
+ *                        sizes say so) and the XDMF file shows them on its
+ *                        triangles
  *
  * Snapshot 0 is the initial state; then every [output] snapshot_every steps
  * and the last state of a run (finished, stopped or failed). A restart
@@ -202,7 +210,8 @@ ves_status ves_io_read_series(ves_io *io, const char *name, double *out);
 int ves_io_snapshots(const ves_io *io);
 
 /* Snapshot k: y (2n), x (2n; y for a format 1 file) and phi (n) unless
- * NULL, si unless NULL. */
+ * NULL, si unless NULL; n the header's nodes (VES_ERR_IO for a snapshot
+ * after a remeshing of another node count: ves_io_read_snapshot_n). */
 ves_status ves_io_read_snapshot(ves_io *io, int k, double *y, double *x, double *phi,
                                 ves_io_snapinfo *si);
 
@@ -216,10 +225,12 @@ typedef struct {
   const double *xq, *wq, *pd; /* 2 nq points, nq weights, 6 nq point data of phi0 */
 } ves_io_reference;
 
-/* The same, with the caller's buffers to read into (sizes as above; nq in). */
+/* The same, with the caller's buffers to read into (sizes as above; nq in;
+ * n in: the reference's nodes, 0 for the header's). */
 typedef struct {
   long step;
   int nq;
+  int n;
   double *x, *h, *xq, *wq, *pd;
 } ves_io_reference_buf;
 
@@ -232,9 +243,70 @@ int ves_io_references(const ves_io *io);
 /* Reference k into out's buffers (out->nq must match the file). */
 ves_status ves_io_read_reference(ves_io *io, int k, ves_io_reference_buf *out);
 
+/* The step after which reference k was made. */
+ves_status ves_io_reference_step(const ves_io *io, int k, long *step);
+
 /* Keep the first count references (a restart drops those made after its
  * snapshot). */
 ves_status ves_io_truncate_references(ves_io *io, int count);
+
+/* A full remeshing (remesh.h), what a restart rebuilds it from
+ * (ves_remesh_restore) and what it changed: written at every remeshing, so a
+ * snapshot continues on the last remeshing made at or before its step (a
+ * remeshing comes before the snapshot of its step) and, when a reset came
+ * after it, on that reset's reference rebuilt on its model. Snapshots and
+ * references written after it have its node count. */
+typedef struct {
+  long step;                   /* the accepted step after which it was made (>= 1) */
+  int n;                       /* real nodes of the new set */
+  const double *x, *h;         /* 2n positions (r, z), n spacings */
+  const int *flag;             /* n VES_NODE_* flags */
+  const double *phi0c;         /* n nodal coefficients of phi0 */
+  int ntri;                    /* the new Delaunay triangles (for the XDMF file) */
+  const int *tri;              /* 3 ntri node indices */
+  const ves_remesh_info *info; /* what it changed: stored as attributes */
+} ves_io_remesh;
+
+/* The same, with the caller's buffers (n in: ves_io_remesh_size). */
+typedef struct {
+  long step;
+  int n;
+  double *x, *h;
+  int *flag;
+  double *phi0c;
+} ves_io_remesh_buf;
+
+/* Write remeshing number ves_io_remeshes(io) (group /remeshes/<k>) and flush. */
+ves_status ves_io_write_remesh(ves_io *io, const ves_io_remesh *rm);
+
+/* Complete remeshings in the file (0 for a run without). */
+int ves_io_remeshes(const ves_io *io);
+
+/* Remeshing k: its step, node and triangle counts (each may be NULL). */
+ves_status ves_io_remesh_size(const ves_io *io, int k, long *step, int *n, int *ntri);
+
+/* Remeshing k into out's buffers (out->n must match the file). */
+ves_status ves_io_read_remesh(ves_io *io, int k, ves_io_remesh_buf *out);
+
+/* Keep the first count remeshings (a restart drops those after its snapshot). */
+ves_status ves_io_truncate_remeshes(ves_io *io, int count);
+
+/* Real nodes of snapshot k (the header's, or after a remeshing its node
+ * count); -1 when k is out of range or unreadable. */
+int ves_io_snapshot_nodes(const ves_io *io, int k);
+
+/* The node set snapshot k is on: the remeshing (its index) made last at or
+ * before the snapshot's step, or -1 for the initial mesh; *n and *ntri (may
+ * be NULL) its node and triangle counts. */
+int ves_io_snapshot_mesh(const ves_io *io, int k, int *n, int *ntri);
+
+/* The triangles of remeshing k (3 ntri, ves_io_remesh_size). */
+ves_status ves_io_read_remesh_triangles(ves_io *io, int k, int *tri);
+
+/* ves_io_read_snapshot with buffers for nbuf nodes: VES_ERR_IO when the
+ * snapshot's node count is not nbuf (ves_io_snapshot_nodes). */
+ves_status ves_io_read_snapshot_n(ves_io *io, int k, int nbuf, double *y, double *x,
+                                  double *phi, ves_io_snapinfo *si);
 
 /* The reference mesh: X (2n) and tri (3 ntri), either may be NULL. */
 ves_status ves_io_read_mesh(ves_io *io, double *X, int *tri);
