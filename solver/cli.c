@@ -379,6 +379,8 @@ static int build(run_ctx *r) {
   ip.hold_area = c->area, ip.hold_volume = c->volume;
   ip.volume_rate = c->volume_rate, ip.volume_final = c->volume_final;
   ip.c0_time = c->c0_time, ip.c0_after = c->c0_after, ip.c0_until = c->c0_until;
+  ip.c0_ramp_start = c->c0_ramp_start, ip.c0_ramp_end = c->c0_ramp_end;
+  ip.c0_ramp_to = c->c0_ramp_to;
   ip.reconnect_every = c->reconnect_every, ip.reconnect_cond_max = c->reconnect_cond_max;
   ip.reconnect_det_min = c->reconnect_det_min;
   ip.reconnect_nodes =

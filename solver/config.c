@@ -104,6 +104,13 @@ static const key_spec KEYS[] = {
      "C0 R0 from c0_time on"},
     {"protocol", "c0_until", KEY_DOUBLE, OFF(c0_until), "-1", -1, 1e12, NULL,
      "time C0 returns to [material] c0, ending a pulse (t*; -1: never)"},
+    {"protocol", "c0_ramp_start", KEY_DOUBLE, OFF(c0_ramp_start), "-1", -1, 1e12, NULL,
+     "start of a C0 ramp: C0 rises linearly from [material] c0 at this time to c0_ramp_to at "
+     "c0_ramp_end, then stays (t*; -1: none; not with c0_time)"},
+    {"protocol", "c0_ramp_end", KEY_DOUBLE, OFF(c0_ramp_end), "-1", -1, 1e12, NULL,
+     "end of the C0 ramp (t*; after c0_ramp_start)"},
+    {"protocol", "c0_ramp_to", KEY_DOUBLE, OFF(c0_ramp_to), "0", -100, 100, NULL,
+     "C0 R0 at the end of the ramp and after it"},
     {"solver", "backend", KEY_STRING, OFF(backend), "newton", 0, 0, "ipopt|nlopt|newton|euler",
      "step solver (euler: explicit, the paper's comparison)"},
     {"solver", "tol", KEY_DOUBLE, OFF(tol), "1e-9", 1e-16, 1e-2, NULL,
@@ -495,6 +502,22 @@ ves_status ves_config_validate(const ves_config *cfg, char *err, size_t errlen) 
     say(err, errlen, "%s: [protocol] c0_until = %g: needs c0_time >= 0 before it (c0_time = %g)",
         src, cfg->c0_until, cfg->c0_time);
     return VES_ERR_CONFIG;
+  }
+  if (cfg->c0_ramp_start < 0 && (cfg->c0_ramp_end != -1 || cfg->c0_ramp_to != 0)) {
+    say(err, errlen, "%s: [protocol] %s: has no effect without c0_ramp_start >= 0", src,
+        cfg->c0_ramp_end != -1 ? "c0_ramp_end" : "c0_ramp_to");
+    return VES_ERR_CONFIG;
+  }
+  if (cfg->c0_ramp_start >= 0) {
+    const char *why = cfg->c0_ramp_end <= cfg->c0_ramp_start ? "c0_ramp_end must come after it"
+                      : cfg->c0_time >= 0                    ? "a ramp excludes c0_time"
+                      : cfg->c0_ramp_to == cfg->c0 ? "c0_ramp_to equals [material] c0: nothing to do"
+                      : cfg->c0_ramp_start >= cfg->t_end     ? "not before [time] t_end"
+                                                             : NULL;
+    if (why) {
+      say(err, errlen, "%s: [protocol] c0_ramp_start = %g: %s", src, cfg->c0_ramp_start, why);
+      return VES_ERR_CONFIG;
+    }
   }
   if (cfg->reconnect_cond_max > 0 && cfg->reconnect_cond_max <= 1) {
     say(err, errlen, "%s: [reconnect] cond_max = %g: must be 0 (off) or above 1 (cond F >= 1)", src,

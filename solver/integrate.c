@@ -104,6 +104,9 @@ void ves_integrate_params_default(ves_integrate_params *p) {
   p->c0_time = -1.0;
   p->c0_after = 0.0;
   p->c0_until = -1.0;
+  p->c0_ramp_start = -1.0;
+  p->c0_ramp_end = -1.0;
+  p->c0_ramp_to = 0.0;
   p->check_energy = 1;
   p->reconnect_every = 0;
   p->reconnect_cond_max = 0.0;
@@ -144,6 +147,9 @@ ves_status ves_sim_create(ves_model *model, const ves_backend_type *backend,
                  ip->reconnect_nodes == VES_RESET_NODES_MOTION),
             VES_ERR_ARG);
   VES_CHECK(ip->c0_until < 0 || (ip->c0_time >= 0 && ip->c0_until > ip->c0_time), VES_ERR_ARG);
+  VES_CHECK(ip->c0_ramp_start < 0 ||
+                (ip->c0_time < 0 && ip->c0_ramp_end > ip->c0_ramp_start && isfinite(ip->c0_ramp_to)),
+            VES_ERR_ARG);
   ves_status st = VES_ERR_ALLOC;
   ves_sim *s = calloc(1, sizeof *s);
   if (!s) return VES_ERR_ALLOC;
@@ -261,6 +267,16 @@ ves_status ves_sim_adopt_reference(ves_sim *s, ves_reconnect *ref, int reconnect
     s->node_phi_ok = 1;
   }
   return VES_OK;
+}
+
+/* C0 of the ramp protocol at time t: the model's C0 before c0_ramp_start,
+ * linear to c0_ramp_to at c0_ramp_end, then held. */
+static double c0_ramp(const ves_sim *s, double t) {
+  const ves_integrate_params *p = &s->ip;
+  if (t <= p->c0_ramp_start) return s->c0_base;
+  if (t >= p->c0_ramp_end) return p->c0_ramp_to;
+  return s->c0_base + (p->c0_ramp_to - s->c0_base) * (t - p->c0_ramp_start) /
+                          (p->c0_ramp_end - p->c0_ramp_start);
 }
 
 /* Volume target at time t: V0 (1 + rate t), stopped at V0 * final. */
@@ -397,7 +413,7 @@ ves_status ves_sim_step(ves_sim *s, ves_step_report *rep) {
   const double tiny = 1e-12 * (1.0 + fabs(s->t));
   if (s->t >= s->ip.t_end - tiny) return VES_MAXITER;
   /* protocol: C0 switches when its time is reached (steps end on the events) */
-  double c0 = s->c0_base;
+  double c0 = s->ip.c0_ramp_start >= 0 ? s->c0 : s->c0_base; /* a ramp: in the steps below */
   if (s->ip.c0_time >= 0 && s->t >= s->ip.c0_time - tiny &&
       !(s->ip.c0_until >= 0 && s->t >= s->ip.c0_until - tiny))
     c0 = s->ip.c0_after;
@@ -412,11 +428,17 @@ ves_status ves_sim_step(ves_sim *s, ves_step_report *rep) {
   double dt = fmin(s->dt, s->ip.t_end - s->t);
   if (s->ip.c0_time > s->t + tiny) dt = fmin(dt, s->ip.c0_time - s->t); /* land on the event */
   if (s->ip.c0_until > s->t + tiny) dt = fmin(dt, s->ip.c0_until - s->t);
+  const int ramp = s->ip.c0_ramp_start >= 0; /* C0(t + dt) at each attempt */
+  if (ramp && s->ip.c0_ramp_start > s->t + tiny) dt = fmin(dt, s->ip.c0_ramp_start - s->t);
+  if (ramp && s->ip.c0_ramp_end > s->t + tiny) dt = fmin(dt, s->ip.c0_ramp_end - s->t);
   ves_status st = VES_ERR_NOCONV;
   int retries = 0;
   for (;;) {
     double Vt = volume_target(s, s->t + dt);
     int fixed_targets = fabs(Vt - volume_target(s, s->t)) <= 1e-14 * s->V0;
+    const double c0n = ramp ? c0_ramp(s, s->t + dt) : s->c0;
+    if (c0n != s->c0) fixed_targets = 0; /* the ramp moves the landscape during the step */
+    if ((st = ves_model_set_c0(s->model, c0n)) != VES_OK) return st;
     ves_step_params sp = {.dt = dt, .hold_area = s->ip.hold_area, .A0 = s->A0,
                           .hold_volume = s->ip.hold_volume, .V_target = Vt,
                           .fresh = s->fresh_next || retries > 0};
@@ -444,6 +466,7 @@ ves_status ves_sim_step(ves_sim *s, ves_step_report *rep) {
       s->t += dt;
       s->nstep++;
       s->E = E, s->A = A, s->V = V;
+      s->c0 = c0n;
       s->lambda[0] = lam[0], s->lambda[1] = lam[1];
       rep->step = s->nstep, rep->t = s->t, rep->dt = dt;
       rep->E = E / ves_model_get_k(s->model), rep->A = A, rep->V = V;
@@ -495,6 +518,7 @@ ves_status ves_sim_step(ves_sim *s, ves_step_report *rep) {
     rep->rejected.g_evals += rep->stats.g_evals, rep->rejected.h_evals += rep->stats.h_evals;
     rep->rejected.seconds += rep->stats.seconds, rep->rejected.violation = rep->stats.violation;
     rep->rejected.solver_status = rep->stats.solver_status;
+    if (c0n != s->c0) (void)ves_model_set_c0(s->model, s->c0); /* the state's C0 again */
     if (st < 0 && st != VES_ERR_DOMAIN && st != VES_ERR_NOCONV && st != VES_ERR_SOLVER &&
         st != VES_ERR_SINGULAR)
       return st; /* not a numerical rejection: argument or memory errors */

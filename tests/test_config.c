@@ -99,6 +99,19 @@ static void test_errors(void **state) {
   expect_error("[protocol]\nc0_until = 3\n", 0, NULL, VES_ERR_CONFIG, "c0_until");
   expect_error("[protocol]\nc0_time = 0.5\nc0_after = 1\nc0_until = 0.5\n", 0, NULL,
                VES_ERR_CONFIG, "c0_until");
+  /* the C0 ramp: its keys need its start, an end after it, no c0_time, a change, a start
+   * before t_end (default t_end 1) */
+  expect_error("[protocol]\nc0_ramp_to = 3\n", 0, NULL, VES_ERR_CONFIG, "c0_ramp_to: has no effect");
+  expect_error("[protocol]\nc0_ramp_end = 3\n", 0, NULL, VES_ERR_CONFIG, "c0_ramp_end: has no");
+  expect_error("[protocol]\nc0_ramp_start = 0.5\nc0_ramp_end = 0.5\nc0_ramp_to = 2\n", 0, NULL,
+               VES_ERR_CONFIG, "c0_ramp_end must come after it");
+  expect_error("[protocol]\nc0_ramp_start = 0\nc0_ramp_end = 0.5\nc0_ramp_to = 2\nc0_time = 0.1\n"
+               "c0_after = 1\n",
+               0, NULL, VES_ERR_CONFIG, "excludes c0_time");
+  expect_error("[protocol]\nc0_ramp_start = 0\nc0_ramp_end = 0.5\n", 0, NULL, VES_ERR_CONFIG,
+               "nothing to do");
+  expect_error("[protocol]\nc0_ramp_start = 1\nc0_ramp_end = 2\nc0_ramp_to = 2\n", 0, NULL,
+               VES_ERR_CONFIG, "before [time] t_end");
   expect_error("[reconnect]\ncond_max = 1\n", 0, NULL, VES_ERR_CONFIG, "above 1");
   expect_error("[reconnect]\ndet_min = 1\n", 0, NULL, VES_ERR_CONFIG, "below 1");
   expect_error("[reconnect]\nevery = -1\n", 0, NULL, VES_ERR_CONFIG, "out of range");

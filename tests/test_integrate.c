@@ -519,6 +519,49 @@ static void test_protocols(void **state) {
   ves_setup_destroy(&s);
 }
 
+/* The C0 ramp: C0 R0 from 0 at t = 0.0075 linearly to 2 at t = 0.0175, then
+ * held; steps are cut to land on both times, each step takes C0 at its end
+ * time (rep.c0 is the ramp's value at rep.t up to rounding of the linear
+ * formula, 1e-15 relative), the model holds that C0 afterwards (E
+ * re-evaluated equals the step's E bit for bit), and A and V stay held. On
+ * the near-sphere (R ~ R0) E* falls to ~0 as C0 R0 passes 1 (measured 0.195
+ * at t = 0.0125) and returns to ~2 pi at C0 R0 = 2. */
+static void test_c0_ramp(void **state) {
+  (void)state;
+  ves_setup *s = small_setup();
+  ves_integrate_params ip;
+  ves_integrate_params_default(&ip);
+  ip.t_end = 0.03, ip.dt_initial = 5e-3, ip.dt_max = 5e-3, ip.adaptive = 0;
+  ip.c0_ramp_start = 0.0075, ip.c0_ramp_end = 0.0175, ip.c0_ramp_to = 2.0;
+  ves_sim *sim = make_sim(s, "newton", &ip);
+  double E0, A0, V0;
+  ves_sim_initial(sim, &E0, &A0, &V0);
+  ves_step_report rep;
+  int n = 0, on_start = 0, on_end = 0;
+  double last_c0 = 0;
+  while (ves_sim_step(sim, &rep) == VES_OK) {
+    n++;
+    last_c0 = rep.c0;
+    const double want = rep.t <= 0.0075 ? 0.0 : rep.t >= 0.0175 ? 2.0 : 2.0 * (rep.t - 0.0075) / 0.01;
+    double E;
+    ves_model *m = ves_sim_model(sim);
+    assert_int_equal(ves_model_eval(m, ves_sim_y(sim), VES_F_E, &E, NULL, NULL, NULL, NULL, NULL),
+                     VES_OK);
+    printf("# t %.4f c0 %.4f E* %.6f\n", rep.t, rep.c0, rep.E);
+    assert_true(fabs(rep.c0 - want) <= 1e-15 * 2.0);
+    assert_true(ves_model_get_c0(m) == rep.c0);
+    assert_true(E / ves_model_get_k(m) == rep.E);
+    assert_true(fabs(rep.A / A0 - 1) <= 1e-8 && fabs(rep.V / V0 - 1) <= 1e-8); /* ctol */
+    on_start |= fabs(rep.t - 0.0075) < 1e-12, on_end |= fabs(rep.t - 0.0175) < 1e-12;
+  }
+  /* 0.005 0.0075 0.0125 0.0175 0.0225 0.0275 0.03 */
+  assert_int_equal(n, 7);
+  assert_true(on_start && on_end);
+  assert_true(last_c0 == 2.0);
+  ves_sim_destroy(&sim);
+  ves_setup_destroy(&s);
+}
+
 /* A C0 switch restarts the adaptive dt from dt_initial: the step grown on
  * the old landscape is not trusted on the new one. */
 static void test_c0_switch_restarts_dt(void **state) {
@@ -767,7 +810,8 @@ int main(void) {
       cmocka_unit_test(test_near_equilibrium),    cmocka_unit_test(test_euler_adaptive),
       cmocka_unit_test(test_freeze_across_steps),
       cmocka_unit_test(test_euler_stiffness),     cmocka_unit_test(test_flow_spectrum),
-      cmocka_unit_test(test_protocols),           cmocka_unit_test(test_c0_switch_restarts_dt),
+      cmocka_unit_test(test_protocols),
+      cmocka_unit_test(test_c0_ramp),           cmocka_unit_test(test_c0_switch_restarts_dt),
       cmocka_unit_test(test_failure_keeps_state), cmocka_unit_test(test_reconnect_every),
       cmocka_unit_test(test_reconnect_threshold), cmocka_unit_test(test_reconnect_failure),
   };

@@ -58,6 +58,9 @@ typedef struct {
   double c0_time;      /* time of a step change of C0 (< 0: none) */
   double c0_after;     /* C0 R0 after it */
   double c0_until;     /* time C0 returns to c0 (< 0: never) */
+  double c0_ramp_start; /* a C0 ramp from c0 at this time (< 0: none) ... */
+  double c0_ramp_end;   /* ... to c0_ramp_to at this time, then held */
+  double c0_ramp_to;    /* C0 R0 at the ramp's end */
   /* [solver] */
   char backend[VES_CONFIG_STR]; /* ipopt | nlopt | newton | euler */
   double tol, ctol;             /* optimality and constraint tolerances */

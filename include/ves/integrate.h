@@ -1,6 +1,6 @@
 /* vesica — the time loop of the variational integrator (DESIGN.md §3): one
  * accepted step at a time, adaptive dt, rejected steps retried with dt/2,
- * protocols (spontaneous curvature steps, volume ramps), resets of the
+ * protocols (spontaneous curvature steps and ramps, volume ramps), resets of the
  * reference configuration (DESIGN.md §4, ves/reconnect.h). The driver (the
  * program) owns the loop, the output and the stopping decisions. */
 #ifndef VES_INTEGRATE_H
@@ -34,6 +34,12 @@ typedef struct {
   double c0_after;     /* protocol: C0 R0 from c0_time on */
   double c0_until;     /* protocol: time C0 returns to the model's C0 (< 0: never; else
                           > c0_time): a pulse that can push a shape past a barrier */
+  double c0_ramp_start; /* protocol: a C0 ramp from the model's C0 at this time (< 0: none;
+                           excludes c0_time) ... */
+  double c0_ramp_end;   /* ... rising linearly to c0_ramp_to at this time (> c0_ramp_start),
+                           then held; each step takes C0 at its end time, t + dt (as V_target),
+                           and steps are cut to land on both times */
+  double c0_ramp_to;    /* protocol: C0 R0 at the ramp's end */
   int check_energy;    /* 1: reject a step whose energy rises while the targets are fixed
                           (any backend: for Euler a rise is its instability) */
   /* reference-configuration reset after an accepted step when any enabled
