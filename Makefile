@@ -48,7 +48,7 @@ BENCHES  = $(patsubst bench/%.c,$(BUILD)/bench/%,$(wildcard bench/bench_*.c))
 # command of every table, e.g. make bench BENCH_ONLY=bench_mode.
 BENCH_ONLY ?= 
 
-.PHONY: all deps test test-slow test-slurm valgrind bench run clean format
+.PHONY: all deps test test-slow test-slurm valgrind bench run paper clean format
 # (a sub-make, as test and run do: the pkg-config flags above are read when
 # this Makefile is parsed, i.e. before deps installs ipopt and hdf5 on a
 # fresh machine)
@@ -164,6 +164,17 @@ run: deps
 	@mkdir -p results
 	OPENBLAS_NUM_THREADS=1 $(BUILD)/vesica run problems/oblate.ini --out results/oblate.h5 --force
 	$(BUILD)/vesica plot results/oblate.h5 --outdir results --force
+
+# The paper's results (bench/paper.sh): every finished run kept in
+# results/paper/ and skipped next time, an interrupted one continued;
+# figures in bench/figures/paper/, the table in bench/PAPER.md. PAPER_EPS
+# sets eps/R0 of every run (0.01: the paper's scale), PAPER_ONLY a subset.
+PAPER_EPS ?=
+PAPER_ONLY ?=
+paper: deps
+	@$(MAKE) --no-print-directory $(BUILD)/vesica $(BUILD)/bench/bench_table1
+	@VESICA=$(BUILD)/vesica TABLE1=$(BUILD)/bench/bench_table1 PAPER_EPS=$(PAPER_EPS) \
+	  PAPER_ONLY=$(PAPER_ONLY) sh bench/paper.sh
 
 format:
 	clang-format -i include/ves/*.h solver/*.c solver/*.cpp tests/*.c bench/*.c
