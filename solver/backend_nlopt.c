@@ -7,29 +7,43 @@
  * converges at all). NLopt's LBFGS takes no preconditioner, so the problem is
  * handed to it in variables u with
  *     x = x_start + root L^{-T} u,      F(u) = f(x) / root^2,
- * where L L^T ~ M is an incomplete Cholesky factorization, IC(0) on the
- * Hessian pattern, of M = the Hessian of the Lagrangian at the start
+ * where L L^T = M, M = the Hessian of the Lagrangian at the start
  * (K + dt Hess E + lambda Hess c; K alone if that has a non-positive
  * diagonal), with a diagonal shift M + alpha diag(M), alpha = 0, 1e-3, 1e-2,
- * ... until it does not break down. The Hessian of F in u is then close to
- * the identity, and LBFGS's unit first step is close to a Newton step.
- * Measured on the 3.4k-dof test step (tests/test_backend.c, dt = 0.05):
- * with the variables scaled by the diagonal only (L = diag(M)^{1/2}) LBFGS
- * needed 3604 gradients (500 s) and still missed Ipopt's point by 7% of the
- * displacement (compile with -DNLB_DIAGONAL_ONLY to repeat); with no scaling
- * the gradient test fired at 4e-5 of the initial force (f_scale 1) and the
- * result was 47% off. With IC(0) (and the constraint scaling below):
- * 964 gradients, 17 outer iterations, 164 s, 1.2% of the displacement
- * (3e-6 of max |y|), multipliers to 1e-6. Ipopt: 3 iterations, 5 s, exact.
+ * ... until it is positive definite. L is the exact (dense, LAPACK dpotrf)
+ * Cholesky factor up to NLB_DENSE_MAX variables (n^2 doubles: 150 MB at the
+ * default oblate's 4.3k dofs), above that IC(0) on the Hessian pattern. The
+ * Hessian of F in u is then the identity at the start, and LBFGS's unit step
+ * a Newton step. The wrapper ves_ldl (MUMPS) that newton uses cannot serve:
+ * it offers A^{-1} v only, not the half solves L^{-1} v, L^{-T} v that a
+ * change of variables needs.
+ * Two phases: AUGLAG to the loose relative tolerance NLB_TOL1 (constraints
+ * NLB_CTOL1) in the metric of the start, then a new factor where it ended and
+ * AUGLAG to the requested tolerances (the Hessian far from the start is the
+ * metric that matters at large dt; at small dt the second phase costs one
+ * Hessian).
+ * Multipliers: AUGLAG restarts its own from zero at every call, so the
+ * objective carries f + lambda0^T c (the same minimizer on c = 0) with
+ * lambda0 the multipliers of the quadratic model's step (the KKT system of
+ * M, solved with the factor: (A A^T) lambda = c - A b, A = L^{-1} grad c,
+ * b = L^{-1} grad f), and M is rebuilt once at those when they differ from
+ * the ones it was built with by more than NLB_LAMBDA_RTOL.
+ * Measured (bench/RESULTS.md, issue 17): on the 3.4k-dof test step 28
+ * gradients and 1e-9 of the displacement from Ipopt's point, against 964
+ * gradients and 1.2e-2 with IC(0) alone (compile with -DNLB_PRECOND_IC0 to
+ * repeat; -DNLB_DIAGONAL_ONLY for the diagonal scaling, 3,604 gradients).
  * root: LBFGS (Luksan's code) stops on a fixed absolute test
  * max |dF/du_i| <= LBFGS_GTOL = 1e-8. The gradient in u is
  * root^-1 L^{-1} grad f, so root = tol * gmax / LBFGS_GTOL, gmax = the largest
  * component of L^{-1} grad f(x_start), turns it into the relative test
  * max |L^{-1} grad L| <= tol gmax, without changing the Hessian of F in u.
  *
- * Constraints: c_i(x) / target_i (A / A0 - 1, V / V_target - 1), each with
- * tolerance ctol, so AUGLAG's feasibility test is exactly the relative test of
- * ves_backend_options.
+ * Constraints: r_i = c_i / sigma_i with sigma_i = root |L^{-1} grad c_i| /
+ * NLB_CSCALE (|grad_u r_i| = NLB_CSCALE at the start: AUGLAG's penalty rho
+ * r^2 / 2 is then 100 rho times F's unit curvature along them, so each outer
+ * iteration cuts the violation by ~1e3 instead of ~10), each with tolerance
+ * ctol target_i / sigma_i, so AUGLAG's feasibility test is the relative test
+ * of ves_backend_options.
  * Stopping: no f tolerance (ftol_rel = 0: f contains dt E, whose roundoff
  * swamps the small decrease of one step); xtol_rel = tol on u for the LBFGS
  * sub-solves (their gradient test is the one that acts) and sqrt(tol) for
@@ -44,19 +58,24 @@
  * returns HUGE_VAL (and a zero gradient) so the line search backs off; after
  * NLB_DOMAIN_MAX consecutive refusals, or at the start, the solve is stopped
  * with nlopt_force_stop and VES_ERR_DOMAIN is returned.
- * Multipliers: AUGLAG restarts its own from zero at every call (lambda in is
- * used only for the Hessian of the preconditioner); lambda out is the
- * least-squares solution of grad f + J^T lambda = 0 at the solution.
+ * lambda out is the least-squares solution of grad f + J^T lambda = 0 at the
+ * solution. Every point NLopt evaluates gets its gradient in the same model
+ * pass (ves_step_eager_gradients).
  * Statistics: iterations = AUGLAG outer iterations (its objective calls
- * without a gradient, one per outer iteration after the first at the start);
- * f_evals, g_evals count objective and gradient evaluations; h_evals = 1 (the
- * Hessian for the preconditioner). */
+ * without a gradient, one per outer iteration after the first at the start of
+ * each phase); f_evals, g_evals count objective and gradient evaluations;
+ * h_evals the Hessians assembled for the factors. */
 #include <limits.h>
+#ifdef NLB_TRACE
+#include <stdio.h>
+#endif
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
 
+#include <cblas.h>
+#include <lapacke.h>
 #include <nlopt.h>
 
 #include "ves/backend.h"
@@ -66,6 +85,25 @@
 #define NLB_DOMAIN_MAX 30      /* consecutive domain errors before giving up */
 #define LBFGS_GTOL 1e-8        /* Luksan's fixed gradient tolerance (NLopt plis.c) */
 #define NLB_IC_SHIFTS 8        /* shifts alpha = 0, 1e-3, ..., 1e3 tried */
+#ifndef NLB_INNER
+#define NLB_INNER NLOPT_LD_LBFGS /* the sub-solver */
+#endif
+#ifndef NLB_TOL1
+#define NLB_TOL1 1e-3 /* first phase's relative gradient tolerance (0: one phase) */
+#endif
+#ifndef NLB_CTOL1
+#define NLB_CTOL1 1e-6 /* first phase's relative constraint tolerance */
+#endif
+#ifndef NLB_LAMBDA_RTOL
+#define NLB_LAMBDA_RTOL 1e-2 /* rebuild the Hessian at the model multipliers beyond this */
+#endif
+#define NLB_RHO0 10.0 /* AUGLAG's first penalty (NLopt auglag.c, from a feasible start) */
+#ifndef NLB_CSCALE
+#define NLB_CSCALE 10.0 /* constraint scale: |grad_u r_i| at the start */
+#endif
+#ifndef NLB_DENSE_MAX
+#define NLB_DENSE_MAX 12000 /* largest nvar with the exact (dense) factor: 1.15 GB */
+#endif
 
 /* Lower-triangular factor in compressed rows, the diagonal last in each row. */
 typedef struct {
@@ -82,7 +120,8 @@ typedef struct {
   ves_step *s;          /* the step problem (borrowed) */
   nlopt_opt opt;        /* the outer optimizer (for nlopt_force_stop) */
   int n, m;             /* nvar, ncon */
-  const nlb_ic *L;      /* the factor of the change of variables */
+  const nlb_ic *L;      /* the factor of the change of variables (IC(0)) */
+  const double *Ld;     /* or the exact one: n x n, column-major, lower (NULL: IC(0)) */
   const double *xs;     /* n the start x_start */
   double root;          /* x = x_start + root L^{-T} u */
   double f_scale;       /* root^2 */
@@ -92,6 +131,7 @@ typedef struct {
   double tgt[2];        /* constraint scales sigma_i (header comment) */
   double lam0[2];       /* multipliers folded into the objective (warm start) */
   int f_evals, g_evals; /* objective evaluations, with gradient */
+  int h_evals;          /* Hessians assembled for the factor */
   int outer;            /* objective calls without gradient (AUGLAG's own) */
   int domain_run;       /* consecutive domain errors */
   ves_status reason;    /* why the solve was forced to stop (VES_OK: not) */
@@ -102,7 +142,10 @@ typedef struct {
   int n, nnz;              /* sizes the arrays are for */
   double *x, *g, *J, *u, *xs, *hval; /* scratch, u, start, Hessian values */
   int *hi, *hj;            /* Hessian structure (lower triplets) */
-  nlb_ic L;                /* preconditioner */
+  nlb_ic L;                /* preconditioner: IC(0) on the Hessian pattern */
+  double *Ld;              /* or the exact Cholesky factor, n x n (NULL above NLB_DENSE_MAX) */
+  double shift;             /* the diagonal shift alpha of the last factorization */
+  int pass;                 /* 0: M was the Hessian of the Lagrangian; 1: K */
   nlb_ctx ctx;
 } nlb_state;
 
@@ -216,6 +259,36 @@ static void nlb_ic_ltsolve(const nlb_ic *L, double *v) {
   }
 }
 
+/* v = L^{-1} v with the factor in use: the exact one Ld when there is one,
+ * else IC(0). */
+static void nlb_lsolve(const nlb_ic *L, const double *Ld, double *v) {
+  if (Ld) cblas_dtrsv(CblasColMajor, CblasLower, CblasNoTrans, CblasNonUnit, L->n, Ld, L->n, v, 1);
+  else nlb_ic_lsolve(L, v);
+}
+
+/* v = L^{-T} v with the factor in use. */
+static void nlb_ltsolve(const nlb_ic *L, const double *Ld, double *v) {
+  if (Ld) cblas_dtrsv(CblasColMajor, CblasLower, CblasTrans, CblasNonUnit, L->n, Ld, L->n, v, 1);
+  else nlb_ic_ltsolve(L, v);
+}
+
+/* Ld Ld^T = (M + sum_i w_i grad c_i grad c_i^T)(1 + alpha on the diagonal),
+ * M given by its lower triplets (hi, hj, v), J[m x n] the constraint
+ * gradients (m = 0: none):
+ * the dense Cholesky factor (LAPACK dpotrf). 0 on success, -1 if M +
+ * alpha diag(M) is not positive definite. */
+static int nlb_dense_factor(double *Ld, int n, int nnz, const int *hi, const int *hj,
+                            const double *v, int m, const double *J, const double *w,
+                            double alpha) {
+  memset(Ld, 0, (size_t)n * (size_t)n * sizeof *Ld);
+  for (int k = 0; k < nnz; k++) Ld[hi[k] + (size_t)hj[k] * n] += v[k];
+  for (int i = 0; i < m; i++) /* + w_i grad c_i grad c_i^T, lower triangle */
+    if (w[i] != 0.0)
+      cblas_dsyr(CblasColMajor, CblasLower, n, w[i], J + (size_t)i * n, 1, Ld, n);
+  for (int i = 0; i < n; i++) Ld[i + (size_t)i * n] *= 1.0 + alpha;
+  return LAPACKE_dpotrf(LAPACK_COL_MAJOR, 'L', n, Ld, n) == 0 ? 0 : -1;
+}
+
 /* ---- callbacks ---------------------------------------------------------- */
 
 /* Stop the solve for reason st (kept in the context). */
@@ -227,7 +300,7 @@ static void nlb_stop(nlb_ctx *c, ves_status st) {
 /* c->x = x_start + root L^{-T} u */
 static void nlb_x_of_u(nlb_ctx *c, const double *u) {
   for (int i = 0; i < c->n; i++) c->x[i] = c->root * u[i];
-  nlb_ic_ltsolve(c->L, c->x);
+  nlb_ltsolve(c->L, c->Ld, c->x);
   for (int i = 0; i < c->n; i++) c->x[i] += c->xs[i];
 }
 
@@ -243,6 +316,12 @@ static double nlb_objective(unsigned n, const double *u, double *grad, void *dat
     if (st == VES_OK) st = ves_step_eval_grad(c->s, c->x, grad);
   } else {
     c->outer++;
+#ifdef NLB_TRACE
+    double cvt[2] = {0, 0};
+    if (st == VES_OK && c->m > 0) ves_step_eval_c(c->s, c->x, cvt);
+    fprintf(stderr, "nlopt outer %d: f %.15g  g_evals %d  c/sigma %.3e %.3e\n", c->outer, f,
+            c->g_evals, cvt[0] / c->tgt[0], c->m > 1 ? cvt[1] / c->tgt[1] : 0.0);
+#endif
   }
   if (st == VES_OK && c->m > 0 && (c->lam0[0] != 0.0 || c->lam0[1] != 0.0)) {
     /* f + lam0^T c (same minimizer on c = 0) */
@@ -268,7 +347,7 @@ static double nlb_objective(unsigned n, const double *u, double *grad, void *dat
   }
   c->domain_run = 0;
   if (grad) {
-    nlb_ic_lsolve(c->L, grad);
+    nlb_lsolve(c->L, c->Ld, grad);
     for (unsigned i = 0; i < n; i++) grad[i] /= c->root;
   }
   return f / c->f_scale;
@@ -290,7 +369,7 @@ static void nlb_constraints(unsigned m, double *r, unsigned n, const double *u, 
   for (unsigned i = 0; i < m; i++) {
     r[i] /= c->tgt[i];
     if (grad) {
-      nlb_ic_lsolve(c->L, grad + (size_t)i * n);
+      nlb_lsolve(c->L, c->Ld, grad + (size_t)i * n);
       for (unsigned j = 0; j < n; j++) grad[i * n + j] *= c->root / c->tgt[i];
     }
   }
@@ -300,7 +379,8 @@ static void nlb_constraints(unsigned m, double *r, unsigned n, const double *u, 
 
 static void nlb_free_arrays(nlb_state *st) {
   free(st->x), free(st->g), free(st->J), free(st->u), free(st->xs), free(st->hval);
-  free(st->hi), free(st->hj);
+  free(st->hi), free(st->hj), free(st->Ld);
+  st->Ld = NULL;
   st->x = st->g = st->J = st->u = st->xs = st->hval = NULL;
   st->hi = st->hj = NULL;
   nlb_ic_free(&st->L);
@@ -323,6 +403,15 @@ static ves_status nlb_alloc(nlb_state *st, ves_step *s) {
     return VES_ERR_ALLOC;
   }
   ves_step_hess_structure(s, st->hi, st->hj);
+#ifndef NLB_PRECOND_IC0 /* measurement: the IC(0) change of variables at every size */
+  if (n <= NLB_DENSE_MAX) {
+    st->Ld = malloc(N * N * sizeof(double));
+    if (!st->Ld) {
+      nlb_free_arrays(st);
+      return VES_ERR_ALLOC;
+    }
+  }
+#endif
   ves_status rc = nlb_ic_pattern(&st->L, n, nnz, st->hi, st->hj);
   if (rc != VES_OK) {
     nlb_free_arrays(st);
@@ -357,13 +446,35 @@ static ves_status nlb_create(const ves_backend_options *opt, ves_step *s, void *
 }
 
 /* Factor the preconditioner at x (header comment): M = Hessian of the
- * Lagrangian, or K if that has a non-positive diagonal entry. */
+ * Lagrangian, or K if that has a non-positive diagonal entry; the exact
+ * Cholesky factor when st->Ld is allocated, else IC(0). */
 static ves_status nlb_precondition(nlb_state *st, ves_step *s, const double *x,
-                                   const double *lambda) {
+                                   const double *lambda, int m, const double *J) {
   nlb_ic *L = &st->L;
   const double *K = ves_step_K(s);
   VES_CHECK(K != NULL, VES_ERR_ARG);
   VES_CALL(ves_step_eval_hess(s, x, 1.0, lambda, st->hval));
+  /* AUGLAG's penalty, rho/2 sum_i r_i^2 with rho = NLB_RHO0 and |grad_u r_i|
+   * = NLB_CSCALE, in x: w_i grad c_i grad c_i^T, w_i = rho NLB_CSCALE^2 /
+   * (grad c_i^T M^-1 grad c_i), the last estimated with diag(M). It makes
+   * the factored matrix the Hessian of the subproblem AUGLAG hands to
+   * L-BFGS, positive definite where the Lagrangian's is so on the tangent
+   * space only (large dt). A measurement, off by default: with the diagonal
+   * estimate of w_i it tripled the gradients (bench/RESULTS.md, issue 17). */
+  double w[2] = {0.0, 0.0};
+#ifdef NLB_PENALTY_PRE
+  for (int i = 0; i < m; i++) {
+    double q = 0.0;
+    for (int k = 0; k < st->nnz; k++)
+      if (st->hi[k] == st->hj[k] && st->hval[k] > 0.0) {
+        double gj = J[(size_t)i * st->n + st->hi[k]];
+        q += gj * gj / st->hval[k];
+      }
+    w[i] = q > 0.0 ? NLB_RHO0 * NLB_CSCALE * NLB_CSCALE / q : 0.0;
+  }
+#else
+  (void)J, (void)m;
+#endif
   for (int pass = 0; pass < 2; pass++) {
     const double *v = pass == 0 ? st->hval : K;
     memset(L->a, 0, (size_t)L->ptr[L->n] * sizeof(double));
@@ -376,15 +487,24 @@ static ves_status nlb_precondition(nlb_state *st, ves_step *s, const double *x,
 #endif
     if (!posdiag) continue;
     double alpha = 0.0;
-    for (int t = 0; t < NLB_IC_SHIFTS; t++, alpha = alpha == 0.0 ? 1e-3 : 10.0 * alpha)
-      if (nlb_ic_factor(L, alpha) == 0) return VES_OK;
+    for (int t = 0; t < NLB_IC_SHIFTS; t++, alpha = alpha == 0.0 ? 1e-3 : 10.0 * alpha) {
+      if (st->Ld ? nlb_dense_factor(st->Ld, st->n, st->nnz, st->hi, st->hj, v, m, J, w, alpha) == 0
+                 : nlb_ic_factor(L, alpha) == 0) {
+        st->shift = alpha, st->pass = pass;
+        return VES_OK;
+      }
+    }
   }
   return VES_ERR_SINGULAR;
 }
 
-/* Least-squares multipliers: (J J^T) lambda = -J g, m <= 2. */
-static void nlb_multipliers(int n, int m, const double *J, const double *g, double *lambda) {
-  double a[2][2] = {{0, 0}, {0, 0}}, b[2] = {0, 0};
+/* (J J^T) lambda = r - J g, m <= 2, r[m] (NULL: 0): with r = 0 the
+ * least-squares multipliers of grad f + J^T lambda = 0; with J and g in the
+ * variables of an exact factor of M (L^{-1} grad c_i, L^{-1} grad f) and r =
+ * c, those of the quadratic model's step [M J^T; J 0] (dx, lambda) = -(g, c). */
+static void nlb_multipliers(int n, int m, const double *J, const double *g, const double *r,
+                            double *lambda) {
+  double a[2][2] = {{0, 0}, {0, 0}}, b[2] = {r && m > 0 ? r[0] : 0, r && m > 1 ? r[1] : 0};
   for (int i = 0; i < m; i++) {
     for (int k = 0; k < m; k++)
       for (int j = 0; j < n; j++) a[i][k] += J[i * n + j] * J[k * n + j];
@@ -399,91 +519,122 @@ static void nlb_multipliers(int n, int m, const double *J, const double *g, doub
   }
 }
 
-static ves_status nlb_solve(void *state, ves_step *s, double *x, double *lambda,
-                            ves_backend_stats *stats) {
-  VES_CHECK(state && s && x, VES_ERR_ARG);
-  nlb_state *st = state;
-  double t0 = ves_wall_seconds();
-  ves_backend_stats zero = {0};
-  if (stats) *stats = zero;
-  VES_CALL(nlb_alloc(st, s));
-  int n = st->n, m = ves_step_ncon(s);
-  VES_CHECK(m >= 0 && m <= 2 && (m == 0 || lambda), VES_ERR_ARG);
-  const ves_step_params *par = ves_step_get_params(s);
-  VES_CHECK(par != NULL, VES_ERR_ARG);
-  nlb_ctx *c = &st->ctx;
-  *c = (nlb_ctx){.s = s, .n = n, .m = m, .L = &st->L, .xs = st->xs, .x = st->x, .g = st->g,
-                 .J = st->J, .reason = VES_OK};
-  double tgt[2] = {1.0, 1.0};
-  int k = 0;
-  if (par->hold_area) tgt[k++] = fabs(par->A0);
-  if (par->hold_volume) tgt[k++] = fabs(par->V_target);
-  VES_CHECK(k == m, VES_ERR_INTERNAL);
+/* Multipliers and violation at x: least-squares lambda of grad f + J^T
+ * lambda = 0, max |c_i| / target_i into *viol. */
+static ves_status nlb_finish(nlb_state *st, ves_step *s, const double *x, int m,
+                             const double *tgt, double *lambda, double *viol) {
+  double cv[2] = {0.0, 0.0};
+  ves_status e = m > 0 ? ves_step_eval_c(s, x, cv) : VES_OK;
+  if (e == VES_OK) e = ves_step_eval_grad(s, x, st->g);
+  if (e == VES_OK && m > 0) e = ves_step_eval_jac(s, x, st->J);
+  if (e != VES_OK) return e;
+  *viol = 0.0;
+  for (int i = 0; i < m; i++) *viol = fmax(*viol, fabs(cv[i]) / tgt[i]);
+  if (m > 0) nlb_multipliers(st->n, m, st->J, st->g, NULL, lambda);
+  return VES_OK;
+}
 
-  /* Start: its gradient and the preconditioner. */
-  double f0;
-  ves_status rc = ves_step_eval_f(s, x, &f0);
-  if (rc == VES_OK) rc = ves_step_eval_grad(s, x, st->g);
-  if (rc == VES_OK) rc = nlb_precondition(st, s, x, m > 0 ? lambda : NULL);
-  if (rc != VES_OK) {
-    if (stats) stats->f_evals = stats->g_evals = 1, stats->seconds = ves_wall_seconds() - t0;
-    return rc;
+/* One AUGLAG solve from x (in/out) to relative tolerances tol (gradient in
+ * the metric of the factor) and ctol (constraints), in the variables of the
+ * factor of the Hessian at x with multipliers lambda (in; out: least-squares
+ * ones at the result). *r: NLopt's verdict. */
+static ves_status nlb_phase(nlb_state *st, ves_step *s, double *x, double *lambda,
+                            const double *tgt, double tol, double ctol_rel, nlopt_result *r,
+                            double *viol) {
+  nlb_ctx *c = &st->ctx;
+  const int n = st->n, m = c->m;
+  *r = NLOPT_FAILURE;
+  *viol = HUGE_VAL;
+  c->domain_run = 0;
+  /* Start: its gradient and the preconditioner; with an exact factor and
+   * constraints, the multipliers of the quadratic model's step, and when they
+   * differ from the ones the Hessian was built with by more than
+   * NLB_LAMBDA_RTOL, once more with the Hessian at those. */
+  double lam_m[2] = {m > 0 ? lambda[0] : 0.0, m > 1 ? lambda[1] : 0.0};
+  double lam_qp[2] = {0.0, 0.0}, c0[2] = {0.0, 0.0};
+  int have_qp = 0;
+  ves_status rc = m > 0 ? ves_step_eval_c(s, x, c0) : VES_OK;
+  for (int pass = 0; pass < 2 && rc == VES_OK; pass++) {
+    rc = ves_step_eval_grad(s, x, st->g);
+    if (rc == VES_OK && m > 0) rc = ves_step_eval_jac(s, x, st->J);
+    if (rc == VES_OK) rc = nlb_precondition(st, s, x, m > 0 ? lam_m : NULL, m, st->J);
+    if (rc != VES_OK) break;
+    c->g_evals++, c->h_evals++;
+    nlb_lsolve(&st->L, st->Ld, st->g); /* the gradient in u at root = 1 */
+    for (int i = 0; i < m; i++) nlb_lsolve(&st->L, st->Ld, st->J + (size_t)i * n);
+    have_qp = m > 0 && st->Ld != NULL; /* an estimate, also from a shifted factor */
+    if (!have_qp) break;
+    nlb_multipliers(n, m, st->J, st->g, c0, lam_qp);
+    double dl = 0.0, lm = 0.0;
+    for (int i = 0; i < m; i++)
+      dl = fmax(dl, fabs(lam_qp[i] - lam_m[i])), lm = fmax(lm, fabs(lam_qp[i]));
+    if (dl <= NLB_LAMBDA_RTOL * lm) break;
+    lam_m[0] = lam_qp[0], lam_m[1] = lam_qp[1];
   }
+  if (rc != VES_OK) return rc;
+#ifdef NLB_TRACE
+  fprintf(stderr, "nlopt start: tol %g lambda in %.6e %.6e  qp %.6e %.6e (have %d, pass %d, shift %g)\n",
+          tol, m > 0 ? lambda[0] : 0.0, m > 1 ? lambda[1] : 0.0, lam_qp[0], lam_qp[1], have_qp,
+          st->pass, st->shift);
+#endif
   memcpy(st->xs, x, (size_t)n * sizeof(double));
-  nlb_ic_lsolve(&st->L, st->g); /* the gradient in u at root = 1 */
   double gmax = 0.0;
   for (int i = 0; i < n; i++) gmax = fmax(gmax, fabs(st->g[i]));
-  c->root = gmax > 0.0 ? st->opt.tol * gmax / LBFGS_GTOL : 1.0;
+  c->root = gmax > 0.0 ? tol * gmax / LBFGS_GTOL : 1.0;
   c->f_scale = c->root * c->root;
-  /* Constraint scales: |grad_u r_i| = 1 at the start, so AUGLAG's penalty
-   * rho |r|^2 / 2 (rho starts at 10) is on the scale of F's unit Hessian;
-   * the tolerance of r_i is ctol target_i / sigma_i (relative ctol on c_i). */
-  double ctol[2] = {st->opt.ctol, st->opt.ctol};
-  if (m > 0) {
-    rc = ves_step_eval_jac(s, x, st->J);
-    if (rc != VES_OK) return rc;
-  }
+  /* Constraint scales: |grad_u r_i| = NLB_CSCALE at the start, so AUGLAG's
+   * penalty rho |r|^2 / 2 (rho starts at 10) is NLB_CSCALE^2 rho times F's
+   * unit Hessian in those directions; the tolerance of r_i is ctol
+   * target_i / sigma_i (relative ctol on c_i). */
+  double ctol[2] = {ctol_rel, ctol_rel};
   for (int i = 0; i < m; i++) {
     double *Ji = st->J + (size_t)i * n, nrm = 0.0;
-    nlb_ic_lsolve(&st->L, Ji);
     for (int j = 0; j < n; j++) nrm += Ji[j] * Ji[j];
-    c->tgt[i] = nrm > 0.0 ? c->root * sqrt(nrm) : tgt[i];
-    ctol[i] = st->opt.ctol * tgt[i] / c->tgt[i];
+    c->tgt[i] = nrm > 0.0 ? c->root * sqrt(nrm) / NLB_CSCALE : tgt[i];
+    ctol[i] = ctol_rel * tgt[i] / c->tgt[i];
+#ifdef NLB_LAMBDA_IN /* measurement: the multipliers handed in */
     c->lam0[i] = lambda[i];
+#else
+    c->lam0[i] = have_qp ? lam_qp[i] : lambda[i];
+#endif
   }
   memset(st->u, 0, (size_t)n * sizeof(double)); /* u = 0 is x_start */
 
   nlopt_opt opt = nlopt_create(NLOPT_AUGLAG, (unsigned)n);
-  nlopt_opt local = nlopt_create(NLOPT_LD_LBFGS, (unsigned)n);
-  nlopt_result r = NLOPT_FAILURE;
+  nlopt_opt local = nlopt_create(NLB_INNER, (unsigned)n);
   ves_status out = VES_ERR_SOLVER;
   double F = 0.0;
   int maxeval = st->opt.max_iter > INT_MAX / NLB_EVALS_PER_ITER
                     ? INT_MAX
                     : NLB_EVALS_PER_ITER * st->opt.max_iter;
+  maxeval = maxeval > c->f_evals ? maxeval - c->f_evals : 1;
   if (!opt || !local) {
     out = VES_ERR_ALLOC;
     goto done;
   }
   c->opt = opt;
-  if (nlopt_set_ftol_rel(local, 0.0) < 0 || nlopt_set_xtol_rel(local, st->opt.tol) < 0 ||
+  if (nlopt_set_ftol_rel(local, 0.0) < 0 || nlopt_set_xtol_rel(local, tol) < 0 ||
       nlopt_set_local_optimizer(opt, local) < 0 ||
       nlopt_set_min_objective(opt, nlb_objective, c) < 0 || nlopt_set_ftol_rel(opt, 0.0) < 0 ||
-      nlopt_set_xtol_rel(opt, sqrt(st->opt.tol)) < 0 || nlopt_set_maxeval(opt, maxeval) < 0)
+      nlopt_set_xtol_rel(opt, sqrt(tol)) < 0 || nlopt_set_maxeval(opt, maxeval) < 0)
     goto done;
   /* NLopt may accept an algorithm and reject its constraints (LD_MMA with
    * equalities, then optimizing unconstrained): check the return. */
   if (m > 0 && nlopt_add_equality_mconstraint(opt, (unsigned)m, nlb_constraints, c, ctol) < 0)
     goto done;
 
-  r = nlopt_optimize(opt, st->u, &F);
+#ifndef NLB_NO_EAGER
+  ves_step_eager_gradients(s, 1); /* every point NLopt evaluates gets its gradient */
+#endif
+  *r = nlopt_optimize(opt, st->u, &F);
+  ves_step_eager_gradients(s, 0);
   nlb_x_of_u(c, st->u);
   memcpy(x, c->x, (size_t)n * sizeof(double));
   if (c->reason != VES_OK) {
     out = c->reason;
     goto done;
   }
-  switch (r) {
+  switch (*r) {
   case NLOPT_SUCCESS:
   case NLOPT_STOPVAL_REACHED:
   case NLOPT_FTOL_REACHED:
@@ -503,32 +654,65 @@ static ves_status nlb_solve(void *state, ves_step *s, double *x, double *lambda,
     out = VES_ERR_SOLVER;
     break;
   }
-
-done:;
-  double viol = HUGE_VAL;
+done:
   if (out == VES_OK || out == VES_MAXITER) {
     /* AUGLAG's verdict is not enough: check feasibility here, and return
      * least-squares multipliers. */
-    double cv[2] = {0.0, 0.0};
-    ves_status e = m > 0 ? ves_step_eval_c(s, x, cv) : VES_OK;
-    if (e == VES_OK) e = ves_step_eval_grad(s, x, st->g);
-    if (e == VES_OK && m > 0) e = ves_step_eval_jac(s, x, st->J);
-    if (e != VES_OK) {
-      out = e;
-    } else {
-      viol = 0.0;
-      for (int i = 0; i < m; i++) viol = fmax(viol, fabs(cv[i]) / tgt[i]);
-      if (m > 0) nlb_multipliers(n, m, st->J, st->g, lambda);
-      if (out == VES_OK && !(viol <= st->opt.ctol)) out = VES_ERR_NOCONV;
-    }
+    ves_status e = nlb_finish(st, s, x, m, tgt, lambda, viol);
+    if (e != VES_OK) out = e;
+    else if (out == VES_OK && !(*viol <= ctol_rel)) out = VES_ERR_NOCONV;
   }
+#ifdef NLB_TRACE
+  fprintf(stderr, "nlopt end: %s lambda %.6e %.6e viol %.3e\n", ves_status_str(out),
+          m > 0 ? lambda[0] : 0.0, m > 1 ? lambda[1] : 0.0, *viol);
+#endif
   nlopt_destroy(local);
   nlopt_destroy(opt);
+  return out;
+}
+
+static ves_status nlb_solve(void *state, ves_step *s, double *x, double *lambda,
+                            ves_backend_stats *stats) {
+  VES_CHECK(state && s && x, VES_ERR_ARG);
+  nlb_state *st = state;
+  double t0 = ves_wall_seconds();
+  ves_backend_stats zero = {0};
+  if (stats) *stats = zero;
+  VES_CALL(nlb_alloc(st, s));
+  int n = st->n, m = ves_step_ncon(s);
+  VES_CHECK(m >= 0 && m <= 2 && (m == 0 || lambda), VES_ERR_ARG);
+  const ves_step_params *par = ves_step_get_params(s);
+  VES_CHECK(par != NULL, VES_ERR_ARG);
+  nlb_ctx *c = &st->ctx;
+  *c = (nlb_ctx){.s = s, .n = n, .m = m, .L = &st->L, .Ld = st->Ld, .xs = st->xs, .x = st->x,
+                 .g = st->g, .J = st->J, .reason = VES_OK};
+  double tgt[2] = {1.0, 1.0};
+  int k = 0;
+  if (par->hold_area) tgt[k++] = fabs(par->A0);
+  if (par->hold_volume) tgt[k++] = fabs(par->V_target);
+  VES_CHECK(k == m, VES_ERR_INTERNAL);
+
+  /* A first phase to the loose tolerance NLB_TOL1 (in the metric of the
+   * Hessian at the start), then the final one in the metric of the Hessian
+   * where the first ended (header comment). */
+  double f0;
+  ves_status out = ves_step_eval_f(s, x, &f0);
+  nlopt_result r = NLOPT_FAILURE;
+  double viol = HUGE_VAL, lam[2] = {m > 0 ? lambda[0] : 0.0, m > 1 ? lambda[1] : 0.0};
+  int phases = st->Ld && NLB_TOL1 > st->opt.tol ? 2 : 1;
+  for (int ph = 0; ph < phases && out == VES_OK; ph++) {
+    const int last = ph == phases - 1;
+    out = nlb_phase(st, s, x, lam, tgt, last ? st->opt.tol : NLB_TOL1,
+                    last ? st->opt.ctol : NLB_CTOL1, &r, &viol);
+    if (!last && (out == VES_ERR_NOCONV || out == VES_MAXITER)) out = VES_OK; /* go on */
+  }
+  if (out == VES_OK || out == VES_MAXITER)
+    for (int i = 0; i < m; i++) lambda[i] = lam[i];
   if (stats) {
-    stats->iterations = c->outer > 0 ? c->outer - (m > 0) : 0;
+    stats->iterations = c->outer > phases * (m > 0) ? c->outer - phases * (m > 0) : 0;
     stats->f_evals = c->f_evals + 1;
-    stats->g_evals = c->g_evals + 1;
-    stats->h_evals = 1;
+    stats->g_evals = c->g_evals;
+    stats->h_evals = c->h_evals;
     stats->violation = viol;
     stats->seconds = ves_wall_seconds() - t0;
     stats->solver_status = (int)r;
