@@ -818,6 +818,12 @@ static int run_new(run_ctx *r, const char *path, const char *out, const char *ba
   }
   double E0, A0, V0;
   ves_sim_initial(r->sim, &E0, &A0, &V0);
+  int ncell = 0, *cells = NULL; /* the Delaunay triangles (a rich rule repeats them) */
+  if (ves_quad_cells(r->setup->quad, &ncell, &cells) != VES_OK) {
+    free(problem);
+    fprintf(stderr, "vesica run: out of memory\n");
+    return 3;
+  }
   ves_io_header h = {.version = VES_VERSION,
                      .backend = r->bk->name,
                      .problem = problem,
@@ -825,14 +831,14 @@ static int run_new(run_ctx *r, const char *path, const char *out, const char *ba
                      .cfg = &r->cfg,
                      .n = r->setup->nodes->n,
                      .X = r->setup->nodes->x,
-                     .ntri = r->setup->quad->ntri,
-                     .tri = r->setup->quad->tri,
+                     .ntri = ncell,
+                     .tri = cells,
                      .E0 = E0,
                      .A0 = A0,
                      .V0 = V0,
                      .setup_seconds = r->setup->seconds_total};
   ves_status st = ves_io_create(r->out, &h, &r->io, err, sizeof err);
-  free(problem);
+  free(problem), free(cells);
   if (st != VES_OK) { /* not created: nothing of ours to remove */
     fprintf(stderr, "vesica run: %s\n", err);
     return 2;
@@ -891,9 +897,10 @@ static int rebuild_at(run_ctx *r, const char *pre, int S, ves_io_snapinfo *si) {
   if (rc) return rc;
   /* the setup is deterministic: the rebuilt nodes must be the file's, bit for bit */
   int n = r->setup->nodes->n;
-  if (n != in->n || r->setup->quad->ntri != in->ntri) {
+  const int ncell = r->setup->quad->ntri / (r->setup->quad->sub > 1 ? r->setup->quad->sub : 1);
+  if (n != in->n || ncell != in->ntri) {
     fprintf(stderr, "%s: the rebuilt setup has %d nodes, %d triangles; the file %d, %d\n", pre, n,
-            r->setup->quad->ntri, in->n, in->ntri);
+            ncell, in->n, in->ntri);
     return 2;
   }
   double *X = malloc(2 * (size_t)n * sizeof *X);

@@ -38,7 +38,14 @@
  * coefficients drift from the material by up to 1e6 h over long runs. A
  * constant S (drift_build) added to K penalizes the rate of y^a - y(X_a):
  * zero on affine motions, O((h/L)^2) of K on smooth ones. Measured effect
- * in bench/RESULTS.md, "Drift damping". */
+ * in bench/RESULTS.md, "Drift damping".
+ *
+ * Coefficient-mode stabilization (ves_model_params.stab, off by default):
+ * the same defect in E instead of K, E_s = (1/2) sum_a c_a |y^a - y(X_a)|^2
+ * (stab_build, stab_eval), zero on affine maps (so at the reference), O(h^2)
+ * on smooth motions, and of the size of the coefficients on the grid-scale
+ * patterns along which the discrete E has negative curvature: it turns the
+ * relaxed sphere from a saddle into a minimum (bench/RESULTS.md, issue 22). */
 #include "ves/model.h"
 
 #include <assert.h>
@@ -117,6 +124,15 @@ struct ves_model {
    * (drift_build). */
   ves_quad *qn; /* n points at the nodes (ves_quad_create_at_nodes) */
   double *dblk; /* 4 ptr[n] block values of S in the pattern */
+  /* Coefficient-mode stabilization of E (par.stab > 0, else NULL; stab_build):
+   * E_s = (1/2) sum_a c_a |y^a - y(X_a)|^2 from the defect rows
+   * d_a = sum_j (sdr_j y_r, sdz_j y_z)(snb_j), j in [sptr[a], sptr[a+1]). */
+  int *sptr;    /* n + 1 offsets (wall nodes: empty rows) */
+  int *snb;     /* sptr[n] nodes of the rows */
+  double *sdr;  /* sptr[n] weights of y_r (ghosts folded with -1) */
+  double *sdz;  /* sptr[n] weights of y_z */
+  double *sc;   /* n: c_a = stab k 2 pi M_a / h_a^2 (0 on the wall) */
+  double *sblk; /* 4 ptr[n] block values of Hess E_s (constant) */
 };
 
 const ves_pattern *ves_model_pattern(const ves_model *m) { return m->pat; }
@@ -171,6 +187,7 @@ void ves_model_destroy(ves_model **m) {
   free(p->ev);
   ves_quad_destroy(&p->qn);
   free(p->dblk);
+  free(p->sptr), free(p->snb), free(p->sdr), free(p->sdz), free(p->sc), free(p->sblk);
   free(p);
   *m = NULL;
 }
@@ -373,6 +390,48 @@ done:
   return s;
 }
 
+/* M_a = sum_alpha w_alpha R_alpha P_a(X_alpha) into M[n] (zeroed here). */
+static void node_measure(const ves_quad *q, int n, double *M) {
+  memset(M, 0, (size_t)n * sizeof *M);
+  for (int al = 0; al < q->nq; al++) /* M_a = sum w R P_a */
+    for (int k = q->ptr[al]; k < q->ptr[al + 1]; k++)
+      M[q->nbr[k]] +=
+          q->w[al] * q->x[2 * (size_t)al] * q->tab[6 * (size_t)q->ptr[al] + (k - q->ptr[al])];
+}
+
+/* Node a's defect row: y^a - y(X_a) = sum_j (dr_j y_r, dz_j y_z)(nb_j) over
+ * the returned count of distinct nodes (ghosts folded). */
+static int defect_row(const ves_quad *qn, int a, int *nb, double *dr, double *dz) {
+  const int k0 = qn->ptr[a], mk = qn->ptr[a + 1] - k0;
+  const double *p = qn->tab + 6 * (size_t)k0; /* value row */
+  int cnt = 0;
+  for (int k = 0; k < mk; k++) { /* fold: d_b = delta_ab - sum of the entries of b */
+    int b = qn->nbr[k0 + k], j = 0;
+    while (j < cnt && nb[j] != b) j++;
+    if (j == cnt) nb[cnt] = b, dr[cnt] = dz[cnt] = 0, cnt++;
+    dr[j] -= qn->mirror[k0 + k] ? -p[k] : p[k];
+    dz[j] -= p[k];
+  }
+  int j = 0;
+  while (j < cnt && nb[j] != a) j++;
+  if (j == cnt) nb[cnt] = a, dr[cnt] = dz[cnt] = 0, cnt++;
+  dr[j] += 1, dz[j] += 1;
+  return cnt;
+}
+
+/* blk += c (dr dr^T (rr), dz dz^T (zz)) on the pattern. */
+static void defect_blocks(const ves_pattern *pat, int cnt, const int *nb, const double *dr,
+                          const double *dz, double c, double *blk) {
+  for (int i = 0; i < cnt; i++)
+    for (int k = 0; k < cnt; k++) {
+      if (nb[k] > nb[i]) continue;
+      long t = ves_pattern_find(pat, nb[i], nb[k]);
+      assert(t >= 0); /* the pattern holds the couplings of the points at the nodes */
+      blk[4 * t] += c * dr[i] * dr[k];
+      blk[4 * t + 3] += c * dz[i] * dz[k];
+    }
+}
+
 /* The drift-damping matrix S (model.h, ves_model_params.drift):
  *   u^T S u = sum_a c_a |u^a - u(X_a)|^2,  c_a = drift mu 2 pi M_a / h_a^2,
  *   M_a = sum_alpha w_alpha R_alpha P_a(X_alpha)  (P_a: p_a plus its ghost's),
@@ -394,42 +453,66 @@ static ves_status drift_build(ves_model *m) {
   m->dblk = calloc(4 * (size_t)pat->ptr[n] + 1, sizeof *m->dblk);
   ves_status s = VES_ERR_ALLOC;
   if (!M || !nb || !dr || !dz || !m->dblk) goto done;
-  for (int al = 0; al < q->nq; al++) /* M_a = sum w R P_a */
-    for (int k = q->ptr[al]; k < q->ptr[al + 1]; k++)
-      M[q->nbr[k]] +=
-          q->w[al] * q->x[2 * (size_t)al] * q->tab[6 * (size_t)q->ptr[al] + (k - q->ptr[al])];
+  node_measure(q, n, M);
   for (int a = 0; a < n; a++) {
     if (m->nodes->flag[a] & VES_NODE_WALL) /* fixed, u = 0 there; and its point sits */
       continue;                            /* off the hull, so no exact reproduction */
-    const int k0 = qn->ptr[a], mk = qn->ptr[a + 1] - k0;
-    const double *p = qn->tab + 6 * (size_t)k0; /* value row */
-    int cnt = 0;
-    for (int k = 0; k < mk; k++) { /* fold: d_b = delta_ab - sum of the entries of b */
-      int b = qn->nbr[k0 + k], j = 0;
-      while (j < cnt && nb[j] != b) j++;
-      if (j == cnt) nb[cnt] = b, dr[cnt] = dz[cnt] = 0, cnt++;
-      dr[j] -= qn->mirror[k0 + k] ? -p[k] : p[k];
-      dz[j] -= p[k];
-    }
-    int j = 0;
-    while (j < cnt && nb[j] != a) j++;
-    if (j == cnt) nb[cnt] = a, dr[cnt] = dz[cnt] = 0, cnt++;
-    dr[j] += 1, dz[j] += 1;
+    const int cnt = defect_row(qn, a, nb, dr, dz);
     const double h = m->nodes->h[a];
     const double c = m->par.drift * m->par.mu * 2 * M_PI * M[a] / (h * h);
-    for (int i = 0; i < cnt; i++)
-      for (int k = 0; k < cnt; k++) {
-        if (nb[k] > nb[i]) continue;
-        long t = ves_pattern_find(pat, nb[i], nb[k]);
-        assert(t >= 0); /* the pattern holds the couplings of the points at the nodes */
-        m->dblk[4 * t] += c * dr[i] * dr[k];
-        m->dblk[4 * t + 3] += c * dz[i] * dz[k];
-      }
+    defect_blocks(pat, cnt, nb, dr, dz, c, m->dblk);
   }
   s = VES_OK;
 done:
   free(M), free(nb), free(dr), free(dz);
   return s;
+}
+
+/* The stabilization of E (model.h, ves_model_params.stab): the defect rows
+ * of the nodes off the wall, c_a = stab k 2 pi M_a / h_a^2, and the constant
+ * Hessian sum_a c_a d_a d_a^T (per component) in the pattern. */
+static ves_status stab_build(ves_model *m) {
+  const ves_quad *qn = m->qn;
+  const int n = m->nodes->n;
+  const size_t cap = (size_t)qn->ptr[n] + n + 1; /* a row: its list, and a itself */
+  m->sptr = malloc(((size_t)n + 1) * sizeof *m->sptr);
+  m->snb = malloc(cap * sizeof *m->snb);
+  m->sdr = malloc(cap * sizeof *m->sdr);
+  m->sdz = malloc(cap * sizeof *m->sdz);
+  m->sc = calloc((size_t)n, sizeof *m->sc);
+  m->sblk = calloc(4 * (size_t)m->pat->ptr[n] + 1, sizeof *m->sblk);
+  if (!m->sptr || !m->snb || !m->sdr || !m->sdz || !m->sc || !m->sblk) return VES_ERR_ALLOC;
+  node_measure(m->q, n, m->sc);
+  m->sptr[0] = 0;
+  for (int a = 0; a < n; a++) {
+    const int k0 = m->sptr[a];
+    if (m->nodes->flag[a] & VES_NODE_WALL) { /* fixed: no term (as the drift damping) */
+      m->sc[a] = 0, m->sptr[a + 1] = k0;
+      continue;
+    }
+    const int cnt = defect_row(qn, a, m->snb + k0, m->sdr + k0, m->sdz + k0);
+    const double h = m->nodes->h[a];
+    m->sc[a] = m->par.stab * m->par.k * 2 * M_PI * m->sc[a] / (h * h);
+    defect_blocks(m->pat, cnt, m->snb + k0, m->sdr + k0, m->sdz + k0, m->sc[a], m->sblk);
+    m->sptr[a + 1] = k0 + cnt;
+  }
+  return VES_OK;
+}
+
+/* E_s = (1/2) sum_a c_a |d_a|^2 and (g != NULL) g += grad E_s. */
+static long double stab_eval(const ves_model *m, const double *y, double *g) {
+  long double E = 0;
+  for (int a = 0; a < m->nodes->n; a++) {
+    double d[2] = {0, 0};
+    for (int j = m->sptr[a]; j < m->sptr[a + 1]; j++)
+      d[0] += m->sdr[j] * y[2 * m->snb[j]], d[1] += m->sdz[j] * y[2 * m->snb[j] + 1];
+    E += 0.5 * m->sc[a] * (d[0] * d[0] + d[1] * d[1]);
+    if (g)
+      for (int j = m->sptr[a]; j < m->sptr[a + 1]; j++)
+        g[2 * m->snb[j]] += m->sc[a] * d[0] * m->sdr[j],
+            g[2 * m->snb[j] + 1] += m->sc[a] * d[1] * m->sdz[j];
+  }
+  return E;
 }
 
 /* The model from checked arguments and point data pd[6 nq] (copied): the
@@ -472,14 +555,15 @@ static ves_status model_build(const ves_nodes *nodes, const ves_quad *q, const d
   if ((s = make_slabs(m)) != VES_OK || (s = order_triangles(m)) != VES_OK) goto fail;
   for (int k = 0; k < m->nthr; k++)
     if ((s = ws_alloc_products(m->ws + k, m->numax)) != VES_OK) goto fail;
-  if (par->drift > 0) { /* the points at the nodes, on the same LME parameters */
+  if (par->drift > 0 || par->stab > 0) { /* the points at the nodes, same LME parameters */
     if ((s = ves_quad_create_at_nodes(nodes, &m->qn)) != VES_OK ||
         (s = ves_quad_tables(m->qn, nodes, &q->lme, NULL)) != VES_OK)
       goto fail;
   }
   s = ves_pattern_create(q, m->qn, n, m->fixed, &m->pat);
   if (s != VES_OK) goto fail;
-  if (m->qn && (s = drift_build(m)) != VES_OK) goto fail;
+  if (par->drift > 0 && (s = drift_build(m)) != VES_OK) goto fail;
+  if (par->stab > 0 && (s = stab_build(m)) != VES_OK) goto fail;
   *out = m;
   return VES_OK;
 fail:
@@ -494,6 +578,7 @@ ves_status ves_model_create_points(const ves_nodes *nodes, const ves_quad *q, co
   VES_CHECK(nodes && q && q->tab && pd && par, VES_ERR_ARG);
   VES_CHECK(par->eps > 0 && par->k > 0 && par->mu >= 0 && par->drift >= 0 && isfinite(par->drift),
             VES_ERR_ARG);
+  VES_CHECK(par->stab >= 0 && isfinite(par->stab), VES_ERR_ARG);
   VES_CHECK(q->nq == NPT * q->ntri, VES_ERR_ARG);
   for (size_t i = 0; i < 6 * (size_t)q->nq; i++) VES_CHECK(isfinite(pd[i]), VES_ERR_ARG);
   return model_build(nodes, q, pd, par, out);
@@ -508,6 +593,7 @@ ves_status ves_model_create(const ves_nodes *nodes, const ves_quad *q, const dou
   VES_CHECK(nodes && q && q->tab && phi0c && par, VES_ERR_ARG);
   VES_CHECK(par->eps > 0 && par->k > 0 && par->mu >= 0 && par->drift >= 0 && isfinite(par->drift),
             VES_ERR_ARG);
+  VES_CHECK(par->stab >= 0 && isfinite(par->stab), VES_ERR_ARG);
   VES_CHECK(q->nq == NPT * q->ntri, VES_ERR_ARG);
   double *fld = malloc(6 * (size_t)q->nq * sizeof *fld);
   if (!fld) return VES_ERR_ALLOC;
@@ -844,7 +930,9 @@ ves_status ves_model_eval(ves_model *m, const double *y, int which, double *E, d
   for (int al = 0; al < m->q->nq; al++)
     for (int i = 0; i < 3; i++)
       if (which & (1 << i)) s[i] += m->ev[3 * (size_t)al + i];
-  if ((which & VES_F_E) && E) *E = (double)(fE * s[0]);
+  long double Es = 0; /* the stabilization, E_s and its gradient */
+  if ((which & VES_F_E) && m->sc) Es = stab_eval(m, y, g[0]);
+  if ((which & VES_F_E) && E) *E = m->sc ? (double)(fE * s[0] + Es) : (double)(fE * s[0]);
   if ((which & VES_F_A) && A) *A = (double)(fA * s[1]);
   if ((which & VES_F_V) && V) *V = (double)(fV * s[2]);
   return VES_OK;
@@ -855,7 +943,10 @@ ves_status ves_model_hessian(ves_model *m, const double *y, double cE, double cA
   VES_CHECK(m && y && blk, VES_ERR_ARG);
   const double fac[3] = {2 * M_PI * 3 * m->par.k / (16 * M_SQRT2 * m->par.eps) * cE,
                          2 * M_PI * 3 / (2 * M_SQRT2) * cA, 2 * M_PI * cV};
-  return assemble(m, ASM_HESS, fac, y, blk);
+  VES_CALL(assemble(m, ASM_HESS, fac, y, blk));
+  if (m->sblk && cE != 0) /* + cE Hess E_s, constant */
+    for (size_t i = 0; i < 4 * (size_t)m->pat->ptr[m->nodes->n]; i++) blk[i] += cE * m->sblk[i];
+  return VES_OK;
 }
 
 ves_status ves_model_dissipation(ves_model *m, const double *y, double *blk) {

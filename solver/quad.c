@@ -12,6 +12,7 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 #include <time.h>
 #include "clock_impl.h"
 #include "omp_impl.h"
@@ -30,6 +31,95 @@ void ves_quad_rule(double bary[3 * VES_QUAD_NPT], double w[VES_QUAD_NPT]) {
       b[k] = 1.0 - 2.0 * a[o];
       w[3 * o + k] = wt[o];
     }
+}
+
+/* Dunavant's degree-6 rule (12 points): orbits (1-2a, a, a) of a = D6A1, D6A2
+ * and the six permutations of (D6B, D6C, 1 - D6B - D6C); Dunavant's 15-digit
+ * values refined to double by Gauss-Newton on the 28 moment equations of
+ * degree <= 6 (residual 6e-17; tests/test_quad.c checks the moments). */
+#define D6A1 0.0630890144915062
+#define D6W1 0.05084490637021254
+#define D6A2 0.24928674517089058
+#define D6W2 0.11678627572641141
+#define D6B 0.053145049844803775
+#define D6C 0.3103524510337995
+#define D6W3 0.08285107561835468
+
+static void rule_d6(double bary[36], double w[12]) {
+  const double a[2] = {D6A1, D6A2}, wt[2] = {D6W1, D6W2};
+  for (int o = 0; o < 2; o++)
+    for (int k = 0; k < 3; k++) {
+      double *b = bary + 3 * (3 * o + k);
+      b[0] = b[1] = b[2] = a[o];
+      b[k] = 1.0 - 2.0 * a[o];
+      w[3 * o + k] = wt[o];
+    }
+  const double v[3] = {D6B, D6C, 1.0 - D6B - D6C};
+  static const int perm[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
+  for (int k = 0; k < 6; k++) {
+    for (int j = 0; j < 3; j++) bary[3 * (6 + k) + j] = v[perm[k][j]];
+    w[6 + k] = D6W3;
+  }
+}
+
+ves_status ves_quad_rule_parse(const char *s, ves_quad_rulespec *out) {
+  VES_CHECK(s && out, VES_ERR_ARG);
+  static const struct {
+    const char *name;
+    int degree, split;
+  } R[] = {{"d4", 4, 1},   {"d6", 6, 1},    {"d4x4", 4, 2},
+           {"d6x4", 6, 2}, {"d4x16", 4, 4}, {"d6x16", 6, 4}};
+  for (size_t i = 0; i < sizeof R / sizeof *R; i++)
+    if (!strcasecmp(s, R[i].name)) {
+      out->degree = R[i].degree, out->split = R[i].split;
+      return VES_OK;
+    }
+  return VES_ERR_ARG;
+}
+
+int ves_quad_rule_npt(ves_quad_rulespec r) {
+  if ((r.degree != 4 && r.degree != 6) || (r.split != 1 && r.split != 2 && r.split != 4)) return 0;
+  return (r.degree == 4 ? 6 : 12) * r.split * r.split;
+}
+
+/* The base rule on each sub-triangle of the uniform split: the sub-triangles
+ * with corners (i, j), (i+1, j), (i, j+1) ("up") and (i+1, j), (i+1, j+1),
+ * (i, j+1) ("down") in units 1/split of the barycentric coordinates
+ * (lambda_1, lambda_2), each of area 1/split^2; a sub-triangle's points are
+ * consecutive. */
+ves_status ves_quad_rule_composite(ves_quad_rulespec r, double bary[3 * VES_QUAD_NPT_MAX],
+                                   double w[VES_QUAD_NPT_MAX]) {
+  const int npt = ves_quad_rule_npt(r);
+  VES_CHECK(npt > 0 && bary && w, VES_ERR_ARG);
+  double bb[36], wb[12];
+  int nb = r.degree == 4 ? 6 : 12;
+  if (r.degree == 4)
+    ves_quad_rule(bb, wb);
+  else
+    rule_d6(bb, wb);
+  if (r.split == 1) { /* the base rule itself, bit for bit */
+    memcpy(bary, bb, 3 * (size_t)nb * sizeof *bary);
+    memcpy(w, wb, (size_t)nb * sizeof *w);
+    return VES_OK;
+  }
+  const int S = r.split;
+  const double h = 1.0 / S, ws = 1.0 / (S * S);
+  int k = 0;
+  for (int i = 0; i < S; i++)
+    for (int j = 0; i + j < S; j++)
+      for (int up = 1; up >= 0 && (up || i + j + 1 < S); up--) {
+        /* corners in (lambda_1, lambda_2) */
+        const double c[3][2] = {
+            {(i + !up) * h, (j + 0) * h}, {(i + 1) * h, (j + !up) * h}, {(i + 0) * h, (j + 1) * h}};
+        for (int p = 0; p < nb; p++, k++) {
+          const double *b = bb + 3 * p;
+          const double l1 = b[0] * c[0][0] + b[1] * c[1][0] + b[2] * c[2][0],
+                       l2 = b[0] * c[0][1] + b[1] * c[1][1] + b[2] * c[2][1];
+          bary[3 * k] = 1.0 - l1 - l2, bary[3 * k + 1] = l1, bary[3 * k + 2] = l2;
+          w[k] = wb[p] * ws;
+        }
+      }
+  return k == npt ? VES_OK : VES_ERR_INTERNAL;
 }
 
 static void tables_free(ves_quad *q) {
@@ -54,43 +144,71 @@ void ves_quad_destroy(ves_quad **q) {
 
 /* Points X = sum_j bary_j V_j and weights w_k |T| on every triangle T. */
 ves_status ves_quad_create(const ves_nodes *nodes, ves_quad **out) {
+  const ves_quad_rulespec r = {4, 1};
+  return ves_quad_create_rule(nodes, r, out);
+}
+
+ves_status ves_quad_create_rule(const ves_nodes *nodes, ves_quad_rulespec r, ves_quad **out) {
   VES_CHECK(nodes && out && nodes->n >= 3, VES_ERR_ARG);
   *out = NULL;
+  const int npt = ves_quad_rule_npt(r);
+  VES_CHECK(npt > 0 && npt % VES_QUAD_NPT == 0, VES_ERR_ARG);
+  double *bary = malloc(3 * (size_t)npt * sizeof *bary), *wr = malloc((size_t)npt * sizeof *wr);
   ves_quad *q = calloc(1, sizeof *q);
-  if (!q) return VES_ERR_ALLOC;
-  ves_status s = ves_geom_delaunay(nodes->n, nodes->x, &q->ntri, &q->tri);
-  if (s != VES_OK) goto fail;
-  q->nq = VES_QUAD_NPT * q->ntri;
+  ves_status s = VES_ERR_ALLOC;
+  int ncell = 0, *cell = NULL;
+  if (!q || !bary || !wr) goto fail;
+  if ((s = ves_quad_rule_composite(r, bary, wr)) != VES_OK) goto fail;
+  if ((s = ves_geom_delaunay(nodes->n, nodes->x, &ncell, &cell)) != VES_OK) goto fail;
+  q->sub = npt / VES_QUAD_NPT, q->rule = r;
+  q->ntri = q->sub * ncell;
+  if (q->sub == 1)
+    q->tri = cell, cell = NULL;
+  else if ((q->tri = malloc(3 * (size_t)q->ntri * sizeof *q->tri)))
+    for (int t = 0; t < ncell; t++)
+      for (int g = 0; g < q->sub; g++)
+        memcpy(q->tri + 3 * (q->sub * t + g), cell + 3 * t, 3 * sizeof *cell);
+  q->nq = npt * ncell;
   q->x = malloc(2 * (size_t)q->nq * sizeof *q->x);
   q->w = malloc((size_t)q->nq * sizeof *q->w);
-  if (!q->x || !q->w) {
+  if (!q->tri || !q->x || !q->w) {
     s = VES_ERR_ALLOC;
     goto fail;
   }
-  double bary[3 * VES_QUAD_NPT], wr[VES_QUAD_NPT];
-  ves_quad_rule(bary, wr);
-  for (int t = 0; t < q->ntri; t++) {
-    const double *v0 = nodes->x + 2 * q->tri[3 * t], *v1 = nodes->x + 2 * q->tri[3 * t + 1],
-                 *v2 = nodes->x + 2 * q->tri[3 * t + 2];
+  for (int t = 0; t < ncell; t++) {
+    const int *c = q->tri + 3 * q->sub * t;
+    const double *v0 = nodes->x + 2 * c[0], *v1 = nodes->x + 2 * c[1], *v2 = nodes->x + 2 * c[2];
     /* |T| = ((v1 - v0) x (v2 - v0)) / 2, positive for counter-clockwise */
     double area = 0.5 * ((v1[0] - v0[0]) * (v2[1] - v0[1]) - (v1[1] - v0[1]) * (v2[0] - v0[0]));
     if (!(area > 0.0)) {
       s = VES_ERR_GEOM;
       goto fail;
     }
-    for (int k = 0; k < VES_QUAD_NPT; k++) {
+    for (int k = 0; k < npt; k++) {
       const double *b = bary + 3 * k;
-      double *X = q->x + 2 * (VES_QUAD_NPT * t + k);
+      double *X = q->x + 2 * ((size_t)npt * t + k);
       X[0] = b[0] * v0[0] + b[1] * v1[0] + b[2] * v2[0];
       X[1] = b[0] * v0[1] + b[1] * v1[1] + b[2] * v2[1];
-      q->w[VES_QUAD_NPT * t + k] = wr[k] * area;
+      q->w[(size_t)npt * t + k] = wr[k] * area;
     }
   }
+  free(bary), free(wr), free(cell);
   *out = q;
   return VES_OK;
 fail:
+  free(bary), free(wr), free(cell);
   ves_quad_destroy(&q);
   return s;
+}
+
+ves_status ves_quad_cells(const ves_quad *q, int *ncell, int **cells) {
+  VES_CHECK(q && ncell && cells && q->ntri > 0, VES_ERR_ARG);
+  const int sub = q->sub > 1 ? q->sub : 1, nc = q->ntri / sub;
+  int *c = malloc(3 * (size_t)nc * sizeof *c);
+  if (!c) return VES_ERR_ALLOC;
+  for (int t = 0; t < nc; t++) memcpy(c + 3 * t, q->tri + 3 * (size_t)sub * t, 3 * sizeof *c);
+  *ncell = nc, *cells = c;
+  return VES_OK;
 }
 
 /* Copies of the caller's points, weights and (optional) triangles. */

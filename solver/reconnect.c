@@ -261,6 +261,7 @@ ves_status ves_reconnect_create(const ves_model *m, const double *y, ves_reset_n
   if (where == VES_RESET_NODES_COEF) memcpy(xn, y, 2 * (size_t)n * sizeof *xn);
   if ((s = new_nodes(nodes, xn, NULL, &r->nodes, &r->info.mirrored)) != VES_OK) goto fail;
   if ((s = ves_quad_create_points(nq, xq, wq, q->ntri, q->tri, &r->quad)) != VES_OK) goto fail;
+  r->quad->sub = q->sub, r->quad->rule = q->rule; /* the same triangles and groups */
   if ((s = ves_quad_tables(r->quad, r->nodes, lme, &r->info.qinfo)) != VES_OK) goto fail;
   ves_model_params par;
   ves_model_get_params(m, &par);
@@ -299,6 +300,7 @@ ves_status ves_reconnect_restore(const ves_model *m, const double *x, const doub
   r->info.cond_max = 1.0, r->info.det_min = 1.0; /* no motion measured */
   ves_status s = new_nodes(nodes, x, h, &r->nodes, &r->info.mirrored);
   if (s == VES_OK) s = ves_quad_create_points(nq, xq, wq, q->ntri, q->tri, &r->quad);
+  if (s == VES_OK) r->quad->sub = q->sub, r->quad->rule = q->rule;
   if (s == VES_OK) s = ves_quad_tables(r->quad, r->nodes, lme, &r->info.qinfo);
   ves_model_params par;
   ves_model_get_params(m, &par);

@@ -284,9 +284,12 @@ static ves_status make_nodes(double LR, double LZ, int n, const double *x, const
   return VES_OK;
 }
 
-/* The Delaunay quadrature and the LME tables on r->nodes. */
-static ves_status build(ves_remesh *r, const ves_lme_params *lme) {
-  VES_CALL(ves_quad_create(r->nodes, &r->quad));
+/* The Delaunay quadrature (the old one's rule; the default for a point set
+ * that does not know it) and the LME tables on r->nodes. */
+static ves_status build(ves_remesh *r, const ves_quad *old) {
+  const ves_lme_params *lme = &old->lme;
+  const ves_quad_rulespec d4 = {4, 1};
+  VES_CALL(ves_quad_create_rule(r->nodes, ves_quad_rule_npt(old->rule) ? old->rule : d4, &r->quad));
   VES_CALL(ves_quad_tables(r->quad, r->nodes, lme, &r->info.qinfo));
   return VES_OK;
 }
@@ -436,7 +439,7 @@ ves_status ves_remesh_create(const ves_config *cfg, ves_model *m, const double *
   ves_sizing_destroy(&sizing);
   in->seconds_nodes = ves_wall_seconds() - t;
   t = ves_wall_seconds();
-  if ((st = build(r, &oq->lme)) != VES_OK)
+  if ((st = build(r, oq)) != VES_OK)
     FAIL(st, "remesh: quadrature or LME tables: %s", ves_status_str(st));
   in->n_new = r->nodes->n, in->nq_new = r->quad->nq;
   in->seconds_tables = ves_wall_seconds() - t;
@@ -526,7 +529,7 @@ ves_status ves_remesh_restore(const ves_model *m, int n, const double *x, const 
   ves_remesh *r = calloc(1, sizeof *r);
   if (!r) return VES_ERR_ALLOC;
   ves_status st = make_nodes(od->LR, od->LZ, n, x, h, flag, &r->nodes);
-  if (st == VES_OK) st = build(r, &ves_model_quad(m)->lme);
+  if (st == VES_OK) st = build(r, ves_model_quad(m));
   if (st == VES_OK) {
     r->phi0c = malloc((size_t)n * sizeof *r->phi0c);
     r->y = malloc(2 * (size_t)n * sizeof *r->y);

@@ -130,7 +130,10 @@ ves_status ves_setup_create(const ves_config *cfg, ves_phi0_method method, ves_s
   s->seconds_nodes = ves_wall_seconds() - t;
 
   t = ves_wall_seconds();
-  if ((st = ves_quad_create(s->nodes, &s->quad)) != VES_OK)
+  ves_quad_rulespec rule;
+  if (ves_quad_rule_parse(cfg->quadrature, &rule) != VES_OK)
+    FAIL(VES_ERR_CONFIG, "[geometry] quadrature = %s: not a rule", cfg->quadrature);
+  if ((st = ves_quad_create_rule(s->nodes, rule, &s->quad)) != VES_OK)
     FAIL(st, "quadrature: %s", ves_status_str(st));
   ves_lme_params lp;
   ves_lme_params_default(&lp);
@@ -163,9 +166,13 @@ ves_status ves_setup_create(const ves_config *cfg, ves_phi0_method method, ves_s
   }
   s->seconds_project = ves_wall_seconds() - t;
 
-  ves_model_params mp = {.eps = cfg->epsilon, .c0 = cfg->c0, .k = cfg->k, .mu = cfg->mu,
+  ves_model_params mp = {.eps = cfg->epsilon,
+                         .c0 = cfg->c0,
+                         .k = cfg->k,
+                         .mu = cfg->mu,
                          .lambda = cfg->lambda_ratio * cfg->mu,
-                         .drift = cfg->drift_damping};
+                         .drift = cfg->drift_damping,
+                         .stab = cfg->stabilization};
   if ((st = ves_model_create(s->nodes, s->quad, s->phi0c, &mp, &s->model)) != VES_OK)
     FAIL(st, "model: %s", ves_status_str(st));
   s->seconds_total = ves_wall_seconds() - t0;

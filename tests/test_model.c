@@ -1186,6 +1186,106 @@ static void test_drift_damping(void **state) {
   free(Kd), free(K0), free(M), free(u);
 }
 
+/* The coefficient-mode stabilization (ves_model_params.stab): E_kappa - E_0
+ * = E_s = (1/2) sum_a c_a |y^a - y(X_a)|^2, c_a = kappa k 2 pi M_a / h_a^2,
+ * against the definition computed here (y(X_a) by ves_quad_motion on a point
+ * set at the nodes, M_a from the tables); the gradient and the Hessian
+ * against differences of E_s (a quadratic: the central differences are exact
+ * up to rounding); zero at the reference (an affine map); A and V untouched.
+ * Tolerances: E_s is a difference of two energies of size ~6 (rounding
+ * ~1e-15 of that, far below the ~1e-3 compared); the directional checks
+ * compare sums of ~1e4 products, 1e-8 relative is a rounding bound. */
+static void test_stabilization(void **state) {
+  (void)state;
+  problem *P = P1;
+  const int n = P->n, n2 = 2 * n;
+  const double kappa = 0.5;
+  const ves_model_params par = {.eps = P->cfg.epsilon,
+                                .c0 = P->cfg.c0,
+                                .k = P->cfg.k,
+                                .mu = P->cfg.mu,
+                                .lambda = P->cfg.lambda_ratio * P->cfg.mu,
+                                .stab = kappa};
+  const ves_quad *q = P->s->quad;
+  ves_model *m = NULL;
+  assert_int_equal(ves_model_create(P->s->nodes, q, P->s->phi0c, &par, &m), VES_OK);
+  const ves_pattern *ps = ves_model_pattern(m);
+  double E0, Es, A0, As, V0, Vs;
+  assert_int_equal(ves_model_eval(P->s->model, P->y, 7, &E0, &A0, &V0, NULL, NULL, NULL), VES_OK);
+  assert_int_equal(ves_model_eval(m, P->y, 7, &Es, &As, &Vs, NULL, NULL, NULL), VES_OK);
+  assert_true(A0 == As && V0 == Vs); /* E only, bit for bit */
+  /* the definition */
+  ves_quad *qn = NULL;
+  assert_int_equal(ves_quad_create_at_nodes(P->s->nodes, &qn), VES_OK);
+  assert_int_equal(ves_quad_tables(qn, P->s->nodes, &q->lme, NULL), VES_OK);
+  double *M = calloc((size_t)n, sizeof *M);
+  assert_non_null(M);
+  for (int al = 0; al < q->nq; al++)
+    for (int k = q->ptr[al]; k < q->ptr[al + 1]; k++)
+      M[q->nbr[k]] += q->w[al] * q->x[2 * al] * q->tab[6 * (size_t)q->ptr[al] + (k - q->ptr[al])];
+  double ref = 0, ref0 = 0;
+  for (int a = 0; a < n; a++) {
+    double out[12], o0[12];
+    if (P->s->nodes->flag[a] & VES_NODE_WALL) continue;
+    ves_quad_motion(qn, P->y, a, 0, out);
+    ves_quad_motion(qn, P->X, a, 0, o0);
+    const double dr = P->y[2 * a] - out[0], dz = P->y[2 * a + 1] - out[6];
+    const double d0r = P->X[2 * a] - o0[0], d0z = P->X[2 * a + 1] - o0[6];
+    const double c = kappa * par.k * 2 * M_PI * M[a] / (P->s->nodes->h[a] * P->s->nodes->h[a]);
+    ref += 0.5 * c * (dr * dr + dz * dz), ref0 += 0.5 * c * (d0r * d0r + d0z * d0z);
+  }
+  printf("# stabilization kappa %g: E_s = %.9e (definition %.9e; E %.9f), at the reference %.3e\n",
+         kappa, Es - E0, ref, E0, ref0);
+  assert_true(ref > 1e-6); /* a deformed state: a test that can fail */
+  assert_true(fabs((Es - E0) - ref) <= 1e-9 * (1 + ref)); /* see above */
+  double Er0, Ers;                                        /* at the reference: no term */
+  assert_int_equal(ves_model_eval(P->s->model, P->X, 1, &Er0, NULL, NULL, NULL, NULL, NULL),
+                   VES_OK);
+  assert_int_equal(ves_model_eval(m, P->X, 1, &Ers, NULL, NULL, NULL, NULL, NULL), VES_OK);
+  assert_true(ref0 <= 1e-20 && fabs(Ers - Er0) <= 1e-14 * fabs(Er0));
+  /* gradient and Hessian along a random direction v (axis r fixed) */
+  double *g0 = xmalloc(n2), *gs = xmalloc(n2), *v = xmalloc(n2), *yp = xmalloc(n2),
+         *ym = xmalloc(n2);
+  double *H0 = xmalloc(blk_len(P)), *Hs = xmalloc(4 * (size_t)ps->ptr[n]);
+  uint64_t rng = 0x9E3779B97F4A7C15ULL;
+  for (int a = 0; a < n; a++) {
+    v[2 * a] = (P->s->nodes->flag[a] & (VES_NODE_AXIS | VES_NODE_WALL)) ? 0 : 2 * urand(&rng) - 1;
+    v[2 * a + 1] = (P->s->nodes->flag[a] & VES_NODE_WALL) ? 0 : 2 * urand(&rng) - 1;
+  }
+  const double t = 1e-4;
+  for (int i = 0; i < n2; i++) yp[i] = P->y[i] + t * v[i], ym[i] = P->y[i] - t * v[i];
+  double Ep0, Eps, Em0, Ems;
+  assert_int_equal(ves_model_eval(P->s->model, P->y, 1, &E0, NULL, NULL, g0, NULL, NULL), VES_OK);
+  assert_int_equal(ves_model_eval(m, P->y, 1, &Es, NULL, NULL, gs, NULL, NULL), VES_OK);
+  assert_int_equal(ves_model_eval(P->s->model, yp, 1, &Ep0, NULL, NULL, NULL, NULL, NULL), VES_OK);
+  assert_int_equal(ves_model_eval(m, yp, 1, &Eps, NULL, NULL, NULL, NULL, NULL), VES_OK);
+  assert_int_equal(ves_model_eval(P->s->model, ym, 1, &Em0, NULL, NULL, NULL, NULL, NULL), VES_OK);
+  assert_int_equal(ves_model_eval(m, ym, 1, &Ems, NULL, NULL, NULL, NULL, NULL), VES_OK);
+  const double sp = Eps - Ep0, sm = Ems - Em0, s0 = Es - E0; /* E_s at y + tv, y - tv, y */
+  double gv = 0;
+  for (int i = 0; i < n2; i++) gv += (gs[i] - g0[i]) * v[i];
+  assert_int_equal(ves_model_hessian(P->s->model, P->y, 1, 0, 0, H0), VES_OK);
+  assert_int_equal(ves_model_hessian(m, P->y, 1, 0, 0, Hs), VES_OK);
+  const double vSv = blk_quadratic(ps, Hs, v) - blk_quadratic(P->pat, H0, v);
+  const double fd1 = (sp - sm) / (2 * t), fd2 = (sp + sm - 2 * s0) / (t * t);
+  printf("# grad E_s . v = %.9e (difference %.9e), v^T S v = %.9e (difference %.9e)\n", gv, fd1,
+         vSv, fd2);
+  /* E_s differences of size ~t |g v| ~ 1e-4 from energies ~6: rounding 1e-15 / 1e-4 -> 1e-11
+   * relative for fd1; fd2 divides 1e-15 by t^2 = 1e-8 against vSv ~ 1e2..1e4: 1e-7 */
+  assert_true(fabs(gv - fd1) <= 1e-6 * (fabs(gv) + 1));
+  assert_true(vSv > 0 && fabs(vSv - fd2) <= 1e-4 * vSv);
+  ves_model_params bad = par;
+  bad.stab = -1;
+  ves_model *mb = NULL;
+  assert_int_equal(ves_model_create(P->s->nodes, q, P->s->phi0c, &bad, &mb), VES_ERR_ARG);
+  bad.stab = NAN;
+  assert_int_equal(ves_model_create(P->s->nodes, q, P->s->phi0c, &bad, &mb), VES_ERR_ARG);
+  assert_null(mb);
+  ves_quad_destroy(&qn);
+  ves_model_destroy(&m);
+  free(M), free(g0), free(gs), free(v), free(yp), free(ym), free(H0), free(Hs);
+}
+
 int main(void) {
   setvbuf(stdout, NULL, _IOLBF, 0);
   const struct CMUnitTest tests[] = {
@@ -1195,6 +1295,7 @@ int main(void) {
       cmocka_unit_test(test_hessian_direction),
       cmocka_unit_test(test_dissipation),
       cmocka_unit_test(test_drift_damping),
+      cmocka_unit_test(test_stabilization),
       cmocka_unit_test(test_translation_invariance),
       cmocka_unit_test(test_locality),
       cmocka_unit_test(test_assembly_reference),

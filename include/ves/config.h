@@ -29,6 +29,9 @@ typedef struct {
   int lloyd_iterations; /* CVT smoothing iterations */
   int band_layers;      /* 1: interface-aligned layers in the band */
   int seed;             /* seed of the node sampling */
+  /* the discrete energy (issue 22) */
+  char quadrature[VES_CONFIG_STR]; /* rule per triangle (ves_quad_rule_parse) */
+  double stabilization;            /* kappa of ves_model_params.stab */
   /* [shape] */
   char shape_type[VES_CONFIG_STR];  /* sphere | spheroid | discocyte | curve */
   char points[VES_CONFIG_STR];      /* curve: points file, relative to the problem file's folder */

@@ -32,6 +32,14 @@ typedef struct {
                     them), O((h/L)^2) of the dissipation on smooth ones,
                     stiff on grid-scale coefficient patterns (bench/RESULTS.md,
                     "Drift damping") */
+  double stab;   /* coefficient-mode stabilization kappa >= 0 (0: off): E gets
+                    E_s = (1/2) sum_a kappa k 2 pi M_a / h_a^2 |y^a - y(X_a)|^2
+                    over the nodes off the wall (M_a as for drift): zero on
+                    affine maps, so at the reference; O(kappa (h/L)^2) on
+                    smooth motions; positive curvature along the grid-scale
+                    coefficient patterns on which the discrete E has negative
+                    curvature (bench/RESULTS.md, issue 22). Its Hessian is
+                    constant, added to Hess E */
 } ves_model_params;
 
 typedef struct ves_model ves_model;

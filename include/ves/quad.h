@@ -15,10 +15,47 @@
  * sum to 1 (multiply by the triangle's area). */
 void ves_quad_rule(double bary[3 * VES_QUAD_NPT], double w[VES_QUAD_NPT]);
 
+/* A composite rule on a triangle: a base rule (degree 4, 6 points: the
+ * default; or degree 6, 12 points, Dunavant 1985) on each of the split^2
+ * congruent sub-triangles of a uniform split (split 1, 2 or 4). Points per
+ * triangle npt = (6 or 12) split^2, always a multiple of VES_QUAD_NPT, so the
+ * points of a triangle form npt / VES_QUAD_NPT groups of VES_QUAD_NPT, the unit
+ * of assembly of the model (see ves_quad.ntri). Named in problem files as
+ * "d4", "d6", "d4x4", "d6x4", "d4x16", "d6x16" (degree, then sub-triangles). */
+typedef struct {
+  int degree; /* 4 or 6: the base rule */
+  int split;  /* 1, 2 or 4: each triangle cut into split^2 */
+} ves_quad_rulespec;
+
+#define VES_QUAD_NPT_MAX (12 * 16) /* points per triangle of the richest rule */
+
+/* The rule named s ("d4", "d6", "d4x4", ...; see above): VES_ERR_ARG for
+ * another name. */
+ves_status ves_quad_rule_parse(const char *s, ves_quad_rulespec *out);
+
+/* Points per triangle of a rule (0 for an invalid one). */
+int ves_quad_rule_npt(ves_quad_rulespec r);
+
+/* Points and weights of a composite rule in the triangle's barycentric
+ * coordinates: bary[3k+j], w[k] for k < ves_quad_rule_npt(r); the weights sum
+ * to 1. For {4, 1} exactly ves_quad_rule's. VES_ERR_ARG for an invalid rule. */
+ves_status ves_quad_rule_composite(ves_quad_rulespec r, double bary[3 * VES_QUAD_NPT_MAX],
+                                   double w[VES_QUAD_NPT_MAX]);
+
 /* Quadrature points and their tables (plain data; sizes in the comments). */
 typedef struct {
-  int ntri;             /* triangles of the reference Delaunay triangulation */
-  int *tri;             /* 3 ntri node indices, counter-clockwise */
+  int ntri;               /* groups of VES_QUAD_NPT points, the unit of assembly:
+                             with the default rule the triangles of the reference
+                             Delaunay triangulation; with a richer rule each
+                             triangle gives sub consecutive groups */
+  int *tri;               /* 3 ntri node indices, counter-clockwise: a group's
+                             triangle (repeated sub times per triangle) */
+  int sub;                /* groups per triangle (ves_quad_rule_npt / VES_QUAD_NPT;
+                             1 for the default rule; 0 for a point set made by
+                             ves_quad_create_points, which does not know it) */
+  ves_quad_rulespec rule; /* the rule of ves_quad_create_rule ({0, 0} for
+                           ves_quad_create_points: a reset sets sub and rule
+                           to those of the quadrature it moves) */
   int nq;               /* quadrature points, VES_QUAD_NPT * ntri */
   double *x;            /* 2 nq reference positions (R, Z), units of R0 */
   double *w;            /* nq weights of the measure dR dZ (units R0^2); the
@@ -48,6 +85,16 @@ typedef struct {
 /* Triangulate the real nodes (Delaunay) and place VES_QUAD_NPT points per
  * triangle. nodes is borrowed; *out is taken by the caller. */
 ves_status ves_quad_create(const ves_nodes *nodes, ves_quad **out);
+
+/* The same with a composite rule r (ves_quad_create is {4, 1}): sub =
+ * ves_quad_rule_npt(r) / VES_QUAD_NPT groups per triangle, group g of
+ * triangle t holding the rule's points VES_QUAD_NPT g .. + VES_QUAD_NPT - 1. */
+ves_status ves_quad_create_rule(const ves_nodes *nodes, ves_quad_rulespec r, ves_quad **out);
+
+/* The Delaunay triangles under the groups: *ncell = ntri / sub and a fresh
+ * copy *cells[3 *ncell] (taken by the caller) of every sub-th triple (all of
+ * them when sub <= 1). */
+ves_status ves_quad_cells(const ves_quad *q, int *ncell, int **cells);
 
 /* A point set given by the caller: nq points x[2 nq] (R, Z) and weights
  * w[nq] (units R0^2), all copied, no tables. When ntri > 0 the points are

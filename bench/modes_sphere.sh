@@ -1,0 +1,19 @@
+#!/bin/sh
+# The sphere at rest: mu_1..mu_3 of the linearized flow and the counts below
+# 0 and -1e-3 (issue 22). Usage: bench/modes_sphere.sh LABEL [--set k=v]...
+# Prints one table row: label | nodes | triangles | mu_1 mu_2 mu_3 | material_1 |
+# count < -1e-3 | count < 0 | E*/2pi - 1.
+set -e
+label=$1; shift
+V=${VESICA:-./build/vesica}
+D=${TMPDIR:-/tmp}/modes_sphere.$$
+mkdir -p "$D"
+export OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1
+"$V" run problems/sphere.ini --set geometry.epsilon=${EPS:-0.1} "$@" --max-steps 1 --out "$D/s.h5" 2>"$D/run.log" >/dev/null
+"$V" spectrum "$D/s.h5" --snapshot 0 --above ${ABOVE:--1} --modes 3 >"$D/a.txt"
+"$V" spectrum "$D/s.h5" --snapshot 0 --above -1e-3 --modes 1 --lanczos 4 >"$D/b.txt"
+"$V" spectrum "$D/s.h5" --snapshot 0 --above 0 --modes 1 --lanczos 4 >"$D/c.txt"
+g() { awk -v k="$1" '$1 == k {print $3}' "$2"; }
+ntri=$("$V" info "$D/s.h5" 2>/dev/null | awk '$1 == "triangles" {print $3}')
+echo "| $label | $(g nodes $D/a.txt) | $ntri | $(g mu_1 $D/a.txt) $(g mu_2 $D/a.txt) $(g mu_3 $D/a.txt) | $(g mu_1_material $D/a.txt) | $(g below $D/b.txt) | $(g below $D/c.txt) | $(awk -v e=$(g energy $D/a.txt) 'BEGIN{printf "%.3e", e/(2*3.14159265358979)-1}') |"
+rm -rf "$D"
