@@ -16,7 +16,7 @@
  * turns the integrator's energy check off for FE) an FE run does not stop at the first rise
  * but goes on for at most N steps, printing E* at every step, to tell a
  * growing instability from a rounding-level rise. With --fe-limit N the
- * stiffness of the state at t1 is computed first (ves_step_stiffness, N
+ * stiffness of the state at t1 is computed first (ves_spectrum_stiffness, N
  * Lanczos steps): FE's linear stability limit 2 / mu_max, printed before the
  * table; --limit-only stops there.
  *
@@ -39,6 +39,7 @@
 #include "ves/config.h"
 #include "ves/integrate.h"
 #include "ves/setup.h"
+#include "ves/spectrum.h"
 #include "ves/step.h"
 #include "bench_common.h"
 #include "blas_core_impl.h"
@@ -220,7 +221,7 @@ int main(int argc, char **argv) {
     t0 = ves_wall_seconds();
     st = ves_step_create(s->model, &sp);
     if (st == VES_OK) st = ves_step_set(sp, y1, &par);
-    if (st == VES_OK) st = ves_step_stiffness(sp, sigma, lanczos, &mu, &res);
+    if (st == VES_OK) st = ves_spectrum_stiffness(sp, sigma, lanczos, &mu, &res);
     ves_step_destroy(&sp);
     if (st != VES_OK) {
       fprintf(stderr, "bench_table1: --fe-limit: %s\n", ves_status_str(st));

@@ -24,6 +24,7 @@
 #include "ves/quad.h"
 #include "ves/reconnect.h"
 #include "ves/setup.h"
+#include "ves/spectrum.h"
 #include "ves/study.h"
 #include "blas_core_impl.h"
 #include "clock_impl.h"
@@ -1473,79 +1474,64 @@ static int parse_long(const char *cmd, const char *opt, const char *v, long lo, 
   return 0;
 }
 
-/* Where a mode lives (vesica spectrum --help). */
-typedef struct {
-  double peak[2];  /* material position of the node with the largest |u_a| (R0) */
-  double peak_phi; /* phi there */
-  double band;     /* share of sum_a |u_a|^2 on nodes with |phi_a| < 0.9 */
-  double axis;     /* share on nodes within 2 h_a of the axis */
-  double material; /* |du| / |u| over the nodes */
-  double from[3];  /* mu's parts: v^T Hess E v, sigma_A v^T Hess A v, sigma_V v^T Hess V v */
-  double drift;    /* K-cosine with the drift y^a - y(X_a) of the coefficients */
-} mode_place;
+/* The text file of --vectors (vesica spectrum --help) from the analysis sp
+ * of the state of r: written to vpath.part, then renamed, so nothing
+ * partial stays behind. 0, or -1 with errno the cause. */
+static int write_modes(const run_ctx *r, const ves_spectrum *sp, const char *vpath) {
+  const ves_nodes *nd = ves_model_nodes(ves_sim_model(r->sim));
+  const int n = sp->n;
+  char part[PATH_MAX + 8];
+  snprintf(part, sizeof part, "%s.part", vpath);
+  errno = 0;
+  FILE *f = fopen(part, "w");
+  if (!f) return -1;
+  fprintf(f, "# vesica spectrum: the modes of %s, one row a node\n# a r z phi h", r->label);
+  for (int j = 0; j < sp->nmodes; j++)
+    fprintf(f, " u%d_r u%d_z du%d_r du%d_z", j + 1, j + 1, j + 1, j + 1);
+  fprintf(f, "\n# (r z: material position of the node, R0; u: the mode's coefficients,\n"
+             "# K-normalized; du: the motion they give at the node)\n");
+  for (int a = 0; a < n; a++) {
+    fprintf(f, "%d %.9g %.9g %.6g %.6g", a, sp->x[2 * a], sp->x[2 * a + 1], sp->phi[a], nd->h[a]);
+    for (int j = 0; j < sp->nmodes; j++) {
+      const double *uj = sp->u + 2 * (size_t)n * j, *dj = sp->du + 2 * (size_t)n * j;
+      fprintf(f, " %.6e %.6e %.6e %.6e", uj[2 * a], uj[2 * a + 1], dj[2 * a], dj[2 * a + 1]);
+    }
+    fputc('\n', f);
+  }
+  errno = 0;
+  int bad = fflush(f) != 0 || ferror(f), e = errno; /* the first failure's cause */
+  if (fclose(f) != 0) bad = 1, e = e ? e : errno;
+  if (!bad && rename(part, vpath) != 0) bad = 1, e = errno;
+  if (!bad) return 0;
+  remove(part);
+  errno = e ? e : EIO;
+  return -1;
+}
 
-/* The modes vec[nmodes * nv] (free dofs) of the state in r: their places
- * and, with vpath, the text file of --vectors. VES_ERR_IO when the file
- * cannot be written (errno set), or the errors of the node evaluations. */
-static ves_status mode_places(run_ctx *r, const double *vec, int nmodes, int nv, const char *vpath,
-                              mode_place *place) {
-  const ves_model *m = ves_sim_model(r->sim);
-  const ves_pattern *pat = ves_model_pattern(m);
-  const ves_nodes *nd = ves_model_nodes(m);
-  const int n = nd->n;
-  double *u = malloc(2 * (size_t)n * nmodes * sizeof *u);
-  double *du = malloc(2 * (size_t)n * nmodes * sizeof *du);
-  FILE *f = NULL;
-  ves_status st = u && du ? ves_sim_node_material(r->sim, r->x, r->phi) : VES_ERR_ALLOC;
-  for (int j = 0; j < nmodes && st == VES_OK; j++) {
-    const double *v = vec + (size_t)j * nv;
-    double *uj = u + 2 * (size_t)n * j, *dj = du + 2 * (size_t)n * j;
-    for (int i = 0; i < 2 * n; i++) uj[i] = pat->dof[i] >= 0 ? v[pat->dof[i]] : 0.0;
-    if ((st = ves_sim_motion_at_nodes(r->sim, uj, dj)) != VES_OK) break;
-    double tot = 0, band = 0, axis = 0, mat = 0, big = -1;
-    mode_place *q = place + j;
-    for (int a = 0; a < n; a++) {
-      const double u2 = uj[2 * a] * uj[2 * a] + uj[2 * a + 1] * uj[2 * a + 1];
-      tot += u2, mat += dj[2 * a] * dj[2 * a] + dj[2 * a + 1] * dj[2 * a + 1];
-      if (fabs(r->phi[a]) < 0.9) band += u2;
-      if (r->x[2 * a] < 2 * nd->h[a]) axis += u2;
-      if (u2 > big)
-        big = u2, q->peak[0] = r->x[2 * a], q->peak[1] = r->x[2 * a + 1], q->peak_phi = r->phi[a];
-    }
-    q->band = band / tot, q->axis = axis / tot, q->material = sqrt(mat / tot);
+/* The analysis sp of snapshot k (its state si) as key = value lines. */
+static void print_spectrum(const char *path, long k, const ves_io_snapinfo *si, const run_ctx *r,
+                           const ves_spectrum *sp, double above) {
+  const double kk = r->cfg.k;
+  printf("file = %s\nsnapshot = %ld\nstep = %ld\nt = %.9g\nenergy = %.9f\n", path, k,
+         si->state.nstep, si->state.t, si->state.E / kk);
+  printf("reconnections = %d\nnodes = %d\n", si->reconnections, sp->n);
+  printf("sigma_A = %.9e\nsigma_V = %.9e\n", sp->sigma[0] / kk, sp->sigma[1] / kk);
+  printf("dissipation = %.9e\nydot_max = %.6e\n", sp->dissipation / kk, sp->ydot_max);
+  printf("mu_max = %.9e\nmu_max_residual = %.2e\nfe_dt_limit = %.6e\n", sp->mu_max,
+         sp->mu_max_resid, 2 / sp->mu_max);
+  printf("above = %.9g\nbelow = %d\n", above, sp->below);
+  for (long j = 0; j < sp->nmodes; j++) {
+    const ves_spectrum_mode *q = sp->mode + j;
+    printf("mu_%ld = %.9e\nmu_%ld_error = %.2e\n", j + 1, sp->mu[j], j + 1, sp->mu_err[j]);
+    printf("mu_%ld_peak_r = %.4f\nmu_%ld_peak_z = %.4f\nmu_%ld_peak_phi = %.3f\n", j + 1,
+           q->peak[0], j + 1, q->peak[1], j + 1, q->peak_phi);
+    printf("mu_%ld_band = %.3f\nmu_%ld_axis = %.3f\nmu_%ld_material = %.3e\n", j + 1, q->band,
+           j + 1, q->axis, j + 1, q->material);
+    printf("mu_%ld_from_E = %.6e\nmu_%ld_from_A = %.6e\nmu_%ld_from_V = %.6e\n", j + 1,
+           q->from[0], j + 1, q->from[1], j + 1, q->from[2]);
+    printf("mu_%ld_drift = %.3e\n", j + 1, q->drift);
   }
-  char part[PATH_MAX + 8] = ""; /* written whole, then renamed to vpath */
-  if (st == VES_OK && vpath) {
-    snprintf(part, sizeof part, "%s.part", vpath);
-    errno = 0;
-    if (!(f = fopen(part, "w"))) st = VES_ERR_IO;
-  }
-  if (f) {
-    fprintf(f, "# vesica spectrum: the modes of %s, one row a node\n# a r z phi h", r->label);
-    for (int j = 0; j < nmodes; j++)
-      fprintf(f, " u%d_r u%d_z du%d_r du%d_z", j + 1, j + 1, j + 1, j + 1);
-    fprintf(f, "\n# (r z: material position of the node, R0; u: the mode's coefficients,\n"
-               "# K-normalized; du: the motion they give at the node)\n");
-    for (int a = 0; a < n; a++) {
-      fprintf(f, "%d %.9g %.9g %.6g %.6g", a, r->x[2 * a], r->x[2 * a + 1], r->phi[a], nd->h[a]);
-      for (int j = 0; j < nmodes; j++) {
-        const double *uj = u + 2 * (size_t)n * j, *dj = du + 2 * (size_t)n * j;
-        fprintf(f, " %.6e %.6e %.6e %.6e", uj[2 * a], uj[2 * a + 1], dj[2 * a], dj[2 * a + 1]);
-      }
-      fputc('\n', f);
-    }
-    errno = 0;
-    int bad = fflush(f) != 0 || ferror(f), e = errno; /* the first failure's cause */
-    if (fclose(f) != 0) bad = 1, e = e ? e : errno;
-    if (!bad && rename(part, vpath) != 0) bad = 1, e = errno;
-    if (bad) { /* nothing partial stays behind */
-      remove(part);
-      errno = e ? e : EIO;
-      st = VES_ERR_IO;
-    }
-  }
-  free(u), free(du);
-  return st;
+  printf("drift_K_norm = %.6e\ndrift_in_modes = %.3e\n", sp->drift_K_norm, sp->drift_in_modes);
 }
 
 static int cmd_spectrum(int argc, char **argv) {
@@ -1637,111 +1623,30 @@ static int cmd_spectrum(int argc, char **argv) {
   const double t0 = ves_wall_seconds();
   ves_io_snapinfo si;
   if ((rc = rebuild_at(&r, pre, (int)k, &si))) goto done;
-  ves_model *m = ves_sim_model(r.sim);
-  ves_step *sp = NULL;
-  ves_step_params par = {.dt = si.state.dt,
-                         .hold_area = r.cfg.area,
-                         .A0 = si.state.A0,
-                         .hold_volume = r.cfg.volume,
-                         .V_target = si.state.V};
-  double sigma[2] = {0, 0}, mu_max = 0, res = 0, diss = 0, vmax = 0;
-  double *mu = malloc((size_t)modes * sizeof *mu), *mu_err = malloc((size_t)modes * sizeof *mu_err);
-  double *yd = NULL, *Kyd = NULL, *vec = NULL;
-  int nbelow = 0, nv = 0;
-  ves_status st = mu && mu_err ? ves_step_create(m, &sp) : VES_ERR_ALLOC;
-  if (st == VES_OK) st = ves_step_set(sp, r.y, &par);
-  if (st == VES_OK) {
-    nv = ves_step_nvar(sp);
-    yd = malloc((size_t)nv * sizeof *yd), Kyd = malloc((size_t)nv * sizeof *Kyd);
-    vec = malloc((size_t)modes * nv * sizeof *vec);
-    st = yd && Kyd && vec ? ves_step_flow(sp, yd, sigma) : VES_ERR_ALLOC;
-    if (st == VES_OK) {
-      ves_pattern_symv(ves_model_pattern(m), ves_step_K(sp), yd, Kyd);
-      for (int i = 0; i < nv; i++) diss += yd[i] * Kyd[i];
-      const ves_pattern *pat = ves_model_pattern(m);
-      for (int a = 0; a < pat->n; a++) { /* |ydot| of node a over its free components */
-        double v2 = 0;
-        for (int c = 0; c < 2; c++)
-          if (pat->dof[2 * a + c] >= 0) v2 += yd[pat->dof[2 * a + c]] * yd[pat->dof[2 * a + c]];
-        vmax = fmax(vmax, sqrt(v2));
-      }
-    }
-  }
-  if (st == VES_OK) st = ves_step_stiffness(sp, sigma, (int)lanczos, &mu_max, &res);
-  if (st == VES_OK)
-    st = ves_step_modes(sp, sigma, above, (int)lanczos, (int)modes, mu, mu_err, vec, &nbelow);
-  mode_place *place = st == VES_OK ? calloc((size_t)modes, sizeof *place) : NULL;
-  if (st == VES_OK && !place) st = VES_ERR_ALLOC;
-  /* the coefficients' drift from the motion, d = y^a - y(X_a) over the free
-   * dofs, and its K-cosine with each mode (the modes are K-normalized) */
-  double dKd = 0, drift_share = 0;
-  if (st == VES_OK && (st = ves_sim_node_material(r.sim, r.x, NULL)) == VES_OK) {
-    const ves_pattern *pat = ves_model_pattern(m);
-    for (int i = 0; i < 2 * pat->n; i++)
-      if (pat->dof[i] >= 0) yd[pat->dof[i]] = r.y[i] - r.x[i]; /* yd reused: d */
-    ves_pattern_symv(pat, ves_step_K(sp), yd, Kyd);
-    for (int i = 0; i < nv; i++) dKd += yd[i] * Kyd[i];
-    for (long j = 0; j < modes; j++) {
-      double c = 0;
-      for (int i = 0; i < nv; i++) c += vec[(size_t)j * nv + i] * Kyd[i];
-      place[j].drift = dKd > 0 ? c / sqrt(dKd) : 0.0;
-      if (isfinite(place[j].drift)) drift_share += place[j].drift * place[j].drift;
-    }
-  }
-  for (long j = 0; j < modes && st == VES_OK; j++) { /* mu = E'' + sigma_A A'' + sigma_V V'' */
-    double cv[3] = {NAN, NAN, NAN};
-    if (isfinite(mu[j]) && (st = ves_step_curvatures(sp, vec + (size_t)j * nv, cv)) != VES_OK)
-      break;
-    int q = 0;
-    place[j].from[0] = cv[0];
-    place[j].from[1] = r.cfg.area ? sigma[q++] * cv[1] : 0.0;
-    place[j].from[2] = r.cfg.volume ? sigma[q] * cv[2] : 0.0;
-  }
-  ves_step_destroy(&sp);
-  if (st == VES_OK) {
-    st = mode_places(&r, vec, (int)modes, nv, vpath, place);
-    if (st == VES_ERR_IO) {
-      fprintf(stderr, "vesica spectrum: --vectors %s: cannot write: %s\n", vpath, strerror(errno));
-      rc = 2;
-      free(mu), free(mu_err), free(yd), free(Kyd), free(vec), free(place);
-      goto done;
-    }
-  }
+  const ves_spectrum_params sprm = {.hold_area = r.cfg.area,
+                                    .hold_volume = r.cfg.volume,
+                                    .above = above,
+                                    .modes = (int)modes,
+                                    .lanczos = (int)lanczos};
+  ves_spectrum *sp = NULL;
+  ves_status st = ves_spectrum_create(r.sim, &sprm, &sp);
   if (st != VES_OK) {
     fprintf(stderr, "%s: snapshot %ld: the spectrum failed: %s%s\n", pre, k, ves_status_str(st),
             st == VES_ERR_SINGULAR ? " (--above is an eigenvalue? move it a little)" : "");
     rc = 3;
+  } else if (vpath && write_modes(&r, sp, vpath) != 0) {
+    fprintf(stderr, "vesica spectrum: --vectors %s: cannot write: %s\n", vpath, strerror(errno));
+    rc = 2;
   } else {
-    const double kk = r.cfg.k;
-    printf("file = %s\nsnapshot = %ld\nstep = %ld\nt = %.9g\nenergy = %.9f\n", path, k,
-           si.state.nstep, si.state.t, si.state.E / kk);
-    printf("reconnections = %d\nnodes = %d\n", si.reconnections, ves_model_nodes(m)->n);
-    printf("sigma_A = %.9e\nsigma_V = %.9e\n", r.cfg.area ? sigma[0] / kk : 0.0,
-           r.cfg.volume ? sigma[r.cfg.area ? 1 : 0] / kk : 0.0);
-    printf("dissipation = %.9e\nydot_max = %.6e\n", diss / kk, vmax);
-    printf("mu_max = %.9e\nmu_max_residual = %.2e\nfe_dt_limit = %.6e\n", mu_max, res,
-           2 / mu_max);
-    printf("above = %.9g\nbelow = %d\n", above, nbelow);
-    for (long j = 0; j < modes; j++) {
-      const mode_place *q = place + j;
-      printf("mu_%ld = %.9e\nmu_%ld_error = %.2e\n", j + 1, mu[j], j + 1, mu_err[j]);
-      printf("mu_%ld_peak_r = %.4f\nmu_%ld_peak_z = %.4f\nmu_%ld_peak_phi = %.3f\n", j + 1,
-             q->peak[0], j + 1, q->peak[1], j + 1, q->peak_phi);
-      printf("mu_%ld_band = %.3f\nmu_%ld_axis = %.3f\nmu_%ld_material = %.3e\n", j + 1, q->band,
-             j + 1, q->axis, j + 1, q->material);
-      printf("mu_%ld_from_E = %.6e\nmu_%ld_from_A = %.6e\nmu_%ld_from_V = %.6e\n", j + 1,
-             q->from[0], j + 1, q->from[1], j + 1, q->from[2]);
-      printf("mu_%ld_drift = %.3e\n", j + 1, q->drift);
-    }
-    printf("drift_K_norm = %.6e\ndrift_in_modes = %.3e\n", sqrt(dKd), drift_share);
+    print_spectrum(path, k, &si, &r, sp, above);
     printf("seconds = %.1f\n", ves_wall_seconds() - t0);
-    if (nbelow > 0)
+    if (sp->below > 0)
       fprintf(stderr,
               "vesica spectrum: %d eigenvalue(s) lie below --above %g: lower it to see them\n",
-              nbelow, above);
+              sp->below, above);
     rc = 0;
   }
-  free(mu), free(mu_err), free(yd), free(Kyd), free(vec), free(place);
+  ves_spectrum_destroy(&sp);
 done:
   run_free(&r);
   return rc;

@@ -74,63 +74,6 @@ const double *ves_step_K(const ves_step *s);
 /* dt E(y) alone and its gradient (the Euler backend's force). */
 ves_status ves_step_eval_energy_grad(ves_step *s, const double *x, double *E, double *gE);
 
-/* The gradient flow at y^n: K ydot = -grad E - sum_i sigma_i grad c_i with
- * J ydot = 0 (forward Euler's velocity, the dt -> 0 limit of the step).
- * ydot[nvar] (may be NULL) the velocity of the free dofs (R0 per t*),
- * sigma[ncon] the constraint forces (tension, pressure) per unit time that
- * the spectra below take. Requires ves_step_set (dt only scales the
- * evaluation). Allocates and factorizes [K J^T; J 0]. Returns VES_OK,
- * VES_ERR_ARG, errors of the evaluation or the factorization, VES_ERR_ALLOC. */
-ves_status ves_step_flow(ves_step *s, double *ydot, double *sigma);
-
-/* The stiffness of the explicit step at y^n: the largest eigenvalue mu_max
- * (units 1/t*) of K^-1 (Hess E + sum_i sigma_i Hess c_i) on the tangent space
- * {v : J v = 0} of the held constraints, sigma[ncon] the constraint forces
- * per unit time (a step's multipliers divided by its dt; NULL when ncon = 0).
- * Forward Euler on K ydot = -grad E - sum sigma_i grad c_i, J ydot = 0 is
- * linearly stable near y^n for dt <= 2 / mu_max (the iteration matrix is I -
- * dt K^-1 A on that space; at a state out of equilibrium this is its frozen
- * linearization). Lanczos in the K inner product from a fixed start, at most
- * `iters` (>= 2) steps with full reorthogonalization: mu_max from below;
- * *resid (may be NULL) is its Ritz residual relative to mu_max, a bound on
- * the error when the top eigenvalue is separated. Requires ves_step_set (its
- * dt and targets only select the held constraints); allocates and factorizes
- * [K J^T; J 0] (an analysis, not part of a step). Returns VES_OK,
- * VES_ERR_ARG, errors of the Hessian assembly or the factorization,
- * VES_ERR_NOCONV (a zero start vector or LAPACK's dstev failed), VES_ERR_ALLOC. */
-ves_status ves_step_stiffness(ves_step *s, const double *sigma, int iters, double *mu_max,
-                              double *resid);
-
-/* The slow end of the same spectrum: the eigenvalues mu of A v = mu K v on
- * {v : J v = 0} (A = Hess E + sum_i sigma_i Hess c_i at y^n, as above) that
- * lie just above mu_lo. The linearized flow K ydot = -A (y - y*) decays
- * along an eigenvector as exp(-mu t): mu < 0 is an unstable direction (a
- * state near a saddle of E on the constraint set grows away from it at the
- * rate -mu), mu ~ 0 a neutral one (a rigid translation of the vesicle in the
- * box). Shift and invert: Lanczos on P (A - mu_lo K)^-1 K, at most `iters`
- * steps; mu[nwant] (ascending, the nwant lowest found above mu_lo; NAN
- * where fewer were found), err[nwant] (may be NULL) their Ritz error bounds
- * (1/t*, good when the eigenvalue is separated); vec[nwant * nvar] (may be
- * NULL) the Ritz vectors, in the order of mu, K-normalized (v^T K v = 1;
- * NAN where mu is); *nbelow (may be NULL) the
- * exact number of eigenvalues below mu_lo (the inertia of [A - mu_lo K,
- * J^T; J 0] from MUMPS). mu_lo must not be an eigenvalue (a singular
- * factorization: VES_ERR_SINGULAR). Allocates and factorizes (an analysis,
- * not part of a step). Returns VES_OK, VES_ERR_ARG (nwant < 1 or > iters or
- * above the tangent dimension, iters < 2, mu_lo not finite, sigma NULL with
- * constraints), errors of the assembly or the factorization, VES_ERR_NOCONV
- * (dstev failed), VES_ERR_ALLOC. */
-ves_status ves_step_modes(ves_step *s, const double *sigma, double mu_lo, int iters, int nwant,
-                          double *mu, double *err, double *vec, int *nbelow);
-
-/* The curvatures of the three functionals along a direction v[nvar] (free
- * dofs) at y^n: curv = (v^T Hess E v, v^T Hess A v, v^T Hess V v), units of
- * E, A, V per |v|^2. For a K-normalized mode of ves_step_modes, mu = curv[0]
- * + sigma_A curv[1] + sigma_V curv[2] over the held constraints: which of
- * them makes mu what it is. Allocates (an analysis); VES_ERR_ARG, errors of
- * the assembly, VES_ERR_ALLOC. */
-ves_status ves_step_curvatures(ves_step *s, const double *v, double curv[3]);
-
 /* The model, y^n and parameters of the current step. */
 ves_model *ves_step_model(ves_step *s);
 const ves_step_params *ves_step_get_params(const ves_step *s);
