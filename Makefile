@@ -22,9 +22,11 @@ BUILD   ?= build
 SANFLAGS =
 endif
 
+# python3-meshio and python3-h5py: test_cli reads the output with them
+# (tests/xdmf_check.py), readers that share no code with vesica
 DEPS_PKGS = coinor-libipopt-dev libnlopt-dev libmumps-seq-dev libcgal-dev \
             libhdf5-dev libcmocka-dev liblapacke-dev libopenblas-dev \
-            gnuplot-nox pkg-config libiniparser-dev
+            gnuplot-nox pkg-config libiniparser-dev python3-meshio python3-h5py
 
 PKG_CFLAGS := $(shell pkg-config --cflags ipopt hdf5 2>/dev/null)
 PKG_LIBS   := $(shell pkg-config --libs ipopt hdf5 2>/dev/null)

@@ -43,8 +43,8 @@ if [ -z "${TABLE:-}" ]; then
     a=$(args_of "$r")
     [ -n "$a" ] || { echo "reconnect_table: unknown run '$r' (one of: $ALL)" >&2; exit 2; }
     echo "== $r: $V run $PROBLEM $a $SET" >&2
-    # shellcheck disable=SC2086
-    "$V" run "$PROBLEM" $a $SET --out "$OUT/$r.h5" --series "$OUT/$r.tsv" --quiet \
+    # shellcheck disable=SC2086 # --force: a rerun replaces that run's files
+    "$V" run "$PROBLEM" $a $SET --out "$OUT/$r.h5" --series "$OUT/$r.tsv" --quiet --force \
       2> "$OUT/$r.log"
     echo "$?" > "$OUT/$r.exit"
   done

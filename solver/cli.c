@@ -787,7 +787,14 @@ static int run_new(run_ctx *r, const char *path, const char *out, const char *ba
     if (l > 4 && !strcmp(base + l - 4, ".ini")) l -= 4;
     snprintf(r->out, sizeof r->out, "%.*s.h5", (int)l, base);
   }
-  char xdmf[PATH_MAX], points[PATH_MAX + 600] = "", hint[PATH_MAX + 64];
+  char xdmf[PATH_MAX], points[PATH_MAX + 600] = "", hint[PATH_MAX + 64], why[128];
+  if (!ves_io_xdmf_name_ok(r->out, why, sizeof why)) { /* the .xdmf could not name it */
+    fprintf(stderr,
+            "vesica run: --out %s: %s, so the XDMF file beside it could not refer to it: "
+            "choose another name\n",
+            r->out, why);
+    return 2;
+  }
   ves_io_xdmf_path(r->out, xdmf, sizeof xdmf);
   if ((rc = check_writable("run", "--out", r->out)) || (rc = check_writable("run", "--out", xdmf)))
     return rc;
@@ -968,16 +975,64 @@ static int rebuild_at(run_ctx *r, const char *pre, int S, ves_io_snapinfo *si) {
 static const char *const RESTART_KEYS[] = {"solver.tol", "solver.ctol", "solver.max_iter",
                                            "solver.freeze_hessian", "time.t_end"};
 
+/* A file cut short (a torn last write): its last complete snapshot, the
+ * rows and references before it salvaged into a new FILE.h5 (io.h), the
+ * damaged file kept as FILE.h5.damaged. 0, or exit code 3 with a message. */
+static int salvage(const char *file, int quiet) {
+  char tmp[PATH_MAX + 16], kept[PATH_MAX + 16], err[1024] = "";
+  snprintf(tmp, sizeof tmp, "%s.salvage", file);
+  snprintf(kept, sizeof kept, "%s.damaged", file);
+  struct stat sb;
+  if (stat(kept, &sb) == 0) {
+    fprintf(stderr,
+            "vesica run: --restart %s: the file is cut short (a torn last write) and %s, where "
+            "its damaged copy would be kept, exists: move it away\n",
+            file, kept);
+    return 3;
+  }
+  remove(tmp); /* a salvage interrupted before */
+  ves_io_salvaged s;
+  ves_status st = ves_io_salvage(file, tmp, &s, err, sizeof err);
+  if (st != VES_OK) {
+    fprintf(stderr,
+            "vesica run: --restart %s: the file is cut short (%lld of the %lld bytes its "
+            "superblock records: a torn last write) and cannot be salvaged: %s\n",
+            file, s.size, s.stored_size, err);
+    return 3;
+  }
+  if (rename(file, kept) != 0 || rename(tmp, file) != 0) {
+    fprintf(stderr, "vesica run: --restart %s: cannot put the salvaged file in place: %s\n", file,
+            strerror(errno));
+    return 3;
+  }
+  if (!quiet)
+    fprintf(stderr,
+            "vesica run: %s was cut short (%lld of %lld bytes: a torn last write): salvaged "
+            "snapshots 0..%d of %d (step %ld, t* = %.6g), %ld series rows and %d reference(s) "
+            "into a new %s; the damaged file is kept as %s\n",
+            file, s.size, s.stored_size, s.snapshot, s.snapshots, s.step, s.t, s.rows, s.references,
+            file, kept);
+  return 0;
+}
+
 /* Continue FILE.h5 from its last snapshot, with the overrides set[nset]
  * (RESTART_KEYS only; recorded in the file). */
 static int run_restart(run_ctx *r, const char *file, int nset, const char *const *set) {
   char err[1024] = "";
   r->label = file;
   snprintf(r->out, sizeof r->out, "%s", file);
-  char xdmf[PATH_MAX];
+  char xdmf[PATH_MAX], why[128];
+  if (!ves_io_xdmf_name_ok(file, why, sizeof why)) {
+    fprintf(stderr,
+            "vesica run: --restart %s: %s, so its XDMF file could not refer to it: rename the "
+            "file\n",
+            file, why);
+    return 2;
+  }
   ves_io_xdmf_path(file, xdmf, sizeof xdmf);
   int rc = check_writable("run", "--restart", xdmf);
   if (rc) return rc;
+  if (ves_io_cut_short(file, NULL, NULL) && (rc = salvage(file, r->quiet))) return rc;
   ves_status st = ves_io_open(file, 1, &r->io, err, sizeof err);
   if (st != VES_OK) {
     fprintf(stderr, "vesica run: --restart %s\n", err);

@@ -8,6 +8,7 @@
 #include <limits.h>
 #include <math.h>
 #include <stdarg.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -68,6 +69,9 @@ struct ves_io {
   double *snap_t;        /* nsnap times (for the XDMF file) */
   int snap_cap;          /* capacity of snap_t */
   char error[2 * PATH_MAX]; /* the cause of the last failed write ("" none) */
+  uint64_t series_sum;      /* checksum of the first summed_rows series rows */
+  long summed_rows;         /* rows in series_sum */
+  int tolerant;             /* salvage: count the snapshots up to the first unreadable one */
 };
 
 static void say(char *err, size_t errlen, const char *fmt, ...) {
@@ -124,10 +128,34 @@ static ves_status io_failed(ves_io *io, ves_status st, int errnum) {
   return st;
 }
 
+/* ---- checksums ------------------------------------------------------------ */
+
+/* FNV-1a (64 bits) over the bytes of data, continuing from h (FNV_START to
+ * begin). Snapshots and references carry one over their data and state, so
+ * that a salvage (ves_io_salvage) tells a member whose blocks survived from
+ * one whose blocks were lost and read back as zeros. */
+#define FNV_START 0xcbf29ce484222325ULL
+static uint64_t fnv(uint64_t h, const void *data, size_t len) {
+  const unsigned char *p = data;
+  for (size_t i = 0; i < len; i++) h = (h ^ p[i]) * 0x100000001b3ULL;
+  return h;
+}
+
 /* ---- attributes ----------------------------------------------------------- */
 
+/* A scalar attribute; one of the same type is overwritten in place, so the
+ * object header neither grows nor moves to the end of the file (where a
+ * torn last write would take it: ves_io_salvage reads the header). */
 static ves_status attr_write(hid_t obj, const char *name, hid_t ftype, hid_t mtype, const void *v) {
-  if (H5Aexists(obj, name) > 0 && H5Adelete(obj, name) < 0) return VES_ERR_IO;
+  if (H5Aexists(obj, name) > 0) {
+    hid_t a = H5Aopen(obj, name, H5P_DEFAULT), t = a < 0 ? -1 : H5Aget_type(a);
+    const htri_t same = t < 0 ? -1 : H5Tequal(t, ftype);
+    const herr_t e = same > 0 ? H5Awrite(a, mtype, v) : 0;
+    if (t >= 0) H5Tclose(t);
+    if (a >= 0) H5Aclose(a);
+    if (same > 0) return e < 0 ? VES_ERR_IO : VES_OK;
+    if (H5Adelete(obj, name) < 0) return VES_ERR_IO;
+  }
   hid_t sp = H5Screate(H5S_SCALAR);
   hid_t a = sp < 0 ? -1 : H5Acreate2(obj, name, ftype, sp, H5P_DEFAULT, H5P_DEFAULT);
   herr_t e = a < 0 ? -1 : H5Awrite(a, mtype, v);
@@ -148,15 +176,32 @@ static ves_status attr_long(hid_t obj, const char *name, long v) {
   return attr_write(obj, name, H5T_STD_I64LE, H5T_NATIVE_LONG, &v);
 }
 
-/* A fixed-length, NUL-terminated string attribute. */
-static ves_status attr_str(hid_t obj, const char *name, const char *s) {
-  hid_t t = H5Tcopy(H5T_C_S1);
-  if (t < 0) return VES_ERR_IO;
-  ves_status st = VES_ERR_IO;
-  if (H5Tset_size(t, strlen(s) + 1) >= 0 && H5Tset_strpad(t, H5T_STR_NULLTERM) >= 0)
-    st = attr_write(obj, name, t, t, s);
-  H5Tclose(t);
+static ves_status attr_u64(hid_t obj, const char *name, uint64_t v) {
+  return attr_write(obj, name, H5T_STD_U64LE, H5T_NATIVE_UINT64, &v);
+}
+
+/* A fixed-length, NUL-terminated string attribute of size bytes (s and
+ * zeros; at least strlen(s) + 1). */
+static ves_status attr_str_size(hid_t obj, const char *name, const char *s, size_t size) {
+  const size_t len = strlen(s) + 1 > size ? strlen(s) + 1 : size;
+  char *buf = calloc(len, 1);
+  hid_t t = buf ? H5Tcopy(H5T_C_S1) : -1;
+  ves_status st = buf ? VES_ERR_IO : VES_ERR_ALLOC;
+  if (buf) memcpy(buf, s, strlen(s));
+  if (t >= 0 && H5Tset_size(t, len) >= 0 && H5Tset_strpad(t, H5T_STR_NULLTERM) >= 0)
+    st = attr_write(obj, name, t, t, buf);
+  if (t >= 0) H5Tclose(t);
+  free(buf);
   return st;
+}
+
+static ves_status attr_str(hid_t obj, const char *name, const char *s) {
+  return attr_str_size(obj, name, s, 0);
+}
+
+/* The root attribute status: 16 bytes whatever its value, rewritten in place. */
+static ves_status attr_status(hid_t file, const char *status) {
+  return attr_str_size(file, "status", status, sizeof((ves_io_info *)0)->status);
 }
 
 /* The attributes `units` and `description` every group and dataset carries
@@ -268,6 +313,93 @@ static hid_t col_mem_type(col_type t) {
   return t == COL_LONG ? H5T_NATIVE_LONG : t == COL_INT ? H5T_NATIVE_INT : H5T_NATIVE_DOUBLE;
 }
 
+static size_t col_size(col_type t) {
+  return t == COL_LONG ? sizeof(long) : t == COL_INT ? sizeof(int) : sizeof(double);
+}
+
+/* Rows [from, from + m) of series dataset d (column type t) into buf. */
+static ves_status col_read(hid_t d, col_type t, hsize_t from, hsize_t m, void *buf) {
+  if (m == 0) return VES_OK;
+  hid_t fs = H5Dget_space(d), ms = H5Screate_simple(1, &m, NULL);
+  herr_t e = fs < 0 || ms < 0 ? -1 : H5Sselect_hyperslab(fs, H5S_SELECT_SET, &from, NULL, &m, NULL);
+  if (e >= 0) e = H5Dread(d, col_mem_type(t), ms, fs, H5P_DEFAULT, buf);
+  if (ms >= 0) H5Sclose(ms);
+  if (fs >= 0) H5Sclose(fs);
+  return e < 0 ? VES_ERR_IO : VES_OK;
+}
+
+/* The series checksum continued over m rows held column by column in
+ * col[NSERIES]: row by row, each row's values in the order of SERIES. */
+static uint64_t rows_sum(uint64_t h, void *const *col, long m) {
+  for (long r = 0; r < m; r++)
+    for (int i = 0; i < NSERIES; i++) {
+      const size_t sz = col_size(SERIES[i].type);
+      h = fnv(h, (const char *)col[i] + (size_t)r * sz, sz);
+    }
+  return h;
+}
+
+/* Read the first `rows` rows of every series into col[] (malloc'd, taken
+ * by the caller; freed and NULL on failure). */
+static ves_status cols_read(hid_t const *series, long rows, void **col) {
+  ves_status st = VES_OK;
+  for (int i = 0; i < NSERIES; i++) col[i] = NULL;
+  for (int i = 0; i < NSERIES && st == VES_OK; i++) {
+    col[i] = malloc((size_t)(rows > 0 ? rows : 1) * col_size(SERIES[i].type));
+    st = !col[i] ? VES_ERR_ALLOC : col_read(series[i], SERIES[i].type, 0, (hsize_t)rows, col[i]);
+  }
+  if (st != VES_OK)
+    for (int i = 0; i < NSERIES; i++) free(col[i]), col[i] = NULL;
+  return st;
+}
+
+/* The checksum of the first `rows` rows of the series (extended over the
+ * rows written since the last call; recomputed after a truncation). */
+static ves_status series_sum(ves_io *io, long rows, uint64_t *out) {
+  if (io->summed_rows > rows) io->summed_rows = 0, io->series_sum = FNV_START;
+  const long from = io->summed_rows, m = rows - from;
+  void *col[NSERIES];
+  ves_status st = VES_OK;
+  for (int i = 0; i < NSERIES; i++) col[i] = NULL;
+  for (int i = 0; i < NSERIES && st == VES_OK && m > 0; i++) {
+    col[i] = malloc((size_t)m * col_size(SERIES[i].type));
+    st = !col[i] ? VES_ERR_ALLOC
+                 : col_read(io->series[i], SERIES[i].type, (hsize_t)from, (hsize_t)m, col[i]);
+  }
+  if (st == VES_OK && m > 0) io->series_sum = rows_sum(io->series_sum, col, m);
+  for (int i = 0; i < NSERIES; i++) free(col[i]);
+  VES_CALL(st);
+  io->summed_rows = rows;
+  *out = io->series_sum;
+  return VES_OK;
+}
+
+/* The checksum of a snapshot: y, x, phi (n nodes) and every stored field of si. */
+static uint64_t snap_sum(long n, const double *y, const double *x, const double *phi,
+                         const ves_io_snapinfo *si) {
+  const ves_sim_state *s = &si->state;
+  const double d[] = {s->t,          s->dt, s->E,         s->A,         s->V,  s->E0,
+                      s->A0,         s->V0, s->lambda[0], s->lambda[1], s->c0, si->wall_seconds,
+                      s->dt_rejected};
+  const long l[] = {s->nstep, si->rows, s->since_rejected, si->reconnections};
+  uint64_t h = fnv(FNV_START, y, 2 * (size_t)n * sizeof *y);
+  h = fnv(h, x, 2 * (size_t)n * sizeof *x);
+  h = fnv(h, phi, (size_t)n * sizeof *phi);
+  h = fnv(h, d, sizeof d);
+  return fnv(h, l, sizeof l);
+}
+
+/* The checksum of a reference: its data (n nodes, nq points) and step. */
+static uint64_t ref_sum(long n, long nq, const double *x, const double *h_, const double *xq,
+                        const double *wq, const double *pd, long step) {
+  uint64_t h = fnv(FNV_START, x, 2 * (size_t)n * sizeof *x);
+  h = fnv(h, h_, (size_t)n * sizeof *h_);
+  h = fnv(h, xq, 2 * (size_t)nq * sizeof *xq);
+  h = fnv(h, wq, (size_t)nq * sizeof *wq);
+  h = fnv(h, pd, 6 * (size_t)nq * sizeof *pd);
+  return fnv(h, &step, sizeof step);
+}
+
 /* ---- XDMF ------------------------------------------------------------------ */
 
 void ves_io_xdmf_path(const char *h5path, char *out, size_t len) {
@@ -276,6 +408,35 @@ void ves_io_xdmf_path(const char *h5path, char *out, size_t len) {
     snprintf(out, len, "%.*s.xdmf", (int)(l - 3), h5path);
   else
     snprintf(out, len, "%s.xdmf", h5path);
+}
+
+int ves_io_xdmf_name_ok(const char *h5path, char *why, size_t len) {
+  const char *slash = strrchr(h5path, '/');
+  const unsigned char *b = (const unsigned char *)(slash ? slash + 1 : h5path), *p = b;
+  const char *bad = NULL;
+  for (; *p && !bad; p++) {
+    int more = *p < 0x80             ? 0
+               : (*p & 0xe0) == 0xc0 ? 1
+               : (*p & 0xf0) == 0xe0 ? 2
+               : (*p & 0xf8) == 0xf0 ? 3
+                                     : -1;
+    for (int i = 1; i <= more && more > 0; i++)
+      if ((p[i] & 0xc0) != 0x80) more = -1;
+    if (more < 0 || (more == 1 && *p < 0xc2))
+      bad = "a byte that is not UTF-8 (XML files are)";
+    else if (*p == ':')
+      bad = "':' (XDMF readers split NAME:/dataset at ':')";
+    else if (*p == '|')
+      bad = "'|' (XDMF readers split a data item's text at '|')";
+    else if (*p < 0x20 || *p == 0x7f)
+      bad = "a control character (XML files cannot hold it)";
+    else if (p == b && *p == ' ')
+      bad = "a leading space (XDMF readers strip it from the data item)";
+    else if (more > 0)
+      p += more;
+  }
+  if (bad && why) snprintf(why, len, "its name holds %s", bad);
+  return !bad;
 }
 
 /* Text with the XML special characters escaped. */
@@ -304,20 +465,23 @@ static void xdmf_item(FILE *f, const char *h5, const char *dims, const char *num
 
 static int nodes_now(const ves_io *io);
 
-/* Two temporal collections over the snapshots: the reference triangles at
- * the material positions x of their nodes, with phi, and the nodes alone as
- * points. Written to
- * a temporary name and renamed, so a reader never sees half a file. */
+/* Two temporal collections over the snapshots: the nodes alone as points,
+ * and the reference triangles at the material positions x of their nodes,
+ * with phi (XDMF 3 with the XDMF 2 attribute names, which ParaView's
+ * readers and meshio's time-series reader take; meshio reads the last
+ * collection). Written to a temporary name and renamed, so a reader never
+ * sees half a file. */
 static ves_status xdmf_write(const ves_io *io) {
   const char *slash = strrchr(io->path, '/');
   const char *h5 = slash ? slash + 1 : io->path; /* relative: the pair moves together */
+  if (!ves_io_xdmf_name_ok(io->path, NULL, 0)) return VES_ERR_ARG; /* never a broken XDMF */
   char tmp[PATH_MAX + 8], dims[64];
   snprintf(tmp, sizeof tmp, "%s.tmp", io->xdmf);
   FILE *f = fopen(tmp, "w");
   if (!f) return VES_ERR_IO;
   fprintf(f, "<?xml version=\"1.0\" ?>\n<!DOCTYPE Xdmf SYSTEM \"Xdmf.dtd\" []>\n"
-             "<Xdmf Version=\"2.0\">\n <Domain>\n");
-  for (int pass = 0; pass < 2; pass++) {
+             "<Xdmf Version=\"3.0\">\n <Domain>\n");
+  for (int pass = 1; pass >= 0; pass--) { /* meshio reads the last collection: the mesh */
     fprintf(f, "  <Grid Name=\"%s\" GridType=\"Collection\" CollectionType=\"Temporal\">\n",
             pass ? "nodes" : "mesh");
     for (int k = 0; k < io->nsnap; k++) {
@@ -374,6 +538,7 @@ static ves_io *io_alloc(const char *path, int writable) {
   if (!io) return NULL;
   io->file = -1;
   io->writable = writable;
+  io->series_sum = FNV_START;
   for (int i = 0; i < NSERIES; i++) io->series[i] = -1;
   snprintf(io->path, sizeof io->path, "%s", path);
   ves_io_xdmf_path(path, io->xdmf, sizeof io->xdmf);
@@ -421,6 +586,28 @@ static ves_status write_parameters(hid_t file, const ves_config *cfg) {
   return st;
 }
 
+/* Attribute "codes" of the series' status: every ves_status value, typed by
+ * an HDF5 enumeration of their names (h5dump and h5py show the names). */
+static ves_status status_codes(hid_t obj) {
+#define STATUS_VALUE_(name, value, msg) value,
+  static const int values[] = {VES_STATUS_LIST(STATUS_VALUE_)};
+#undef STATUS_VALUE_
+#define STATUS_NAME_(name, value, msg) #name,
+  static const char *const names[] = {VES_STATUS_LIST(STATUS_NAME_)};
+#undef STATUS_NAME_
+  const hsize_t count = sizeof values / sizeof values[0];
+  hid_t t = H5Tenum_create(H5T_NATIVE_INT), sp = H5Screate_simple(1, &count, NULL), a = -1;
+  herr_t e = t < 0 || sp < 0 ? -1 : 0;
+  for (hsize_t i = 0; i < count && e >= 0; i++) e = H5Tenum_insert(t, names[i], &values[i]);
+  if (e >= 0 && H5Aexists(obj, "codes") > 0) e = H5Adelete(obj, "codes");
+  if (e >= 0) a = H5Acreate2(obj, "codes", t, sp, H5P_DEFAULT, H5P_DEFAULT);
+  if (a < 0 || H5Awrite(a, t, values) < 0) e = -1;
+  if (a >= 0) H5Aclose(a);
+  if (sp >= 0) H5Sclose(sp);
+  if (t >= 0) H5Tclose(t);
+  return e < 0 ? VES_ERR_IO : VES_OK;
+}
+
 /* The extendible series datasets (empty). */
 static ves_status create_series(ves_io *io) {
   hid_t g = H5Gcreate2(io->file, "series", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
@@ -433,6 +620,7 @@ static ves_status create_series(ves_io *io) {
                                dcpl, H5P_DEFAULT);
     if (io->series[i] < 0) st = VES_ERR_IO;
     if (st == VES_OK) st = describe(io->series[i], SERIES[i].units, SERIES[i].description);
+    if (st == VES_OK && !strcmp(SERIES[i].name, "status")) st = status_codes(io->series[i]);
   }
   if (st == VES_OK)
     st = describe(g, "per dataset", "one row per accepted step, flushed after every step");
@@ -455,7 +643,7 @@ static ves_status write_header(ves_io *io, const ves_io_header *h) {
   VES_CALL(attr_double(f, "A0", h->A0));
   VES_CALL(attr_double(f, "V0", h->V0));
   VES_CALL(attr_double(f, "setup_seconds", h->setup_seconds));
-  VES_CALL(attr_str(f, "status", "running"));
+  VES_CALL(attr_status(f, "running"));
   VES_CALL(attr_str(f, "format_description",
                     "vesica HDF5 output, layout format_version 2: include/ves/io.h and "
                     "README.md (Output) of vesica"));
@@ -571,12 +759,12 @@ static ves_status read_snapshot_times(ves_io *io) {
     char name[32];
     snprintf(name, sizeof name, "%d", k);
     hid_t g = H5Gopen2(s, name, H5P_DEFAULT);
-    if (g < 0) {
-      st = VES_ERR_CONFIG;
+    st = g < 0 ? VES_ERR_CONFIG : attr_read_double(g, "t", &io->snap_t[k]);
+    if (g >= 0) H5Gclose(g);
+    if (st != VES_OK && io->tolerant) { /* a salvage: the snapshots before it */
+      count = k, st = VES_OK;
       break;
     }
-    st = attr_read_double(g, "t", &io->snap_t[k]);
-    H5Gclose(g);
   }
   H5Gclose(s);
   if (st == VES_OK) io->nsnap = count;
@@ -595,14 +783,19 @@ static ves_status read_header(ves_io *io) {
   if (io->writable && in->format_version != VES_IO_FORMAT) return VES_ERR_CONFIG;
   VES_CALL(attr_read_buf(f, "version", in->version, sizeof in->version));
   VES_CALL(attr_read_buf(f, "backend", in->backend, sizeof in->backend));
-  VES_CALL(attr_read_buf(f, "status", in->status, sizeof in->status));
+  /* a salvage takes a file whose status (written last) was lost as killed */
+  if (attr_read_buf(f, "status", in->status, sizeof in->status) != VES_OK) {
+    if (!io->tolerant) return VES_ERR_CONFIG;
+    snprintf(in->status, sizeof in->status, "running");
+  }
   VES_CALL(attr_read(f, "nodes", H5T_NATIVE_INT, &in->n));
   VES_CALL(attr_read_str(f, "problem", &in->problem));
   VES_CALL(attr_read_str(f, "source", &in->source));
   VES_CALL(attr_read_double(f, "E0", &in->E0));
   VES_CALL(attr_read_double(f, "A0", &in->A0));
   VES_CALL(attr_read_double(f, "V0", &in->V0));
-  VES_CALL(attr_read_double(f, "setup_seconds", &in->setup_seconds));
+  if (attr_read_double(f, "setup_seconds", &in->setup_seconds) != VES_OK && !io->tolerant)
+    return VES_ERR_CONFIG;
   hid_t d = H5Dopen2(f, "mesh/triangles", H5P_DEFAULT);
   if (d < 0) return VES_ERR_CONFIG;
   hsize_t dims[2] = {0, 0};
@@ -661,7 +854,9 @@ ves_status ves_io_open(const char *path, int writable, ves_io **out, char *err, 
           path);
     } else {
       say(err, errlen, "%s: the HDF5 file is damaged: %s%s", path, why[0] ? why : "unreadable",
-          strstr(why, "truncated") ? " (cut short: a copy interrupted, or a full disk)" : "");
+          strstr(why, "truncated") ? " (cut short: a copy interrupted, or a full disk; vesica run "
+                                     "--restart salvages its last complete snapshot)"
+                                   : "");
     }
     ves_io_close(&io);
     return VES_ERR_IO;
@@ -739,6 +934,7 @@ long ves_io_rows(const ves_io *io) {
 ves_status ves_io_truncate(ves_io *io, long rows) {
   VES_CHECK(io && io->writable && rows >= 0, VES_ERR_ARG);
   hsize_t r = (hsize_t)rows;
+  if (io->summed_rows > rows) io->summed_rows = 0, io->series_sum = FNV_START;
   for (int i = 0; i < NSERIES; i++) {
     if (dset_len(io->series[i]) < r) return VES_ERR_ARG;
     if (H5Dset_extent(io->series[i], &r) < 0) return VES_ERR_IO;
@@ -839,6 +1035,14 @@ static ves_status snapshot(ves_io *io, const double *y, const double *x, const d
   if (st == VES_OK) st = dset_write(g, "x", F, M, n, 2, x);
   if (st == VES_OK) st = dset_write(g, "phi", F, M, n, 0, phi);
   if (st == VES_OK) st = snapshot_attrs(g, si);
+  /* checksums for a salvage: of the snapshot, and of the series rows up to
+   * it (when the file holds them: always in a run) */
+  uint64_t rows_checksum = 0;
+  if (st == VES_OK) st = attr_u64(g, "checksum", snap_sum((long)n, y, x, phi, si));
+  if (st == VES_OK && si->rows >= 0 && ves_io_rows(io) >= si->rows) {
+    st = series_sum(io, si->rows, &rows_checksum);
+    if (st == VES_OK) st = attr_u64(g, "series_checksum", rows_checksum);
+  }
   if (st == VES_OK)
     st = describe(g, "t, dt in t*; E in k; A in R0^2; V in R0^3; c0 in 1/R0",
                   "one state: what a restart continues from; attributes the integrator state");
@@ -945,6 +1149,9 @@ static ves_status write_reference(ves_io *io, const ves_io_reference *ref) {
   if (st == VES_OK) st = dset_write(g, "phi0", F, M, nq, 6, ref->pd);
   if (st == VES_OK) st = attr_long(g, "step", ref->step);
   if (st == VES_OK)
+    st = attr_u64(g, "checksum",
+                  ref_sum((long)n, (long)nq, ref->x, ref->h, ref->xq, ref->wq, ref->pd, ref->step));
+  if (st == VES_OK)
     st = describe(s, "per member", "reference configurations, one per reset (groups 0..count-1)");
   if (st == VES_OK)
     st = describe(g, "R0", "the reference made after accepted step `step`: what a restart rebuilds");
@@ -1006,7 +1213,7 @@ ves_status ves_io_truncate_references(ves_io *io, int count) {
 ves_status ves_io_set_status(ves_io *io, const char *status) {
   VES_CHECK(io && status && io->writable && strlen(status) < sizeof io->info.status, VES_ERR_ARG);
   errno = 0;
-  ves_status st = attr_str(io->file, "status", status);
+  ves_status st = attr_status(io->file, status);
   if (st == VES_OK && H5Fflush(io->file, H5F_SCOPE_LOCAL) < 0) st = VES_ERR_IO;
   if (st == VES_OK) snprintf(io->info.status, sizeof io->info.status, "%s", status);
   return io_failed(io, st, errno);
@@ -1181,6 +1388,32 @@ int ves_io_snapshot_mesh(const ves_io *io, int k, int *n, int *ntri) {
   return -1;
 }
 
+/* The checksum of the datasets named in part[np] of group g (each read
+ * whole as doubles, in that order), or 0 when one does not read. */
+static uint64_t group_sum(hid_t g, const char *const *part, int np) {
+  uint64_t h = FNV_START;
+  for (int i = 0; i < np; i++) {
+    double *v = NULL;
+    hsize_t c = 0;
+    hid_t d = H5Dopen2(g, part[i], H5P_DEFAULT);
+    hid_t sp = d < 0 ? -1 : H5Dget_space(d);
+    const hssize_t np_ = sp < 0 ? -1 : H5Sget_simple_extent_npoints(sp);
+    int ok = np_ > 0 && (v = malloc((size_t)np_ * sizeof *v)) &&
+             H5Dread(d, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, v) >= 0;
+    c = ok ? (hsize_t)np_ : 0;
+    if (ok) h = fnv(h, v, (size_t)c * sizeof *v);
+    free(v);
+    if (sp >= 0) H5Sclose(sp);
+    if (d >= 0) H5Dclose(d);
+    if (!ok) return 0;
+  }
+  return h;
+}
+
+/* The datasets of a remeshing group its checksum covers. */
+static const char *const REMESH_PARTS[] = {"x", "h", "flag", "phi0c", "triangles", "vertices"};
+#define NREMESH_PARTS ((int)(sizeof REMESH_PARTS / sizeof REMESH_PARTS[0]))
+
 static ves_status write_remesh(ves_io *io, const ves_io_remesh *rm) {
   const int k = ves_io_remeshes(io);
   hid_t s, g;
@@ -1235,6 +1468,8 @@ static ves_status write_remesh(ves_io *io, const ves_io_remesh *rm) {
   if (st == VES_OK)
     st = describe_at(g, "triangles", "1", "ntri x 3 Delaunay triangles of the new nodes");
   if (st == VES_OK) st = describe_at(g, "vertices", "1", "n int 0..n-1 (the nodes as XDMF points)");
+  if (st == VES_OK) /* for a salvage (ves_io_salvage), read back as written */
+    st = attr_u64(g, "checksum", group_sum(g, REMESH_PARTS, NREMESH_PARTS));
   return counted_close(io->file, s, g, k, st);
 }
 
@@ -1301,4 +1536,306 @@ ves_status ves_io_read_remesh_triangles(ves_io *io, int k, int *tri) {
   char name[48];
   snprintf(name, sizeof name, "remeshes/%d/triangles", k);
   return dset_read(io->file, name, H5T_NATIVE_INT, 3 * (hsize_t)nt, tri);
+}
+
+/* ---- salvage of a file cut short ------------------------------------------ */
+
+/* The end-of-file address a version 0 or 1 superblock records (8-byte
+ * addresses, no user block: what this module writes), or -1. */
+static long long sb_stored_eof(const unsigned char *b, size_t len) {
+  static const unsigned char sig[8] = {0x89, 'H', 'D', 'F', '\r', '\n', 0x1a, '\n'};
+  if (len < 64 || memcmp(b, sig, 8) || (b[8] != 0 && b[8] != 1) || b[13] != 8) return -1;
+  const size_t at = b[8] == 0 ? 24 : 28; /* base address, free space, end of file */
+  unsigned long long base = 0, eof = 0;
+  for (int i = 7; i >= 0; i--) base = base << 8 | b[at + (size_t)i];
+  for (int i = 7; i >= 0; i--) eof = eof << 8 | b[at + 16 + (size_t)i];
+  return base + eof > (1ULL << 50) ? -1 : (long long)(base + eof);
+}
+
+int ves_io_cut_short(const char *path, long long *size, long long *stored) {
+  unsigned char b[64];
+  FILE *f = path ? fopen(path, "rb") : NULL;
+  if (!f) return 0;
+  const size_t got = fread(b, 1, sizeof b, f);
+  struct stat sb;
+  const int ok = fstat(fileno(f), &sb) == 0;
+  fclose(f);
+  const long long eof = sb_stored_eof(b, got);
+  if (!ok || eof < 0 || (long long)sb.st_size >= eof) return 0;
+  if (size) *size = (long long)sb.st_size;
+  if (stored) *stored = eof;
+  return 1;
+}
+
+/* H5Aiterate2 callback: copy attribute `name` of obj (fixed-size types, as
+ * this module writes) to the object *data. */
+static herr_t copy_attr(hid_t obj, const char *name, const H5A_info_t *info, void *data) {
+  (void)info;
+  hid_t dst = *(hid_t *)data, a = H5Aopen(obj, name, H5P_DEFAULT);
+  hid_t t = a < 0 ? -1 : H5Aget_type(a), sp = a < 0 ? -1 : H5Aget_space(a);
+  const hssize_t np = sp < 0 ? -1 : H5Sget_simple_extent_npoints(sp);
+  const size_t sz = t < 0 || np < 0 ? 0 : H5Tget_size(t) * (size_t)np;
+  char *buf = sz && !(t >= 0 && H5Tis_variable_str(t) > 0) ? malloc(sz) : NULL;
+  herr_t e = buf && H5Aread(a, t, buf) >= 0 ? 0 : -1;
+  hid_t b = e < 0 ? -1 : H5Acreate2(dst, name, t, sp, H5P_DEFAULT, H5P_DEFAULT);
+  if (b < 0 || H5Awrite(b, t, buf) < 0) e = -1;
+  if (b >= 0) H5Aclose(b);
+  free(buf);
+  if (sp >= 0) H5Sclose(sp);
+  if (t >= 0) H5Tclose(t);
+  if (a >= 0) H5Aclose(a);
+  return e;
+}
+
+/* Group `name` of src re-created in dst with the attributes of src's, and
+ * count set to `count`. */
+static ves_status copy_counted(hid_t src, hid_t dst, const char *name, int count) {
+  hid_t s = H5Gopen2(src, name, H5P_DEFAULT);
+  hid_t d = H5Gcreate2(dst, name, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+  ves_status st = s < 0 || d < 0 ? VES_ERR_IO : VES_OK;
+  if (st == VES_OK && H5Aiterate2(s, H5_INDEX_NAME, H5_ITER_INC, NULL, copy_attr, &d) < 0)
+    st = VES_ERR_IO;
+  if (st == VES_OK) st = attr_int(d, "count", count);
+  for (int k = 0; k < count && st == VES_OK; k++) {
+    char m[32];
+    snprintf(m, sizeof m, "%d", k);
+    if (H5Ocopy(s, m, d, m, H5P_DEFAULT, H5P_DEFAULT) < 0) st = VES_ERR_IO;
+  }
+  if (d >= 0) H5Gclose(d);
+  if (s >= 0) H5Gclose(s);
+  return st;
+}
+
+/* A whole dataset of doubles at loc/name (malloc'd into *out, its size in
+ * *count). */
+static ves_status dset_read_all(hid_t loc, const char *name, double **out, hsize_t *count) {
+  *out = NULL, *count = 0;
+  hid_t d = H5Dopen2(loc, name, H5P_DEFAULT);
+  hid_t sp = d < 0 ? -1 : H5Dget_space(d);
+  const hssize_t np = sp < 0 ? -1 : H5Sget_simple_extent_npoints(sp);
+  ves_status st = np <= 0 ? VES_ERR_IO : VES_OK;
+  if (st == VES_OK && !(*out = malloc((size_t)np * sizeof **out))) st = VES_ERR_ALLOC;
+  if (st == VES_OK && H5Dread(d, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, *out) < 0)
+    st = VES_ERR_IO;
+  if (st == VES_OK) *count = (hsize_t)np;
+  if (st != VES_OK) free(*out), *out = NULL;
+  if (sp >= 0) H5Sclose(sp);
+  if (d >= 0) H5Dclose(d);
+  return st;
+}
+
+/* Whether reference k of src reads whole and matches its checksum. */
+static int reference_intact(ves_io *src, int k) {
+  char name[48];
+  snprintf(name, sizeof name, "references/%d", k);
+  hid_t g = H5Gopen2(src->file, name, H5P_DEFAULT);
+  if (g < 0) return 0;
+  static const char *const part[5] = {"x", "h", "points", "weights", "phi0"};
+  double *v[5] = {0};
+  hsize_t c[5] = {0};
+  long step = 0;
+  uint64_t want = 0;
+  int ok = attr_read(g, "checksum", H5T_NATIVE_UINT64, &want) == VES_OK &&
+           attr_read(g, "step", H5T_NATIVE_LONG, &step) == VES_OK;
+  for (int i = 0; i < 5 && ok; i++) ok = dset_read_all(g, part[i], &v[i], &c[i]) == VES_OK;
+  const long n = (long)c[1], nq = (long)c[3]; /* after a remeshing not the header's n */
+  ok = ok && c[0] == 2 * (hsize_t)n && c[2] == 2 * c[3] && c[4] == 6 * c[3] &&
+       ref_sum(n, nq, v[0], v[1], v[2], v[3], v[4], step) == want;
+  for (int i = 0; i < 5; i++) free(v[i]);
+  H5Gclose(g);
+  return ok;
+}
+
+/* Whether snapshot k of src is complete: its data and state, the series
+ * rows up to it (read into col[], malloc'd), the references and the
+ * remeshings it stands on read whole and match their checksums. *si gets
+ * its state, *remeshes the number of those remeshings. */
+static int snapshot_intact(ves_io *src, int k, ves_io_snapinfo *si, void **col, int *remeshes) {
+  const int nk = ves_io_snapshot_nodes(src, k); /* after a remeshing not the header's n */
+  const size_t n = nk > 0 ? (size_t)nk : 1;
+  double *y = malloc(2 * n * sizeof *y), *x = malloc(2 * n * sizeof *x);
+  double *phi = malloc(n * sizeof *phi);
+  uint64_t want = 0, want_rows = 1, rows_sum_ = 0;
+  char name[48];
+  snprintf(name, sizeof name, "snapshots/%d", k);
+  hid_t g = H5Gopen2(src->file, name, H5P_DEFAULT);
+  int ok = nk > 0 && y && x && phi && g >= 0 &&
+           ves_io_read_snapshot_n(src, k, nk, y, x, phi, si) == VES_OK &&
+           attr_read(g, "checksum", H5T_NATIVE_UINT64, &want) == VES_OK &&
+           attr_read(g, "series_checksum", H5T_NATIVE_UINT64, &want_rows) == VES_OK &&
+           snap_sum((long)n, y, x, phi, si) == want && si->rows >= 0;
+  if (g >= 0) H5Gclose(g);
+  free(y), free(x), free(phi);
+  for (int i = 0; i < NSERIES && ok; i++) ok = dset_len(src->series[i]) >= (hsize_t)si->rows;
+  if (ok && cols_read(src->series, si->rows, col) != VES_OK) ok = 0;
+  if (ok) rows_sum_ = rows_sum(FNV_START, col, si->rows);
+  if (ok && rows_sum_ != want_rows) ok = 0;
+  for (int r = 0; r < si->reconnections && ok; r++) ok = reference_intact(src, r);
+  /* the remeshings made at or before its step, every one whole */
+  *remeshes = 0;
+  for (int j = 0; ok && j < ves_io_remeshes(src); j++) {
+    long step = 0;
+    uint64_t sum = 0;
+    snprintf(name, sizeof name, "remeshes/%d", j);
+    hid_t rg = H5Gopen2(src->file, name, H5P_DEFAULT);
+    ok = rg >= 0 && attr_read(rg, "step", H5T_NATIVE_LONG, &step) == VES_OK;
+    if (ok && step <= si->state.nstep) {
+      ok = attr_read(rg, "checksum", H5T_NATIVE_UINT64, &sum) == VES_OK &&
+           group_sum(rg, REMESH_PARTS, NREMESH_PARTS) == sum;
+      *remeshes = j + 1;
+    }
+    if (rg >= 0) H5Gclose(rg);
+    if (ok && step > si->state.nstep) break;
+  }
+  if (!ok)
+    for (int i = 0; i < NSERIES; i++) free(col[i]), col[i] = NULL;
+  return ok;
+}
+
+/* The salvaged file `out` of src: header, parameters and mesh copied, the
+ * series rows up to snapshot K (col[]) written anew, snapshots 0..K and the
+ * references they need copied; the XDMF file of path rewritten for them. On
+ * failure nothing is left at out, and why says what failed (starting with
+ * '!' when out itself cannot be written: no point in another snapshot). */
+static ves_status salvage_write(ves_io *src, const char *path, const char *out, int K,
+                                const ves_io_snapinfo *si, void *const *col, int remeshes,
+                                char *why, size_t whylen) {
+  ves_io *dst = io_alloc(path, 1);
+  if (!dst) return VES_ERR_ALLOC;
+  hid_t d = H5Fcreate(out, H5F_ACC_EXCL, H5P_DEFAULT, H5P_DEFAULT);
+  if (d < 0) {
+    say(why, whylen, "!%s: cannot create it (it must not exist)", out);
+    ves_io_close(&dst);
+    return VES_ERR_IO;
+  }
+  dst->file = d;
+  dst->info.n = src->info.n, dst->info.ntri = src->info.ntri;
+  errno = 0;
+  const char *step = "the header";
+  ves_status st = VES_OK;
+  if (H5Aiterate2(src->file, H5_INDEX_NAME, H5_ITER_INC, NULL, copy_attr, &d) < 0 ||
+      H5Ocopy(src->file, "parameters", d, "parameters", H5P_DEFAULT, H5P_DEFAULT) < 0 ||
+      H5Ocopy(src->file, "mesh", d, "mesh", H5P_DEFAULT, H5P_DEFAULT) < 0)
+    st = VES_ERR_IO;
+  if (st == VES_OK) st = attr_status(d, src->info.status); /* written last: maybe lost */
+  if (st == VES_OK) st = attr_double(d, "setup_seconds", src->info.setup_seconds);
+  if (st == VES_OK) {
+    step = "the snapshots";
+    st = copy_counted(src->file, d, "snapshots", K + 1);
+  }
+  if (st == VES_OK && si->reconnections > 0) {
+    step = "the references";
+    st = copy_counted(src->file, d, "references", si->reconnections);
+  }
+  if (st == VES_OK && remeshes > 0) {
+    step = "the remeshings";
+    st = copy_counted(src->file, d, "remeshes", remeshes);
+  }
+  if (st == VES_OK) {
+    step = "the series";
+    st = create_series(dst);
+  }
+  for (int i = 0; i < NSERIES && st == VES_OK && si->rows > 0; i++) {
+    hsize_t r = (hsize_t)si->rows;
+    if (H5Dset_extent(dst->series[i], &r) < 0 ||
+        H5Dwrite(dst->series[i], col_mem_type(SERIES[i].type), H5S_ALL, H5S_ALL, H5P_DEFAULT,
+                 col[i]) < 0)
+      st = VES_ERR_IO;
+  }
+  if (st == VES_OK && H5Fflush(d, H5F_SCOPE_LOCAL) < 0) st = VES_ERR_IO;
+  if (st != VES_OK) {
+    char reason[128] = ""; /* a system error is the new file's (the image has none) */
+    H5Ewalk2(H5E_DEFAULT, H5E_WALK_UPWARD, sys_reason, reason);
+    if (reason[0])
+      say(why, whylen, "!%s: cannot write: %s", out, reason);
+    else
+      say(why, whylen, "snapshot %d: %s do not copy", K, step);
+  }
+  if (st == VES_OK) { /* the XDMF file of path shows the snapshots kept */
+    dst->nsnap = dst->snap_cap = K + 1;
+    dst->snap_t = malloc((size_t)(K + 1) * sizeof *dst->snap_t);
+    if (dst->snap_t) memcpy(dst->snap_t, src->snap_t, (size_t)(K + 1) * sizeof *dst->snap_t);
+    if (!dst->snap_t || xdmf_write(dst) != VES_OK)
+      dst->nsnap = 0; /* rewritten at the next snapshot */
+  }
+  ves_io_close(&dst);
+  if (st != VES_OK) remove(out);
+  return st;
+}
+
+ves_status ves_io_salvage(const char *path, const char *out, ves_io_salvaged *res, char *err,
+                          size_t errlen) {
+  VES_CHECK(path && out && res, VES_ERR_ARG);
+  memset(res, 0, sizeof *res);
+  quiet_hdf5();
+  long long size = 0, stored = 0;
+  if (!ves_io_cut_short(path, &size, &stored)) {
+    say(err, errlen, "%s: not cut short (its size is the one its superblock records)", path);
+    return VES_ERR_ARG;
+  }
+  res->size = size, res->stored_size = stored;
+  /* the file read whole and padded with zeros to its recorded end: lost
+   * blocks read back as zeros, which the checksums reject */
+  unsigned char *img = calloc((size_t)stored, 1);
+  FILE *f = img ? fopen(path, "rb") : NULL;
+  const int read_ok = f && fread(img, 1, (size_t)size, f) == (size_t)size;
+  if (f) fclose(f);
+  if (!read_ok) {
+    free(img);
+    say(err, errlen, "%s: %s", path, img ? "cannot read it" : "out of memory");
+    return img ? VES_ERR_IO : VES_ERR_ALLOC;
+  }
+  hid_t fapl = H5Pcreate(H5P_FILE_ACCESS);
+  ves_io *src = io_alloc(path, 0);
+  ves_status st = fapl >= 0 && src && H5Pset_fapl_core(fapl, 1 << 20, 0) >= 0 &&
+                          H5Pset_file_image(fapl, img, (size_t)stored) >= 0
+                      ? VES_OK
+                      : VES_ERR_ALLOC;
+  free(img); /* the property list holds a copy */
+  if (st == VES_OK) {
+    src->tolerant = 1;
+    /* a name no file has: the core driver refuses an image named as a file */
+    src->file = H5Fopen("/nonexistent/vesica-salvage-image", H5F_ACC_RDONLY, fapl);
+    st = src->file < 0 || read_header(src) != VES_OK ? VES_ERR_IO : VES_OK;
+    if (st != VES_OK) say(err, errlen, "%s: its header is lost too", path);
+  }
+  if (fapl >= 0) H5Pclose(fapl);
+  /* the last snapshot that is complete and copies whole (a copy can still
+   * meet a lost block the checksums do not cover: then the one before) */
+  int K = st == VES_OK ? src->nsnap - 1 : -1, found = 0;
+  char why[2 * PATH_MAX] = "";
+  ves_io_snapinfo si;
+  for (; st == VES_OK && K >= 0; K--) {
+    void *col[NSERIES] = {0};
+    int remeshes = 0;
+    if (!snapshot_intact(src, K, &si, col, &remeshes)) continue;
+    found = 1;
+    st = salvage_write(src, path, out, K, &si, col, remeshes, why, sizeof why);
+    for (int i = 0; i < NSERIES; i++) free(col[i]);
+    if (st == VES_OK) break;
+    if (st == VES_ERR_ALLOC || why[0] == '!') break; /* out of memory, out not writable */
+    st = VES_OK;
+  }
+  if (st == VES_OK && K < 0) {
+    st = VES_ERR_IO;
+    if (found)
+      say(err, errlen, "%s: its surviving snapshots cannot be copied whole (%s)", path, why);
+    else
+      say(err, errlen,
+          "%s: none of its %d snapshot(s) survived whole (or they carry no checksums: written "
+          "by an older vesica)",
+          path, src->nsnap);
+  } else if (st != VES_OK && why[0] == '!') {
+    say(err, errlen, "%s", why + 1);
+  }
+  if (st == VES_OK) {
+    hid_t g = H5Gopen2(src->file, "snapshots", H5P_DEFAULT); /* as counted, lost or not */
+    if (g < 0 || attr_read(g, "count", H5T_NATIVE_INT, &res->snapshots) != VES_OK)
+      res->snapshots = src->nsnap;
+    if (g >= 0) H5Gclose(g);
+    res->snapshot = K, res->rows = si.rows;
+    res->step = si.state.nstep, res->t = si.state.t, res->references = si.reconnections;
+  }
+  ves_io_close(&src);
+  return st;
 }

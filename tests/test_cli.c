@@ -1402,6 +1402,217 @@ static void test_full_disk(void **state) {
   rmdir(mnt);
 }
 
+/* ---- a torn last write: restart from the last complete snapshot ---------- */
+
+/* The first `cut` bytes of src as dst: a file whose end was lost. */
+static void copy_cut(const char *src, const char *dst, long cut) {
+  FILE *a = fopen(src, "rb"), *b = fopen(dst, "wb");
+  assert_true(a && b);
+  char *buf = malloc((size_t)cut + 1);
+  assert_non_null(buf);
+  assert_int_equal(fread(buf, 1, (size_t)cut, a), (size_t)cut);
+  assert_int_equal(fwrite(buf, 1, (size_t)cut, b), (size_t)cut);
+  free(buf);
+  fclose(a), fclose(b);
+}
+
+/* Where the data of snapshot k of file h lie: [lo, hi) over y, x and phi
+ * (contiguous datasets, written in that order). */
+static void snapshot_bytes(hid_t h, int k, long *lo, long *hi) {
+  *lo = LONG_MAX, *hi = 0;
+  const char *part[] = {"y", "x", "phi"};
+  for (int i = 0; i < 3; i++) {
+    char name[64];
+    snprintf(name, sizeof name, "snapshots/%d/%s", k, part[i]);
+    hid_t d = H5Dopen2(h, name, H5P_DEFAULT);
+    assert_true(d >= 0);
+    const long off = (long)H5Dget_offset(d), end = off + (long)H5Dget_storage_size(d);
+    H5Dclose(d);
+    if (off < *lo) *lo = off;
+    if (end > *hi) *hi = end;
+  }
+}
+
+/* Copies of a small run's file (written in two parts: a run and its
+ * restart) cut at 21 offsets, 12 spread over the file and 9 inside and
+ * after the data of its last snapshot: `--restart` of each
+ * either salvages it (the damaged file kept as .damaged) and finishes the
+ * run from the last snapshot whose data the cut left whole — the final
+ * state and the series then bit for bit those of the uninterrupted run, no
+ * silent wrong state — or refuses with exit 3 and the cause; never a crash
+ * and never "in use by a running vesica?" (issue 21). */
+static void test_torn_file(void **state) {
+  (void)state;
+  enum { SPREAD = 12, LAST = 9, CUTS = SPREAD + LAST };
+  char ini[128], full[128], cut[CUTS][128], xdmf[128];
+  tmp_path(ini, sizeof ini, "torn.ini");
+  tmp_path(full, sizeof full, "torn.h5");
+  write_file(ini, "[time]\nt_end = 100\nadaptive = 0\ndt_max = 5e-3\n"
+                  "[output]\nsnapshot_every = 1\n");
+  result r;
+  /* coarser than TINY (215 nodes): 20 restarts, each a setup and <= 4 steps;
+   * stopped at step 2 and continued, as a full disk's file would be (its
+   * status and setup time rewritten) */
+  run(&r, "run", ini, TINY, "--set", "geometry.h_band=0.9", "--set", "geometry.h_far=0.4", "--out",
+      full, "--max-steps", "2", "--quiet", NULL);
+  if (r.code) fail_msg("the run: exit %d: %s", r.code, r.err);
+  run(&r, "run", "--restart", full, "--max-steps", "4", "--quiet", NULL);
+  if (r.code) fail_msg("its restart: exit %d: %s", r.code, r.err);
+  /* the uninterrupted run: snapshots at steps 0 to 4 */
+  ves_io *io = open_ro(full);
+  const int S = ves_io_snapshots(io), n = ves_io_get_info(io)->n;
+  assert_int_equal(S, 5);
+  double *y0 = malloc(2 * (size_t)n * sizeof *y0), *y1 = malloc(2 * (size_t)n * sizeof *y1);
+  assert_true(y0 && y1);
+  assert_int_equal(ves_io_read_snapshot(io, S - 1, y0, NULL, NULL, NULL), VES_OK);
+  ves_io_close(&io);
+  hid_t h = H5Fopen(full, H5F_ACC_RDONLY, H5P_DEFAULT);
+  assert_true(h >= 0);
+  long lo[5], hi[5];
+  for (int k = 0; k < S; k++) snapshot_bytes(h, k, &lo[k], &hi[k]);
+  H5Fclose(h);
+  const long size = file_size(full);
+  long at[CUTS];
+  for (int i = 0; i < SPREAD; i++) at[i] = size * (i + 1) / (SPREAD + 1);
+  for (int i = 0; i < LAST; i++) /* from the start of its data to the last byte */
+    at[SPREAD + i] = lo[S - 1] + (size - 1 - lo[S - 1]) * i / (LAST - 1);
+  int resumed = 0, last_cases = 0;
+  for (int i = 0; i < CUTS; i += 2) { /* two restarts at a time */
+    pid_t pid[2];
+    char tag[2][16];
+    for (int j = 0; j < 2 && i + j < CUTS; j++) {
+      char name[32];
+      snprintf(name, sizeof name, "torn%d.h5", i + j);
+      tmp_path(cut[i + j], sizeof cut[0], name);
+      copy_cut(full, cut[i + j], at[i + j]);
+      char *args[] = {"run", "--restart", cut[i + j], "--max-steps", "4", NULL};
+      snprintf(tag[j], sizeof tag[j], "torn%d", j);
+      pid[j] = spawn_tag(args, NULL, tag[j]);
+    }
+    for (int j = 0; j < 2 && i + j < CUTS; j++) {
+      const int c = i + j;
+      collect_tag(pid[j], &r, tag[j]);
+      /* the last snapshot whose data lie wholly before the cut */
+      int whole = -1;
+      while (whole + 1 < S && hi[whole + 1] <= at[c]) whole++;
+      const char *from = strstr(r.err, "from snapshot ");
+      const int K = from ? atoi(from + strlen("from snapshot ")) : -1;
+      printf("# cut at %6ld of %ld bytes (last whole snapshot %2d) -> exit %d, resumed from %d\n",
+             at[c], size, whole, r.code, K);
+      char damaged[160], x[160];
+      snprintf(damaged, sizeof damaged, "%s.damaged", cut[c]);
+      if (r.code == 3) { /* refused: the cause named, the file left as it was */
+        if (!strstr(r.err, "cut short") || !strstr(r.err, "cannot be salvaged") ||
+            strstr(r.err, "in use"))
+          fail_msg("cut at %ld: exit 3 with '%s'", at[c], r.err);
+        assert_int_equal(file_size(cut[c]), at[c]);
+        assert_false(exists(damaged));
+      } else {
+        if (r.code != 0 || K < 0 || K > whole)
+          fail_msg("cut at %ld (snapshot %d whole): exit %d, resumed from %d: %s", at[c], whole,
+                   r.code, K, r.err);
+        /* 5 e-16 relative is not good enough here: the trajectory is the
+         * uninterrupted one bit for bit (restarts are, test_restart_bitwise) */
+        ves_io *a = open_ro(full), *b = open_ro(cut[c]);
+        assert_int_equal(ves_io_rows(b), 4);
+        same_series(a, b, 4);
+        assert_int_equal(ves_io_read_snapshot(b, ves_io_snapshots(b) - 1, y1, NULL, NULL, NULL),
+                         VES_OK);
+        assert_memory_equal(y0, y1, 2 * (size_t)n * sizeof *y0);
+        ves_io_close(&a), ves_io_close(&b);
+        assert_int_equal(file_size(damaged), at[c]); /* the damaged file kept */
+        resumed++;
+      }
+      /* cut inside the last snapshot's data: it resumes from the one before */
+      if (at[c] >= lo[S - 1] && at[c] < hi[S - 1]) {
+        last_cases++;
+        if (K != S - 2) fail_msg("cut at %ld inside the last snapshot: resumed from %d", at[c], K);
+      }
+      unlink(cut[c]), unlink(damaged);
+      snprintf(x, sizeof x, "%.*s.xdmf", (int)strlen(cut[c]) - 3, cut[c]);
+      unlink(x);
+    }
+  }
+  printf("# %d of %d cut copies resumed, %d cut inside the last snapshot\n", resumed, CUTS,
+         last_cases);
+  assert_true(last_cases >= 3);
+  assert_true(resumed >= CUTS / 2); /* the cuts past the header's first blocks */
+  free(y0), free(y1);
+  unlink(ini), unlink(full);
+  unlink(tmp_path(xdmf, sizeof xdmf, "torn.xdmf"));
+}
+
+/* ---- other tools read the output ------------------------------------------ */
+
+/* Run prog with args (NULL-terminated) and its output into r. */
+static void run_prog(result *r, const char *prog, char *const *args) {
+  char o[128], e[128];
+  snprintf(o, sizeof o, "%s/prog.out", tmpdir);
+  snprintf(e, sizeof e, "%s/prog.err", tmpdir);
+  pid_t pid = fork();
+  assert_true(pid >= 0);
+  if (pid == 0) {
+    int fo = open(o, O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    int fe = open(e, O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    if (fo < 0 || fe < 0) _exit(127);
+    dup2(fo, 1), dup2(fe, 2);
+    execv(prog, args);
+    _exit(127);
+  }
+  collect_tag(pid, r, "prog");
+}
+
+/* meshio reads the XDMF file and h5py the HDF5 file of a run whose name
+ * holds XML's special characters, a space and a UTF-8 letter, in a folder
+ * whose name holds ':' (tests/xdmf_check.py: the times, triangles and phi
+ * meshio sees are the file's snapshots; units and description on every
+ * object). Names the XDMF file could not refer to (':', '|', a leading
+ * space, a control character, a byte that is not UTF-8: issue 21, an
+ * output name with ':' broke its data items) are refused with exit 2 and
+ * nothing written, for a new run and for a restart. */
+static void test_external_readers(void **state) {
+  (void)state;
+  char ini[128], dir[128], out[256], xdmf[256];
+  tmp_path(ini, sizeof ini, "ext.ini");
+  tmp_path(dir, sizeof dir, "d:ir");
+  write_file(ini, "[time]\nt_end = 100\nadaptive = 0\ndt_max = 5e-3\n"
+                  "[output]\nsnapshot_every = 1\n");
+  assert_int_equal(mkdir(dir, 0755), 0);
+  snprintf(out, sizeof out, "%s/r&<x> \"q\" \xc3\xa9.h5", dir);
+  snprintf(xdmf, sizeof xdmf, "%s/r&<x> \"q\" \xc3\xa9.xdmf", dir);
+  result r;
+  run(&r, "run", ini, TINY, "--set", "geometry.h_band=0.9", "--set", "geometry.h_far=0.4", "--out",
+      out, "--max-steps", "2", "--quiet", NULL);
+  if (r.code) fail_msg("the run: exit %d: %s", r.code, r.err);
+  char *py[] = {"/usr/bin/python3", "tests/xdmf_check.py", xdmf, NULL};
+  run_prog(&r, py[0], py);
+  printf("# %s%s", r.out, r.err);
+  if (r.code)
+    fail_msg("xdmf_check.py: exit %d (python3-meshio and python3-h5py come with make deps): %s%s",
+             r.code, r.out, r.err);
+  const char *bad[] = {"a:b.h5", "a|b.h5", " lead.h5", "c\x01.h5", "\xff.h5"};
+  for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+    char p[160], x[160];
+    snprintf(p, sizeof p, "%s/%s", tmpdir, bad[i]);
+    run(&r, "run", ini, "--out", p, "--quiet", NULL);
+    printf("# --out '%s' -> %d: %s", bad[i], r.code, r.err);
+    assert_int_equal(r.code, 2);
+    assert_non_null(strstr(r.err, "could not refer to it"));
+    snprintf(x, sizeof x, "%.*s.xdmf", (int)strlen(p) - 3, p);
+    assert_false(exists(p));
+    assert_false(exists(x));
+  }
+  char moved[160];
+  tmp_path(moved, sizeof moved, "x:y.h5");
+  assert_int_equal(rename(out, moved), 0);
+  run(&r, "run", "--restart", moved, NULL);
+  printf("# --restart x:y.h5 -> %d: %s", r.code, r.err);
+  assert_int_equal(r.code, 2);
+  assert_non_null(strstr(r.err, "rename the file"));
+  unlink(moved), unlink(xdmf), unlink(ini);
+  assert_int_equal(rmdir(dir), 0);
+}
+
 int main(int argc, char **argv) {
   setvbuf(stdout, NULL, _IOLBF, 0); /* keep output in order with cmocka's stderr */
   (void)argc;
@@ -1437,6 +1648,8 @@ int main(int argc, char **argv) {
       cmocka_unit_test(test_sigkill),
       cmocka_unit_test(test_problem_files_check),
       cmocka_unit_test(test_full_disk),
+      cmocka_unit_test(test_torn_file),
+      cmocka_unit_test(test_external_readers),
       cmocka_unit_test(test_no_overwrite),
       cmocka_unit_test(test_setup_estimate),
   };

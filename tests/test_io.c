@@ -773,6 +773,109 @@ static void test_truncated(void **state) {
   }
 }
 
+/* Salvage (io.h) at the library level: rows 0..5 with snapshots at steps
+ * 0, 3, 6 (checksums written with them). Copies cut every 2,500 bytes:
+ * each salvage either fails with VES_ERR_IO, leaving nothing, or keeps a
+ * snapshot K and rows 0..3K - 1 exactly as written (a cut in this small
+ * file can land in space HDF5 reused early in the file, hence no order by
+ * offset is assumed), and the salvaged file continues. An intact file is
+ * not salvaged (VES_ERR_ARG), an existing output not overwritten, and a
+ * file whose snapshots carry no checksums (an older writer) is refused. */
+static void test_salvage(void **state) {
+  (void)state;
+  fake f;
+  char path[128], cut[160], out[192], err[512] = "";
+  ves_io *io = fake_file(&f, "salv.h5", path, sizeof path);
+  double y[8], x[8], phi[4] = {1, 0.5, -0.25, -1};
+  for (long i = 0; i <= 6; i++) {
+    if (i % 3 == 0) {
+      for (int j = 0; j < 8; j++) y[j] = f.X[j] + 0.01 * (double)i, x[j] = y[j] + 1e-3;
+      ves_io_snapinfo si = snap_of(i);
+      assert_int_equal(ves_io_snapshot(io, y, x, phi, &si), VES_OK);
+    }
+    if (i < 6) {
+      ves_io_row r = row_of(i);
+      assert_int_equal(ves_io_append(io, &r), VES_OK);
+    }
+  }
+  ves_io_close(&io);
+  free(f.problem);
+  snprintf(out, sizeof out, "%s.salvage", path);
+  ves_io_salvaged s;
+  assert_int_equal(ves_io_salvage(path, out, &s, err, sizeof err), VES_ERR_ARG);
+  assert_non_null(strstr(err, "not cut short"));
+  assert_int_equal(ves_io_cut_short(path, NULL, NULL), 0);
+  struct stat sb;
+  assert_int_equal(stat(path, &sb), 0);
+  FILE *in = fopen(path, "rb");
+  char *bytes = malloc((size_t)sb.st_size);
+  assert_true(in && bytes && fread(bytes, 1, (size_t)sb.st_size, in) == (size_t)sb.st_size);
+  fclose(in);
+  snprintf(cut, sizeof cut, "%s.cut", path);
+  int kept[3] = {0}, refused = 0;
+  for (long c = 500; c < (long)sb.st_size; c += 2500) {
+    FILE *o = fopen(cut, "wb");
+    assert_true(o && fwrite(bytes, 1, (size_t)c, o) == (size_t)c);
+    fclose(o);
+    long long size = 0, stored = 0;
+    assert_int_equal(ves_io_cut_short(cut, &size, &stored), 1);
+    assert_true(size == c && stored == sb.st_size);
+    ves_status st = ves_io_salvage(cut, out, &s, err, sizeof err);
+    if (st != VES_OK) {
+      if (st != VES_ERR_IO) fail_msg("cut at %ld: %s (%s)", c, ves_status_str(st), err);
+      assert_int_equal(access(out, F_OK), -1);
+      refused++;
+      continue;
+    }
+    assert_true(s.snapshot >= 0 && s.snapshot <= 2 && s.snapshots == 3);
+    assert_int_equal(s.rows, 3 * s.snapshot);
+    kept[s.snapshot]++;
+    assert_int_equal(ves_io_open(out, 1, &io, err, sizeof err), VES_OK);
+    assert_int_equal(ves_io_snapshots(io), s.snapshot + 1);
+    check_rows(io, s.rows);
+    double y1[8], x1[8], phi1[4];
+    ves_io_snapinfo si1, want = snap_of(s.rows);
+    assert_int_equal(ves_io_read_snapshot(io, s.snapshot, y1, x1, phi1, &si1), VES_OK);
+    for (int j = 0; j < 8; j++) y[j] = f.X[j] + 0.01 * (double)s.rows, x[j] = y[j] + 1e-3;
+    assert_memory_equal(y, y1, sizeof y), assert_memory_equal(x, x1, sizeof x);
+    assert_memory_equal(phi, phi1, sizeof phi);
+    assert_memory_equal(&want.state, &si1.state, sizeof want.state);
+    ves_io_row r = row_of(s.rows); /* it continues */
+    assert_int_equal(ves_io_append(io, &r), VES_OK);
+    ves_io_close(&io);
+    if (kept[0] + kept[1] + kept[2] == 1) { /* an existing output is not replaced */
+      assert_int_equal(ves_io_salvage(cut, out, &s, err, sizeof err), VES_ERR_IO);
+      assert_non_null(strstr(err, "must not exist"));
+    }
+    remove(out);
+  }
+  printf("# %ld cuts: snapshot 0 kept %d times, 1 %d, 2 %d; %d refused\n",
+         ((long)sb.st_size + 2000) / 2500, kept[0], kept[1], kept[2], refused);
+  assert_true(kept[1] + kept[2] >= 1); /* the end cut off keeps a later snapshot */
+  assert_true(kept[0] + kept[1] + kept[2] > refused);
+  free(bytes);
+  remove(cut);
+  /* snapshots without checksums (an older writer): refused, nothing written */
+  char plain[128];
+  fake g;
+  io = fake_file(&g, "plain.h5", plain, sizeof plain);
+  ves_io_snapinfo s0 = snap_of(0);
+  assert_int_equal(ves_io_snapshot(io, y, x, phi, &s0), VES_OK);
+  ves_io_close(&io);
+  free(g.problem);
+  hid_t h = H5Fopen(plain, H5F_ACC_RDWR, H5P_DEFAULT);
+  assert_true(h >= 0);
+  assert_true(H5Adelete_by_name(h, "snapshots/0", "checksum", H5P_DEFAULT) >= 0);
+  H5Fclose(h);
+  assert_int_equal(stat(plain, &sb), 0);
+  assert_int_equal(truncate(plain, sb.st_size - 1), 0);
+  snprintf(out, sizeof out, "%s.salvage", plain);
+  assert_int_equal(ves_io_salvage(plain, out, &s, err, sizeof err), VES_ERR_IO);
+  printf("# no checksums: %s\n", err);
+  assert_non_null(strstr(err, "carry no checksums"));
+  assert_int_equal(access(out, F_OK), -1);
+}
+
 /* H5Ovisit callback: every group and dataset (the root included) has the
  * string attributes units and description; counts them in *data. */
 static herr_t described(hid_t obj, const char *name, const H5O_info_t *info, void *data) {
@@ -821,6 +924,20 @@ static void test_self_describing(void **state) {
                         "format_description"};
   for (size_t i = 0; i < sizeof root / sizeof root[0]; i++)
     if (H5Aexists(h5, root[i]) <= 0) fail_msg("root: no attribute %s", root[i]);
+  /* the status codes as an enumeration: every value with its name */
+  hid_t a = H5Aopen_by_name(h5, "series/status", "codes", H5P_DEFAULT, H5P_DEFAULT);
+  assert_true(a >= 0);
+  hid_t t = H5Aget_type(a);
+  assert_int_equal(H5Tget_class(t), H5T_ENUM);
+  assert_int_equal(H5Tget_nmembers(t), 13); /* VES_STATUS_LIST */
+  char name[32];
+  int v = VES_ERR_IO;
+  assert_true(H5Tenum_nameof(t, &v, name, sizeof name) >= 0);
+  assert_string_equal(name, "VES_ERR_IO");
+  v = VES_MAXITER;
+  assert_true(H5Tenum_nameof(t, &v, name, sizeof name) >= 0);
+  assert_string_equal(name, "VES_MAXITER");
+  H5Tclose(t), H5Aclose(a);
   H5Fclose(h5);
   /* and the file still reads */
   char err[512] = "";
@@ -836,11 +953,11 @@ int main(int argc, char **argv) {
   snprintf(self, sizeof self, "%s", argv[0]);
   setvbuf(stdout, NULL, _IOLBF, 0); /* keep output in order with cmocka's stderr */
   const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_roundtrip),     cmocka_unit_test(test_truncate_continue),
-      cmocka_unit_test(test_killed_writer),
-      cmocka_unit_test(test_references), cmocka_unit_test(test_refusals),
-      cmocka_unit_test(test_node_material),     cmocka_unit_test(test_restart_chain),
-      cmocka_unit_test(test_write_failure), cmocka_unit_test(test_truncated),
+      cmocka_unit_test(test_roundtrip),       cmocka_unit_test(test_truncate_continue),
+      cmocka_unit_test(test_killed_writer),   cmocka_unit_test(test_references),
+      cmocka_unit_test(test_refusals),        cmocka_unit_test(test_node_material),
+      cmocka_unit_test(test_restart_chain),   cmocka_unit_test(test_write_failure),
+      cmocka_unit_test(test_truncated),       cmocka_unit_test(test_salvage),
       cmocka_unit_test(test_self_describing),
   };
   return cmocka_run_group_tests_name("io", tests, setup_all, teardown_all);

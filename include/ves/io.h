@@ -22,7 +22,8 @@
  *                        stays "running")
  *     format_description where this layout is described (this header)
  *   every group and dataset (the root too) has string attributes units and
- *   description (the series' status lists the ves_status codes); files
+ *   description (the series' status lists the ves_status codes, and has
+ *   them as attribute codes: an HDF5 enumeration of their names); files
  *   without them (older writers) read the same: no format bump
  *   /parameters          every problem-file key as a typed attribute named
  *                        "section.key" (double, int or string)
@@ -51,7 +52,11 @@
  *     attributes         t, step, rows (series rows at the snapshot), and the
  *                        integrator state (ves_sim_state: dt, E, A, V, E0, A0,
  *                        V0 in model units, E* = E / k; lambda_A, lambda_V,
- *                        c0), wall_seconds, reconnections
+ *                        c0), wall_seconds, reconnections; checksum (uint64,
+ *                        FNV-1a over y, x, phi and the state) and
+ *                        series_checksum (over the series rows up to it), what
+ *                        a salvage of a file cut short checks (absent in
+ *                        files of older writers: no format bump)
  *   /references          (runs with resets) attribute count; groups "0", "1",
  *                        ... one per reset of the reference configuration,
  *                        what ves_reconnect_restore rebuilds it from:
@@ -59,6 +64,7 @@
  *     points, weights    nq x 2 quadrature points and nq weights
  *     phi0               nq x 6 point data of phi0 (value, gradient, Hessian)
  *     attribute step     the accepted step after which the reset was made
+ *     attribute checksum uint64 FNV-1a over the data and step
  *   /remeshes            (runs with [remesh]) attribute count; groups "0", ...
  *                        one per full remeshing, what ves_remesh_restore
  *                        rebuilds it from: x (n' x 2), h, flag, phi0c (n'),
@@ -66,7 +72,8 @@
  *                        and what it changed (ves_io_remesh). Snapshots and
  *                        references after it have n' nodes (their datasets'
  *                        sizes say so) and the XDMF file shows them on its
- *                        triangles
+ *                        triangles; attribute checksum (uint64 FNV-1a over
+ *                        x, h, flag, phi0c, triangles, vertices as doubles)
  *
  * Snapshot 0 is the initial state; then every [output] snapshot_every steps
  * and the last state of a run (finished, stopped or failed). A restart
@@ -310,6 +317,42 @@ ves_status ves_io_read_snapshot_n(ves_io *io, int k, int nbuf, double *y, double
 
 /* The reference mesh: X (2n) and tri (3 ntri), either may be NULL. */
 ves_status ves_io_read_mesh(ves_io *io, double *X, int *tri);
+
+/* Whether the file at path is an HDF5 file cut short: shorter than the end
+ * of file its superblock records (a torn last write, a full disk, an
+ * interrupted copy). HDF5 refuses to open such a file. Its size and the
+ * recorded one in *size and *stored unless NULL. */
+int ves_io_cut_short(const char *path, long long *size, long long *stored);
+
+/* What ves_io_salvage kept. */
+typedef struct {
+  long long size, stored_size; /* bytes in the file, bytes its superblock records */
+  int snapshots;               /* snapshots the file counted */
+  int snapshot;                /* the last one complete: the new file holds 0..snapshot */
+  long step, rows;             /* its step and series rows */
+  double t;                    /* its time t* */
+  int references;              /* references kept (those it needs) */
+} ves_io_salvaged;
+
+/* Recover a file cut short (ves_io_cut_short) into the new file `out`
+ * (which must not exist): read with the missing end as zeros, it keeps the
+ * last snapshot that is complete — its data and state, the series rows up
+ * to it, the references and remeshings it stands on all read whole and
+ * match the checksums written with them — and copies the header,
+ * parameters, mesh, those rows, snapshots 0..K, references and remeshings;
+ * the XDMF file of `path` is rewritten for them. VES_ERR_ARG: path is not cut short; VES_ERR_IO: nothing complete
+ * survived, or out cannot be written (nothing left at out); message in err. */
+ves_status ves_io_salvage(const char *path, const char *out, ves_io_salvaged *res, char *err,
+                          size_t errlen);
+
+/* Whether the XDMF file can name the HDF5 file h5path (its name, the part
+ * after the last '/'; folders do not matter: the reference is relative).
+ * XDMF readers take a data item's text "NAME:/dataset" apart at the first
+ * ':' (ParaView's Xdmf3) or at every ':' (meshio) and at '|', strip
+ * leading spaces, and XML holds neither control characters nor bytes that
+ * are not UTF-8; no escape exists for these, so such names are refused
+ * (0, the reason in why unless NULL). XML's & < > " are escaped. */
+int ves_io_xdmf_name_ok(const char *h5path, char *why, size_t len);
 
 /* The XDMF path for an HDF5 path: ".h5" replaced by ".xdmf" (or appended). */
 void ves_io_xdmf_path(const char *h5path, char *out, size_t len);
