@@ -118,7 +118,8 @@ struct ves_model {
                      the centroids, so that consecutive triangles share
                      most nodes and their pattern rows stay in cache */
   model_ws *ws;   /* nthr workspaces */
-  double *ev;     /* 3 nq: per-point w e of E, A, V (summed in point order) */
+  double *ev;     /* 4 nq: per-point w e of E, A, V and the step's dissipation
+                     (summed in point order) */
   /* Drift damping (par.drift > 0, else NULL): the points at the nodes with
    * their tables, and the block values of the constant matrix S added to K
    * (drift_build). */
@@ -500,7 +501,7 @@ static ves_status stab_build(ves_model *m) {
 }
 
 /* E_s = (1/2) sum_a c_a |d_a|^2 and (g != NULL) g += grad E_s. */
-static long double stab_eval(const ves_model *m, const double *y, double *g) {
+static long double stab_eval(const ves_model *m, const double *y, double *g, double gs) {
   long double E = 0;
   for (int a = 0; a < m->nodes->n; a++) {
     double d[2] = {0, 0};
@@ -509,8 +510,8 @@ static long double stab_eval(const ves_model *m, const double *y, double *g) {
     E += 0.5 * m->sc[a] * (d[0] * d[0] + d[1] * d[1]);
     if (g)
       for (int j = m->sptr[a]; j < m->sptr[a + 1]; j++)
-        g[2 * m->snb[j]] += m->sc[a] * d[0] * m->sdr[j],
-            g[2 * m->snb[j] + 1] += m->sc[a] * d[1] * m->sdz[j];
+        g[2 * m->snb[j]] += gs * m->sc[a] * d[0] * m->sdr[j],
+            g[2 * m->snb[j] + 1] += gs * m->sc[a] * d[1] * m->sdz[j];
   }
   return E;
 }
@@ -537,7 +538,7 @@ static ves_status model_build(const ves_nodes *nodes, const ves_quad *q, const d
   m->fixed = malloc(2 * (size_t)n);
   m->yref = malloc(2 * (size_t)n * sizeof *m->yref);
   m->ws = calloc((size_t)m->nthr, sizeof *m->ws);
-  m->ev = malloc(3 * (size_t)q->nq * sizeof *m->ev);
+  m->ev = malloc(4 * (size_t)q->nq * sizeof *m->ev);
   if (!m->pt || !m->fixed || !m->yref || !m->ws || !m->ev) goto fail;
   for (int k = 0; k < m->nthr; k++)
     if ((s = ws_alloc(m->ws + k, n, m->mmax, m->cap)) != VES_OK) goto fail;
@@ -787,6 +788,21 @@ static void triangle_scatter(const ves_model *m, const int *U, int nu, int k, co
   }
 }
 
+/* The step's dissipation at its start y^n (ves_model_dissipation_ref): the
+ * velocity variables qn (VES_NQD a point) of y^n, and the coefficient cK of
+ * K(y^n) in what is assembled or evaluated. */
+typedef struct {
+  const double *qn;
+  double cK;
+} step_ref;
+
+/* D = d2 diss / dqdot2 at point al of y^n (without 2 pi w). */
+static ves_status step_ref_dissip(const ves_model *m, const step_ref *sr, int al, double *D) {
+  double qa[VES_NQ] = {0};
+  memcpy(qa, sr->qn + VES_NQD * (size_t)al, VES_NQD * sizeof *qa);
+  return ves_model_local_dissip(&m->lp, qa, D);
+}
+
 /* What a triangle pass assembles. */
 typedef enum { ASM_HESS, ASM_DISS } asm_kind;
 
@@ -797,7 +813,8 @@ typedef enum { ASM_HESS, ASM_DISS } asm_kind;
  * by the BLAS (one thread: the caller runs the triangles in parallel), and
  * its owned rows into blk. */
 static ves_status triangle_blocks(const ves_model *m, model_ws *w, asm_kind kind,
-                                  const double fac[3], int t, int k, const double *y, double *blk) {
+                                  const double fac[3], const step_ref *sr, int t, int k,
+                                  const double *y, double *blk) {
   const local_map *mp = kind == ASM_HESS ? &MAP_Q : &MAP_QD;
   const int nl = mp->nl;
   folded f[NPT];
@@ -821,6 +838,12 @@ static ves_status triangle_blocks(const ves_model *m, model_ws *w, asm_kind kind
       if (fac[2] != 0) {
         VES_CALL(ves_model_local_volume(&m->lp, &m->pt[al], q, &e, NULL, H));
         for (int i = 0; i < VES_NQ * VES_NQ; i++) Hp[i] += fac[2] * H[i];
+      }
+      if (sr && sr->cK != 0) { /* + cK K(y^n): the velocity block (q 0..4) */
+        double D[VES_NQD * VES_NQD];
+        VES_CALL(step_ref_dissip(m, sr, al, D));
+        for (int i = 0; i < VES_NQD; i++)
+          for (int j = 0; j < VES_NQD; j++) Hp[i * VES_NQ + j] += 2 * M_PI * sr->cK * D[i * VES_NQD + j];
       }
       c = m->q->w[al];
     } else {
@@ -846,8 +869,8 @@ static ves_status triangle_blocks(const ves_model *m, model_ws *w, asm_kind kind
 
 /* blk = sum over the triangles of their block matrices (kind, fac as in
  * triangle_blocks), the slabs shared out over the threads. */
-static ves_status assemble(ves_model *m, asm_kind kind, const double fac[3], const double *y,
-                           double *blk) {
+static ves_status assemble(ves_model *m, asm_kind kind, const double fac[3], const step_ref *sr,
+                           const double *y, double *blk) {
   const ves_pattern *pat = m->pat;
   ves_status st[64];
   memset(blk, 0, 4 * (size_t)pat->ptr[pat->n] * sizeof *blk);
@@ -863,7 +886,7 @@ static ves_status assemble(ves_model *m, asm_kind kind, const double fac[3], con
       for (int it = 0; it < m->q->ntri && st[k] == VES_OK; it++) {
         const int t = m->torder[it];
         if (m->tlo[t] <= k && k <= m->thi[t])
-          st[k] = triangle_blocks(m, w, kind, fac, t, k, y, blk);
+          st[k] = triangle_blocks(m, w, kind, fac, sr, t, k, y, blk);
       }
   }
   if (blas_threads != 1) openblas_set_num_threads(blas_threads);
@@ -874,9 +897,12 @@ static ves_status assemble(ves_model *m, asm_kind kind, const double fac[3], con
 
 /* The values and gradients of triangle t's points for slab k: w e of the
  * selected functionals into m->ev (by the triangle's first slab only), and
- * the gradient entries of the slab's nodes. */
-static ves_status triangle_eval(ves_model *m, model_ws *w, int which, int t, int k, const double *y,
-                                double *const g[3]) {
+ * the gradient entries of the slab's nodes. With a step reference sr (E
+ * selected): g[0] receives cE grad E + K(y^n)(y - y^n), one scatter a point,
+ * and ev's fourth slot the point's (1/2) dq^T (2 pi w D) dq, dq = q - q(y^n)
+ * (the velocity variables; K = sum 2 pi w B^T D B). */
+static ves_status triangle_eval(ves_model *m, model_ws *w, int which, const step_ref *sr, double cE,
+                                int t, int k, const double *y, double *const g[3]) {
   const double fac[3] = {2 * M_PI * 3 * m->par.k / (16 * M_SQRT2 * m->par.eps),
                          2 * M_PI * 3 / (2 * M_SQRT2), 2 * M_PI};
   static ves_model_local_fn *const fn[3] = {ves_model_local_energy, ves_model_local_area,
@@ -884,21 +910,42 @@ static ves_status triangle_eval(ves_model *m, model_ws *w, int which, int t, int
   for (int p = 0; p < NPT; p++) {
     const int al = NPT * t + p;
     folded f;
-    double q[VES_NQ], e, ge[VES_NQ], wa = m->q->w[al];
+    double q[VES_NQ], e, ge[VES_NQ], wa = m->q->w[al], gk[VES_NQD];
     fold_point(m->q, m->mmax, w, al, 0, &f);
     kinematics(&f, y, w->yl, q);
+    if (sr) { /* the step's dissipation: gk = 2 pi w D dq */
+      double D[VES_NQD * VES_NQD], dq[VES_NQD], dv = 0;
+      VES_CALL(step_ref_dissip(m, sr, al, D));
+      for (int i = 0; i < VES_NQD; i++) dq[i] = q[i] - sr->qn[VES_NQD * (size_t)al + i];
+      for (int i = 0; i < VES_NQD; i++) {
+        double s = 0;
+        for (int j = 0; j < VES_NQD; j++) s += D[i * VES_NQD + j] * dq[j];
+        gk[i] = 2 * M_PI * wa * s;
+        dv += dq[i] * gk[i];
+      }
+      if (k == m->tlo[t]) m->ev[4 * (size_t)al + 3] = 0.5 * dv;
+    }
     for (int i = 0; i < 3; i++) {
       if (!(which & (1 << i))) continue;
       VES_CALL(fn[i](&m->lp, &m->pt[al], q, &e, g[i] ? ge : NULL, NULL));
-      if (k == m->tlo[t]) m->ev[3 * (size_t)al + i] = wa * e;
-      if (g[i]) scatter_grad(&f, m->owner, k, fac[i] * wa, ge, w->yl + 2 * f.mu, g[i]);
+      if (k == m->tlo[t]) m->ev[4 * (size_t)al + i] = wa * e;
+      if (!g[i]) continue;
+      if (i == 0 && sr) { /* cE grad E + K d in one scatter */
+        const double c = cE * fac[0] * wa;
+        for (int j = 0; j < VES_NQ; j++) ge[j] *= c;
+        for (int j = 0; j < VES_NQD; j++) ge[j] += gk[j];
+        scatter_grad(&f, m->owner, k, 1.0, ge, w->yl + 2 * f.mu, g[i]);
+      } else
+        scatter_grad(&f, m->owner, k, fac[i] * wa, ge, w->yl + 2 * f.mu, g[i]);
     }
   }
   return VES_OK;
 }
 
-ves_status ves_model_eval(ves_model *m, const double *y, int which, double *E, double *A, double *V,
-                          double *gE, double *gA, double *gV) {
+/* ves_model_eval and ves_model_eval_step. */
+static ves_status eval_points(ves_model *m, const double *y, int which, const step_ref *sr,
+                              double cE, double *E, double *A, double *V, double *Dv, double *gE,
+                              double *gA, double *gV) {
   VES_CHECK(m && y, VES_ERR_ARG);
   int n = m->nodes->n;
   const double fE = 2 * M_PI * 3 * m->par.k / (16 * M_SQRT2 * m->par.eps),
@@ -917,7 +964,7 @@ ves_status ves_model_eval(ves_model *m, const double *y, int which, double *E, d
     for (int k = tid; k < m->nthr; k += nt)
       for (int t = 0; t < m->q->ntri && st[k] == VES_OK; t++) /* point order: the */
         if (m->tlo[t] <= k && k <= m->thi[t]) /* gradient sums as before, bit for bit */
-          st[k] = triangle_eval(m, w, which, t, k, y, g);
+          st[k] = triangle_eval(m, w, which, sr, cE, t, k, y, g);
   }
   for (int k = 0; k < m->nthr; k++)
     if (st[k] != VES_OK) return st[k];
@@ -926,15 +973,62 @@ ves_status ves_model_eval(ves_model *m, const double *y, int which, double *E, d
    * finite-difference checks) compare values that differ by far less than
    * the double rounding of such a sum (~1e-16 sqrt(nq) relative); each
    * point's contribution stays in double. */
-  long double s[3] = {0, 0, 0};
+  long double s[4] = {0, 0, 0, 0};
+  const int nsum = sr ? 4 : 3;
   for (int al = 0; al < m->q->nq; al++)
-    for (int i = 0; i < 3; i++)
-      if (which & (1 << i)) s[i] += m->ev[3 * (size_t)al + i];
-  long double Es = 0; /* the stabilization, E_s and its gradient */
-  if ((which & VES_F_E) && m->sc) Es = stab_eval(m, y, g[0]);
+    for (int i = 0; i < nsum; i++)
+      if (i == 3 || (which & (1 << i))) s[i] += m->ev[4 * (size_t)al + i];
+  long double Es = 0; /* the stabilization, E_s and its gradient (weight cE in a step's) */
+  if ((which & VES_F_E) && m->sc) Es = stab_eval(m, y, g[0], sr ? cE : 1.0);
   if ((which & VES_F_E) && E) *E = m->sc ? (double)(fE * s[0] + Es) : (double)(fE * s[0]);
   if ((which & VES_F_A) && A) *A = (double)(fA * s[1]);
   if ((which & VES_F_V) && V) *V = (double)(fV * s[2]);
+  if (sr && Dv) *Dv = (double)s[3];
+  return VES_OK;
+}
+
+ves_status ves_model_eval(ves_model *m, const double *y, int which, double *E, double *A, double *V,
+                          double *gE, double *gA, double *gV) {
+  return eval_points(m, y, which, NULL, 1.0, E, A, V, NULL, gE, gA, gV);
+}
+
+ves_status ves_model_eval_step(ves_model *m, const double *y, int which, const double *qn, double cE,
+                               double *E, double *A, double *V, double *Dv, double *gF, double *gA,
+                               double *gV) {
+  VES_CHECK(qn && (which & VES_F_E) && isfinite(cE), VES_ERR_ARG);
+  const step_ref sr = {qn, 1.0};
+  return eval_points(m, y, which, &sr, cE, E, A, V, Dv, gF, gA, gV);
+}
+
+size_t ves_model_dissipation_ref_size(const ves_model *m) {
+  return m ? VES_NQD * (size_t)m->q->nq : 0;
+}
+
+ves_status ves_model_dissipation_ref(ves_model *m, const double *y, double *qn) {
+  VES_CHECK(m && y && qn, VES_ERR_ARG);
+  ves_status st[64];
+  for (int k = 0; k < m->nthr; k++) st[k] = VES_OK;
+#pragma omp parallel num_threads(m->nthr)
+  {
+    const int tid = ves_omp_tid(), nt = ves_omp_nteam();
+    model_ws *w = m->ws + tid;
+    for (int k = tid; k < m->nthr; k += nt)
+      for (int t = 0; t < m->q->ntri && st[k] == VES_OK; t++) {
+        if (m->tlo[t] != k) /* each triangle once */
+          continue;
+        for (int p = 0; p < NPT && st[k] == VES_OK; p++) {
+          const int al = NPT * t + p;
+          folded f;
+          double q[VES_NQ], D[VES_NQD * VES_NQD];
+          fold_point(m->q, m->mmax, w, al, 0, &f);
+          kinematics(&f, y, w->yl, q);
+          memcpy(qn + VES_NQD * (size_t)al, q, VES_NQD * sizeof *q);
+          st[k] = ves_model_local_dissip(&m->lp, q, D); /* y must be admissible */
+        }
+      }
+  }
+  for (int k = 0; k < m->nthr; k++)
+    if (st[k] != VES_OK) return st[k];
   return VES_OK;
 }
 
@@ -943,16 +1037,32 @@ ves_status ves_model_hessian(ves_model *m, const double *y, double cE, double cA
   VES_CHECK(m && y && blk, VES_ERR_ARG);
   const double fac[3] = {2 * M_PI * 3 * m->par.k / (16 * M_SQRT2 * m->par.eps) * cE,
                          2 * M_PI * 3 / (2 * M_SQRT2) * cA, 2 * M_PI * cV};
-  VES_CALL(assemble(m, ASM_HESS, fac, y, blk));
+  VES_CALL(assemble(m, ASM_HESS, fac, NULL, y, blk));
   if (m->sblk && cE != 0) /* + cE Hess E_s, constant */
     for (size_t i = 0; i < 4 * (size_t)m->pat->ptr[m->nodes->n]; i++) blk[i] += cE * m->sblk[i];
   return VES_OK;
 }
 
+ves_status ves_model_hessian_step(ves_model *m, const double *y, const double *qn, double cE,
+                                  double cA, double cV, double cK, double *blk) {
+  VES_CHECK(m && y && qn && blk && isfinite(cK), VES_ERR_ARG);
+  const double fac[3] = {2 * M_PI * 3 * m->par.k / (16 * M_SQRT2 * m->par.eps) * cE,
+                         2 * M_PI * 3 / (2 * M_SQRT2) * cA, 2 * M_PI * cV};
+  const step_ref sr = {qn, cK};
+  VES_CALL(assemble(m, ASM_HESS, fac, &sr, y, blk));
+  if (m->sblk && cE != 0) /* + cE Hess E_s, constant */
+    for (size_t i = 0; i < 4 * (size_t)m->pat->ptr[m->nodes->n]; i++) blk[i] += cE * m->sblk[i];
+  if (m->dblk && cK != 0) /* + cK S: the drift damping */
+    for (size_t i = 0; i < 4 * (size_t)m->pat->ptr[m->nodes->n]; i++) blk[i] += cK * m->dblk[i];
+  return VES_OK;
+}
+
+const double *ves_model_drift_blocks(const ves_model *m) { return m ? m->dblk : NULL; }
+
 ves_status ves_model_dissipation(ves_model *m, const double *y, double *blk) {
   VES_CHECK(m && y && blk, VES_ERR_ARG);
   const double fac[3] = {0, 0, 0};
-  VES_CALL(assemble(m, ASM_DISS, fac, y, blk));
+  VES_CALL(assemble(m, ASM_DISS, fac, NULL, y, blk));
   if (m->dblk) /* K + S: the drift damping */
     for (size_t i = 0; i < 4 * (size_t)m->pat->ptr[m->nodes->n]; i++) blk[i] += m->dblk[i];
   return VES_OK;

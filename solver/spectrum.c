@@ -37,7 +37,8 @@ static ves_status flow_open(ves_step *s, flow *f) {
   memset(f, 0, sizeof *f);
   VES_CHECK(s && ves_step_get_params(s), VES_ERR_ARG);
   f->s = s, f->m = ves_step_model(s), f->pat = ves_model_pattern(f->m);
-  f->K = ves_step_K(s), f->par = ves_step_get_params(s);
+  f->K = ves_step_K(s), f->par = ves_step_get_params(s); /* K assembled here (lazy) */
+  VES_CHECK(f->K, VES_ERR_DOMAIN);
   f->nv = ves_step_nvar(s), f->nc = ves_step_ncon(s);
   const size_t n = (size_t)f->pat->n;
   f->x0 = malloc((size_t)f->nv * sizeof *f->x0);

@@ -24,11 +24,14 @@ struct ves_step {
   ves_step_params par;    /* copied at set */
   double *yn;             /* 2n positions y^n */
   double *x0;             /* nvar free dofs of y^n */
-  double *K;              /* nnz triplet values of K(y^n) */
+  double *K;              /* nnz triplet values of K(y^n), assembled on demand (K_ok) */
+  int K_ok;               /* 1 when K holds K(y^n) */
+  double *qn;             /* the model's reference of K(y^n) (ves_model_dissipation_ref) */
+  double *S;              /* nnz triplets of the drift damping S, or NULL (off) */
   double *blk;            /* 4 ptr[n] block values (K and Hessian assembly) */
   double *y;              /* 2n work: y from x */
   double *d;              /* nvar work: x - x0 */
-  double *Kd;             /* nvar K d at the cached x */
+  double *Sd;             /* nvar S d at the cached x (drift damping on) */
   double *gfull;          /* 3 x 2n gradients of E, A, V over all dofs at the cached x */
   /* cache of the last model evaluation */
   double *xc;     /* nvar the cached point */
@@ -36,14 +39,15 @@ struct ves_step {
   int eager;      /* 1: values always with their gradients (ves_step_eager_gradients) */
   ves_status cst; /* status of the cached evaluation (VES_OK or an error) */
   double E, A, V; /* values at xc */
-  double dKd;     /* d^T K d at xc */
+  double dSd;     /* d^T S d at xc (drift damping) */
+  double Dv;      /* (1/2) d^T K(y^n) d at xc (the model's) */
 };
 
 void ves_step_destroy(ves_step **s) {
   if (!s || !*s) return;
   ves_step *p = *s;
-  free(p->yn), free(p->x0), free(p->K), free(p->blk), free(p->y), free(p->d), free(p->Kd);
-  free(p->gfull), free(p->xc);
+  free(p->yn), free(p->x0), free(p->K), free(p->blk), free(p->y), free(p->d), free(p->Sd);
+  free(p->gfull), free(p->xc), free(p->qn), free(p->S);
   free(p);
   *s = NULL;
 }
@@ -64,10 +68,14 @@ ves_status ves_step_create(ves_model *m, ves_step **out) {
   s->blk = malloc((4 * (size_t)pat->ptr[pat->n] + 1) * sizeof *s->blk);
   s->y = malloc(n2 * sizeof *s->y);
   s->d = malloc(nv * sizeof *s->d);
-  s->Kd = malloc(nv * sizeof *s->Kd);
+  s->Sd = malloc(nv * sizeof *s->Sd);
   s->gfull = malloc(3 * n2 * sizeof *s->gfull);
   s->xc = malloc(nv * sizeof *s->xc);
-  if (!s->yn || !s->x0 || !s->K || !s->blk || !s->y || !s->d || !s->Kd || !s->gfull || !s->xc) {
+  s->qn = malloc((ves_model_dissipation_ref_size(m) + 1) * sizeof *s->qn);
+  const double *S = ves_model_drift_blocks(m);
+  if (S && (s->S = malloc(((size_t)pat->nnz + 1) * sizeof *s->S))) ves_pattern_extract(pat, S, s->S);
+  if (!s->yn || !s->x0 || !s->K || !s->blk || !s->y || !s->d || !s->Sd || !s->gfull || !s->xc ||
+      !s->qn || (S && !s->S)) {
     ves_step_destroy(&s);
     return VES_ERR_ALLOC;
   }
@@ -75,7 +83,8 @@ ves_status ves_step_create(ves_model *m, ves_step **out) {
   return VES_OK;
 }
 
-/* Targets and K(y^n). */
+/* Targets and the reference of K(y^n) (the matrix itself only on demand:
+ * ves_step_K). */
 ves_status ves_step_set(ves_step *s, const double *yn, const ves_step_params *par) {
   VES_CHECK(s && yn && par, VES_ERR_ARG);
   VES_CHECK(isfinite(par->dt) && par->dt > 0, VES_ERR_ARG);
@@ -89,8 +98,8 @@ ves_status ves_step_set(ves_step *s, const double *yn, const ves_step_params *pa
   memcpy(s->yn, yn, 2 * (size_t)s->n * sizeof *yn);
   for (int i = 0; i < 2 * s->n; i++)
     if (s->pat->dof[i] >= 0) s->x0[s->pat->dof[i]] = yn[i];
-  VES_CALL(ves_model_dissipation(s->m, yn, s->blk)); /* K(y^n), blocks */
-  ves_pattern_extract(s->pat, s->blk, s->K);         /* -> free-dof triplets */
+  s->K_ok = 0;
+  VES_CALL(ves_model_dissipation_ref(s->m, yn, s->qn));
   s->is_set = 1;
   return VES_OK;
 }
@@ -120,10 +129,12 @@ static ves_status ensure(ves_step *s, const double *x, int level) {
     s->cache = 0;
     memcpy(s->xc, x, nv * sizeof *x);
     for (size_t i = 0; i < nv; i++) s->d[i] = x[i] - s->x0[i]; /* d = x - x0 */
-    ves_pattern_symv(s->pat, s->K, s->d, s->Kd);               /* K d */
     double q = 0;
-    for (size_t i = 0; i < nv; i++) q += s->d[i] * s->Kd[i];
-    s->dKd = q; /* d^T K d */
+    if (s->S) { /* S d, d^T S d: the drift damping */
+      ves_pattern_symv(s->pat, s->S, s->d, s->Sd);
+      for (size_t i = 0; i < nv; i++) q += s->d[i] * s->Sd[i];
+    }
+    s->dSd = q;
   }
   if (s->eager) level = 2;
   ves_step_expand(s, x, s->y);
@@ -131,7 +142,9 @@ static ves_status ensure(ves_step *s, const double *x, int level) {
   double *gE = level >= 2 ? s->gfull : NULL;
   double *gA = level >= 2 ? s->gfull + n2 : NULL;
   double *gV = level >= 2 ? s->gfull + 2 * n2 : NULL;
-  ves_status st = ves_model_eval(s->m, s->y, s->which, &s->E, &s->A, &s->V, gE, gA, gV);
+  /* gE: dt grad E + K d */
+  ves_status st = ves_model_eval_step(s->m, s->y, s->which, s->qn, s->par.dt, &s->E, &s->A, &s->V,
+                                      &s->Dv, gE, gA, gV);
   s->cst = st;
   s->cache = st == VES_OK ? level : 1; /* an error is remembered for this x */
   return st;
@@ -148,7 +161,7 @@ ves_status ves_step_eval_f(ves_step *s, const double *x, double *f) {
   STEP_READY(s, x);
   VES_CHECK(f, VES_ERR_ARG);
   VES_CALL(ensure(s, x, 1));
-  *f = 0.5 * s->dKd + s->par.dt * s->E;
+  *f = s->Dv + 0.5 * s->dSd + s->par.dt * s->E;
   return VES_OK;
 }
 
@@ -160,13 +173,15 @@ static void restrict_grad(const ves_step *s, const double *gfull, double a, int 
   }
 }
 
-/* grad f = K d + dt grad E (free dofs). */
+/* grad f = K d + dt grad E (+ S d) (free dofs); the model's first gradient
+ * is K d + dt grad E (ensure). */
 ves_status ves_step_eval_grad(ves_step *s, const double *x, double *g) {
   STEP_READY(s, x);
   VES_CHECK(g, VES_ERR_ARG);
   VES_CALL(ensure(s, x, 2));
-  memcpy(g, s->Kd, (size_t)s->nvar * sizeof *g);
-  restrict_grad(s, s->gfull, s->par.dt, 1, g);
+  if (s->S)
+    memcpy(g, s->Sd, (size_t)s->nvar * sizeof *g);
+  restrict_grad(s, s->gfull, 1.0, s->S != NULL, g);
   return VES_OK;
 }
 
@@ -193,12 +208,20 @@ ves_status ves_step_eval_jac(ves_step *s, const double *x, double *J) {
   return VES_OK;
 }
 
+/* dt E and dt grad E alone: the cache holds K d + dt grad E, so the gradient
+ * is a model pass of its own (the Euler backend's, once a step). */
 ves_status ves_step_eval_energy_grad(ves_step *s, const double *x, double *E, double *gE) {
   STEP_READY(s, x);
-  VES_CALL(ensure(s, x, gE ? 2 : 1));
-  if (E) *E = s->par.dt * s->E;                         /* dt E(y) */
-  if (gE) restrict_grad(s, s->gfull, s->par.dt, 0, gE); /* dt grad E */
-  return VES_OK;
+  VES_CALL(ensure(s, x, 1));
+  if (E) *E = s->par.dt * s->E; /* dt E(y) */
+  if (!gE) return VES_OK;
+  double *g = malloc(2 * (size_t)s->n * sizeof *g), e;
+  if (!g) return VES_ERR_ALLOC;
+  ves_step_expand(s, x, s->y);
+  ves_status st = ves_model_eval(s->m, s->y, VES_F_E, &e, NULL, NULL, g, NULL, NULL);
+  if (st == VES_OK) restrict_grad(s, g, s->par.dt, 0, gE); /* dt grad E */
+  free(g);
+  return st;
 }
 
 int ves_step_hess_nnz(const ves_step *s) { return s ? s->pat->nnz : 0; }
@@ -219,14 +242,25 @@ ves_status ves_step_eval_hess(ves_step *s, const double *x, double sigma_f, cons
   if (s->par.hold_area) lA = lambda[k++];
   if (s->par.hold_volume) lV = lambda[k++];
   ves_step_expand(s, x, s->y);
-  VES_CALL(ves_model_hessian(s->m, s->y, sigma_f * s->par.dt, lA, lV, s->blk));
+  /* sigma_f K(y^n) summed per point into the one assembly */
+  VES_CALL(ves_model_hessian_step(s->m, s->y, s->qn, sigma_f * s->par.dt, lA, lV, sigma_f, s->blk));
   ves_pattern_extract(s->pat, s->blk, val);
-  if (sigma_f != 0)
-    for (int t = 0; t < s->pat->nnz; t++) val[t] += sigma_f * s->K[t]; /* + sigma_f K(y^n) */
   return VES_OK;
 }
 
-const double *ves_step_K(const ves_step *s) { return s && s->is_set ? s->K : NULL; }
+/* s->K = K(y^n) + S, assembled at the first request of the step. */
+static ves_status step_K(ves_step *s) {
+  if (!s->K_ok) {
+    VES_CALL(ves_model_dissipation(s->m, s->yn, s->blk));
+    ves_pattern_extract(s->pat, s->blk, s->K);
+    s->K_ok = 1;
+  }
+  return VES_OK;
+}
+
+const double *ves_step_K(ves_step *s) {
+  return s && s->is_set && step_K(s) == VES_OK ? s->K : NULL;
+}
 
 ves_model *ves_step_model(ves_step *s) { return s ? s->m : NULL; }
 

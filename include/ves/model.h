@@ -9,6 +9,8 @@
 #ifndef VES_MODEL_H
 #define VES_MODEL_H
 
+#include <stddef.h>
+
 #include "ves/geom.h"
 #include "ves/quad.h"
 #include "ves/sparse.h"
@@ -99,6 +101,29 @@ ves_status ves_model_hessian(ves_model *m, const double *y, double cE, double cA
 /* Block values of the dissipation matrix K(y): Diss = (1/2) ydot^T K ydot,
  * K including the drift damping S (ves_model_params.drift). */
 ves_status ves_model_dissipation(ves_model *m, const double *y, double *blk);
+
+/* The step's dissipation K(y^n) without assembling it (a step's objective
+ * (1/2) d^T K(y^n) d + dt E(y), d = y - y^n, paper Eq. 11):
+ * ves_model_dissipation_ref stores the velocity variables of y^n, VES_NQD = 5
+ * doubles a quadrature point (qn[5 nq]; VES_ERR_DOMAIN if y^n is not
+ * admissible). ves_model_eval_step is ves_model_eval (E selected) with
+ *   gF = cE grad E + K(y^n) (y - y^n),  *Dv = (1/2) (y - y^n)^T K(y^n) (y - y^n)
+ * in place of gE (each point's K term added before the scatter: no matrix),
+ * K here without the drift damping S (ves_model_drift_blocks; constant).
+ * ves_model_hessian_step is ves_model_hessian + cK K(y^n) (with S), the two
+ * summed per point before the one assembly. Agree with the assembled
+ * ves_model_dissipation to rounding. */
+ves_status ves_model_dissipation_ref(ves_model *m, const double *y, double *qn);
+size_t ves_model_dissipation_ref_size(const ves_model *m); /* doubles in qn: 5 nq */
+ves_status ves_model_eval_step(ves_model *m, const double *y, int which, const double *qn, double cE,
+                               double *E, double *A, double *V, double *Dv, double *gF, double *gA,
+                               double *gV);
+ves_status ves_model_hessian_step(ves_model *m, const double *y, const double *qn, double cE,
+                                  double cA, double cV, double cK, double *blk);
+
+/* The block values (4 ptr[n]) of the drift damping S in the pattern, or NULL
+ * when it is off (ves_model_params.drift = 0). Owned by the model. */
+const double *ves_model_drift_blocks(const ves_model *m);
 
 /* Pointwise W (units 1/R0) at every quadrature point, W[nq]. */
 ves_status ves_model_pointwise_W(ves_model *m, const double *y, double *W);

@@ -68,9 +68,12 @@ void ves_step_hess_structure(const ves_step *s, int *irow, int *jcol);
 ves_status ves_step_eval_hess(ves_step *s, const double *x, double sigma_f, const double *lambda,
                               double *val);
 
-/* The dissipation matrix K(y^n) over the free dofs, in the same structure
- * (for the explicit Euler backend and preconditioning). */
-const double *ves_step_K(const ves_step *s);
+/* The dissipation matrix K(y^n) (+ the drift damping S) over the free dofs,
+ * in the same structure (for the explicit Euler backend, inertia corrections
+ * and preconditioning). Assembled at the first call after ves_step_set (the
+ * objective and the Hessian use K(y^n) without it, point by point); NULL if
+ * the step is not set or the assembly failed. */
+const double *ves_step_K(ves_step *s);
 /* dt E(y) alone and its gradient (the Euler backend's force). */
 ves_status ves_step_eval_energy_grad(ves_step *s, const double *x, double *E, double *gE);
 
