@@ -174,10 +174,11 @@ static ves_status assemble_factor(newton_state *w, ves_step *s, const double *x,
     if (i != j) acc[j] += fabs(w->H[t] * x[i]); /* the mirrored upper entry */
   }
   w->noise = DBL_EPSILON * norm_inf(w->nvar, acc);
-  const double *K = ves_step_K(s);
+  const double *K = NULL; /* assembled only for a correction (ves_step_K) */
   const double d0 = fmax(NEWTON_DELTA0, w->delta_last / 10);
   w->have_factor = 0;
   for (double delta = 0; delta <= NEWTON_DELTA_MAX; delta = delta == 0 ? d0 : 10 * delta) {
+    if (delta > 0 && !K && !(K = ves_step_K(s))) return VES_ERR_ALLOC;
     kkt_fill(&w->kkt, w->H, delta, K, w->J, ncon);
     ves_status st = kkt_factor(&w->kkt);
     stt->factorizations++;

@@ -84,6 +84,9 @@ struct ves_sim {
   double dt_rejected;               /* smallest recently rejected dt (0: none) */
   long since_rejected;              /* accepted steps since then */
   int fresh_next;                   /* the next step starts afresh (ves_step_params.fresh) */
+  double *yprev;                    /* 2n: y before the last accepted step (predictor) */
+  double dt_prev;                   /* that step's dt */
+  int have_prev;                    /* yprev is on the current reference */
 };
 
 void ves_integrate_params_default(ves_integrate_params *p) {
@@ -95,6 +98,7 @@ void ves_integrate_params_default(ves_integrate_params *p) {
   p->dE_target = 0.02;
   p->growth_max = 2.0;
   p->iter_target = 8;
+  p->predictor = 1;
   p->retry_memory = 10;
   p->retry_cap = 0.7;
   p->hold_area = 1;
@@ -125,7 +129,7 @@ void ves_sim_destroy(ves_sim **s) {
   free(p->node_phi);
   free(p->y);
   free(p->ynew);
-  free(p->x);
+  free(p->x), free(p->yprev);
   free(p);
   *s = NULL;
 }
@@ -160,7 +164,8 @@ ves_status ves_sim_create(ves_model *model, const ves_backend_type *backend,
   s->n = ves_model_pattern(model)->n;
   s->y = malloc(2 * (size_t)s->n * sizeof *s->y);
   s->ynew = malloc(2 * (size_t)s->n * sizeof *s->ynew);
-  if (!s->y || !s->ynew) goto fail;
+  s->yprev = malloc(2 * (size_t)s->n * sizeof *s->yprev);
+  if (!s->y || !s->ynew || !s->yprev) goto fail;
   ves_model_reference(model, s->y);
   if ((st = ves_step_create(model, &s->step)) != VES_OK) goto fail;
   s->nvar = ves_step_nvar(s->step);
@@ -221,6 +226,7 @@ static ves_status switch_reference(ves_sim *s, ves_reconnect *nr, const ves_step
   ves_remesh_destroy(&s->mesh); /* nr borrows nothing from it */
   s->ref = nr, s->model = m, s->step = step, s->bstate = bstate;
   s->fresh_next = 1;
+  s->have_prev = 0;
   memcpy(s->y, y, 2 * (size_t)s->n * sizeof *s->y);
   s->E = E, s->A = A, s->V = V;
   ves_quad_destroy(&s->at_nodes); /* built on the old nodes */
@@ -317,14 +323,15 @@ static ves_status remesh(ves_sim *s, ves_remesh_info *info) {
 static ves_status switch_remesh(ves_sim *s, ves_remesh *nm, double V_target) {
   ves_step *step = NULL;
   void *bstate = NULL;
-  double *y = NULL, *ynew = NULL, *x = NULL, E, A, V;
+  double *y = NULL, *ynew = NULL, *x = NULL, *yprev = NULL, E, A, V;
   ves_model *m = ves_remesh_model(nm);
   const int n = ves_remesh_nodes(nm)->n;
   ves_status st = ves_step_create(m, &step);
   if (st == VES_OK) {
     y = malloc(2 * (size_t)n * sizeof *y), ynew = malloc(2 * (size_t)n * sizeof *ynew);
+    yprev = malloc(2 * (size_t)n * sizeof *yprev);
     x = malloc((size_t)ves_step_nvar(step) * sizeof *x);
-    st = y && ynew && x ? VES_OK : VES_ERR_ALLOC;
+    st = y && ynew && yprev && x ? VES_OK : VES_ERR_ALLOC;
   }
   if (st == VES_OK) {
     memcpy(y, ves_remesh_y(nm), 2 * (size_t)n * sizeof *y);
@@ -340,7 +347,7 @@ static ves_status switch_remesh(ves_sim *s, ves_remesh *nm, double V_target) {
     if (bstate) s->backend->destroy(&bstate);
     ves_step_destroy(&step);
     ves_remesh_destroy(&nm);
-    free(y), free(ynew), free(x);
+    free(y), free(ynew), free(x), free(yprev);
     return st;
   }
   s->backend->destroy(&s->bstate); /* the old pattern's objects, then their model */
@@ -348,8 +355,9 @@ static ves_status switch_remesh(ves_sim *s, ves_remesh *nm, double V_target) {
   ves_reconnect_destroy(&s->ref);
   ves_remesh_destroy(&s->mesh);
   s->mesh = nm, s->model = m, s->step = step, s->bstate = bstate;
-  free(s->y), free(s->ynew), free(s->x);
-  s->y = y, s->ynew = ynew, s->x = x;
+  free(s->y), free(s->ynew), free(s->x), free(s->yprev);
+  s->y = y, s->ynew = ynew, s->x = x, s->yprev = yprev;
+  s->have_prev = 0;
   s->n = n, s->nvar = ves_step_nvar(step);
   s->E = E, s->A = A, s->V = V;
   ves_quad_destroy(&s->at_nodes); /* built on the old nodes */
@@ -407,6 +415,26 @@ ves_status ves_sim_set_remesh(ves_sim *s, const ves_config *cfg, const ves_remes
 
 int ves_sim_remeshings(const ves_sim *s) { return s->remeshings; }
 
+/* The predictor (ves_integrate_params.predictor): the step starts from the
+ * linear extrapolation of the last two states, x = y^n + r (y^n - y^{n-1}),
+ * r = dt / dt_prev, and the multipliers from lambda r (the step's objective
+ * is (1/2) d^T K d + dt E, so the tensions enter it as dt sigma). The start
+ * is an error of O(dt^2) instead of O(dt) from y^n; the fixed point, the
+ * convergence test and the answer are the step's own. A start outside the
+ * domain (det F <= 0 somewhere) falls back to y^n. Evaluated here at once
+ * with its gradient, which the backend finds in the step's cache. */
+static void predict(ves_sim *s, double dt, double lam[2]) {
+  const ves_pattern *pat = ves_model_pattern(s->model);
+  const double r = dt / s->dt_prev;
+  for (int i = 0; i < 2 * s->n; i++)
+    if (pat->dof[i] >= 0) s->x[pat->dof[i]] = s->y[i] + r * (s->y[i] - s->yprev[i]);
+  if (ves_step_eval_grad(s->step, s->x, s->ynew) != VES_OK) { /* ynew: scratch, nvar <= 2n */
+    ves_step_x0(s->step, s->x);
+    return;
+  }
+  lam[0] *= r, lam[1] *= r;
+}
+
 ves_status ves_sim_step(ves_sim *s, ves_step_report *rep) {
   VES_CHECK(s && rep, VES_ERR_ARG);
   memset(rep, 0, sizeof *rep);
@@ -447,6 +475,7 @@ ves_status ves_sim_step(ves_sim *s, ves_step_report *rep) {
     st = ves_step_set(s->step, s->y, &sp);
     if (st == VES_OK) {
       ves_step_x0(s->step, s->x);
+      if (s->ip.predictor && s->have_prev && !sp.fresh) predict(s, dt, lam);
       st = s->backend->solve(s->bstate, s->step, s->x, lam, &rep->stats);
     }
     if (st == VES_OK) {
@@ -461,6 +490,8 @@ ves_status ves_sim_step(ves_sim *s, ves_step_report *rep) {
       st = VES_STEP_REJECTED;
     if (st == VES_OK) {
       double dE = fabs(E - s->E);
+      memcpy(s->yprev, s->y, 2 * (size_t)s->n * sizeof *s->y);
+      s->dt_prev = dt, s->have_prev = 1;
       memcpy(s->y, s->ynew, 2 * (size_t)s->n * sizeof *s->y);
       s->fresh_next = 0;
       s->t += dt;
@@ -577,6 +608,7 @@ ves_status ves_sim_set_state(ves_sim *s, const ves_sim_state *st, const double *
   s->c0 = st->c0;
   s->dt_rejected = st->dt_rejected, s->since_rejected = st->since_rejected;
   s->fresh_next = 1;
+  s->have_prev = 0;
   return VES_OK;
 }
 
