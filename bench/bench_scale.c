@@ -2,7 +2,8 @@
  * problem file at geometry.epsilon = EPS, in one process, the sizes (nodes,
  * quadrature points, mean LME neighbours), the setup's wall time and its
  * parts, one model evaluation (E, A, V and their gradients), one Hessian, one
- * K assembly, the MUMPS analysis and one numeric factorization of the Newton
+ * K assembly, the step's matrix (stepH: K(y^n) + dt Hess E + ... in one
+ * assembly, what a Newton step builds), the MUMPS analysis and one numeric factorization of the Newton
  * KKT matrix, the mean wall time of the first NSTEPS accepted steps of the
  * newton backend with the problem's own time-stepping parameters (as
  * `vesica run` builds them), and at the end the process CPU time and peak
@@ -90,7 +91,7 @@ typedef struct {
   int nodes, points;
   double m_mean;                                   /* mean LME neighbours per point */
   double setup, nodes_s, tables_s, project_s;      /* ves_setup_create and its parts */
-  double eval, hess, diss, analysis, factor, step; /* single operations; step: mean */
+  double eval, hess, diss, stepH, analysis, factor, step; /* single operations; step: mean */
   double iters, hessians;                          /* per accepted step, retries included */
   int retries;                                     /* halvings over the NSTEPS steps */
 } row;
@@ -172,10 +173,16 @@ static int measure(const ves_config *cfg, ves_setup *s, int nsteps, row *r) {
     goto done;
   }
   ves_step_x0(step, x0);
-  if ((st = ves_step_eval_hess(step, x0, 1.0, lambda, H)) != VES_OK) {
-    rc = fail("ves_step_eval_hess", st);
-    goto done;
+  for (int i = 0; i < NREP; i++) { /* the step's matrix: K(y^n) + dt Hess E + ..., one assembly */
+    double t0 = now();
+    st = ves_step_eval_hess(step, x0, 1.0, lambda, H);
+    t[i] = now() - t0;
+    if (st != VES_OK) {
+      rc = fail("ves_step_eval_hess", st);
+      goto done;
+    }
   }
+  r->stepH = median(t);
   if (ncon > 0 && (st = ves_step_eval_jac(step, x0, J)) != VES_OK) {
     rc = fail("ves_step_eval_jac", st);
     goto done;
@@ -316,13 +323,13 @@ int main(int argc, char **argv) {
   const double peak_mb = ru.ru_maxrss / 1024.0; /* ru_maxrss in kB on Linux */
   if (header)
     printf("# eps\tthreads\tblas_threads\tnodes\tpoints\tneighbours_mean\tsetup_s\tnodes_s\t"
-           "tables_s\tproject_s\tmodel_s\teval_s\thess_s\tK_s\tanalysis_s\tfactor_s\tstep_s\t"
+           "tables_s\tproject_s\tmodel_s\teval_s\thess_s\tK_s\tstepH_s\tanalysis_s\tfactor_s\tstep_s\t"
            "iters_per_step\thess_per_step\tretries\tcpu_s\tpeak_MB\tblas_core\n");
-  printf("%g\t%d\t%s\t%d\t%d\t%.1f\t%.3f\t%.3f\t%.3f\t%.3f\t%.3f\t%.4f\t%.4f\t%.4f\t%.3f\t%.3f\t"
+  printf("%g\t%d\t%s\t%d\t%d\t%.1f\t%.3f\t%.3f\t%.3f\t%.3f\t%.3f\t%.4f\t%.4f\t%.4f\t%.4f\t%.3f\t%.3f\t"
          "%.3f\t%.2f\t%.2f\t%d\t%.2f\t%.1f\t%s\n",
          eps, nthr, blas ? blas : "unset", r.nodes, r.points, r.m_mean, r.setup, r.nodes_s,
          r.tables_s, r.project_s, r.setup - r.nodes_s - r.tables_s - r.project_s, r.eval, r.hess,
-         r.diss, r.analysis, r.factor, r.step, r.iters, r.hessians, r.retries, cpu_s, peak_mb,
+         r.diss, r.stepH, r.analysis, r.factor, r.step, r.iters, r.hessians, r.retries, cpu_s, peak_mb,
          core ? core : "unknown");
   return 0;
 }
