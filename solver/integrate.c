@@ -98,7 +98,7 @@ void ves_integrate_params_default(ves_integrate_params *p) {
   p->dE_target = 0.02;
   p->growth_max = 2.0;
   p->iter_target = 8;
-  p->predictor = 1;
+  p->predictor = 0;
   p->retry_memory = 10;
   p->retry_cap = 0.7;
   p->hold_area = 1;

@@ -24,7 +24,10 @@ typedef struct {
   double growth_max;   /* adaptive: largest factor between consecutive steps (> 1) */
   int iter_target;     /* adaptive: above this many backend iterations dt is not grown */
   int predictor;       /* 1: a step starts from the linear extrapolation of the last two
-                          states (and multipliers scaled by dt); 0: from y^n */
+                          states (and multipliers scaled by dt); 0 (default): from y^n.
+                          y^{n-1} is not in the restart state: a restart point (a regular
+                          snapshot) starts afresh in both runs, a stop between them
+                          continues within the step tolerance, not bit for bit */
   int retry_memory;    /* adaptive: after a rejected attempt at dt_r, this many accepted
                           steps keep dt <= retry_cap dt_r (0: only the next step is held) */
   double retry_cap;    /* adaptive: that cap's factor, in (0, 1] */
