@@ -22,9 +22,7 @@ static inline void bench_constant_params(const ves_config *cfg, double dt, doubl
 
 /* Backend options from the [solver] section of cfg. */
 static inline void bench_backend_options(const ves_config *cfg, ves_backend_options *bo) {
-  ves_backend_options_default(bo);
-  bo->tol = cfg->tol, bo->ctol = cfg->ctol, bo->max_iter = cfg->max_iter;
-  bo->freeze_hessian = cfg->freeze_hessian;
+  ves_backend_options_from_config(cfg, bo);
 }
 
 /* Parse "a,b,c" into v[max]; returns the count, -1 on a malformed entry. */

@@ -3,16 +3,23 @@
 
 #include <string.h>
 
-/* Defaults: KKT residual 1e-9 relative, constraints 1e-10 of their targets
- * (A0 ~ 4 pi, so |A - A0| <~ 1e-9), 100 iterations, fresh Hessian each
- * iteration, quiet. */
+void ves_backend_options_from_config(const ves_config *cfg, ves_backend_options *opt) {
+  if (!cfg || !opt) return;
+  opt->tol = cfg->tol;
+  opt->ctol = cfg->ctol;
+  opt->max_iter = cfg->max_iter;
+  opt->freeze_hessian = cfg->freeze_hessian;
+  opt->verbose = 0;
+}
+
+/* Defaults: the problem file's, from config.c's table of keys (KKT residual
+ * 1e-9 relative, constraints 1e-10 of their targets, 40 iterations, newton's
+ * Hessian frozen within a step; quiet). */
 void ves_backend_options_default(ves_backend_options *opt) {
   if (!opt) return;
-  opt->tol = 1e-9;
-  opt->ctol = 1e-10;
-  opt->max_iter = 100;
-  opt->freeze_hessian = 0;
-  opt->verbose = 0;
+  ves_config cfg;
+  ves_config_default(&cfg);
+  ves_backend_options_from_config(&cfg, opt);
 }
 
 static const ves_backend_type *const TABLE[] = {&ves_backend_ipopt, &ves_backend_nlopt,

@@ -22,6 +22,8 @@
  * new node positions at create. */
 #include "ves/reconnect.h"
 
+#include "ves/config.h"
+
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -317,20 +319,23 @@ ves_status ves_reconnect_restore(const ves_model *m, const double *x, const doub
   return VES_OK;
 }
 
-/* Defaults. A motion with singular values sigma_1 >= sigma_2 seen from the
- * current configuration turns the basis functions p_a o y^-1 into ellipses:
- * beta_a |F^-1 (x - x_a)|^2 acts as an aspect ratio gamma / sigma^2 along each
- * principal direction. DESIGN.md §2 measured gamma 0.6-0.8 good and 1.8
- * useless for second derivatives; cond_max = 2 and det_min = 0.5 keep
+/* Defaults: the problem file's [reconnect] keys (config.c's table of keys,
+ * the one source): every criterion off, as vesica run has them. Thresholds
+ * worth enabling: a motion with singular values sigma_1 >= sigma_2 seen from
+ * the current configuration turns the basis functions p_a o y^-1 into
+ * ellipses: beta_a |F^-1 (x - x_a)|^2 acts as an aspect ratio gamma / sigma^2
+ * along each principal direction. DESIGN.md §2 measured gamma 0.6-0.8 good
+ * and 1.8 useless for second derivatives; cond_max = 2 and det_min = 0.5 keep
  * sigma_2 >~ 1/sqrt2 (for det near 1 or a uniform compression), i.e. an
  * effective gamma / sigma_2^2 <~ 2 gamma = 1.6 at gamma = 0.8. These bounds
- * are reasoned, not tuned on runs. every = 0: off (the paper's Fig. 5 run
- * used 20). */
+ * are reasoned, not tuned on runs (the paper's Fig. 5 run used every = 20). */
 void ves_reconnect_params_default(ves_reconnect_params *par) {
   if (!par) return;
-  par->every = 0;
-  par->cond_max = 2.0;
-  par->det_min = 0.5;
+  ves_config cfg;
+  ves_config_default(&cfg);
+  par->every = cfg.reconnect_every;
+  par->cond_max = cfg.reconnect_cond_max;
+  par->det_min = cfg.reconnect_det_min;
 }
 
 ves_status ves_reconnect_due(const ves_reconnect_params *par, const ves_model *m, const double *y,

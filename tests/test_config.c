@@ -12,7 +12,12 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "ves/backend.h"
 #include "ves/config.h"
+#include "ves/geom.h"
+#include "ves/integrate.h"
+#include "ves/lme.h"
+#include "ves/reconnect.h"
 #include "ves/shape.h"
 
 /* Write text to a fresh temporary file; returns its path in buf. */
@@ -363,6 +368,64 @@ static void test_key_listing(void **state) {
   free(buf);
 }
 
+/* Every default has one source, the table of keys (ves_config_default):
+ * each library *_default() of a parameter that is also a problem-file key
+ * gives the table's value, exactly (the same decimal literal parsed, or
+ * copied from the configuration). Where the two once disagreed, vesica run
+ * (which sets every field from the configuration) had the table's:
+ * [solver] max_iter 40 (ves_backend_options_default had 100),
+ * freeze_hessian 1 (0), [geometry] gamma 0.6 (ves_lme_params_default 0.8),
+ * [reconnect] cond_max and det_min 0, off (ves_reconnect_params_default 2
+ * and 0.5). */
+static void test_defaults_agree(void **state) {
+  (void)state;
+  ves_config c;
+  ves_config_default(&c);
+  ves_backend_options bo;
+  ves_backend_options_default(&bo);
+  assert_true(bo.tol == c.tol && bo.ctol == c.ctol);
+  assert_int_equal(bo.max_iter, c.max_iter);
+  assert_int_equal(bo.freeze_hessian, c.freeze_hessian);
+  assert_int_equal(bo.verbose, 0);
+  ves_integrate_params ip;
+  ves_integrate_params_default(&ip);
+  assert_true(ip.t_end == c.t_end && ip.dt_initial == c.dt_initial && ip.dt_max == c.dt_max);
+  assert_true(ip.dt_min == c.dt_min && ip.dE_target == c.dE_target);
+  assert_true(ip.growth_max == c.growth_max && ip.retry_cap == c.retry_cap);
+  assert_int_equal(ip.adaptive, c.adaptive);
+  assert_int_equal(ip.iter_target, c.iter_target);
+  assert_int_equal(ip.retry_memory, c.retry_memory);
+  assert_int_equal(ip.hold_area, c.area);
+  assert_int_equal(ip.hold_volume, c.volume);
+  assert_true(ip.volume_rate == c.volume_rate && ip.volume_final == c.volume_final);
+  assert_true(ip.c0_time == c.c0_time && ip.c0_after == c.c0_after && ip.c0_until == c.c0_until);
+  assert_int_equal(ip.reconnect_every, c.reconnect_every);
+  assert_true(ip.reconnect_cond_max == c.reconnect_cond_max);
+  assert_true(ip.reconnect_det_min == c.reconnect_det_min);
+  assert_int_equal(ip.reconnect_nodes, strcmp(c.reconnect_nodes, "motion")
+                                           ? VES_RESET_NODES_COEF
+                                           : VES_RESET_NODES_MOTION);
+  ves_reconnect_params rp;
+  ves_reconnect_params_default(&rp);
+  assert_int_equal(rp.every, c.reconnect_every);
+  assert_true(rp.cond_max == c.reconnect_cond_max && rp.det_min == c.reconnect_det_min);
+  ves_lme_params lp;
+  ves_lme_params_default(&lp);
+  assert_true(lp.gamma == c.gamma && lp.tol0 == c.support_tol);
+  ves_nodes_params np;
+  ves_nodes_params_default(&np);
+  assert_true(np.axis_spacings == c.axis_spacings);
+  assert_int_equal(np.lloyd_iter, c.lloyd_iterations);
+  assert_int_equal((int)np.seed, c.seed);
+  ves_shape_params sp;
+  ves_shape_params_default(&sp);
+  assert_int_equal(sp.kind, VES_SHAPE_SPHERE);
+  assert_string_equal(c.shape_type, "sphere");
+  assert_true(sp.radius == c.radius && sp.v == c.reduced_volume && sp.delta == c.delta);
+  assert_int_equal(sp.mode, c.mode);
+  assert_int_equal(sp.prolate, !strcmp(c.orientation, "prolate"));
+}
+
 int main(void) {
   setvbuf(stdout, NULL, _IOLBF, 0); /* keep output in order with cmocka's stderr */
   const struct CMUnitTest tests[] = {
@@ -373,6 +436,7 @@ int main(void) {
       cmocka_unit_test(test_fuzz_regressions),
       cmocka_unit_test(test_text_roundtrip),
       cmocka_unit_test(test_key_listing),
+      cmocka_unit_test(test_defaults_agree),
   };
   return cmocka_run_group_tests_name("config", tests, NULL, NULL);
 }

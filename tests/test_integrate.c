@@ -429,14 +429,15 @@ static void test_reconnect_every(void **state) {
   }
   assert_int_equal(n, 6);
   assert_int_equal(ves_sim_reconnections(sim), 3);
-  /* the reset's tables have the setup's LME parameters (the configuration's
-   * gamma 0.6, not ves_lme_params_default's 0.8): the discretization is kept */
+  /* the reset's tables have the setup's LME parameters, the configuration's
+   * gamma and support_tol: the discretization is kept (since the problem
+   * file's defaults are ves_lme_params_default's too, this no longer tells
+   * a reset that took the library's defaults from one that took the
+   * setup's) */
   ves_config cfg;
-  ves_lme_params lp;
   ves_config_default(&cfg);
-  ves_lme_params_default(&lp);
   const ves_quad *qr = ves_reconnect_quad(ves_sim_reference(sim));
-  assert_true(s->quad->lme.gamma == cfg.gamma && cfg.gamma != lp.gamma);
+  assert_true(s->quad->lme.gamma == cfg.gamma && s->quad->lme.tol0 == cfg.support_tol);
   assert_true(qr->lme.gamma == cfg.gamma && qr->lme.tol0 == cfg.support_tol);
   /* a state is taken on the reference in use: one from before its reset
    * (step 6) is refused, nothing changed; its own state is taken back */

@@ -882,9 +882,13 @@ static void test_due(void **state) {
   /* at the reference: nothing due */
   assert_int_equal(ves_reconnect_due(&par, m, P->X, 1000, &due, &c, &d), VES_OK);
   assert_int_equal(due, 0);
-  /* yd: cond 1.875 < 2, det 0.696 > 0.5: not due by default */
+  /* yd (cond 1.875, det 0.696): not due by default (every criterion off) */
   assert_int_equal(ves_reconnect_due(&par, m, P->yd, 5, &due, &c, &d), VES_OK);
   assert_int_equal(due, 0);
+  par.cond_max = 2, par.det_min = 0.5; /* not due at the reasoned thresholds either */
+  assert_int_equal(ves_reconnect_due(&par, m, P->yd, 5, &due, &c, &d), VES_OK);
+  assert_int_equal(due, 0);
+  par.det_min = 0;
   par.cond_max = 1.8; /* cond alone */
   assert_int_equal(ves_reconnect_due(&par, m, P->yd, 5, &due, &c, &d), VES_OK);
   assert_int_equal(due, 1);

@@ -506,7 +506,8 @@ static void test_errors(void **state) {
   }
   ves_backend_options opt;
   ves_backend_options_default(&opt);
-  assert_true(opt.tol == 1e-9 && opt.ctol == 1e-10 && opt.max_iter == 100);
+  /* the problem file's [solver] defaults (test_config test_defaults_agree) */
+  assert_true(opt.tol == 1e-9 && opt.ctol == 1e-10 && opt.max_iter == 40);
   const ves_backend_type *nb = ves_backend_find("newton"), *eb = ves_backend_find("euler");
   void *st = NULL;
   assert_int_equal(nb->create(NULL, s, &st), VES_ERR_ARG);

@@ -9,14 +9,17 @@
 #ifndef VES_BACKEND_H
 #define VES_BACKEND_H
 
+#include "ves/config.h"
 #include "ves/status.h"
 #include "ves/step.h"
 
-/* Options common to all backends (each documents which it honours). */
+/* Options common to all backends (each documents which it honours). The
+ * defaults are the problem file's [solver] keys (config.c's table of keys,
+ * the one source: vesica keys lists them). */
 typedef struct {
-  double tol;          /* optimality / KKT residual tolerance (relative; default 1e-9) */
-  double ctol;         /* constraint violation tolerance, relative to A0, V (default 1e-10) */
-  int max_iter;        /* iteration limit per step (default 100) */
+  double tol;          /* optimality / KKT residual tolerance (relative; [solver] tol) */
+  double ctol;         /* constraint violation tolerance, relative to A0, V ([solver] ctol) */
+  int max_iter;        /* iteration limit per step ([solver] max_iter) */
   int freeze_hessian;  /* newton: 0 = a fresh Hessian every iteration; 1 = assembled
                           once per step, rebuilt when the chord stalls (paper);
                           2 = also kept across steps (backend_newton.c) */
@@ -48,7 +51,11 @@ typedef struct {
   void (*destroy)(void **state);
 } ves_backend_type;
 
+/* The defaults: ves_backend_options_from_config of ves_config_default. */
 void ves_backend_options_default(ves_backend_options *opt);
+/* The [solver] keys of cfg (tol, ctol, max_iter, freeze_hessian) as
+ * backend options, verbose 0. */
+void ves_backend_options_from_config(const ves_config *cfg, ves_backend_options *opt);
 
 /* The table entry for a name ("ipopt", "nlopt", "newton", "euler"), or NULL. */
 const ves_backend_type *ves_backend_find(const char *name);

@@ -11,7 +11,8 @@
 
 /* Parameters of the approximants. */
 typedef struct {
-  double gamma;      /* aspect ratio gamma, beta_a = gamma / h_a^2 (paper: 0.8) */
+  double gamma;      /* aspect ratio gamma, beta_a = gamma / h_a^2 (default 0.6, the
+                        problem file's; paper: 0.8) */
   double tol0;       /* support truncation: node a is a neighbour of X when
                         beta_a |X - X_a|^2 <= -ln(tol0) (default 1e-6) */
   double newton_tol; /* convergence: |sum_a p_a (X - X_a)| <= newton_tol * h_loc,

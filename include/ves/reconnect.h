@@ -191,8 +191,8 @@ typedef struct {
   double det_min;  /* reset when min det F drops below this (in (0, 1); 0: off) */
 } ves_reconnect_params;
 
-/* Defaults: every = 0, cond_max = 2, det_min = 0.5 (see the implementation
- * for the reasons). */
+/* Defaults: the problem file's [reconnect] every, cond_max, det_min (all
+ * off; the implementation says which thresholds are worth enabling). */
 void ves_reconnect_params_default(ves_reconnect_params *par);
 
 /* *due = 1 when a reset is due at y after `steps` accepted steps since the
