@@ -1,10 +1,15 @@
 /* vesica — tests of the step backends (solver/backend_*.c) on one small step:
  * a perturbed sphere (mode 2, out of equilibrium) relaxing for one time step
  * with area and volume held. Ipopt must converge with the constraints met to
- * 1e-9 and the energy decreasing; NLopt must find the same point; every
- * backend available (newton when it is implemented) must agree on y; a start
- * outside the domain must come back as an error status, not a crash. Prints
- * iterations, evaluations and seconds for each backend. */
+ * 1e-9 and the energy decreasing, and a warm start must find the same
+ * point; newton must agree with it on y (NLopt too, but that comparison is
+ * slow: make test-slow). The error paths, for every backend: a start
+ * outside the domain (ipopt, nlopt, newton: VES_ERR_DOMAIN; euler ignores
+ * the start), a huge dt (whatever comes back, a VES_OK meets the
+ * constraints; euler's explicit step leaves the domain: VES_ERR_DOMAIN),
+ * NULL arguments and bad options (VES_ERR_ARG), a step problem never set
+ * (newton, euler: VES_ERR_ARG). Prints iterations, evaluations and seconds
+ * for each backend. */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -361,8 +366,8 @@ static void test_domain_start(void **state) {
     st = ves_step_eval_f(FX.step, xb, &f);
   }
   assert_int_equal(st, VES_ERR_DOMAIN);
-  const char *names[] = {"ipopt", "nlopt"};
-  for (int k = 0; k < 2; k++) {
+  const char *names[] = {"ipopt", "nlopt", "newton"}; /* euler starts from y^n, not x */
+  for (int k = 0; k < 3; k++) {
     const ves_backend_type *b = ves_backend_find(names[k]);
     ves_backend_options opt;
     ves_backend_options_default(&opt);
@@ -381,7 +386,10 @@ static void test_domain_start(void **state) {
 
 /* A huge time step (dt = 1e3: the energy term dominates, nodes want to move
  * far): whatever each backend returns, it returns (no crash), and a VES_OK
- * comes with the constraints met. The step is restored afterwards. */
+ * comes with the constraints met. Forward Euler takes the step it is given,
+ * x0 + dt ydot with ydot ~ 0.1-1 R0/t* in the band: nodes move ~1e2 R0,
+ * far through the fixed wall at 1.9 R0, and the state after it is refused
+ * (VES_ERR_DOMAIN, after one factorization). The step is restored afterwards. */
 static void test_huge_dt(void **state) {
   (void)state;
   ves_step_params par = FX.par;
@@ -389,8 +397,8 @@ static void test_huge_dt(void **state) {
   assert_int_equal(ves_step_set(FX.step, FX.yn, &par), VES_OK);
   double *x = malloc((size_t)FX.nvar * sizeof(double));
   assert_non_null(x);
-  const char *names[] = {"ipopt", "nlopt"};
-  for (int k = 0; k < 2; k++) {
+  const char *names[] = {"ipopt", "nlopt", "newton", "euler"};
+  for (int k = 0; k < 4; k++) {
     const ves_backend_type *b = ves_backend_find(names[k]);
     ves_backend_options opt;
     ves_backend_options_default(&opt);
@@ -399,6 +407,10 @@ static void test_huge_dt(void **state) {
     ves_backend_stats stats = {0};
     ves_status st = run_backend(b, &opt, x, lambda, &stats);
     print_stats(names[k], st, &stats);
+    if (!strcmp(names[k], "euler")) {
+      assert_int_equal(st, VES_ERR_DOMAIN);
+      assert_int_equal(stats.factorizations, 1);
+    }
     if (st == VES_OK) {
       double E, A, V;
       eval_at(x, &E, &A, &V);
@@ -409,32 +421,61 @@ static void test_huge_dt(void **state) {
   assert_int_equal(ves_step_set(FX.step, FX.yn, &FX.par), VES_OK);
 }
 
-/* Usage errors: NULL arguments and bad options are VES_ERR_ARG. */
+/* Usage errors: NULL arguments and bad options are VES_ERR_ARG (euler
+ * honours no tolerance and takes any); newton and euler refuse a step
+ * problem that was never set. */
 static void test_bad_arguments(void **state) {
   (void)state;
-  const char *names[] = {"ipopt", "nlopt"};
-  for (int k = 0; k < 2; k++) {
+  const char *names[] = {"ipopt", "nlopt", "newton", "euler"};
+  for (int k = 0; k < 4; k++) {
     const ves_backend_type *b = ves_backend_find(names[k]);
     ves_backend_options opt;
     ves_backend_options_default(&opt);
     void *sp = NULL;
     assert_int_equal(b->create(NULL, FX.step, &sp), VES_ERR_ARG);
-    assert_int_equal(b->create(&opt, NULL, &sp), VES_ERR_ARG);
-    opt.tol = -1;
-    assert_int_equal(b->create(&opt, FX.step, &sp), VES_ERR_ARG);
     assert_null(sp);
+    assert_int_equal(b->create(&opt, NULL, &sp), VES_ERR_ARG);
+    assert_null(sp);
+    assert_int_equal(b->create(&opt, FX.step, NULL), VES_ERR_ARG);
+    const int nk = !strcmp(names[k], "newton") || !strcmp(names[k], "euler");
+    opt.tol = -1;
+    if (strcmp(names[k], "euler")) {
+      assert_int_equal(b->create(&opt, FX.step, &sp), VES_ERR_ARG);
+      assert_null(sp);
+    }
+    if (!strcmp(names[k], "newton")) { /* (ipopt takes 0 iterations: a check of the start) */
+      opt.tol = 1e-9, opt.max_iter = 0;
+      assert_int_equal(b->create(&opt, FX.step, &sp), VES_ERR_ARG);
+      assert_null(sp);
+      opt.max_iter = 40, opt.ctol = 0;
+      assert_int_equal(b->create(&opt, FX.step, &sp), VES_ERR_ARG);
+      assert_null(sp);
+    }
     ves_backend_options_default(&opt);
     assert_int_equal(b->create(&opt, FX.step, &sp), VES_OK);
     assert_int_equal(b->solve(sp, FX.step, NULL, NULL, NULL), VES_ERR_ARG);
     double *x = malloc((size_t)FX.nvar * sizeof(double));
     assert_non_null(x);
     ves_step_x0(FX.step, x);
-    assert_int_equal(b->solve(sp, FX.step, x, NULL, NULL), VES_ERR_ARG); /* ncon = 2 */
-    free(x);
+    double lambda[2] = {0, 0};
+    ves_backend_stats stats;
+    assert_int_equal(b->solve(sp, FX.step, x, NULL, &stats), VES_ERR_ARG); /* ncon = 2 */
+    assert_int_equal(b->solve(NULL, FX.step, x, lambda, &stats), VES_ERR_ARG);
+    if (nk) assert_int_equal(b->solve(sp, FX.step, x, lambda, NULL), VES_ERR_ARG);
     b->destroy(&sp);
     assert_null(sp);
     b->destroy(&sp); /* NULL is accepted */
     b->destroy(NULL);
+    if (nk) {
+      /* a step problem on the same model, never set: no targets, no K */
+      ves_step *fresh = NULL;
+      assert_int_equal(ves_step_create(FX.setup->model, &fresh), VES_OK);
+      assert_int_equal(b->create(&opt, fresh, &sp), VES_OK);
+      assert_int_equal(b->solve(sp, fresh, x, lambda, &stats), VES_ERR_ARG);
+      b->destroy(&sp);
+      ves_step_destroy(&fresh);
+    }
+    free(x);
   }
 }
 
