@@ -399,6 +399,8 @@ static void test_defaults_agree(void **state) {
   assert_int_equal(ip.hold_volume, c.volume);
   assert_true(ip.volume_rate == c.volume_rate && ip.volume_final == c.volume_final);
   assert_true(ip.c0_time == c.c0_time && ip.c0_after == c.c0_after && ip.c0_until == c.c0_until);
+  assert_true(ip.c0_ramp_start == c.c0_ramp_start && ip.c0_ramp_end == c.c0_ramp_end);
+  assert_true(ip.c0_ramp_to == c.c0_ramp_to);
   assert_int_equal(ip.reconnect_every, c.reconnect_every);
   assert_true(ip.reconnect_cond_max == c.reconnect_cond_max);
   assert_true(ip.reconnect_det_min == c.reconnect_det_min);
