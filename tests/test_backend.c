@@ -2,8 +2,9 @@
  * a perturbed sphere (mode 2, out of equilibrium) relaxing for one time step
  * with area and volume held. Ipopt must converge with the constraints met to
  * 1e-9 and the energy decreasing, and a warm start must find the same
- * point; newton must agree with it on y (NLopt too, but that comparison is
- * slow: make test-slow). The error paths, for every backend: a start
+ * point; newton must agree with it on y; NLopt must agree with newton on a
+ * smaller step (test_nlopt_small_step) and with Ipopt on this one (slow:
+ * make test-slow). The error paths, for every backend: a start
  * outside the domain (ipopt, nlopt, newton: VES_ERR_DOMAIN; euler ignores
  * the start), a huge dt (whatever comes back, a VES_OK meets the
  * constraints; euler's explicit step leaves the domain: VES_ERR_DOMAIN),

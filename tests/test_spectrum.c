@@ -19,29 +19,7 @@
 #include "ves/integrate.h"
 #include "ves/setup.h"
 #include "ves/spectrum.h"
-
-/* A small vesicle out of equilibrium: sphere with a P2 bump of amplitude
- * 0.15, eps = 0.15 (test_integrate.c's). */
-static ves_setup *small_setup(void) {
-  ves_config cfg;
-  char err[512];
-  const char *set[] = {"geometry.epsilon=0.15", "geometry.box_r=1.9", "geometry.box_z=1.9",
-                       "geometry.band=3",       "shape.mode=2",       "shape.delta=0.15"};
-  if (ves_config_load(NULL, 6, set, &cfg, err, sizeof err) != VES_OK) fail_msg("config: %s", err);
-  ves_setup *s = NULL;
-  if (ves_setup_create(&cfg, VES_PHI0_L2, &s, err, sizeof err) != VES_OK)
-    fail_msg("setup: %s", err);
-  return s;
-}
-
-static ves_sim *make_sim(ves_setup *s, const char *backend, ves_integrate_params *ip) {
-  ves_backend_options bo;
-  ves_backend_options_default(&bo);
-  ves_sim *sim = NULL;
-  ves_status st = ves_sim_create(s->model, ves_backend_find(backend), &bo, ip, &sim);
-  if (st != VES_OK) fail_msg("sim: %s", ves_status_str(st));
-  return sim;
-}
+#include "vesicle_impl.h"
 
 /* Forward Euler with constant dt from the initial state, n steps; returns
  * the number of steps at which E rose (energy check off) and the first
