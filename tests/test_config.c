@@ -394,6 +394,7 @@ static void test_defaults_agree(void **state) {
   assert_true(ip.growth_max == c.growth_max && ip.retry_cap == c.retry_cap);
   assert_int_equal(ip.adaptive, c.adaptive);
   assert_int_equal(ip.iter_target, c.iter_target);
+  assert_int_equal(ip.predictor, c.predictor);
   assert_int_equal(ip.retry_memory, c.retry_memory);
   assert_int_equal(ip.hold_area, c.area);
   assert_int_equal(ip.hold_volume, c.volume);
