@@ -1004,8 +1004,10 @@ size_t ves_model_dissipation_ref_size(const ves_model *m) {
   return m ? VES_NQD * (size_t)m->q->nq : 0;
 }
 
-ves_status ves_model_dissipation_ref(ves_model *m, const double *y, double *qn) {
-  VES_CHECK(m && y && qn, VES_ERR_ARG);
+/* Call fn(m, al, q, ctx) once for every point al with its kinematics q at y,
+ * the triangles shared out over the threads (each by its first slab). */
+typedef ves_status point_fn(const ves_model *m, int al, const double q[VES_NQ], void *ctx);
+static ves_status each_point(ves_model *m, const double *y, point_fn *fn, void *ctx) {
   ves_status st[64];
   for (int k = 0; k < m->nthr; k++) st[k] = VES_OK;
 #pragma omp parallel num_threads(m->nthr)
@@ -1019,17 +1021,29 @@ ves_status ves_model_dissipation_ref(ves_model *m, const double *y, double *qn) 
         for (int p = 0; p < NPT && st[k] == VES_OK; p++) {
           const int al = NPT * t + p;
           folded f;
-          double q[VES_NQ], D[VES_NQD * VES_NQD];
+          double q[VES_NQ];
           fold_point(m->q, m->mmax, w, al, 0, &f);
           kinematics(&f, y, w->yl, q);
-          memcpy(qn + VES_NQD * (size_t)al, q, VES_NQD * sizeof *q);
-          st[k] = ves_model_local_dissip(&m->lp, q, D); /* y must be admissible */
+          st[k] = fn(m, al, q, ctx);
         }
       }
   }
   for (int k = 0; k < m->nthr; k++)
     if (st[k] != VES_OK) return st[k];
   return VES_OK;
+}
+
+/* ves_model_dissipation_ref's point: its velocity variables, and D there
+ * (y must be admissible). */
+static ves_status ref_point(const ves_model *m, int al, const double q[VES_NQ], void *ctx) {
+  double D[VES_NQD * VES_NQD];
+  memcpy((double *)ctx + VES_NQD * (size_t)al, q, VES_NQD * sizeof *q);
+  return ves_model_local_dissip(&m->lp, q, D);
+}
+
+ves_status ves_model_dissipation_ref(ves_model *m, const double *y, double *qn) {
+  VES_CHECK(m && y && qn, VES_ERR_ARG);
+  return each_point(m, y, ref_point, qn);
 }
 
 ves_status ves_model_hessian(ves_model *m, const double *y, double cE, double cA, double cV,
@@ -1068,31 +1082,15 @@ ves_status ves_model_dissipation(ves_model *m, const double *y, double *blk) {
   return VES_OK;
 }
 
+/* ves_model_pointwise_W's point. */
+static ves_status w_point(const ves_model *m, int al, const double q[VES_NQ], void *ctx) {
+  double e;
+  return ves_model_local_energy_ex(&m->lp, &m->pt[al], q, &e, NULL, NULL, (double *)ctx + al, NULL);
+}
+
 ves_status ves_model_pointwise_W(ves_model *m, const double *y, double *W) {
   VES_CHECK(m && y && W, VES_ERR_ARG);
-  ves_status st[64];
-  for (int k = 0; k < m->nthr; k++) st[k] = VES_OK;
-#pragma omp parallel num_threads(m->nthr)
-  {
-    const int tid = ves_omp_tid(), nt = ves_omp_nteam();
-    model_ws *w = m->ws + tid;
-    for (int k = tid; k < m->nthr; k += nt)
-      for (int t = 0; t < m->q->ntri && st[k] == VES_OK; t++) {
-        if (m->tlo[t] != k) /* each triangle once */
-          continue;
-        for (int p = 0; p < NPT && st[k] == VES_OK; p++) {
-          const int al = NPT * t + p;
-          folded f;
-          double q[VES_NQ], e;
-          fold_point(m->q, m->mmax, w, al, 0, &f);
-          kinematics(&f, y, w->yl, q);
-          st[k] = ves_model_local_energy_ex(&m->lp, &m->pt[al], q, &e, NULL, NULL, W + al, NULL);
-        }
-      }
-  }
-  for (int k = 0; k < m->nthr; k++)
-    if (st[k] != VES_OK) return st[k];
-  return VES_OK;
+  return each_point(m, y, w_point, W);
 }
 
 ves_status ves_model_set_c0(ves_model *m, double c0) {
