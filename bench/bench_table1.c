@@ -72,7 +72,8 @@ static ves_status run_row(ves_setup *s, const ves_config *cfg, const char *backe
   if (st != VES_OK) return st;
   ves_sim_state ss = *st0;
   ss.dt = dt;
-  if ((st = ves_sim_set_state(sim, &ss, y0)) != VES_OK) {
+  ss.dt_prev = 0; /* every row starts from y0 alone (no predictor from the run before) */
+  if ((st = ves_sim_set_state(sim, &ss, y0, NULL)) != VES_OK) {
     ves_sim_destroy(&sim);
     return st;
   }

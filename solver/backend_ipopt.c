@@ -325,4 +325,4 @@ static ves_status ipopt_solve(void *state, ves_step *s, double *x, double *lambd
   return out;
 }
 
-const ves_backend_type ves_backend_ipopt = {"ipopt", ipopt_create, ipopt_solve, ipopt_destroy};
+const ves_backend_type ves_backend_ipopt = {"ipopt", ipopt_create, ipopt_solve, ipopt_destroy, 0};

@@ -537,4 +537,4 @@ static ves_status newton_solve(void *state, ves_step *s, double *x, double *lamb
 }
 
 const ves_backend_type ves_backend_newton = {"newton", newton_create, newton_solve,
-                                             newton_destroy};
+                                             newton_destroy, 0};

@@ -415,6 +415,7 @@ static ves_status snapshot(run_ctx *r, double wall) {
   const int n = nodes_now(r);
   VES_CALL(ensure_nodes(r, n));
   ves_sim_get_state(r->sim, &si.state, r->y);
+  si.y_prev = ves_sim_y_prev(r->sim); /* the predictor's state, when held */
   ves_sim_restart_point(r->sim); /* a restart from here repeats the next steps exactly */
   r->last_snapshot_step = si.state.nstep;
   ves_status st = ves_sim_node_material(r->sim, r->x, r->phi);
@@ -963,7 +964,13 @@ static int rebuild_at(run_ctx *r, const char *pre, int S, ves_io_snapinfo *si) {
             si->reconnections - 1, si->reconnections, ves_status_str(st));
     return 2;
   }
-  if ((st = ves_sim_set_state(r->sim, &si->state, r->y)) != VES_OK) {
+  /* the predictor's y^{n-1} when the snapshot holds one (r->x as the buffer: 2 ns) */
+  if (si->state.dt_prev > 0 && (st = ves_io_read_snapshot_prev(r->io, S, ns, r->x)) != VES_OK) {
+    fprintf(stderr, "%s: snapshot %d: its y_prev (the predictor's state): %s\n", pre, S,
+            ves_status_str(st));
+    return 2;
+  }
+  if ((st = ves_sim_set_state(r->sim, &si->state, r->y, r->x)) != VES_OK) {
     fprintf(stderr, "%s: snapshot %d: %s\n", pre, S, ves_status_str(st));
     return 2;
   }

@@ -94,9 +94,9 @@ static const key_spec KEYS[] = {
      "largest factor between consecutive steps"},
     {"time", "iter_target", KEY_INT, OFF(iter_target), "8", 1, 10000, NULL,
      "above this many solver iterations dt is not grown"},
-    {"time", "predictor", KEY_INT, OFF(predictor), "0", 0, 1, NULL,
-     "1: a step starts from the linear extrapolation of the last two states (a restart from a "
-     "stop between snapshots then continues within the step tolerance); 0: from y^n"},
+    {"time", "predictor", KEY_INT, OFF(predictor), "1", 0, 1, NULL,
+     "1: a step starts from the linear extrapolation of the last two states (y^{n-1} is kept in "
+     "the snapshots: restarts stay bit-exact); 0: from y^n"},
     {"time", "retry_memory", KEY_INT, OFF(retry_memory), "10", 0, 1000000, NULL,
      "after a rejected attempt at dt_r, this many accepted steps keep dt <= retry_cap dt_r"},
     {"time", "retry_cap", KEY_DOUBLE, OFF(retry_cap), "0.7", 0.01, 1, NULL,

@@ -98,7 +98,7 @@ void ves_integrate_params_default(ves_integrate_params *p) {
   p->dE_target = 0.02;
   p->growth_max = 2.0;
   p->iter_target = 8;
-  p->predictor = 0;
+  p->predictor = 1;
   p->retry_memory = 10;
   p->retry_cap = 0.7;
   p->hold_area = 1;
@@ -450,6 +450,7 @@ ves_status ves_sim_step(ves_sim *s, ves_step_report *rep) {
     s->dt = fmin(s->dt, s->ip.dt_initial);
     s->dt_rejected = 0, s->since_rejected = 0; /* rejections on the old landscape */
     s->fresh_next = 1;
+    s->have_prev = 0; /* the last step's velocity belongs to the old landscape */
     VES_CALL(ves_model_set_c0(s->model, s->c0));
     VES_CALL(ves_model_eval(s->model, s->y, VES_F_E, &s->E, NULL, NULL, NULL, NULL, NULL));
   }
@@ -475,7 +476,8 @@ ves_status ves_sim_step(ves_sim *s, ves_step_report *rep) {
     st = ves_step_set(s->step, s->y, &sp);
     if (st == VES_OK) {
       ves_step_x0(s->step, s->x);
-      if (s->ip.predictor && s->have_prev && !sp.fresh) predict(s, dt, lam);
+      if (s->ip.predictor && s->have_prev && retries == 0 && !s->backend->ignores_start)
+        predict(s, dt, lam); /* not on a retry: its start may have been the trouble */
       st = s->backend->solve(s->bstate, s->step, s->x, lam, &rep->stats);
     }
     if (st == VES_OK) {
@@ -584,17 +586,22 @@ void ves_sim_get_state(const ves_sim *s, ves_sim_state *st, double *y) {
   st->lambda[0] = s->lambda[0], st->lambda[1] = s->lambda[1];
   st->c0 = s->c0;
   st->dt_rejected = s->dt_rejected, st->since_rejected = s->since_rejected;
+  st->dt_prev = s->have_prev ? s->dt_prev : 0;
   if (y) memcpy(y, s->y, 2 * (size_t)s->n * sizeof *y);
 }
 
-ves_status ves_sim_set_state(ves_sim *s, const ves_sim_state *st, const double *y) {
+ves_status ves_sim_set_state(ves_sim *s, const ves_sim_state *st, const double *y,
+                             const double *y_prev) {
   VES_CHECK(s && st && y, VES_ERR_ARG);
-  const double v[] = {st->t,  st->dt, st->E,         st->A,         st->V,  st->E0,
-                      st->A0, st->V0, st->lambda[0], st->lambda[1], st->c0, st->dt_rejected};
+  const double v[] = {st->t,  st->dt, st->E,         st->A,         st->V,  st->E0,      st->A0,
+                      st->V0, st->lambda[0], st->lambda[1], st->c0, st->dt_rejected, st->dt_prev};
   for (size_t i = 0; i < sizeof v / sizeof v[0]; i++) VES_CHECK(isfinite(v[i]), VES_ERR_ARG);
   VES_CHECK(st->t >= 0 && st->dt > 0 && st->nstep >= 0 && st->A0 > 0 && st->V0 > 0, VES_ERR_ARG);
   VES_CHECK(st->dt_rejected >= 0 && st->since_rejected >= 0, VES_ERR_ARG);
   for (int i = 0; i < 2 * s->n; i++) VES_CHECK(isfinite(y[i]), VES_ERR_ARG);
+  VES_CHECK(st->dt_prev >= 0 && (st->dt_prev == 0 || y_prev), VES_ERR_ARG);
+  if (st->dt_prev > 0)
+    for (int i = 0; i < 2 * s->n; i++) VES_CHECK(isfinite(y_prev[i]), VES_ERR_ARG);
   VES_CHECK(st->nstep >= s->reset_step && st->nstep >= s->remesh_step,
             VES_ERR_ARG); /* not before the reference's reset or remeshing */
   VES_CALL(ves_model_set_c0(s->model, st->c0));
@@ -608,9 +615,15 @@ ves_status ves_sim_set_state(ves_sim *s, const ves_sim_state *st, const double *
   s->c0 = st->c0;
   s->dt_rejected = st->dt_rejected, s->since_rejected = st->since_rejected;
   s->fresh_next = 1;
-  s->have_prev = 0;
+  s->have_prev = st->dt_prev > 0;
+  if (s->have_prev) {
+    memcpy(s->yprev, y_prev, 2 * (size_t)s->n * sizeof *s->yprev);
+    s->dt_prev = st->dt_prev;
+  }
   return VES_OK;
 }
+
+const double *ves_sim_y_prev(const ves_sim *s) { return s->have_prev ? s->yprev : NULL; }
 
 void ves_sim_restart_point(ves_sim *s) {
   if (s) s->fresh_next = 1;

@@ -376,7 +376,7 @@ static ves_status series_sum(ves_io *io, long rows, uint64_t *out) {
 
 /* The checksum of a snapshot: y, x, phi (n nodes) and every stored field of si. */
 static uint64_t snap_sum(long n, const double *y, const double *x, const double *phi,
-                         const ves_io_snapinfo *si) {
+                         const double *y_prev, const ves_io_snapinfo *si) {
   const ves_sim_state *s = &si->state;
   const double d[] = {s->t,          s->dt, s->E,         s->A,         s->V,  s->E0,
                       s->A0,         s->V0, s->lambda[0], s->lambda[1], s->c0, si->wall_seconds,
@@ -386,7 +386,12 @@ static uint64_t snap_sum(long n, const double *y, const double *x, const double 
   h = fnv(h, x, 2 * (size_t)n * sizeof *x);
   h = fnv(h, phi, (size_t)n * sizeof *phi);
   h = fnv(h, d, sizeof d);
-  return fnv(h, l, sizeof l);
+  h = fnv(h, l, sizeof l);
+  if (s->dt_prev > 0) { /* the predictor's state (absent from older files: their sums stand) */
+    h = fnv(h, &s->dt_prev, sizeof s->dt_prev);
+    h = fnv(h, y_prev, 2 * (size_t)n * sizeof *y_prev);
+  }
+  return h;
 }
 
 /* The checksum of a reference: its data (n nodes, nq points) and step. */
@@ -1016,6 +1021,7 @@ static ves_status snapshot_attrs(hid_t g, const ves_io_snapinfo *si) {
   VES_CALL(attr_double(g, "wall_seconds", si->wall_seconds));
   VES_CALL(attr_double(g, "dt_rejected", s->dt_rejected));
   VES_CALL(attr_long(g, "since_rejected", s->since_rejected));
+  if (s->dt_prev > 0) VES_CALL(attr_double(g, "dt_prev", s->dt_prev));
   return attr_int(g, "reconnections", si->reconnections);
 }
 
@@ -1034,11 +1040,12 @@ static ves_status snapshot(ves_io *io, const double *y, const double *x, const d
   ves_status st = dset_write(g, "y", F, M, n, 2, y);
   if (st == VES_OK) st = dset_write(g, "x", F, M, n, 2, x);
   if (st == VES_OK) st = dset_write(g, "phi", F, M, n, 0, phi);
+  if (st == VES_OK && si->state.dt_prev > 0) st = dset_write(g, "y_prev", F, M, n, 2, si->y_prev);
   if (st == VES_OK) st = snapshot_attrs(g, si);
   /* checksums for a salvage: of the snapshot, and of the series rows up to
    * it (when the file holds them: always in a run) */
   uint64_t rows_checksum = 0;
-  if (st == VES_OK) st = attr_u64(g, "checksum", snap_sum((long)n, y, x, phi, si));
+  if (st == VES_OK) st = attr_u64(g, "checksum", snap_sum((long)n, y, x, phi, si->y_prev, si));
   if (st == VES_OK && si->rows >= 0 && ves_io_rows(io) >= si->rows) {
     st = series_sum(io, si->rows, &rows_checksum);
     if (st == VES_OK) st = attr_u64(g, "series_checksum", rows_checksum);
@@ -1050,6 +1057,9 @@ static ves_status snapshot(ves_io *io, const double *y, const double *x, const d
   if (st == VES_OK)
     st = describe_at(g, "x", "R0", "n x 2 positions y(X_a) of the material at the nodes");
   if (st == VES_OK) st = describe_at(g, "phi", "1", "phase field phi of that material (-1..1)");
+  if (st == VES_OK && si->state.dt_prev > 0)
+    st = describe_at(g, "y_prev", "R0",
+                     "n x 2 coefficients before the last step (the predictor's start, dt_prev)");
   VES_CALL(counted_close(io->file, s, g, io->nsnap, st));
   io->snap_t[io->nsnap++] = si->state.t;
   return xdmf_write(io);
@@ -1058,6 +1068,7 @@ static ves_status snapshot(ves_io *io, const double *y, const double *x, const d
 ves_status ves_io_snapshot(ves_io *io, const double *y, const double *x, const double *phi,
                            const ves_io_snapinfo *si) {
   VES_CHECK(io && y && x && phi && si && io->writable, VES_ERR_ARG);
+  VES_CHECK(si->state.dt_prev >= 0 && (si->state.dt_prev == 0 || si->y_prev), VES_ERR_ARG);
   errno = 0;
   return io_failed(io, snapshot(io, y, x, phi, si), errno);
 }
@@ -1110,7 +1121,23 @@ ves_status ves_io_read_snapshot_n(ves_io *io, int k, int nbuf, double *y, double
       st = attr_read_double(g, "dt_rejected", &s->dt_rejected);
     if (st == VES_OK && H5Aexists(g, "since_rejected") > 0)
       st = attr_read(g, "since_rejected", H5T_NATIVE_LONG, &s->since_rejected);
+    /* the predictor's state (absent before 2026-12-02 and when none was held) */
+    if (st == VES_OK && H5Aexists(g, "dt_prev") > 0) st = attr_read_double(g, "dt_prev", &s->dt_prev);
+    if (st == VES_OK && !(isfinite(s->dt_prev) && s->dt_prev >= 0)) st = VES_ERR_IO;
   }
+  H5Gclose(g);
+  return st;
+}
+
+ves_status ves_io_read_snapshot_prev(ves_io *io, int k, int nbuf, double *y_prev) {
+  VES_CHECK(io && k >= 0 && k < io->nsnap && nbuf > 0 && y_prev, VES_ERR_ARG);
+  char name[48];
+  snprintf(name, sizeof name, "snapshots/%d", k);
+  hid_t g = H5Gopen2(io->file, name, H5P_DEFAULT);
+  if (g < 0) return VES_ERR_IO;
+  ves_status st = H5Lexists(g, "y_prev", H5P_DEFAULT) > 0
+                      ? dset_read(g, "y_prev", H5T_NATIVE_DOUBLE, 2 * (hsize_t)nbuf, y_prev)
+                      : VES_ERR_IO;
   H5Gclose(g);
   return st;
 }
@@ -1654,7 +1681,7 @@ static int snapshot_intact(ves_io *src, int k, ves_io_snapinfo *si, void **col, 
   const int nk = ves_io_snapshot_nodes(src, k); /* after a remeshing not the header's n */
   const size_t n = nk > 0 ? (size_t)nk : 1;
   double *y = malloc(2 * n * sizeof *y), *x = malloc(2 * n * sizeof *x);
-  double *phi = malloc(n * sizeof *phi);
+  double *phi = malloc(n * sizeof *phi), *yp = NULL;
   uint64_t want = 0, want_rows = 1, rows_sum_ = 0;
   char name[48];
   snprintf(name, sizeof name, "snapshots/%d", k);
@@ -1662,10 +1689,12 @@ static int snapshot_intact(ves_io *src, int k, ves_io_snapinfo *si, void **col, 
   int ok = nk > 0 && y && x && phi && g >= 0 &&
            ves_io_read_snapshot_n(src, k, nk, y, x, phi, si) == VES_OK &&
            attr_read(g, "checksum", H5T_NATIVE_UINT64, &want) == VES_OK &&
-           attr_read(g, "series_checksum", H5T_NATIVE_UINT64, &want_rows) == VES_OK &&
-           snap_sum((long)n, y, x, phi, si) == want && si->rows >= 0;
+           attr_read(g, "series_checksum", H5T_NATIVE_UINT64, &want_rows) == VES_OK;
+  if (ok && si->state.dt_prev > 0) /* the predictor's y^{n-1} is part of the sum */
+    ok = (yp = malloc(2 * n * sizeof *yp)) && ves_io_read_snapshot_prev(src, k, nk, yp) == VES_OK;
+  ok = ok && snap_sum((long)n, y, x, phi, yp, si) == want && si->rows >= 0;
   if (g >= 0) H5Gclose(g);
-  free(y), free(x), free(phi);
+  free(y), free(x), free(phi), free(yp);
   for (int i = 0; i < NSERIES && ok; i++) ok = dset_len(src->series[i]) >= (hsize_t)si->rows;
   if (ok && cols_read(src->series, si->rows, col) != VES_OK) ok = 0;
   if (ok) rows_sum_ = rows_sum(FNV_START, col, si->rows);

@@ -66,7 +66,8 @@ static void test_relaxation(void **state) {
  *  - a restart from that point (a new simulation, the state set) repeats
  *    the next steps bit for bit. */
 static void run_fixed(ves_setup *s, int freeze, int nsteps, int mark_at, double *E, int *fact,
-                      int *h_after_mark, double *y_end, ves_sim_state *st_mark, double *y_mark) {
+                      int *h_after_mark, double *y_end, ves_sim_state *st_mark, double *y_mark,
+                      double *yp_mark) {
   ves_integrate_params ip;
   ves_integrate_params_default(&ip);
   ip.t_end = 1.0, ip.adaptive = 0, ip.dt_initial = ip.dt_max = 0.01;
@@ -84,7 +85,11 @@ static void run_fixed(ves_setup *s, int freeze, int nsteps, int mark_at, double 
     *fact += rep.stats.factorizations;
     if (k == mark_at + 1 && h_after_mark) *h_after_mark = rep.stats.h_evals;
     if (k == mark_at) {
-      if (st_mark) ves_sim_get_state(sim, st_mark, y_mark);
+      if (st_mark) { /* the state, and the predictor's y^{n-1} */
+        ves_sim_get_state(sim, st_mark, y_mark);
+        assert_true(st_mark->dt_prev > 0 && ves_sim_y_prev(sim));
+        memcpy(yp_mark, ves_sim_y_prev(sim), 2 * (size_t)s->nodes->n * sizeof *yp_mark);
+      }
       ves_sim_restart_point(sim);
     }
   }
@@ -97,11 +102,11 @@ static void test_freeze_across_steps(void **state) {
   ves_setup *s = small_setup();
   const int n2 = 2 * s->nodes->n, N = 8, M = 3;
   double E1[8], E2[8], E3[8];
-  double *y1 = malloc(3 * (size_t)n2 * sizeof *y1), *y2 = y1 + n2, *ym = y2 + n2;
+  double *y1 = malloc(4 * (size_t)n2 * sizeof *y1), *y2 = y1 + n2, *ym = y2 + n2, *ypm = ym + n2;
   int f1, f2, h_mark = -1;
   ves_sim_state smark;
-  run_fixed(s, 1, N, -2, E1, &f1, NULL, y1, NULL, NULL);
-  run_fixed(s, 2, N, M, E2, &f2, &h_mark, y2, &smark, ym);
+  run_fixed(s, 1, N, -2, E1, &f1, NULL, y1, NULL, NULL, NULL);
+  run_fixed(s, 2, N, M, E2, &f2, &h_mark, y2, &smark, ym, ypm);
   printf("# freeze 1: %d factorizations, freeze 2: %d (8 steps at dt* 0.01)\n", f1, f2);
   assert_true(f1 >= N);
   assert_true(f2 < f1);
@@ -119,7 +124,7 @@ static void test_freeze_across_steps(void **state) {
   bo.freeze_hessian = 2;
   ves_sim *sim = NULL;
   assert_int_equal(ves_sim_create(s->model, ves_backend_find("newton"), &bo, &ip, &sim), VES_OK);
-  assert_int_equal(ves_sim_set_state(sim, &smark, ym), VES_OK);
+  assert_int_equal(ves_sim_set_state(sim, &smark, ym, ypm), VES_OK);
   ves_step_report rep;
   for (int k = M + 1; k < N; k++) {
     assert_int_equal(ves_sim_step(sim, &rep), VES_OK);
@@ -420,11 +425,11 @@ static void test_reconnect_every(void **state) {
   ves_sim_state st, st2;
   ves_sim_get_state(sim, &st, NULL);
   st.nstep = 5;
-  assert_int_equal(ves_sim_set_state(sim, &st, ves_sim_y(sim)), VES_ERR_ARG);
+  assert_int_equal(ves_sim_set_state(sim, &st, ves_sim_y(sim), ves_sim_y_prev(sim)), VES_ERR_ARG);
   ves_sim_get_state(sim, &st2, NULL);
   assert_int_equal(st2.nstep, 6);
   st.nstep = 6;
-  assert_int_equal(ves_sim_set_state(sim, &st, ves_sim_y(sim)), VES_OK);
+  assert_int_equal(ves_sim_set_state(sim, &st, ves_sim_y(sim), ves_sim_y_prev(sim)), VES_OK);
   ves_sim_destroy(&sim);
   ves_setup_destroy(&s);
 }
@@ -526,6 +531,7 @@ static void test_reconnect_off(void **state) {
   ves_backend_options bo;
   ves_backend_options_default(&bo);
   bo.freeze_hessian = 0;
+  ip.predictor = 0; /* and each step from y^n (the library default then; now 1) */
   ves_sim *sim = NULL;
   assert_int_equal(ves_sim_create(s->model, ves_backend_find("newton"), &bo, &ip, &sim), VES_OK);
   ves_step_report rep;

@@ -606,8 +606,9 @@ static void test_node_material(void **state) {
 }
 
 /* The restart chain through the library: 4 steps straight, or 2 steps, a
- * snapshot, a fresh simulation set from the file and 2 more steps: the same
- * positions, energy, time and next step, bit for bit. */
+ * snapshot (with the predictor's y^{n-1}), a fresh simulation set from the
+ * file and 2 more steps: the same positions, energy, time and next step,
+ * bit for bit. */
 static void test_restart_chain(void **state) {
   (void)state;
   ves_setup *s = tiny_setup(1);
@@ -632,6 +633,11 @@ static void test_restart_chain(void **state) {
   for (int i = 0; i < 2; i++) assert_int_equal(ves_sim_step(b, &rep), VES_OK);
   ves_io_snapinfo si = {.rows = 2};
   ves_sim_get_state(b, &si.state, yb);
+  /* the predictor's y^{n-1} goes with the state (a default run has one) */
+  double *ypb = malloc(2 * (size_t)n * sizeof *ypb), *ypr = malloc(2 * (size_t)n * sizeof *ypr);
+  assert_true(si.state.dt_prev > 0 && ves_sim_y_prev(b));
+  memcpy(ypb, ves_sim_y_prev(b), 2 * (size_t)n * sizeof *ypb);
+  si.y_prev = ypb;
   ves_sim_destroy(&b);
   char path[128], err[512] = "";
   path_in(path, sizeof path, "chain.h5");
@@ -653,6 +659,9 @@ static void test_restart_chain(void **state) {
                      .V0 = 1};
   ves_io *io = NULL;
   assert_int_equal(ves_io_create(path, &h, &io, err, sizeof err), VES_OK);
+  si.y_prev = NULL; /* a held y^{n-1} must be given */
+  assert_int_equal(ves_io_snapshot(io, yb, yb, phi, &si), VES_ERR_ARG);
+  si.y_prev = ypb;
   assert_int_equal(ves_io_snapshot(io, yb, yb, phi, &si), VES_OK);
   ves_io_close(&io);
   memset(yb, 0, 2 * (size_t)n * sizeof *yb);
@@ -660,9 +669,14 @@ static void test_restart_chain(void **state) {
   assert_int_equal(ves_io_open(path, 0, &io, err, sizeof err), VES_OK);
   ves_io_snapinfo back;
   assert_int_equal(ves_io_read_snapshot(io, 0, yb, NULL, NULL, &back), VES_OK);
+  assert_true(back.state.dt_prev == si.state.dt_prev && !back.y_prev);
+  assert_int_equal(ves_io_read_snapshot_prev(io, 0, n, ypr), VES_OK);
+  assert_memory_equal(ypr, ypb, 2 * (size_t)n * sizeof *ypr);
   ves_io_close(&io);
   assert_int_equal(ves_sim_create(s->model, bk, &bo, &ip, &b), VES_OK);
-  assert_int_equal(ves_sim_set_state(b, &back.state, yb), VES_OK);
+  /* dt_prev > 0 without y^{n-1} is refused */
+  assert_int_equal(ves_sim_set_state(b, &back.state, yb, NULL), VES_ERR_ARG);
+  assert_int_equal(ves_sim_set_state(b, &back.state, yb, ypr), VES_OK);
   ves_sim_state chk;
   ves_sim_get_state(b, &chk, NULL);
   assert_memory_equal(&chk, &back.state, sizeof chk);
@@ -676,15 +690,15 @@ static void test_restart_chain(void **state) {
   /* bad states are refused and leave the simulation as it was */
   ves_sim_state bad = sb;
   bad.dt = 0;
-  assert_int_equal(ves_sim_set_state(b, &bad, yb), VES_ERR_ARG);
+  assert_int_equal(ves_sim_set_state(b, &bad, yb, ypr), VES_ERR_ARG);
   bad = sb, bad.E = NAN;
-  assert_int_equal(ves_sim_set_state(b, &bad, yb), VES_ERR_ARG);
+  assert_int_equal(ves_sim_set_state(b, &bad, yb, ypr), VES_ERR_ARG);
   yb[0] = INFINITY;
-  assert_int_equal(ves_sim_set_state(b, &sb, yb), VES_ERR_ARG);
+  assert_int_equal(ves_sim_set_state(b, &sb, yb, ypr), VES_ERR_ARG);
   ves_sim_get_state(b, &chk, NULL);
   assert_memory_equal(&chk, &sb, sizeof chk);
   ves_sim_destroy(&b);
-  free(ya), free(yb), free(phi), free(problem);
+  free(ya), free(yb), free(phi), free(problem), free(ypb), free(ypr);
   ves_setup_destroy(&s);
 }
 

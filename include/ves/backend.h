@@ -49,6 +49,8 @@ typedef struct {
    * on failure (the integrator then halves dt). */
   ves_status (*solve)(void *state, ves_step *s, double *x, double *lambda, ves_backend_stats *st);
   void (*destroy)(void **state);
+  int ignores_start; /* 1: solve computes x from x0 whatever x holds (the explicit euler
+                        step): the integrator's predictor is not evaluated for it */
 } ves_backend_type;
 
 /* The defaults: ves_backend_options_from_config of ves_config_default. */

@@ -24,10 +24,9 @@ typedef struct {
   double growth_max;   /* adaptive: largest factor between consecutive steps (> 1) */
   int iter_target;     /* adaptive: above this many backend iterations dt is not grown */
   int predictor;       /* 1: a step starts from the linear extrapolation of the last two
-                          states (and multipliers scaled by dt); 0 (default): from y^n.
-                          y^{n-1} is not in the restart state: a restart point (a regular
-                          snapshot) starts afresh in both runs, a stop between them
-                          continues within the step tolerance, not bit for bit */
+                          states (and multipliers scaled by dt); 0: from y^n. y^{n-1} is
+                          part of the restart state (ves_sim_y_prev, ves_sim_set_prev),
+                          so a restart continues bit for bit either way */
   int retry_memory;    /* adaptive: after a rejected attempt at dt_r, this many accepted
                           steps keep dt <= retry_cap dt_r (0: only the next step is held) */
   double retry_cap;    /* adaptive: that cap's factor, in (0, 1] */
@@ -128,6 +127,9 @@ typedef struct {
   double dt_rejected; /* the smallest dt rejected within the last retry_memory accepted
                          steps (0: none) */
   long since_rejected; /* accepted steps since that rejection */
+  double dt_prev;      /* dt of the last accepted step when y^{n-1} is held for the
+                          predictor (ves_sim_y_prev), else 0: at the start, after a reset,
+                          a remeshing or a change of C0 */
 } ves_sim_state;
 
 /* Copy the state out; y (2n, the caller's buffer) receives the positions
@@ -138,11 +140,19 @@ void ves_sim_get_state(const ves_sim *s, ves_sim_state *st, double *y);
  * model's C0 to st->c0. y is relative to the reference in use: the
  * creation model's, or the one given by ves_sim_adopt_reference (the steps
  * counted towards the next reset are then st->nstep minus the step of that
- * reference's reset, as in the uninterrupted run).
+ * reference's reset, as in the uninterrupted run). y_prev (2n, copied): the
+ * positions before the last step (ves_sim_y_prev), required when
+ * st->dt_prev > 0 and ignored otherwise.
  * VES_ERR_ARG for non-finite or inconsistent values (t < 0, dt <= 0,
- * nstep < 0 or before the reset of the reference in use, A0 or V0 <= 0);
- * then nothing changes. */
-ves_status ves_sim_set_state(ves_sim *s, const ves_sim_state *st, const double *y);
+ * nstep < 0 or before the reset of the reference in use, A0 or V0 <= 0,
+ * dt_prev < 0, dt_prev > 0 without y_prev); then nothing changes. */
+ves_status ves_sim_set_state(ves_sim *s, const ves_sim_state *st, const double *y,
+                             const double *y_prev);
+
+/* The positions before the last accepted step (2n, on the reference in
+ * use: the predictor's y^{n-1}), or NULL when none are held
+ * (state.dt_prev = 0). Valid until the next step. */
+const double *ves_sim_y_prev(const ves_sim *s);
 
 /* The state now is a restart point (a snapshot was written): the next step
  * carries nothing over from earlier steps (ves_step_params.fresh), so a run

@@ -133,6 +133,9 @@ typedef struct {
   double wall_seconds; /* wall time of the time loop at the snapshot */
   int reconnections;   /* resets so far */
   long rows;           /* series rows at the snapshot */
+  const double *y_prev; /* written with the snapshot when state.dt_prev > 0: y^{n-1}
+                           (2n, ves_sim_y_prev), dataset y_prev; never set by a read
+                           (ves_io_read_snapshot_prev reads it) */
 } ves_io_snapinfo;
 
 /* The header of an open file (owned by the handle). */
@@ -312,6 +315,11 @@ ves_status ves_io_read_remesh_triangles(ves_io *io, int k, int *tri);
 
 /* ves_io_read_snapshot with buffers for nbuf nodes: VES_ERR_IO when the
  * snapshot's node count is not nbuf (ves_io_snapshot_nodes). */
+/* y^{n-1} of snapshot k (2 nbuf values; the predictor's state), present
+ * exactly when the snapshot's state.dt_prev > 0. VES_ERR_IO when absent or of
+ * another size. */
+ves_status ves_io_read_snapshot_prev(ves_io *io, int k, int nbuf, double *y_prev);
+
 ves_status ves_io_read_snapshot_n(ves_io *io, int k, int nbuf, double *y, double *x,
                                   double *phi, ves_io_snapinfo *si);
 
