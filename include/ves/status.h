@@ -2,6 +2,8 @@
 #ifndef VES_STATUS_H
 #define VES_STATUS_H
 
+#include <stddef.h>
+
 /* X-macro list: name, value, message. 0 is success, < 0 an error, > 0 a
  * non-error outcome (step rejected, iteration limit) the caller may act on. */
 #define VES_STATUS_LIST(X)                                                     \
@@ -25,20 +27,72 @@ typedef enum {
 #undef VES_STATUS_ENUM_
 } ves_status;
 
+#ifdef __cplusplus
+extern "C" {
+#endif
+
 /* Human-readable text of a status ("unknown status" for values not listed). */
 const char *ves_status_str(ves_status s);
 
-/* Propagate a failing status (anything < 0) to the caller. */
-#define VES_CALL(expr)                                                         \
-  do {                                                                         \
-    ves_status ves_call_s_ = (expr);                                           \
-    if (ves_call_s_ < 0) return ves_call_s_;                                   \
+/* The last error of this thread, PETSc-style: the code, the place that
+ * detected it (file, line, function), the condition or call that failed as
+ * written in the source, and the places it was propagated through by
+ * VES_CALL. VES_CHECK starts a record; VES_CALL extends the record of the
+ * status it propagates, or starts one naming the call when the status comes
+ * from a plain `return VES_ERR_...`. The record is per thread (C11
+ * _Thread_local), so the library stays free of shared state: an error found
+ * on an OpenMP worker shows at the VES_CALL that receives it on the calling
+ * thread. The program clears it before a call whose failure it reports
+ * (ves_error_clear) and prints it after (ves_error_format). */
+#define VES_ERROR_TRACE 6 /* VES_CALL places kept after the origin */
+typedef struct {
+  const char *file, *func; /* source file and function (static strings) */
+  int line;                /* source line */
+} ves_error_place;
+
+typedef struct {
+  ves_status code;                         /* VES_OK: nothing recorded */
+  ves_error_place origin;                  /* where the failure was detected */
+  char what[192];                          /* the failed condition or call, or a message */
+  int depth;                               /* places in trace (at most VES_ERROR_TRACE) */
+  ves_error_place trace[VES_ERROR_TRACE];  /* the VES_CALLs it passed, innermost first */
+} ves_error;
+
+/* Start a record (overwriting this thread's last); returns code. */
+ves_status ves_error_set(ves_status code, const char *file, int line, const char *func,
+                         const char *what);
+/* At a VES_CALL that receives code < 0: extend the record when it holds
+ * code, else start one naming expr. Returns code. */
+ves_status ves_error_pass(ves_status code, const char *file, int line, const char *func,
+                          const char *expr);
+/* This thread's last error (code VES_OK when none since the last clear). */
+const ves_error *ves_error_last(void);
+void ves_error_clear(void);
+/* "what (file:line in func, via f:l, ...)" of the last error when it holds
+ * code, else ves_status_str(code) alone; into buf, which is returned. */
+const char *ves_error_format(ves_status code, char *buf, size_t len);
+
+#ifdef __cplusplus
+}
+#endif
+
+/* Propagate a failing status (anything < 0) to the caller, adding this
+ * place to the error record. */
+#define VES_CALL(expr)                                                                             \
+  do {                                                                                             \
+    ves_status ves_call_s_ = (expr);                                                               \
+    if (ves_call_s_ < 0)                                                                           \
+      return ves_error_pass(ves_call_s_, __FILE__, __LINE__, __func__, #expr);                     \
   } while (0)
 
-/* Validate an input condition; always on (not an assert). */
-#define VES_CHECK(cond, code)                                                  \
-  do {                                                                         \
-    if (!(cond)) return (code);                                                \
+/* Validate an input condition; always on (not an assert). The failed
+ * condition's text and place go to the error record. */
+#define VES_CHECK(cond, code)                                                                      \
+  do {                                                                                             \
+    if (!(cond)) return ves_error_set((code), __FILE__, __LINE__, __func__, "failed: " #cond);     \
   } while (0)
+
+/* Fail with code and a message (a string literal) instead of a condition. */
+#define VES_FAIL(code, msg) return ves_error_set((code), __FILE__, __LINE__, __func__, (msg))
 
 #endif
