@@ -41,7 +41,8 @@ CXXFLAGS_CGAL = -std=c++17 -O2 -g -frounding-math -DCGAL_DISABLE_ROUNDING_MATH_C
 LDLIBS   = $(PKG_LIBS) -lnlopt -ldmumps_seq -liniparser -llapacke -lopenblas -lgmp -lstdc++ -lm
 LDFLAGS += $(SANFLAGS) -fopenmp
 
-LIB_C    = $(filter-out solver/cli.c,$(wildcard solver/*.c))
+LIB_C    = $(filter-out solver/cli%.c,$(wildcard solver/*.c))
+CLI_OBJ  = $(patsubst solver/%.c,$(BUILD)/obj/%.o,$(wildcard solver/cli*.c))
 LIB_OBJ  = $(LIB_C:solver/%.c=$(BUILD)/obj/%.o) $(BUILD)/obj/geom.o
 TESTS    = $(patsubst tests/%.c,$(BUILD)/tests/%,$(wildcard tests/test_*.c))
 BENCHES  = $(patsubst bench/%.c,$(BUILD)/bench/%,$(wildcard bench/bench_*.c))
@@ -63,10 +64,8 @@ $(BUILD)/obj/geom.o: solver/geom.cpp | $(BUILD)/obj
 	$(CXX) $(CXXFLAGS_CGAL) -c $< -o $@
 $(BUILD)/libvesica.a: $(LIB_OBJ)
 	ar rcs $@ $^
-$(BUILD)/vesica: $(BUILD)/obj/cli.o $(BUILD)/libvesica.a
+$(BUILD)/vesica: $(CLI_OBJ) $(BUILD)/libvesica.a
 	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
-$(BUILD)/obj/cli.o: solver/cli.c | $(BUILD)/obj
-	$(CC) $(CFLAGS) -c $< -o $@
 $(BUILD)/tests/%: tests/%.c $(BUILD)/libvesica.a | $(BUILD)/tests
 	$(CC) $(CFLAGS) -o $@ $< $(BUILD)/libvesica.a $(LDFLAGS) -lcmocka $(LDLIBS)
 $(BUILD)/bench/%: bench/%.c $(BUILD)/libvesica.a | $(BUILD)/bench

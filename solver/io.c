@@ -20,43 +20,64 @@
 
 typedef enum { COL_LONG, COL_INT, COL_DOUBLE } col_type;
 
-/* The series, one table for create, append, truncate and read. */
+/* How a column of the --series text shows its field (ves_io_tsv_row). */
+typedef enum {
+  TSV_NONE,     /* not in the text */
+  TSV_VALUE,    /* the field */
+  TSV_OF_A0,    /* field / A0 - 1 (the area's drift) */
+  TSV_OF_VT,    /* field / V_target - 1 (the volume's drift) */
+} tsv_kind;
+
+/* The per-step row, one table of columns for the file's series (create,
+ * append, truncate, read, checksum: in this order) and the --series text
+ * (its own order, tsv = 1, 2, ...; its header names and formats). The last
+ * NTSV_ONLY columns are in the text only. */
 typedef struct {
   const char *name;
   col_type type;
-  size_t offset; /* into ves_io_row */
+  size_t offset;                   /* into ves_io_row */
   const char *units, *description; /* the dataset's attributes */
+  int tsv;                         /* column of the text (1-based; 0: not in it) */
+  tsv_kind how;                    /* how the text shows it */
+  const char *tsv_name, *tsv_fmt;  /* the text's header name and printf format */
 } series_spec;
 
 #define ROW(f) offsetof(ves_io_row, f)
-/* "step" comes last: a row is complete once its step is written (rows i
- * holds step i + 1; ves_io_rows checks it). */
+/* "step" comes last in the file: a row is complete once its step is written
+ * (rows i holds step i + 1; ves_io_rows checks it). */
 #define STATUS_DOC_ \
   "ves_status of the accepted solve: " VES_STATUS_LIST(STATUS_DOC_ITEM_)
 #define STATUS_DOC_ITEM_(name, value, msg) #value " " msg "; "
+#define V_ TSV_VALUE
 static const series_spec SERIES[] = {
-    {"t", COL_DOUBLE, ROW(t), "t*", "time at the end of the step, t* = t k/(mu R0^3)"},
-    {"dt", COL_DOUBLE, ROW(dt), "t*", "accepted time step"},
-    {"E", COL_DOUBLE, ROW(E), "k", "bending energy in model units (E* = E/k with [material] k)"},
-    {"A", COL_DOUBLE, ROW(A), "R0^2", "area of the phase-field vesicle"},
-    {"V", COL_DOUBLE, ROW(V), "R0^3", "enclosed volume of the phase-field vesicle"},
-    {"V_target", COL_DOUBLE, ROW(V_target), "R0^3", "volume the step held (V0, or the protocol's ramp)"},
-    {"lambda_A", COL_DOUBLE, ROW(lambda_A), "k/R0^2", "multiplier of the area constraint (tension)"},
-    {"lambda_V", COL_DOUBLE, ROW(lambda_V), "k/R0^3", "multiplier of the volume constraint (pressure)"},
-    {"c0", COL_DOUBLE, ROW(c0), "1/R0", "spontaneous curvature C0 in force during the step"},
-    {"iterations", COL_INT, ROW(iterations), "1", "solver iterations of the accepted attempt"},
-    {"f_evals", COL_INT, ROW(f_evals), "1", "energy evaluations of the accepted attempt"},
-    {"g_evals", COL_INT, ROW(g_evals), "1", "gradient evaluations of the accepted attempt"},
-    {"h_evals", COL_INT, ROW(h_evals), "1", "Hessian evaluations of the accepted attempt"},
-    {"violation", COL_DOUBLE, ROW(violation), "1", "constraint violation, relative to A0 and V"},
-    {"solve_seconds", COL_DOUBLE, ROW(solve_seconds), "s", "wall time of the accepted solve"},
-    {"wall_seconds", COL_DOUBLE, ROW(wall_seconds), "s", "wall time of the run's time loop so far"},
-    {"retries", COL_INT, ROW(retries), "1", "rejected attempts before the accepted one (each at dt/2)"},
-    {"status", COL_INT, ROW(status), "1", STATUS_DOC_},
-    {"reconnections", COL_INT, ROW(reconnections), "1", "resets of the reference configuration so far"},
-    {"step", COL_LONG, ROW(step), "1", "accepted step number (row i holds step i + 1; written last: a row is complete once its step is)"},
+    {"t", COL_DOUBLE, ROW(t), "t*", "time at the end of the step, t* = t k/(mu R0^3)", 2, V_, "t", "%.9g"},
+    {"dt", COL_DOUBLE, ROW(dt), "t*", "accepted time step", 3, V_, "dt", "%.6g"},
+    {"E", COL_DOUBLE, ROW(E), "k", "bending energy in model units (E* = E/k with [material] k)", 4, V_, "E", "%.12g"},
+    {"A", COL_DOUBLE, ROW(A), "R0^2", "area of the phase-field vesicle", 5, TSV_OF_A0, "A/A0-1", "%.3e"},
+    {"V", COL_DOUBLE, ROW(V), "R0^3", "enclosed volume of the phase-field vesicle", 6, TSV_OF_VT, "V/Vt-1", "%.3e"},
+    {"V_target", COL_DOUBLE, ROW(V_target), "R0^3", "volume the step held (V0, or the protocol's ramp)", 0, TSV_NONE, NULL, NULL},
+    {"lambda_A", COL_DOUBLE, ROW(lambda_A), "k/R0^2", "multiplier of the area constraint (tension)", 7, V_, "lambda_A", "%.9g"},
+    {"lambda_V", COL_DOUBLE, ROW(lambda_V), "k/R0^3", "multiplier of the volume constraint (pressure)", 8, V_, "lambda_V", "%.9g"},
+    {"c0", COL_DOUBLE, ROW(c0), "1/R0", "spontaneous curvature C0 in force during the step", 0, TSV_NONE, NULL, NULL},
+    {"iterations", COL_INT, ROW(iterations), "1", "solver iterations of the accepted attempt", 9, V_, "iter", "%d"},
+    {"f_evals", COL_INT, ROW(f_evals), "1", "energy evaluations of the accepted attempt", 10, V_, "f", "%d"},
+    {"g_evals", COL_INT, ROW(g_evals), "1", "gradient evaluations of the accepted attempt", 11, V_, "g", "%d"},
+    {"h_evals", COL_INT, ROW(h_evals), "1", "Hessian evaluations of the accepted attempt", 12, V_, "h", "%d"},
+    {"violation", COL_DOUBLE, ROW(violation), "1", "constraint violation, relative to A0 and V", 0, TSV_NONE, NULL, NULL},
+    {"solve_seconds", COL_DOUBLE, ROW(solve_seconds), "s", "wall time of the accepted solve", 13, V_, "seconds", "%.3f"},
+    {"wall_seconds", COL_DOUBLE, ROW(wall_seconds), "s", "wall time of the run's time loop so far", 0, TSV_NONE, NULL, NULL},
+    {"retries", COL_INT, ROW(retries), "1", "rejected attempts before the accepted one (each at dt/2)", 14, V_, "retries", "%d"},
+    {"status", COL_INT, ROW(status), "1", STATUS_DOC_, 0, TSV_NONE, NULL, NULL},
+    {"reconnections", COL_INT, ROW(reconnections), "1", "resets of the reference configuration so far", 15, V_, "resets", "%d"},
+    {"step", COL_LONG, ROW(step), "1", "accepted step number (row i holds step i + 1; written last: a row is complete once its step is)", 1, V_, "step", "%ld"},
+    /* the text only */
+    {"rejected_iterations", COL_INT, ROW(rejected_iterations), "1", "iterations of the attempts rejected before the accepted one", 16, V_, "rejected_iterations", "%d"},
+    {"rejected_seconds", COL_DOUBLE, ROW(rejected_seconds), "s", "wall time of those attempts", 17, V_, "rejected_seconds", "%.3f"},
 };
-#define NSERIES ((int)(sizeof SERIES / sizeof SERIES[0]))
+#undef V_
+#define NTSV_ONLY 2
+#define NCOLS ((int)(sizeof SERIES / sizeof SERIES[0]))
+#define NSERIES (NCOLS - NTSV_ONLY) /* columns in the file */
 
 struct ves_io {
   hid_t file;            /* the HDF5 file */
@@ -915,6 +936,74 @@ ves_status ves_io_append(ves_io *io, const ves_io_row *row) {
   return io_failed(io, append(io, row), errno);
 }
 
+void ves_io_row_from_step(const ves_step_report *rep, int reconnections, double wall_seconds,
+                          ves_io_row *row) {
+  *row = (ves_io_row){.step = rep->step,
+                      .t = rep->t,
+                      .dt = rep->dt,
+                      .E = rep->E,
+                      .A = rep->A,
+                      .V = rep->V,
+                      .V_target = rep->V_target,
+                      .lambda_A = rep->lambda[0],
+                      .lambda_V = rep->lambda[1],
+                      .c0 = rep->c0,
+                      .iterations = rep->stats.iterations,
+                      .f_evals = rep->stats.f_evals,
+                      .g_evals = rep->stats.g_evals,
+                      .h_evals = rep->stats.h_evals,
+                      .violation = rep->stats.violation,
+                      .solve_seconds = rep->stats.seconds,
+                      .wall_seconds = wall_seconds,
+                      .retries = rep->retries,
+                      .status = rep->solve_status,
+                      .reconnections = reconnections,
+                      .rejected_iterations = rep->rejected.iterations,
+                      .rejected_seconds = rep->rejected.seconds};
+}
+
+/* The column of the text at position k (1-based), or NULL. */
+static const series_spec *tsv_column(int k) {
+  for (int i = 0; i < NCOLS; i++)
+    if (SERIES[i].tsv == k) return SERIES + i;
+  return NULL;
+}
+
+ves_status ves_io_tsv_header(FILE *f) {
+  VES_CHECK(f, VES_ERR_ARG);
+  int e = fputs("# ", f) < 0;
+  for (int k = 1; tsv_column(k); k++)
+    e |= fprintf(f, "%s%s", k > 1 ? "\t" : "", tsv_column(k)->tsv_name) < 0;
+  e |= fputc('\n', f) == EOF;
+  return e ? VES_ERR_IO : VES_OK;
+}
+
+ves_status ves_io_tsv_row(FILE *f, const ves_io_row *row, double A0) {
+  VES_CHECK(f && row, VES_ERR_ARG);
+  int e = 0;
+  for (int k = 1; tsv_column(k); k++) {
+    const series_spec *c = tsv_column(k);
+    const char *p = (const char *)row + c->offset;
+    if (k > 1) e |= fputc('\t', f) == EOF;
+    if (c->type == COL_LONG) {
+      long v;
+      memcpy(&v, p, sizeof v);
+      e |= fprintf(f, c->tsv_fmt, v) < 0;
+    } else if (c->type == COL_INT) {
+      int v;
+      memcpy(&v, p, sizeof v);
+      e |= fprintf(f, c->tsv_fmt, v) < 0;
+    } else {
+      double v;
+      memcpy(&v, p, sizeof v);
+      v = c->how == TSV_OF_A0 ? v / A0 - 1 : c->how == TSV_OF_VT ? v / row->V_target - 1 : v;
+      e |= fprintf(f, c->tsv_fmt, v) < 0;
+    }
+  }
+  e |= fputc('\n', f) == EOF;
+  return e ? VES_ERR_IO : VES_OK;
+}
+
 long ves_io_rows(const ves_io *io) {
   hsize_t rows = 0, one = 1;
   for (int i = 0; i < NSERIES; i++) {
@@ -961,6 +1050,54 @@ ves_status ves_io_read_series(ves_io *io, const char *name, double *out) {
   if (ms >= 0) H5Sclose(ms);
   if (fs >= 0) H5Sclose(fs);
   return e < 0 ? VES_ERR_IO : VES_OK;
+}
+
+/* The summary's columns, read by name (ves_io_summarize). */
+enum { S_T, S_DT, S_E, S_A, S_V, S_VT, S_ITER, S_HEV, S_RETRIES, S_RECONN, S_WALL, S_C0, NSUM };
+static const char *const SUM_COLS[NSUM] = {"t",          "dt",      "E",       "A",
+                                           "V",          "V_target", "iterations", "h_evals",
+                                           "retries",    "reconnections", "wall_seconds", "c0"};
+
+/* The statistics of the rows col[NSUM][R] into s (E0, A0, V0 the header's,
+ * c0 the problem's initial C0). */
+static void summarize(const ves_io_info *in, double c0, long R, double *const *col,
+                      ves_io_summary *s) {
+  const double *E = col[S_E], *A = col[S_A], *V = col[S_V], *Vt = col[S_VT], *C = col[S_C0];
+  *s = (ves_io_summary){.steps = R, .energy_monotone = 1, .E_final = in->E0, .A_final = in->A0,
+                        .V_final = in->V0};
+  for (long i = 0; i < R; i++) {
+    /* compared only across steps on the same landscape: a C0 switch or a
+     * moving volume target may raise E (the integrator's own rule) */
+    double Eprev = i ? E[i - 1] : in->E0;
+    double c0prev = i ? C[i - 1] : c0, Vtprev = i ? Vt[i - 1] : in->V0;
+    if (C[i] == c0prev && fabs(Vt[i] - Vtprev) <= 1e-14 * in->V0 &&
+        E[i] > Eprev + VES_IO_MONOTONE_TOL * fabs(Eprev))
+      s->energy_monotone = 0;
+    s->area_drift_max = fmax(s->area_drift_max, fabs(A[i] / in->A0 - 1));
+    s->volume_drift_max = fmax(s->volume_drift_max, fabs(V[i] / Vt[i] - 1));
+    s->dt_largest = fmax(s->dt_largest, col[S_DT][i]);
+    s->iterations += col[S_ITER][i], s->h_evals += col[S_HEV][i];
+    s->retries += col[S_RETRIES][i];
+  }
+  if (R > 0) {
+    s->t_final = col[S_T][R - 1], s->E_final = E[R - 1];
+    s->A_final = A[R - 1], s->V_final = V[R - 1], s->dt_first = col[S_DT][0];
+    s->reconnections = col[S_RECONN][R - 1], s->wall_seconds = col[S_WALL][R - 1];
+  }
+}
+
+ves_status ves_io_summarize(ves_io *io, double c0, ves_io_summary *s) {
+  VES_CHECK(io && s, VES_ERR_ARG);
+  const long R = ves_io_rows(io);
+  double *col[NSUM] = {0};
+  ves_status st = VES_OK;
+  for (int c = 0; c < NSUM && st == VES_OK; c++) {
+    col[c] = malloc((size_t)(R > 0 ? R : 1) * sizeof *col[c]);
+    st = !col[c] ? VES_ERR_ALLOC : ves_io_read_series(io, SUM_COLS[c], col[c]);
+  }
+  if (st == VES_OK) summarize(&io->info, c0, R, col, s);
+  for (int c = 0; c < NSUM; c++) free(col[c]);
+  return st;
 }
 
 /* ---- counted groups (snapshots, references) ------------------------------ */

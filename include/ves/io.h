@@ -84,6 +84,7 @@
 #define VES_IO_H
 
 #include <stddef.h>
+#include <stdio.h>
 
 #include "ves/config.h"
 #include "ves/geom.h"
@@ -125,7 +126,21 @@ typedef struct {
   int retries;                   /* halvings of dt before acceptance */
   int status;                    /* ves_status of the accepted solve */
   int reconnections;             /* reference-configuration resets so far */
+  int rejected_iterations;       /* iterations of the attempts rejected before (text only) */
+  double rejected_seconds;       /* their wall time (text only: not in the file) */
 } ves_io_row;
+
+/* The row of an accepted step: the report rep, the resets so far, the wall
+ * time of the time loop. */
+void ves_io_row_from_step(const ves_step_report *rep, int reconnections, double wall_seconds,
+                          ves_io_row *row);
+
+/* The series as tab-separated text (vesica run --series), from the same
+ * table of columns as the file's series: the header line naming the columns
+ * ("# step<TAB>t<TAB>dt<TAB>E<TAB>A/A0-1 ..."), and one line a row (A0: the
+ * run's initial area). VES_ERR_IO when a write fails. */
+ves_status ves_io_tsv_header(FILE *f);
+ves_status ves_io_tsv_row(FILE *f, const ves_io_row *row, double A0);
 
 /* What was written with a snapshot besides y and phi. */
 typedef struct {
@@ -214,6 +229,28 @@ long ves_io_rows(const ves_io *io);
 /* Series `name` (one of the names in the layout) as doubles: out[rows].
  * VES_ERR_ARG for an unknown name. */
 ves_status ves_io_read_series(ves_io *io, const char *name, double *out);
+
+/* A rise of E* between accepted steps above this relative rounding counts
+ * as a rise (the integrator's acceptance test uses the same margin). */
+#define VES_IO_MONOTONE_TOL 1e-10
+
+/* The statistics of a run's series (vesica info). */
+typedef struct {
+  long steps;                              /* rows */
+  double t_final;                          /* the last row's t* (0 without rows) */
+  double E_final, A_final, V_final;        /* the last row's E*, A, V (E0, A0, V0 without) */
+  int energy_monotone;                     /* 1: E* never rose by more than
+                                              VES_IO_MONOTONE_TOL relative between accepted
+                                              steps on the same C0 and volume target */
+  double area_drift_max, volume_drift_max; /* max |A/A0 - 1|, max |V/V_target - 1| */
+  double dt_first, dt_largest;             /* t* (0 without rows) */
+  double retries, iterations, h_evals;     /* sums over the rows */
+  double reconnections, wall_seconds;      /* the last row's (0 without rows) */
+} ves_io_summary;
+
+/* The summary of the series of io; c0: the problem's C0 before the first
+ * step (a C0 switch at step 1 is not a rise). */
+ves_status ves_io_summarize(ves_io *io, double c0, ves_io_summary *s);
 
 /* Number of snapshots (complete ones: a snapshot group without its data is
  * not counted). */

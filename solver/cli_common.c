@@ -1,0 +1,182 @@
+/* vesica — the command line's shared pieces: options, the problem file, the
+ * setup's estimate, output paths, the library's error text (cli_impl.h). */
+#include <ctype.h>
+#include <errno.h>
+#include <limits.h>
+#include <math.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "cli_impl.h"
+
+/* A setup message names the file itself when it comes from reading one (a
+ * points file): then do not name the problem file twice. */
+void cli_setup_error(const char *cmd, const char *label, const char *err) {
+  if (!strncmp(err, label, strlen(label)) && err[strlen(label)] == ':')
+    fprintf(stderr, "vesica %s: %s\n", cmd, err);
+  else
+    fprintf(stderr, "vesica %s: %s: %s\n", cmd, label, err);
+}
+
+/* Exit code for a failed setup: bad input (configuration, arguments, an
+ * unreadable points file) 2, anything numerical 3. */
+int cli_exit_for(ves_status st) {
+  return st == VES_ERR_CONFIG || st == VES_ERR_ARG || st == VES_ERR_IO ? 2 : 3;
+}
+
+/* The node count of a problem's setup, estimated before building it: the
+ * band |d| < band eps on both sides of a meridian of length L = pi R (R0 = 1;
+ * a sphere: its radius) at the hexagonal density 2 / (sqrt(3) h^2) of
+ * h_band eps, the graded zone from there to h_far at `slope` (its integral
+ * halved: the zones overlap), and the box at h_far. Calibrated on four
+ * measured setups: 19,391 / 2,225 / 1,203 / 331 nodes estimated within 8%. */
+static double estimate_nodes(const ves_config *c) {
+  const double L = M_PI * (strcmp(c->shape_type, "sphere") ? 1.0 : c->radius);
+  const double h0 = c->h_band * c->epsilon, rho = 2 / sqrt(3.0);
+  const double band = L * 2 * c->band * c->epsilon * rho / (h0 * h0);
+  const double grade = c->h_far > h0 ? L * rho * (1 / h0 - 1 / c->h_far) / c->slope : 0.0;
+  return band + grade + 2 * c->box_r * 2 * c->box_z * rho / (c->h_far * c->h_far);
+}
+
+/* Rates measured at the paper's scale (19,391 nodes, bench/RESULTS.md, the
+ * scale table, one thread): setup 23 s, peak memory of the run 3.0 GB, a
+ * Newton step 22 s growing as n^1.23. */
+#define EST_NODES 19391.0
+#define EST_SETUP_S 23.0
+#define EST_PEAK_GB 3.0
+#define EST_STEP_S 22.0
+#define EST_LARGE 10000 /* nodes from which the estimate is printed */
+
+/* Before a setup: a line with the estimated size and cost when the problem
+ * is large (not with quiet); a refusal when its estimated memory exceeds
+ * the machine's. 0 ok, else 2 (message printed). */
+int cli_setup_estimate(const char *cmd, const ves_config *c, int quiet) {
+  const double n = estimate_nodes(c), x = n / EST_NODES, gb = EST_PEAK_GB * x;
+  const long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGESIZE);
+  const double have = pages > 0 && page > 0 ? (double)pages * (double)page / 1e9 : 0.0;
+  if (have > 0 && gb > have) {
+    fprintf(stderr,
+            "vesica %s: about %.3g nodes (estimated from epsilon, band, h_band, slope, h_far and "
+            "the box) would need about %.3g GB; this machine has %.3g GB: coarsen the problem\n",
+            cmd, n, gb, have);
+    return 2;
+  }
+  if (!quiet && n >= EST_LARGE)
+    fprintf(stderr,
+            "vesica %s: setting up about %.0f nodes (an estimate): ~%.0f s of setup on one thread, "
+            "~%.1f GB peak memory in a run, ~%.0f s a Newton step (scaled from %.0f nodes: "
+            "bench/RESULTS.md)\n",
+            cmd, n, EST_SETUP_S * x, gb, EST_STEP_S * pow(x, 1.23), EST_NODES);
+  return 0;
+}
+
+/* The tail shared by the commands that take a problem file: a path must have
+ * been given; load it with the overrides. 0 on success, else the exit code. */
+int cli_load_problem(const char *cmd, const char *path, void (*usage_fn)(FILE *), int nset,
+                        const char *const *set, ves_config *cfg) {
+  char err[1024] = "";
+  if (!path) {
+    usage_fn(stderr);
+    return 2;
+  }
+  if (ves_config_load(path, nset, set, cfg, err, sizeof err) != VES_OK) {
+    fprintf(stderr, "vesica %s: %s\n", cmd, err);
+    return 2;
+  }
+  return 0;
+}
+
+/* A --set argument: 0 when taken, else the exit code (message printed). */
+int cli_take_set(const char *cmd, int argc, char **argv, int *i, int *nset, const char **set) {
+  if (*i + 1 >= argc || argv[*i + 1][0] == '-') {
+    fprintf(stderr, "vesica %s: --set needs section.key=value\n", cmd);
+    return 2;
+  }
+  if (*nset == MAX_SET) {
+    fprintf(stderr, "vesica %s: more than %d --set options\n", cmd, MAX_SET);
+    return 2;
+  }
+  set[(*nset)++] = argv[++*i];
+  return 0;
+}
+
+/* The folder of path must exist and be writable, path must not be a folder. */
+int cli_check_writable(const char *cmd, const char *what, const char *path) {
+  char dir[PATH_MAX];
+  const char *slash = strrchr(path, '/');
+  if (!*path || strlen(path) >= sizeof dir - 8) {
+    fprintf(stderr, "vesica %s: %s '%s': not a usable file name\n", cmd, what, path);
+    return 2;
+  }
+  if (slash == path)
+    snprintf(dir, sizeof dir, "/");
+  else if (slash)
+    snprintf(dir, sizeof dir, "%.*s", (int)(slash - path), path);
+  else
+    snprintf(dir, sizeof dir, ".");
+  struct stat sb;
+  if (stat(dir, &sb) != 0 || !S_ISDIR(sb.st_mode)) {
+    fprintf(stderr, "vesica %s: %s %s: folder %s does not exist\n", cmd, what, path, dir);
+    return 2;
+  }
+  if (access(dir, W_OK) != 0) {
+    fprintf(stderr, "vesica %s: %s %s: folder %s is not writable\n", cmd, what, path, dir);
+    return 2;
+  }
+  if (stat(path, &sb) == 0 && !S_ISREG(sb.st_mode)) {
+    fprintf(stderr, "vesica %s: %s %s: exists and is not a regular file\n", cmd, what, path);
+    return 2;
+  }
+  return 0;
+}
+
+/* Whether a and b name the same existing file. */
+int cli_same_file(const char *a, const char *b) {
+  struct stat sa, sb;
+  return a && b && stat(a, &sa) == 0 && stat(b, &sb) == 0 && sa.st_dev == sb.st_dev &&
+         sa.st_ino == sb.st_ino;
+}
+
+/* An output path: never one of the inputs in[nin] (NULL entries skipped),
+ * and not an existing file unless force. 0 ok, else 2 (message printed;
+ * hint, if any, says how to keep the file instead). */
+int cli_check_new(const char *cmd, const char *what, const char *path, int force,
+                     const char *const *in, int nin, const char *hint) {
+  for (int i = 0; i < nin; i++)
+    if (cli_same_file(path, in[i])) {
+      fprintf(stderr, "vesica %s: %s %s: is the input file %s: an input is never overwritten\n",
+              cmd, what, path, in[i]);
+      return 2;
+    }
+  struct stat sb;
+  if (!force && lstat(path, &sb) == 0) {
+    fprintf(stderr, "vesica %s: %s %s: exists; --force overwrites it%s\n", cmd, what, path,
+            hint ? hint : "");
+    return 2;
+  }
+  return 0;
+}
+
+/* Parse a long in [lo, hi] for option opt; 0 ok, 2 with a message. */
+int cli_parse_long(const char *cmd, const char *opt, const char *v, long lo, long hi,
+                      long *out) {
+  char *end = NULL;
+  errno = 0;
+  long x = strtol(v, &end, 10);
+  if (errno || end == v || *end || x < lo || x > hi) {
+    fprintf(stderr, "vesica %s: %s '%s': not an integer in [%ld, %ld]\n", cmd, opt, v, lo, hi);
+    return 2;
+  }
+  *out = x;
+  return 0;
+}
+
+const char *cli_why(ves_status st) {
+  static char buf[1024]; /* the program is single-threaded; one message at a time */
+  return ves_error_format(st, buf, sizeof buf);
+}
