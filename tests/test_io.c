@@ -962,6 +962,28 @@ static void test_self_describing(void **state) {
   free(f.problem);
 }
 
+/* The --series text from the table of columns: the header the program
+ * wrote before the table (17 names, in its order) and a row whose values
+ * print in their formats, the drifts against A0 and V_target. */
+static void test_tsv_row(void **state) {
+  (void)state;
+  char buf[1024] = "";
+  FILE *f = fmemopen(buf, sizeof buf, "w");
+  assert_non_null(f);
+  assert_int_equal(ves_io_tsv_header(f), VES_OK);
+  ves_io_row row = {.step = 7, .t = 0.125, .dt = 0.5, .E = 6.25, .A = 12.6, .V = 4.2,
+                    .V_target = 4.0, .lambda_A = -1.5, .lambda_V = 2.5, .iterations = 3,
+                    .f_evals = 4, .g_evals = 5, .h_evals = 6, .solve_seconds = 1.25,
+                    .retries = 1, .reconnections = 2, .rejected_iterations = 9,
+                    .rejected_seconds = 0.5, .c0 = 3, .violation = 1e-12, .status = 0};
+  assert_int_equal(ves_io_tsv_row(f, &row, 12.0), VES_OK);
+  fclose(f);
+  assert_string_equal(buf, "# step\tt\tdt\tE\tA/A0-1\tV/Vt-1\tlambda_A\tlambda_V\titer\tf\tg\th\t"
+                           "seconds\tretries\tresets\trejected_iterations\trejected_seconds\n"
+                           "7\t0.125\t0.5\t6.25\t5.000e-02\t5.000e-02\t-1.5\t2.5\t3\t4\t5\t6\t1.250"
+                           "\t1\t2\t9\t0.500\n");
+}
+
 int main(int argc, char **argv) {
   if (argc == 3 && !strcmp(argv[1], "--write-fail")) return write_fail_child(argv[2]);
   snprintf(self, sizeof self, "%s", argv[0]);
@@ -972,7 +994,7 @@ int main(int argc, char **argv) {
       cmocka_unit_test(test_refusals),        cmocka_unit_test(test_node_material),
       cmocka_unit_test(test_restart_chain),   cmocka_unit_test(test_write_failure),
       cmocka_unit_test(test_truncated),       cmocka_unit_test(test_salvage),
-      cmocka_unit_test(test_self_describing),
+      cmocka_unit_test(test_self_describing), cmocka_unit_test(test_tsv_row),
   };
   return cmocka_run_group_tests_name("io", tests, setup_all, teardown_all);
 }
