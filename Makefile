@@ -8,6 +8,7 @@
 #   make bench      the benchmarks in bench/, printing tables
 #   make run        the default problem (results/oblate.h5, .xdmf, PNG figures)
 #   make deps       install missing Debian packages (root) or print the command
+#   make format     clang-format every C/C++ file (format-check: only report)
 #   make clean
 
 CC      ?= gcc
@@ -51,7 +52,7 @@ BENCHES  = $(patsubst bench/%.c,$(BUILD)/bench/%,$(wildcard bench/bench_*.c))
 # command of every table, e.g. make bench BENCH_ONLY=bench_mode.
 BENCH_ONLY ?= 
 
-.PHONY: all deps test test-slow test-slurm valgrind bench run paper clean format
+.PHONY: all deps test test-slow test-slurm valgrind bench run paper clean format format-check
 # (a sub-make, as test and run do: the pkg-config flags above are read when
 # this Makefile is parsed, i.e. before deps installs ipopt and hdf5 on a
 # fresh machine)
@@ -177,8 +178,17 @@ paper: deps
 	@VESICA=$(BUILD)/vesica TABLE1=$(BUILD)/bench/bench_table1 PAPER_EPS=$(PAPER_EPS) \
 	  PAPER_ONLY=$(PAPER_ONLY) sh bench/paper.sh
 
+# Every C/C++ file of the repository, formatted by .clang-format: format
+# rewrites them, format-check only reports (exit 1 and the lines that differ).
+FORMAT_FILES = $(wildcard include/ves/*.h solver/*.c solver/*.h solver/*.cpp tests/*.c tests/*.h \
+                 tests/fuzz/*.c bench/*.c bench/*.h)
 format:
-	clang-format -i include/ves/*.h solver/*.c solver/*.cpp tests/*.c bench/*.c
+	clang-format -i --style=file $(FORMAT_FILES)
+format-check:
+	@clang-format --dry-run -Werror --style=file $(FORMAT_FILES) 2>&1 | \
+	  awk '/error:/ {n++; split($$0, p, ":"); f[p[1]]++} {print} \
+	       END {if (n) {printf "format-check: %d place(s) in %d file(s) differ from .clang-format " \
+	            "(make format fixes them)\n", n, length(f); exit 1} else print "format-check: ok"}'
 
 clean:
 	rm -rf build build-san

@@ -49,14 +49,14 @@ typedef struct {
 
 /* Backend state: one IpoptProblem per step-problem size. */
 typedef struct {
-  IpoptProblem prob;    /* NULL until built */
-  int n, m, nnz_h;      /* the sizes prob was built for */
+  IpoptProblem prob;       /* NULL until built */
+  int n, m, nnz_h;         /* the sizes prob was built for */
   ves_backend_options opt; /* copied options */
-  double *mult_x_L;     /* n zeros: Ipopt needs them even without bounds */
-  double *mult_x_U;     /* n zeros */
-  double *grad;         /* n scratch (initial gradient, for the objective scale) */
-  double g[2];          /* final constraint values */
-  ipopt_ctx ctx;        /* the callback context */
+  double *mult_x_L;        /* n zeros: Ipopt needs them even without bounds */
+  double *mult_x_U;        /* n zeros */
+  double *grad;            /* n scratch (initial gradient, for the objective scale) */
+  double g[2];             /* final constraint values */
+  ipopt_ctx ctx;           /* the callback context */
 } ipopt_state;
 
 /* Record a callback's status: Ipopt only sees TRUE/FALSE. A domain error
@@ -116,9 +116,9 @@ static Bool ipopt_eval_jac_g(Index n, Number *x, Bool new_x, Index m, Index nele
 }
 
 /* Lower triangle of obj_factor (K + dt Hess E) + sum lambda_i Hess c_i. */
-static Bool ipopt_eval_h(Index n, Number *x, Bool new_x, Number obj_factor, Index m,
-                         Number *lambda, Bool new_lambda, Index nele, Index *irow, Index *jcol,
-                         Number *val, UserDataPtr ud) {
+static Bool ipopt_eval_h(Index n, Number *x, Bool new_x, Number obj_factor, Index m, Number *lambda,
+                         Bool new_lambda, Index nele, Index *irow, Index *jcol, Number *val,
+                         UserDataPtr ud) {
   ipopt_ctx *c = ud;
   (void)n, (void)new_x, (void)new_lambda, (void)nele;
   if (val == NULL) {
@@ -131,10 +131,9 @@ static Bool ipopt_eval_h(Index n, Number *x, Bool new_x, Number obj_factor, Inde
 
 /* Once per iteration: remember the count (Ipopt 3.11's C interface has no
  * other access to it). */
-static Bool ipopt_intermediate(Index alg_mod, Index iter, Number obj, Number inf_pr,
-                               Number inf_du, Number mu, Number d_norm, Number reg,
-                               Number alpha_du, Number alpha_pr, Index ls_trials,
-                               UserDataPtr ud) {
+static Bool ipopt_intermediate(Index alg_mod, Index iter, Number obj, Number inf_pr, Number inf_du,
+                               Number mu, Number d_norm, Number reg, Number alpha_du,
+                               Number alpha_pr, Index ls_trials, UserDataPtr ud) {
   ipopt_ctx *c = ud;
   (void)alg_mod, (void)obj, (void)inf_pr, (void)inf_du, (void)mu, (void)d_norm, (void)reg;
   (void)alpha_du, (void)alpha_pr, (void)ls_trials;
@@ -261,8 +260,7 @@ static ves_status ipopt_solve(void *state, ves_step *s, double *x, double *lambd
   /* Warm start only with multipliers to start from (all zero means none). */
   int warm = 0;
   for (int i = 0; i < m; i++) warm |= lambda[i] != 0.0;
-  ok &= AddIpoptStrOption(st->prob, (char *)"warm_start_init_point",
-                          (char *)(warm ? "yes" : "no"));
+  ok &= AddIpoptStrOption(st->prob, (char *)"warm_start_init_point", (char *)(warm ? "yes" : "no"));
   VES_CHECK(ok, VES_ERR_SOLVER);
 
   double mult_g[2] = {0.0, 0.0}, obj = 0.0;
@@ -308,8 +306,10 @@ static ves_status ipopt_solve(void *state, ves_step *s, double *x, double *lambd
   }
   /* A failure rooted in our callbacks is reported as such: an error raised
    * there, or a start outside the domain. */
-  if (out < 0 && c->error != VES_OK) out = c->error;
-  else if (out < 0 && c->first_domain) out = VES_ERR_DOMAIN;
+  if (out < 0 && c->error != VES_OK)
+    out = c->error;
+  else if (out < 0 && c->first_domain)
+    out = VES_ERR_DOMAIN;
   if (out == VES_OK || out == VES_MAXITER)
     for (int i = 0; i < m; i++) lambda[i] = mult_g[i];
 

@@ -83,12 +83,12 @@
 #include "clock_impl.h"
 
 #define NLB_EVALS_PER_ITER 100 /* maxeval = this * max_iter */
-#define NLB_KKT_SLACK 1e6 /* the final first-order check: tol times this (nlb_solve) */
+#define NLB_KKT_SLACK 1e6      /* the final first-order check: tol times this (nlb_solve) */
 #ifndef NLB_DOMAIN_MAX
 #define NLB_DOMAIN_MAX 30 /* consecutive domain errors before giving up */
 #endif
-#define LBFGS_GTOL 1e-8        /* Luksan's fixed gradient tolerance (NLopt plis.c) */
-#define NLB_IC_SHIFTS 8        /* shifts alpha = 0, 1e-3, ..., 1e3 tried */
+#define LBFGS_GTOL 1e-8 /* Luksan's fixed gradient tolerance (NLopt plis.c) */
+#define NLB_IC_SHIFTS 8 /* shifts alpha = 0, 1e-3, ..., 1e3 tried */
 #ifndef NLB_INNER
 #define NLB_INNER NLOPT_LD_LBFGS /* the sub-solver */
 #endif
@@ -112,11 +112,11 @@
 /* Lower-triangular factor in compressed rows, the diagonal last in each row. */
 typedef struct {
   int n;
-  int *ptr;   /* n + 1 */
-  int *col;   /* ptr[n], ascending in each row */
-  double *a;  /* ptr[n] values of M (summed duplicates) */
-  double *l;  /* ptr[n] values of L */
-  int *map;   /* nnz: triplet k -> position in col (or -1 above the diagonal) */
+  int *ptr;  /* n + 1 */
+  int *col;  /* ptr[n], ascending in each row */
+  double *a; /* ptr[n] values of M (summed duplicates) */
+  double *l; /* ptr[n] values of L */
+  int *map;  /* nnz: triplet k -> position in col (or -1 above the diagonal) */
 } nlb_ic;
 
 /* The typed context of the callbacks. */
@@ -142,16 +142,16 @@ typedef struct {
 } nlb_ctx;
 
 typedef struct {
-  ves_backend_options opt; /* copied options */
-  int n, nnz;              /* sizes the arrays are for */
+  ves_backend_options opt;           /* copied options */
+  int n, nnz;                        /* sizes the arrays are for */
   double *x, *g, *J, *u, *xs, *hval; /* scratch, u, start, Hessian values */
-  int *hi, *hj;            /* Hessian structure (lower triplets) */
-  nlb_ic L;                /* preconditioner: IC(0) on the Hessian pattern */
-  double *Ld;              /* or the exact Cholesky factor, n x n (NULL above NLB_DENSE_MAX) */
-  double shift;             /* the diagonal shift alpha of the last factorization */
-  int pass;                 /* 0: M was the Hessian of the Lagrangian; 1: K */
-  double kkt, jtl, noise;   /* max |grad f + J^T lambda|, max |J^T lambda|, its
-                               rounding floor (nlb_finish) */
+  int *hi, *hj;                      /* Hessian structure (lower triplets) */
+  nlb_ic L;                          /* preconditioner: IC(0) on the Hessian pattern */
+  double *Ld;             /* or the exact Cholesky factor, n x n (NULL above NLB_DENSE_MAX) */
+  double shift;           /* the diagonal shift alpha of the last factorization */
+  int pass;               /* 0: M was the Hessian of the Lagrangian; 1: K */
+  double kkt, jtl, noise; /* max |grad f + J^T lambda|, max |J^T lambda|, its
+                             rounding floor (nlb_finish) */
   nlb_ctx ctx;
 } nlb_state;
 
@@ -181,7 +181,7 @@ static ves_status nlb_ic_pattern(nlb_ic *L, int n, int nnz, const int *hi, const
     cnt[hi[k] + 1]++;
   }
   for (int i = 0; i < n; i++) cnt[i + 1] += cnt[i] + 1; /* + 1: the diagonal */
-  int *pos = L->ptr;                                     /* fill positions */
+  int *pos = L->ptr;                                    /* fill positions */
   for (int i = 0; i < n; i++) pos[i] = cnt[i], tmp[pos[i]++] = i;
   for (int k = 0; k < nnz; k++) tmp[pos[hi[k]]++] = hj[k];
   int w = 0;
@@ -206,8 +206,10 @@ static ves_status nlb_ic_pattern(nlb_ic *L, int n, int nnz, const int *hi, const
     int lo = L->ptr[hi[k]], hi_ = L->ptr[hi[k] + 1] - 1;
     while (lo < hi_) {
       int mid = (lo + hi_) / 2;
-      if (L->col[mid] < hj[k]) lo = mid + 1;
-      else hi_ = mid;
+      if (L->col[mid] < hj[k])
+        lo = mid + 1;
+      else
+        hi_ = mid;
     }
     L->map[k] = lo;
   }
@@ -231,9 +233,12 @@ static int nlb_ic_factor(nlb_ic *L, double alpha) {
       /* sparse dot of rows i and j over columns < j */
       int q = bi, r = ptr[j], er = ptr[j + 1] - 1;
       while (q < p && r < er) {
-        if (col[q] == col[r]) sum -= L->l[q++] * L->l[r++];
-        else if (col[q] < col[r]) q++;
-        else r++;
+        if (col[q] == col[r])
+          sum -= L->l[q++] * L->l[r++];
+        else if (col[q] < col[r])
+          q++;
+        else
+          r++;
       }
       if (j < i) {
         L->l[p] = sum / L->l[er];
@@ -268,14 +273,18 @@ static void nlb_ic_ltsolve(const nlb_ic *L, double *v) {
 /* v = L^{-1} v with the factor in use: the exact one Ld when there is one,
  * else IC(0). */
 static void nlb_lsolve(const nlb_ic *L, const double *Ld, double *v) {
-  if (Ld) cblas_dtrsv(CblasColMajor, CblasLower, CblasNoTrans, CblasNonUnit, L->n, Ld, L->n, v, 1);
-  else nlb_ic_lsolve(L, v);
+  if (Ld)
+    cblas_dtrsv(CblasColMajor, CblasLower, CblasNoTrans, CblasNonUnit, L->n, Ld, L->n, v, 1);
+  else
+    nlb_ic_lsolve(L, v);
 }
 
 /* v = L^{-T} v with the factor in use. */
 static void nlb_ltsolve(const nlb_ic *L, const double *Ld, double *v) {
-  if (Ld) cblas_dtrsv(CblasColMajor, CblasLower, CblasTrans, CblasNonUnit, L->n, Ld, L->n, v, 1);
-  else nlb_ic_ltsolve(L, v);
+  if (Ld)
+    cblas_dtrsv(CblasColMajor, CblasLower, CblasTrans, CblasNonUnit, L->n, Ld, L->n, v, 1);
+  else
+    nlb_ic_ltsolve(L, v);
 }
 
 /* Ld Ld^T = (M + sum_i w_i grad c_i grad c_i^T)(1 + alpha on the diagonal),
@@ -289,8 +298,7 @@ static int nlb_dense_factor(double *Ld, int n, int nnz, const int *hi, const int
   memset(Ld, 0, (size_t)n * (size_t)n * sizeof *Ld);
   for (int k = 0; k < nnz; k++) Ld[hi[k] + (size_t)hj[k] * n] += v[k];
   for (int i = 0; i < m; i++) /* + w_i grad c_i grad c_i^T, lower triangle */
-    if (w[i] != 0.0)
-      cblas_dsyr(CblasColMajor, CblasLower, n, w[i], J + (size_t)i * n, 1, Ld, n);
+    if (w[i] != 0.0) cblas_dsyr(CblasColMajor, CblasLower, n, w[i], J + (size_t)i * n, 1, Ld, n);
   for (int i = 0; i < n; i++) Ld[i + (size_t)i * n] *= 1.0 + alpha;
   return LAPACKE_dpotrf(LAPACK_COL_MAJOR, 'L', n, Ld, n) == 0 ? 0 : -1;
 }
@@ -539,8 +547,8 @@ static void nlb_multipliers(int n, int m, const double *J, const double *g, cons
 
 /* Multipliers and violation at x: least-squares lambda of grad f + J^T
  * lambda = 0, max |c_i| / target_i into *viol. */
-static ves_status nlb_finish(nlb_state *st, ves_step *s, const double *x, int m,
-                             const double *tgt, double *lambda, double *viol) {
+static ves_status nlb_finish(nlb_state *st, ves_step *s, const double *x, int m, const double *tgt,
+                             double *lambda, double *viol) {
   double cv[2] = {0.0, 0.0};
   ves_status e = m > 0 ? ves_step_eval_c(s, x, cv) : VES_OK;
   if (e == VES_OK) e = ves_step_eval_grad(s, x, st->g);
@@ -609,7 +617,8 @@ static ves_status nlb_phase(nlb_state *st, ves_step *s, double *x, double *lambd
   }
   if (rc != VES_OK) return rc;
 #ifdef NLB_TRACE
-  fprintf(stderr, "nlopt start: tol %g lambda in %.6e %.6e  qp %.6e %.6e (have %d, pass %d, shift %g)\n",
+  fprintf(stderr,
+          "nlopt start: tol %g lambda in %.6e %.6e  qp %.6e %.6e (have %d, pass %d, shift %g)\n",
           tol, m > 0 ? lambda[0] : 0.0, m > 1 ? lambda[1] : 0.0, lam_qp[0], lam_qp[1], have_qp,
           st->pass, st->shift);
 #endif
@@ -695,8 +704,10 @@ done:
     /* AUGLAG's verdict is not enough: check feasibility here, and return
      * least-squares multipliers. */
     ves_status e = nlb_finish(st, s, x, m, tgt, lambda, viol);
-    if (e != VES_OK) out = e;
-    else if (out == VES_OK && !(*viol <= ctol_rel)) out = VES_ERR_NOCONV;
+    if (e != VES_OK)
+      out = e;
+    else if (out == VES_OK && !(*viol <= ctol_rel))
+      out = VES_ERR_NOCONV;
   }
 #ifdef NLB_TRACE
   fprintf(stderr, "nlopt end: %s lambda %.6e %.6e viol %.3e\n", ves_status_str(out),
@@ -720,8 +731,16 @@ static ves_status nlb_solve(void *state, ves_step *s, double *x, double *lambda,
   const ves_step_params *par = ves_step_get_params(s);
   VES_CHECK(par != NULL, VES_ERR_ARG);
   nlb_ctx *c = &st->ctx;
-  *c = (nlb_ctx){.s = s, .n = n, .m = m, .L = &st->L, .Ld = st->Ld, .xs = st->xs, .x = st->x,
-                 .g = st->g, .J = st->J, .reason = VES_OK};
+  *c = (nlb_ctx){.s = s,
+                 .n = n,
+                 .m = m,
+                 .L = &st->L,
+                 .Ld = st->Ld,
+                 .xs = st->xs,
+                 .x = st->x,
+                 .g = st->g,
+                 .J = st->J,
+                 .reason = VES_OK};
   double tgt[2] = {1.0, 1.0};
   int k = 0;
   if (par->hold_area) tgt[k++] = fabs(par->A0);

@@ -78,7 +78,7 @@ int cli_setup_estimate(const char *cmd, const ves_config *c, int quiet) {
 /* The tail shared by the commands that take a problem file: a path must have
  * been given; load it with the overrides. 0 on success, else the exit code. */
 int cli_load_problem(const char *cmd, const char *path, void (*usage_fn)(FILE *), int nset,
-                        const char *const *set, ves_config *cfg) {
+                     const char *const *set, ves_config *cfg) {
   char err[1024] = "";
   if (!path) {
     usage_fn(stderr);
@@ -146,7 +146,7 @@ int cli_same_file(const char *a, const char *b) {
  * and not an existing file unless force. 0 ok, else 2 (message printed;
  * hint, if any, says how to keep the file instead). */
 int cli_check_new(const char *cmd, const char *what, const char *path, int force,
-                     const char *const *in, int nin, const char *hint) {
+                  const char *const *in, int nin, const char *hint) {
   for (int i = 0; i < nin; i++)
     if (cli_same_file(path, in[i])) {
       fprintf(stderr, "vesica %s: %s %s: is the input file %s: an input is never overwritten\n",
@@ -163,8 +163,7 @@ int cli_check_new(const char *cmd, const char *what, const char *path, int force
 }
 
 /* Parse a long in [lo, hi] for option opt; 0 ok, 2 with a message. */
-int cli_parse_long(const char *cmd, const char *opt, const char *v, long lo, long hi,
-                      long *out) {
+int cli_parse_long(const char *cmd, const char *opt, const char *v, long lo, long hi, long *out) {
   char *end = NULL;
   errno = 0;
   long x = strtol(v, &end, 10);

@@ -14,7 +14,6 @@
 #include "cli_impl.h"
 #include "ves/plot.h"
 
-
 static void usage_info(FILE *f) {
   fprintf(f, "usage: vesica info FILE.h5\n"
              "Summary of a run, one 'key = value' per line (stable keys, for scripts):\n"

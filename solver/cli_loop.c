@@ -60,10 +60,10 @@ const char *cli_io_cause(const ves_io *io, ves_status st) {
 
 /* What the loop carries from step to step. */
 typedef struct {
-  double t0;          /* wall clock at the start of this process's loop */
-  double recent[10];  /* wall times at the ends of the last 10 steps (ring) */
-  int tty;            /* stderr is a terminal: the progress line is redrawn */
-  long iters, steps;  /* backend iterations and steps of this process */
+  double t0;         /* wall clock at the start of this process's loop */
+  double recent[10]; /* wall times at the ends of the last 10 steps (ring) */
+  int tty;           /* stderr is a terminal: the progress line is redrawn */
+  long iters, steps; /* backend iterations and steps of this process */
 } loop_ctx;
 
 /* Install the handlers of SIGINT and SIGTERM (stop after the current step;
@@ -108,8 +108,7 @@ static ves_status record_step(run_ctx *r, const ves_step_report *rep, double wal
 /* The lines of an accepted step on stderr: progress (with w the mean wall
  * time of the recent steps), retries, a reset, a remeshing, and the
  * warnings of a reset or remeshing that failed (even with --quiet). */
-static void report_step(const run_ctx *r, const ves_step_report *rep, const loop_ctx *L,
-                        double w) {
+static void report_step(const run_ctx *r, const ves_step_report *rep, const loop_ctx *L, double w) {
   const int tty = L->tty;
   if (!r->quiet && (tty || rep->step % 10 == 0)) {
     char eta[64];
@@ -139,8 +138,8 @@ static void report_step(const run_ctx *r, const ves_step_report *rep, const loop
             "iteration(s), then |A/A0 - 1| %.2g, |V/Vt - 1| %.2g; interface moved max %.3g, "
             "mean %.3g; E* %.9g -> %.9g; %.1f s)\n",
             tty ? "\n" : "", rep->step, ves_sim_remeshings(r->sim), m->n_old, m->n_new, m->dE,
-            m->dA, m->dV, m->corr_max, m->corr_norm, m->corr_iter, m->res_A, m->res_V,
-            m->disp_max, m->disp_mean, m->E_old, m->E, m->seconds);
+            m->dA, m->dV, m->corr_max, m->corr_norm, m->corr_iter, m->res_A, m->res_V, m->disp_max,
+            m->disp_mean, m->E_old, m->E, m->seconds);
   }
   if (rep->remesh_status != VES_OK) /* a warning even with --quiet: a remeshing was skipped */
     fprintf(stderr,

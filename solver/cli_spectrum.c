@@ -104,8 +104,8 @@ static void print_spectrum(const char *path, long k, const ves_io_snapinfo *si, 
            q->peak[0], j + 1, q->peak[1], j + 1, q->peak_phi);
     printf("mu_%ld_band = %.3f\nmu_%ld_axis = %.3f\nmu_%ld_material = %.3e\n", j + 1, q->band,
            j + 1, q->axis, j + 1, q->material);
-    printf("mu_%ld_from_E = %.6e\nmu_%ld_from_A = %.6e\nmu_%ld_from_V = %.6e\n", j + 1,
-           q->from[0], j + 1, q->from[1], j + 1, q->from[2]);
+    printf("mu_%ld_from_E = %.6e\nmu_%ld_from_A = %.6e\nmu_%ld_from_V = %.6e\n", j + 1, q->from[0],
+           j + 1, q->from[1], j + 1, q->from[2]);
     printf("mu_%ld_drift = %.3e\n", j + 1, q->drift);
   }
   printf("drift_K_norm = %.6e\ndrift_in_modes = %.3e\n", sp->drift_K_norm, sp->drift_in_modes);
@@ -121,7 +121,8 @@ typedef struct {
 
 /* The value v of option a into o: 0, or 2 with a message. */
 static int spectrum_value(const char *a, const char *v, spectrum_args *o) {
-  if (!strcmp(a, "--snapshot")) return cli_parse_long("spectrum", a, v, -1000000, 1000000, &o->snap);
+  if (!strcmp(a, "--snapshot"))
+    return cli_parse_long("spectrum", a, v, -1000000, 1000000, &o->snap);
   if (!strcmp(a, "--modes")) return cli_parse_long("spectrum", a, v, 1, 100, &o->modes);
   if (!strcmp(a, "--lanczos")) return cli_parse_long("spectrum", a, v, 2, 2000, &o->lanczos);
   if (!strcmp(a, "--vectors")) {
@@ -205,8 +206,7 @@ static int analyse(run_ctx *r, const spectrum_args *o, const char *pre, long k,
             st == VES_ERR_SINGULAR ? " (--above is an eigenvalue? move it a little)" : "");
     rc = 3;
   } else if (o->vpath && write_modes(r, sp, o->vpath) != 0) {
-    fprintf(stderr, "vesica spectrum: --vectors %s: cannot write: %s\n", o->vpath,
-            strerror(errno));
+    fprintf(stderr, "vesica spectrum: --vectors %s: cannot write: %s\n", o->vpath, strerror(errno));
     rc = 2;
   } else {
     print_spectrum(o->path, k, si, r, sp, o->above);

@@ -122,8 +122,7 @@ static ves_status restore_reference(run_ctx *r, int k, int reconnections, const 
   ves_status st = b.x && b.h && b.xq && b.wq && b.pd ? VES_OK : VES_ERR_ALLOC;
   ves_reconnect *ref = NULL;
   if (st == VES_OK) st = ves_io_read_reference(r->io, k, &b);
-  if (st == VES_OK)
-    st = ves_reconnect_restore(m, b.x, b.h, nq, b.xq, b.wq, b.pd, &ref);
+  if (st == VES_OK) st = ves_reconnect_restore(m, b.x, b.h, nq, b.xq, b.wq, b.pd, &ref);
   if (st == VES_OK) st = ves_sim_adopt_reference(r->sim, ref, reconnections, b.step, phi);
   free(b.x), free(b.h), free(b.xq), free(b.wq), free(b.pd);
   return st;
@@ -199,8 +198,8 @@ static int restore_nodes(run_ctx *r, const char *pre, int S, const ves_io_snapin
   ves_status st;
   int R = 0; /* remeshings before the snapshot */
   long rstep = 0, fstep = 0;
-  while (R < ves_io_remeshes(r->io) &&
-         ves_io_remesh_size(r->io, R, &rstep, NULL, NULL) == VES_OK && rstep <= si->state.nstep)
+  while (R < ves_io_remeshes(r->io) && ves_io_remesh_size(r->io, R, &rstep, NULL, NULL) == VES_OK &&
+         rstep <= si->state.nstep)
     R++, fstep = rstep;
   if (R > 0 && (st = restore_remesh(r, R - 1, R, si->reconnections)) != VES_OK) {
     fprintf(stderr, "%s: remeshing %d (step %ld) cannot be rebuilt: %s\n", pre, R - 1, fstep,

@@ -183,8 +183,7 @@ static int study_run(const ves_study *s, const study_args *o, const char *dir, c
 }
 
 /* --collect, or --emit slurm. Returns the exit code. */
-static int study_other(const ves_study *s, const study_args *o, const char *dir,
-                       const char *self) {
+static int study_other(const ves_study *s, const study_args *o, const char *dir, const char *self) {
   char err[1024] = "";
   struct stat sb;
   if (o->collect) {

@@ -303,8 +303,8 @@ static ves_status parse_ini(const char *text, size_t len, const char *name, ves_
         return VES_ERR_CONFIG;
       }
       if (sec_line[k - 1]) {
-        say(err, errlen, "%s: line %d: [%s]: duplicate section (first at line %d)", name, line,
-            sec, sec_line[k - 1]);
+        say(err, errlen, "%s: line %d: [%s]: duplicate section (first at line %d)", name, line, sec,
+            sec_line[k - 1]);
         return VES_ERR_CONFIG;
       }
       sec_line[k - 1] = line;
@@ -521,9 +521,10 @@ ves_status ves_config_validate(const ves_config *cfg, char *err, size_t errlen) 
   if (cfg->c0_ramp_start >= 0) {
     const char *why = cfg->c0_ramp_end <= cfg->c0_ramp_start ? "c0_ramp_end must come after it"
                       : cfg->c0_time >= 0                    ? "a ramp excludes c0_time"
-                      : cfg->c0_ramp_to == cfg->c0 ? "c0_ramp_to equals [material] c0: nothing to do"
-                      : cfg->c0_ramp_start >= cfg->t_end     ? "not before [time] t_end"
-                                                             : NULL;
+                      : cfg->c0_ramp_to == cfg->c0
+                          ? "c0_ramp_to equals [material] c0: nothing to do"
+                      : cfg->c0_ramp_start >= cfg->t_end ? "not before [time] t_end"
+                                                         : NULL;
     if (why) {
       say(err, errlen, "%s: [protocol] c0_ramp_start = %g: %s", src, cfg->c0_ramp_start, why);
       return VES_ERR_CONFIG;
@@ -662,8 +663,8 @@ static int segments_meet(const double *a, const double *b, const double *c, cons
  * the south pole, on the axis only at its ends, no point repeated, and
  * not crossing or touching itself (the polygon through the points; the
  * spline through them follows it). Names the lines of the points at fault. */
-static ves_status check_curve(const char *path, int n, const double *p, const int *lines,
-                              char *err, size_t errlen) {
+static ves_status check_curve(const char *path, int n, const double *p, const int *lines, char *err,
+                              size_t errlen) {
   if (p[1] <= p[2 * n - 1]) {
     say(err, errlen,
         "%s: the points run from Z = %g (line %d) to Z = %g (line %d): a curve goes from the "

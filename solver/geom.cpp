@@ -85,7 +85,7 @@ ves_status build_dt(int n, const double *x, DT &dt) {
   std::vector<std::pair<Point_2, int>> pts;
   pts.reserve((std::size_t)n);
   for (int i = 0; i < n; i++) pts.emplace_back(Point_2(x[2 * i], x[2 * i + 1]), i);
-  dt.insert(pts.begin(), pts.end()); /* spatially sorted insertion */
+  dt.insert(pts.begin(), pts.end());                          /* spatially sorted insertion */
   if ((int)dt.number_of_vertices() != n) return VES_ERR_GEOM; /* duplicates */
   return VES_OK;
 }
@@ -193,8 +193,8 @@ Lift_map lift_map(const Point_3 *p) {
 } // namespace
 
 struct ves_geom_search {
-  std::vector<double> x, r;       /* copies of the nodes and radii */
-  std::vector<Search_class> cls;  /* radius classes, each with its lifted kd-tree */
+  std::vector<double> x, r;      /* copies of the nodes and radii */
+  std::vector<Search_class> cls; /* radius classes, each with its lifted kd-tree */
 };
 
 namespace {
@@ -402,8 +402,10 @@ std::vector<double> place_1d(const Sizing &h, double RA, double ZA, double RB, d
   double lo = 0.25, hi = 4.0; /* F(lo) > M > F(hi) for any reasonable grading */
   for (int it = 0; it < 60; it++) {
     double c = 0.5 * (lo + hi);
-    if (steps(c, nullptr) > M) lo = c;
-    else hi = c;
+    if (steps(c, nullptr) > M)
+      lo = c;
+    else
+      hi = c;
   }
   std::vector<double> t;
   double c = 0.5 * (lo + hi);
@@ -425,8 +427,8 @@ struct Builder {
                                        R of the row's last lattice node */
   ves_region_fn reserved;           /* region left to the caller's nodes (may be NULL) */
   void *reserved_ctx;
-  std::vector<double> x;            /* 2n positions */
-  std::vector<int> flag;            /* n flags */
+  std::vector<double> x; /* 2n positions */
+  std::vector<int> flag; /* n flags */
 
   void add(double R, double Z, int f) {
     x.push_back(R), x.push_back(Z);
@@ -542,7 +544,8 @@ void quadtree(const Builder &b, double R0, double Z0, double dR, double dZ, int 
   if (c > 0.0) leaves.push_back(Cell{R0, Z0, dR, dZ, c});
 }
 
-/* Initial free nodes: systematic sampling of the leaves, N ~ int 2/(sqrt3 h^2) over the free region. */
+/* Initial free nodes: systematic sampling of the leaves, N ~ int 2/(sqrt3 h^2) over the free
+ * region. */
 void sample_free(Builder &b, Rng &rng) {
   std::vector<Cell> leaves;
   double visits = 0.0;
@@ -587,7 +590,8 @@ void lloyd(Builder &b, int nfixed, int iters) {
   std::vector<DT::Vertex_handle> vh((std::size_t)n);
   std::vector<double> poly, tmp;
   /* degree-2 rule on a triangle: barycentres (2/3, 1/6, 1/6) and permutations, weights 1/3 */
-  const double bw[3][3] = {{2. / 3, 1. / 6, 1. / 6}, {1. / 6, 2. / 3, 1. / 6}, {1. / 6, 1. / 6, 2. / 3}};
+  const double bw[3][3] = {
+      {2. / 3, 1. / 6, 1. / 6}, {1. / 6, 2. / 3, 1. / 6}, {1. / 6, 1. / 6, 2. / 3}};
   for (int it = 0; it < iters; it++) {
     DT dt;
     if (build_dt(n, b.x.data(), dt) != VES_OK) throw Geom_error(); /* two nodes collapsed */
@@ -599,7 +603,10 @@ void lloyd(Builder &b, int nfixed, int iters) {
       poly.clear();
       bool ok = true;
       do {
-        if (dt.is_infinite(fc)) { ok = false; break; }
+        if (dt.is_infinite(fc)) {
+          ok = false;
+          break;
+        }
         Point_2 c = dt.circumcenter(fc);
         poly.push_back(c.x()), poly.push_back(c.y());
       } while (++fc != done);
@@ -675,8 +682,8 @@ extern "C" ves_status ves_nodes_generate(const ves_nodes_params *par, ves_nodes 
   }
   ves_nodes *nd = nullptr;
   try {
-    Builder b{par->LR, par->LZ, Sizing{par->h, par->h_ctx}, {}, {}, {}, par->reserved,
-              par->reserved_ctx, {}, {}};
+    Builder b{par->LR, par->LZ,       Sizing{par->h, par->h_ctx}, {}, {},
+              {},      par->reserved, par->reserved_ctx,          {}, {}};
     Rng rng{(std::uint64_t)par->seed * 0x2545F4914F6CDD1Dull + 0x1234567ull};
     make_walls(b);
     make_strip(b, par->axis_spacings);

@@ -22,10 +22,10 @@ typedef enum { COL_LONG, COL_INT, COL_DOUBLE } col_type;
 
 /* How a column of the --series text shows its field (ves_io_tsv_row). */
 typedef enum {
-  TSV_NONE,     /* not in the text */
-  TSV_VALUE,    /* the field */
-  TSV_OF_A0,    /* field / A0 - 1 (the area's drift) */
-  TSV_OF_VT,    /* field / V_target - 1 (the volume's drift) */
+  TSV_NONE,  /* not in the text */
+  TSV_VALUE, /* the field */
+  TSV_OF_A0, /* field / A0 - 1 (the area's drift) */
+  TSV_OF_VT, /* field / V_target - 1 (the volume's drift) */
 } tsv_kind;
 
 /* The per-step row, one table of columns for the file's series (create,
@@ -45,10 +45,11 @@ typedef struct {
 #define ROW(f) offsetof(ves_io_row, f)
 /* "step" comes last in the file: a row is complete once its step is written
  * (rows i holds step i + 1; ves_io_rows checks it). */
-#define STATUS_DOC_ \
-  "ves_status of the accepted solve: " VES_STATUS_LIST(STATUS_DOC_ITEM_)
+#define STATUS_DOC_ "ves_status of the accepted solve: " VES_STATUS_LIST(STATUS_DOC_ITEM_)
 #define STATUS_DOC_ITEM_(name, value, msg) #value " " msg "; "
 #define V_ TSV_VALUE
+/* one column a line, a table to read across (clang-format would break the lines) */
+// clang-format off
 static const series_spec SERIES[] = {
     {"t", COL_DOUBLE, ROW(t), "t*", "time at the end of the step, t* = t k/(mu R0^3)", 2, V_, "t", "%.9g"},
     {"dt", COL_DOUBLE, ROW(dt), "t*", "accepted time step", 3, V_, "dt", "%.6g"},
@@ -74,21 +75,22 @@ static const series_spec SERIES[] = {
     {"rejected_iterations", COL_INT, ROW(rejected_iterations), "1", "iterations of the attempts rejected before the accepted one", 16, V_, "rejected_iterations", "%d"},
     {"rejected_seconds", COL_DOUBLE, ROW(rejected_seconds), "s", "wall time of those attempts", 17, V_, "rejected_seconds", "%.3f"},
 };
+// clang-format on
 #undef V_
 #define NTSV_ONLY 2
 #define NCOLS ((int)(sizeof SERIES / sizeof SERIES[0]))
 #define NSERIES (NCOLS - NTSV_ONLY) /* columns in the file */
 
 struct ves_io {
-  hid_t file;            /* the HDF5 file */
-  int writable;          /* opened for writing */
-  char path[PATH_MAX];   /* the HDF5 file */
-  char xdmf[PATH_MAX];   /* the XDMF file beside it */
-  hid_t series[NSERIES]; /* open series datasets */
-  ves_io_info info;      /* header */
-  int nsnap;             /* complete snapshots */
-  double *snap_t;        /* nsnap times (for the XDMF file) */
-  int snap_cap;          /* capacity of snap_t */
+  hid_t file;               /* the HDF5 file */
+  int writable;             /* opened for writing */
+  char path[PATH_MAX];      /* the HDF5 file */
+  char xdmf[PATH_MAX];      /* the XDMF file beside it */
+  hid_t series[NSERIES];    /* open series datasets */
+  ves_io_info info;         /* header */
+  int nsnap;                /* complete snapshots */
+  double *snap_t;           /* nsnap times (for the XDMF file) */
+  int snap_cap;             /* capacity of snap_t */
   char error[2 * PATH_MAX]; /* the cause of the last failed write ("" none) */
   uint64_t series_sum;      /* checksum of the first summed_rows series rows */
   long summed_rows;         /* rows in series_sum */
@@ -145,7 +147,9 @@ static ves_status io_failed(ves_io *io, ves_status st, int errnum) {
   char reason[128] = "";
   H5Ewalk2(H5E_DEFAULT, H5E_WALK_UPWARD, sys_reason, reason);
   snprintf(io->error, sizeof io->error, "%s",
-           reason[0] ? reason : errnum ? strerror(errnum) : ves_status_str(st));
+           reason[0] ? reason
+           : errnum  ? strerror(errnum)
+                     : ves_status_str(st));
   return st;
 }
 
@@ -688,8 +692,7 @@ static ves_status write_header(ves_io *io, const ves_io_header *h) {
   if (st == VES_OK)
     st = dset_write(g, "vertices", H5T_STD_I32LE, H5T_NATIVE_INT, (hsize_t)h->n, 0, v);
   if (st == VES_OK) st = describe(g, "R0", "the reference configuration the run started from");
-  if (st == VES_OK)
-    st = describe_at(g, "X", "R0", "n x 2 reference node positions (R, Z)");
+  if (st == VES_OK) st = describe_at(g, "X", "R0", "n x 2 reference node positions (R, Z)");
   if (st == VES_OK)
     st = describe_at(g, "triangles", "1",
                      "ntri x 3 node indices of the reference Delaunay triangles (fixed "
@@ -1054,17 +1057,26 @@ ves_status ves_io_read_series(ves_io *io, const char *name, double *out) {
 
 /* The summary's columns, read by name (ves_io_summarize). */
 enum { S_T, S_DT, S_E, S_A, S_V, S_VT, S_ITER, S_HEV, S_RETRIES, S_RECONN, S_WALL, S_C0, NSUM };
-static const char *const SUM_COLS[NSUM] = {"t",          "dt",      "E",       "A",
-                                           "V",          "V_target", "iterations", "h_evals",
-                                           "retries",    "reconnections", "wall_seconds", "c0"};
+static const char *const SUM_COLS[NSUM] = {"t",
+                                           "dt",
+                                           "E",
+                                           "A",
+                                           "V",
+                                           "V_target",
+                                           "iterations",
+                                           "h_evals",
+                                           "retries",
+                                           "reconnections",
+                                           "wall_seconds",
+                                           "c0"};
 
 /* The statistics of the rows col[NSUM][R] into s (E0, A0, V0 the header's,
  * c0 the problem's initial C0). */
 static void summarize(const ves_io_info *in, double c0, long R, double *const *col,
                       ves_io_summary *s) {
   const double *E = col[S_E], *A = col[S_A], *V = col[S_V], *Vt = col[S_VT], *C = col[S_C0];
-  *s = (ves_io_summary){.steps = R, .energy_monotone = 1, .E_final = in->E0, .A_final = in->A0,
-                        .V_final = in->V0};
+  *s = (ves_io_summary){
+      .steps = R, .energy_monotone = 1, .E_final = in->E0, .A_final = in->A0, .V_final = in->V0};
   for (long i = 0; i < R; i++) {
     /* compared only across steps on the same landscape: a C0 switch or a
      * moving volume target may raise E (the integrator's own rule) */
@@ -1190,7 +1202,8 @@ static ves_status snapshot(ves_io *io, const double *y, const double *x, const d
   if (st == VES_OK)
     st = describe(g, "t, dt in t*; E in k; A in R0^2; V in R0^3; c0 in 1/R0",
                   "one state: what a restart continues from; attributes the integrator state");
-  if (st == VES_OK) st = describe_at(g, "y", "R0", "n x 2 nodal coefficients y^a (r, z) of the motion");
+  if (st == VES_OK)
+    st = describe_at(g, "y", "R0", "n x 2 nodal coefficients y^a (r, z) of the motion");
   if (st == VES_OK)
     st = describe_at(g, "x", "R0", "n x 2 positions y(X_a) of the material at the nodes");
   if (st == VES_OK) st = describe_at(g, "phi", "1", "phase field phi of that material (-1..1)");
@@ -1318,7 +1331,8 @@ static ves_status write_reference(ves_io *io, const ves_io_reference *ref) {
   if (st == VES_OK)
     st = describe(s, "per member", "reference configurations, one per reset (groups 0..count-1)");
   if (st == VES_OK)
-    st = describe(g, "R0", "the reference made after accepted step `step`: what a restart rebuilds");
+    st =
+        describe(g, "R0", "the reference made after accepted step `step`: what a restart rebuilds");
   if (st == VES_OK) st = describe_at(g, "x", "R0", "n x 2 node positions (R, Z)");
   if (st == VES_OK) st = describe_at(g, "h", "R0", "n node spacings h_a");
   if (st == VES_OK) st = describe_at(g, "points", "R0", "nq x 2 quadrature points (R, Z)");
@@ -1405,7 +1419,6 @@ ves_status ves_io_set_setup_seconds(ves_io *io, double seconds) {
   io->info.setup_seconds = seconds;
   return VES_OK;
 }
-
 
 /* ---- room for the next writes ------------------------------------------- */
 
@@ -1599,18 +1612,30 @@ static ves_status write_remesh(ves_io *io, const ves_io_remesh *rm) {
   const struct {
     const char *name;
     double v;
-  } a[] = {{"n_old", in->n_old},         {"n_new", in->n_new},
-           {"nq_old", in->nq_old},       {"nq_new", in->nq_new},
-           {"E_old", in->E_old},         {"A_old", in->A_old},
-           {"V_old", in->V_old},         {"E_proj", in->E_proj},
-           {"A_proj", in->A_proj},       {"V_proj", in->V_proj},
-           {"E", in->E},                 {"A", in->A},
-           {"V", in->V},                 {"dE", in->dE},
-           {"dA", in->dA},               {"dV", in->dV},
-           {"corr_max", in->corr_max},   {"corr_norm", in->corr_norm},
-           {"corr_iter", in->corr_iter}, {"res_A", in->res_A},
-           {"res_V", in->res_V},         {"disp_max", in->disp_max},
-           {"disp_mean", in->disp_mean}, {"seconds", in->seconds}};
+  } a[] = {{"n_old", in->n_old},
+           {"n_new", in->n_new},
+           {"nq_old", in->nq_old},
+           {"nq_new", in->nq_new},
+           {"E_old", in->E_old},
+           {"A_old", in->A_old},
+           {"V_old", in->V_old},
+           {"E_proj", in->E_proj},
+           {"A_proj", in->A_proj},
+           {"V_proj", in->V_proj},
+           {"E", in->E},
+           {"A", in->A},
+           {"V", in->V},
+           {"dE", in->dE},
+           {"dA", in->dA},
+           {"dV", in->dV},
+           {"corr_max", in->corr_max},
+           {"corr_norm", in->corr_norm},
+           {"corr_iter", in->corr_iter},
+           {"res_A", in->res_A},
+           {"res_V", in->res_V},
+           {"disp_max", in->disp_max},
+           {"disp_mean", in->disp_mean},
+           {"seconds", in->seconds}};
   for (size_t i = 0; i < sizeof a / sizeof a[0] && st == VES_OK; i++)
     st = attr_double(g, a[i].name, a[i].v);
   if (st == VES_OK)
@@ -1627,7 +1652,8 @@ static ves_status write_remesh(ves_io *io, const ves_io_remesh *rm) {
                   "(the interface's displacement, R0), seconds (wall)");
   if (st == VES_OK) st = describe_at(g, "x", "R0", "n x 2 node positions (R, Z)");
   if (st == VES_OK) st = describe_at(g, "h", "R0", "n node spacings h_a");
-  if (st == VES_OK) st = describe_at(g, "flag", "1", "n node flags (1 axis, 2 wall, 4 lattice, 8 band)");
+  if (st == VES_OK)
+    st = describe_at(g, "flag", "1", "n node flags (1 axis, 2 wall, 4 lattice, 8 band)");
   if (st == VES_OK) st = describe_at(g, "phi0c", "1", "n nodal coefficients of the projected phi0");
   if (st == VES_OK)
     st = describe_at(g, "triangles", "1", "ntri x 3 Delaunay triangles of the new nodes");

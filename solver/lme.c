@@ -113,8 +113,7 @@ void ves_lme_params_default(ves_lme_params *par) {
 
 /* r_a = h sqrt(-ln(tol0) / gamma): where beta_a |X - X_a|^2 = -ln tol0. */
 double ves_lme_radius(const ves_lme_params *par, double h) {
-  if (!par || !(par->gamma > 0) || !(par->tol0 > 0 && par->tol0 < 1))
-    return NAN;
+  if (!par || !(par->gamma > 0) || !(par->tol0 > 0 && par->tol0 < 1)) return NAN;
   return h * sqrt(-log(par->tol0) / par->gamma);
 }
 
@@ -128,9 +127,8 @@ static double sym2_rcond(double a, double b, double c) {
 }
 
 /* log Z(lambda) with p_a, r = sum p_a d_a and J = sum p_a (d_a-r)(x)(d_a-r). */
-static double lme_dual(int m, const double *q, const double *d,
-                       const double lam[2], double *p, double r[2],
-                       xreal J[3]) {
+static double lme_dual(int m, const double *q, const double *d, const double lam[2], double *p,
+                       double r[2], xreal J[3]) {
   double fmax = -HUGE_VAL;
   for (int a = 0; a < m; a++) {
     p[a] = q[a] + lam[0] * d[2 * a] + lam[1] * d[2 * a + 1]; /* f_a */
@@ -160,10 +158,9 @@ static double lme_dual(int m, const double *q, const double *d,
 }
 
 /* Newton for lambda: argmin log Z, safeguarded (see the file header). */
-static ves_status lme_newton(const ves_lme_params *par, int m, const double *q,
-                             const double *d, double dmax, double tol,
-                             double lam[2], double *p, double r[2], xreal J[3],
-                             int *iters) {
+static ves_status lme_newton(const ves_lme_params *par, int m, const double *q, const double *d,
+                             double dmax, double tol, double lam[2], double *p, double r[2],
+                             xreal J[3], int *iters) {
   double lz = lme_dual(m, q, d, lam, p, r, J);
   double rn = hypot(r[0], r[1]);
   int it = 0;
@@ -187,7 +184,7 @@ static ves_status lme_newton(const ves_lme_params *par, int m, const double *q,
       s0 *= LME_STEP_CAP / sn;
       s1 *= LME_STEP_CAP / sn;
     }
-    double slope = r[0] * s0 + r[1] * s1; /* d log Z along s, < 0 */
+    double slope = r[0] * s0 + r[1] * s1;               /* d log Z along s, < 0 */
     double noise = 64 * DBL_EPSILON * (fabs(lz) + 1.0); /* rounding of log Z */
     double t = 1.0, lt[2], rt[2], lzt = lz;
     xreal Jt[3];
@@ -247,30 +244,26 @@ typedef struct {
  * in extended precision: kept between the two derivative passes in a stack
  * buffer of LME_KEEP nodes (the caller's work holds doubles only), recomputed
  * beyond it. */
-static void lme_node_eval(const lme_moments *mo, double p, const double d[2],
-                          double beta, lme_node *n) {
+static void lme_node_eval(const lme_moments *mo, double p, const double d[2], double beta,
+                          lme_node *n) {
   n->P = p * mo->ip;
   n->e[0] = d[0] - mo->c[0];
   n->e[1] = d[1] - mo->c[1];
   n->v[0] = mo->Ji[0] * n->e[0] + mo->Ji[1] * n->e[1];
   n->v[1] = mo->Ji[1] * n->e[0] + mo->Ji[2] * n->e[1];
-  n->M[0] =
-      2 * (xreal)beta * n->e[0] - (mo->B[0] * n->v[0] + mo->B[1] * n->v[1]);
-  n->M[1] =
-      2 * (xreal)beta * n->e[1] - (mo->B[1] * n->v[0] + mo->B[2] * n->v[1]);
+  n->M[0] = 2 * (xreal)beta * n->e[0] - (mo->B[0] * n->v[0] + mo->B[1] * n->v[1]);
+  n->M[1] = 2 * (xreal)beta * n->e[1] - (mo->B[1] * n->v[0] + mo->B[2] * n->v[1]);
   n->g[0] = mo->rb[0] - n->M[0];
   n->g[1] = mo->rb[1] - n->M[1];
 }
 
 /* p_a, grad p_a = p_a g_a and Hess p_a = p_a [g_a g_a^T + grad g_a] at X. */
-ves_status ves_lme_eval(const ves_lme_params *par, const double X[2], int m,
-                        const double *xa, const double *beta, double lambda[2],
-                        int nder, double *tab, double *work,
+ves_status ves_lme_eval(const ves_lme_params *par, const double X[2], int m, const double *xa,
+                        const double *beta, double lambda[2], int nder, double *tab, double *work,
                         ves_lme_info *info) {
   VES_CHECK(par && X && xa && beta && lambda && tab && work, VES_ERR_ARG);
   VES_CHECK(m >= 3 && nder >= 0 && nder <= 2, VES_ERR_ARG);
-  VES_CHECK(par->gamma > 0 && par->newton_tol > 0 && par->max_iter >= 1,
-            VES_ERR_ARG);
+  VES_CHECK(par->gamma > 0 && par->newton_tol > 0 && par->max_iter >= 1, VES_ERR_ARG);
   VES_CHECK(isfinite(X[0]) && isfinite(X[1]), VES_ERR_ARG);
   if (!(isfinite(lambda[0]) && isfinite(lambda[1])))
     lambda[0] = lambda[1] = 0.0; /* a useless guess is replaced by 0 */
@@ -309,8 +302,7 @@ ves_status ves_lme_eval(const ves_lme_params *par, const double X[2], int m,
   xreal Jx[3];
   int iters = 0;
   const int warm = lambda[0] != 0.0 || lambda[1] != 0.0;
-  ves_status st = lme_newton(par, m, q, d, dmax, par->newton_tol * hloc, lambda,
-                             p, r, Jx, &iters);
+  ves_status st = lme_newton(par, m, q, d, dmax, par->newton_tol * hloc, lambda, p, r, Jx, &iters);
   if (st == VES_ERR_NOCONV && warm) {
     /* a guess from another point can start far out (|lambda| dmax above
      * LME_LAMBDA_MAX at once: measured at a node set made by a reset,
@@ -346,8 +338,7 @@ ves_status ves_lme_eval(const ves_lme_params *par, const double X[2], int m,
   xreal ip = 1 / sp;
   c0 *= ip;
   c1 *= ip;
-  for (int a = 0; a < m; a++)
-    tab[a] = (double)(p[a] * ip); /* row 0: p_a */
+  for (int a = 0; a < m; a++) tab[a] = (double)(p[a] * ip); /* row 0: p_a */
   if (nder == 0) return VES_OK;
 
   lme_moments mo = {.ip = ip, .c = {c0, c1}};

@@ -65,8 +65,7 @@ typedef struct {
 static ves_status kin_eval(const double *q, kin *k) {
   const double a = q[VES_Q_FRR], b = q[VES_Q_FRZ], c = q[VES_Q_FZR], d = q[VES_Q_FZZ];
   const double J = a * d - b * c;
-  if (!(J > 0.0) || !(q[VES_Q_R] > 0.0))
-    return VES_ERR_DOMAIN;
+  if (!(J > 0.0) || !(q[VES_Q_R] > 0.0)) return VES_ERR_DOMAIN;
   const double iJ = 1.0 / J;
   k->r = q[VES_Q_R];
   k->J = J;
@@ -85,8 +84,7 @@ static ves_status kin_eval(const double *q, kin *k) {
 static void congruence(const double H[2][2], const double T[2][2], double Q[2][2]) {
   double TH[2][2]; /* TH_Ij = T_IJ H_Jj */
   for (int I = 0; I < 2; I++)
-    for (int j = 0; j < 2; j++)
-      TH[I][j] = T[I][0] * H[0][j] + T[I][1] * H[1][j];
+    for (int j = 0; j < 2; j++) TH[I][j] = T[I][0] * H[0][j] + T[I][1] * H[1][j];
   Q[0][0] = H[0][0] * TH[0][0] + H[1][0] * TH[1][0];
   Q[0][1] = H[0][0] * TH[0][1] + H[1][0] * TH[1][1];
   Q[1][1] = H[0][1] * TH[0][1] + H[1][1] * TH[1][1];
@@ -96,8 +94,7 @@ static void congruence(const double H[2][2], const double T[2][2], double Q[2][2
 /* dphi_T/dF_kK = -2 Q_ki H_Ki for phi_T = T:M, Q = H^T T H (4 entries). */
 static void dphi(const double H[2][2], const double Q[2][2], double out[4]) {
   for (int k = 0; k < 2; k++)
-    for (int K = 0; K < 2; K++)
-      out[2 * k + K] = -2.0 * (Q[k][0] * H[K][0] + Q[k][1] * H[K][1]);
+    for (int K = 0; K < 2; K++) out[2 * k + K] = -2.0 * (Q[k][0] * H[K][0] + Q[k][1] * H[K][1]);
 }
 
 /* Lap = S:M - g_n m_n + g_r / r (Eq. 4 + App. A); when dl != NULL its
@@ -122,14 +119,12 @@ static double lap_eval(const ves_model_point *pt, const kin *k, const double *G,
   const double ir = 1.0 / k->r;
   const double lap = S[0][0] * M[0][0] + 2.0 * S[0][1] * M[0][1] + S[1][1] * M[1][1] - g[0] * m[0] -
                      g[1] * m[1] + g[0] * ir;
-  if (!dl)
-    return lap;
+  if (!dl) return lap;
 
   /* First derivatives. */
   double T[2][2]; /* T = S - g_n G_n (g frozen) */
   for (int I = 0; I < 2; I++)
-    for (int J = 0; J < 2; J++)
-      T[I][J] = S[I][J] - g[0] * Gm[0][I][J] - g[1] * Gm[1][I][J];
+    for (int J = 0; J < 2; J++) T[I][J] = S[I][J] - g[0] * Gm[0][I][J] - g[1] * Gm[1][I][J];
   double QT[2][2], Qn[2][2][2];
   congruence(H, T, QT);
   congruence(H, Gm[0], Qn[0]);
@@ -150,20 +145,16 @@ static double lap_eval(const ves_model_point *pt, const kin *k, const double *G,
   static const int cJ[3] = {0, 0, 1}, cK[3] = {0, 1, 1};
   static const double mult[3] = {1.0, 2.0, 1.0};
   for (int n = 0; n < 2; n++)
-    for (int c = 0; c < 3; c++)
-      dl[5 + 3 * n + c] = -mult[c] * g[n] * M[cJ[c]][cK[c]];
-  if (!d2l)
-    return lap;
+    for (int c = 0; c < 3; c++) dl[5 + 3 * n + c] = -mult[c] * g[n] * M[cJ[c]][cK[c]];
+  if (!d2l) return lap;
 
   /* Second derivatives (upper triangle). */
   memset(d2l, 0, sizeof(double) * VES_NQ * VES_NQ);
   d2l[0] = 2.0 * g[0] * ir * ir * ir;
-  for (int a = 0; a < 4; a++)
-    d2l[1 + a] = -Dg[0][a] * ir * ir;
+  for (int a = 0; a < 4; a++) d2l[1 + a] = -Dg[0][a] * ir * ir;
   double HQ[2][2]; /* (H Q_T)_Kl */
   for (int K = 0; K < 2; K++)
-    for (int l = 0; l < 2; l++)
-      HQ[K][l] = H[K][0] * QT[0][l] + H[K][1] * QT[1][l];
+    for (int l = 0; l < 2; l++) HQ[K][l] = H[K][0] * QT[0][l] + H[K][1] * QT[1][l];
   for (int a = 0; a < 4; a++) {
     const int kk = a >> 1, K = a & 1;
     for (int b = a; b < 4; b++) {
@@ -202,33 +193,26 @@ static void times_jr(const kin *k, double f, const double *df, const double *d2f
   const double P = J * r;
   *e = f * P;
   if (grad) {
-    for (int i = 0; i < VES_NQ; i++)
-      grad[i] = df ? P * df[i] : 0.0;
-    for (int i = 0; i < 5; i++)
-      grad[i] += f * dP[i];
+    for (int i = 0; i < VES_NQ; i++) grad[i] = df ? P * df[i] : 0.0;
+    for (int i = 0; i < 5; i++) grad[i] += f * dP[i];
   }
-  if (!hess)
-    return;
+  if (!hess) return;
   for (int i = 0; i < VES_NQ; i++)
     for (int j = i; j < VES_NQ; j++) {
       double v = 0.0;
       if (df) {
         v = P * d2f[i * VES_NQ + j];
-        if (i < 5)
-          v += dP[i] * df[j];
-        if (j < 5)
-          v += df[i] * dP[j];
+        if (i < 5) v += dP[i] * df[j];
+        if (j < 5) v += df[i] * dP[j];
       }
       hess[i * VES_NQ + j] = v;
     }
   /* f d2P: d2P/dr dF = cof(F), d2P/dF_rR dF_zZ = r, d2P/dF_rZ dF_zR = -r */
-  for (int j = 1; j < 5; j++)
-    hess[j] += f * cof[j - 1];
+  for (int j = 1; j < 5; j++) hess[j] += f * cof[j - 1];
   hess[VES_Q_FRR * VES_NQ + VES_Q_FZZ] += f * r;
   hess[VES_Q_FRZ * VES_NQ + VES_Q_FZR] -= f * r;
   for (int i = 0; i < VES_NQ; i++)
-    for (int j = i + 1; j < VES_NQ; j++)
-      hess[j * VES_NQ + i] = hess[i * VES_NQ + j];
+    for (int j = i + 1; j < VES_NQ; j++) hess[j * VES_NQ + i] = hess[i * VES_NQ + j];
 }
 
 ves_status ves_model_local_energy_ex(const ves_model_local_par *par, const ves_model_point *pt,
@@ -242,18 +226,15 @@ ves_status ves_model_local_energy_ex(const ves_model_local_par *par, const ves_m
   const int need1 = grad || hess;
   const double L = lap_eval(pt, &k, q + 5, need1 ? dl : NULL, hess ? d2l : NULL);
   const double w = eps * L + C1; /* W */
-  if (W)
-    *W = w;
-  if (lap)
-    *lap = L;
+  if (W) *W = w;
+  if (lap) *lap = L;
   if (!need1) {
     times_jr(&k, w * w, NULL, NULL, e, NULL, NULL);
     return VES_OK;
   }
   double df[VES_NQ]; /* d(W^2) = 2 W eps dLap */
   const double s = 2.0 * w * eps;
-  for (int i = 0; i < VES_NQ; i++)
-    df[i] = s * dl[i];
+  for (int i = 0; i < VES_NQ; i++) df[i] = s * dl[i];
   if (hess) { /* d2(W^2) = 2 eps^2 dLap (x) dLap + 2 W eps d2Lap (upper) */
     const double s2 = 2.0 * eps * eps;
     for (int i = 0; i < VES_NQ; i++)
@@ -287,8 +268,7 @@ ves_status ves_model_local_area(const ves_model_local_par *par, const ves_model_
    * d2|g|^2/dF_kK dF_lL = 2 g_k g_l M_KL + 2 [g_k H_Kl (Hg)_L + g_l H_Lk (Hg)_K] */
   const double Hg[2] = {H[0][0] * g[0] + H[0][1] * g[1], H[1][0] * g[0] + H[1][1] * g[1]};
   double df[VES_NQ] = {0.0}, d2f[VES_NQ * VES_NQ];
-  for (int a = 0; a < 4; a++)
-    df[1 + a] = -eps * g[a >> 1] * Hg[a & 1];
+  for (int a = 0; a < 4; a++) df[1 + a] = -eps * g[a >> 1] * Hg[a & 1];
   if (hess) {
     double M[2][2];
     M[0][0] = H[0][0] * H[0][0] + H[0][1] * H[0][1];
@@ -333,8 +313,7 @@ ves_status ves_model_local_dissip(const ves_model_local_par *par, const double q
   const double b4[5] = {1.0 / k.r, 0.0, 0.0, 0.0, 0.0};           /* rdot / r */
   const double cs[5] = {0.0, H[0][1], H[1][1], H[0][0], H[1][0]}; /* L_rz + L_zr */
   double t[5];                                                    /* tr L + rdot/r */
-  for (int i = 0; i < 5; i++)
-    t[i] = b0[i] + b3[i] + b4[i];
+  for (int i = 0; i < 5; i++) t[i] = b0[i] + b3[i] + b4[i];
   const double rJ = k.r * k.J;
   const double m2 = 2.0 * par->mu * rJ, m1 = par->mu * rJ, la = par->lambda * rJ;
   for (int i = 0; i < 5; i++)

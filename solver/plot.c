@@ -126,8 +126,7 @@ static void fig_energy(FILE *f, const ves_plot_params *p, const ves_io_info *in,
   char title[256];
   char stem[96]; /* a long name is cut: it is a title */
   ves_plot_gp_escape(stem, sizeof stem, p->stem);
-  snprintf(title, sizeof title, "%s: %d nodes, %s backend, %ld steps", stem, in->n, in->backend,
-           R);
+  snprintf(title, sizeof title, "%s: %d nodes, %s backend, %ld steps", stem, in->n, in->backend, R);
   ves_plot_gp_quote(f, title);
   fprintf(f,
           "\nset logscale x\nset format x '10^{%%L}'\nset grid\nset key top right\n"
@@ -181,11 +180,10 @@ static ves_status fig_snapshots(FILE *f, ves_io *io, const ves_plot_params *p, c
   char title[256];
   char stem[96]; /* a long name is cut: it is a title */
   ves_plot_gp_escape(stem, sizeof stem, p->stem);
-  snprintf(title, sizeof title, "%s: %s coloured by {/Symbol f} (%d nodes, mirrored at r = 0)",
-           stem,
-           in->format_version >= 2 ? "material at the nodes, y(X_a, t),"
-                                   : "nodal coefficients y^a(t)",
-           n);
+  snprintf(
+      title, sizeof title, "%s: %s coloured by {/Symbol f} (%d nodes, mirrored at r = 0)", stem,
+      in->format_version >= 2 ? "material at the nodes, y(X_a, t)," : "nodal coefficients y^a(t)",
+      n);
   ves_plot_gp_quote(f, title);
   fprintf(f,
           "\nset size ratio -1\nset xrange [%g:%g]\nset yrange [%g:%g]\n"
@@ -220,7 +218,7 @@ ves_status ves_plot_interface(ves_io *io, ves_level_set *ls, unsigned char *ok) 
   memset(ok, 0, (size_t)S);
   if (in->format_version < 2 || S < 1) return VES_OK;
   int n = in->n, nt = in->ntri, cur = -2; /* cur: the node set in tri (-1 the initial mesh) */
-  for (int k = 0; k < S; k++) { /* room for the largest node set (remeshings) */
+  for (int k = 0; k < S; k++) {           /* room for the largest node set (remeshings) */
     int nk, tk;
     ves_io_snapshot_mesh(io, k, &nk, &tk);
     n = nk > n ? nk : n, nt = tk > nt ? tk : nt;
@@ -272,8 +270,8 @@ static void fig_constraints(FILE *f, const ves_plot_params *p, const ves_io_info
   char title[256];
   char stem[96]; /* a long name is cut: it is a title */
   ves_plot_gp_escape(stem, sizeof stem, p->stem);
-  snprintf(title, sizeof title, "%s: constraints (values below %g drawn at %g)", stem,
-           PLOT_FLOOR, PLOT_FLOOR);
+  snprintf(title, sizeof title, "%s: constraints (values below %g drawn at %g)", stem, PLOT_FLOOR,
+           PLOT_FLOOR);
   ves_plot_gp_quote(f, title);
   fprintf(f, "\nset logscale x\nset format x '10^{%%L}'\nset grid\nset lmargin 12\n"
              "set logscale y\nset format y '10^{%%L}'\nset ylabel 'relative drift'\n"

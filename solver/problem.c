@@ -36,6 +36,6 @@ void ves_problem_params_from_config(const ves_config *c, ves_problem_params *p) 
                                          .cond_max = c->remesh_cond_max,
                                          .det_min = c->remesh_det_min,
                                          .on_failed_reset = c->remesh_on_failed_reset};
-  p->resets = c->reconnect_every > 0 || c->reconnect_cond_max > 0 || c->reconnect_det_min > 0 ||
-              p->remesh;
+  p->resets =
+      c->reconnect_every > 0 || c->reconnect_cond_max > 0 || c->reconnect_det_min > 0 || p->remesh;
 }

@@ -354,8 +354,8 @@ static void tables_search(const ves_quad *q, const ves_geom_search *search, int 
  * order with the warm start of lambda passed along them and lambda = 0 at its
  * first point. Every table therefore depends on its own triangle only, and
  * the tables are bit for bit the same for any number of threads. */
-ves_status ves_quad_tables(ves_quad *q, const ves_nodes *nodes,
-                           const ves_lme_params *lme, ves_quad_info *info) {
+ves_status ves_quad_tables(ves_quad *q, const ves_nodes *nodes, const ves_lme_params *lme,
+                           ves_quad_info *info) {
   VES_CHECK(q && nodes && lme, VES_ERR_ARG);
   double t0 = ves_wall_seconds();
   tables_free(q);

@@ -170,8 +170,8 @@ static ves_status node_motion(const ves_nodes *nodes, const double *y, const ves
  * z_a), the same point set; see the header), h'_a measured on real and ghost
  * nodes together (as ves_nodes_generate does). The struct is allocated with
  * malloc like geom.cpp's, so ves_nodes_destroy frees it. */
-static ves_status new_nodes(const ves_nodes *old, const double *y, const double *h,
-                           ves_nodes **out, int *mirrored) {
+static ves_status new_nodes(const ves_nodes *old, const double *y, const double *h, ves_nodes **out,
+                            int *mirrored) {
   const int n = old->n;
   ves_status s = VES_ERR_ALLOC;
   double *xe = NULL, *he = NULL;

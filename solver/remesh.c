@@ -60,8 +60,8 @@ void ves_remesh_get_info(const ves_remesh *r, ves_remesh_info *info) { *info = r
 /* The material at the real nodes, xm[2n] = y(X_a), and phi there, phi[n]:
  * the field of phi0c, or (phi0c NULL) of the L2 fit of the model's point
  * values of phi0 onto its basis. */
-static ves_status node_state(const ves_model *m, const double *y, const double *phi0c,
-                             double *xm, double *phi) {
+static ves_status node_state(const ves_model *m, const double *y, const double *phi0c, double *xm,
+                             double *phi) {
   const ves_nodes *nd = ves_model_nodes(m);
   const ves_quad *q = ves_model_quad(m);
   const int n = nd->n;
@@ -135,7 +135,10 @@ static ves_status chain(int n, int ntri, const int *tri, const double *xm, const
     for (int j = 0; j < 3 && k < 2; j++) {
       int a = v[j], b = v[(j + 1) % 3];
       if ((phi[a] > 0) == (phi[b] > 0)) continue;
-      if (a > b) { int tmp = a; a = b, b = tmp; } /* canonical: both triangles agree */
+      if (a > b) {
+        int tmp = a;
+        a = b, b = tmp;
+      } /* canonical: both triangles agree */
       const double da = dist_of(phi[a]), db = dist_of(phi[b]), s = da / (da - db);
       sp[4 * nseg + 2 * k] = xm[2 * a] + s * (xm[2 * b] - xm[2 * a]);
       sp[4 * nseg + 2 * k + 1] = xm[2 * a + 1] + s * (xm[2 * b + 1] - xm[2 * a + 1]);
@@ -208,8 +211,8 @@ done:
   return st;
 }
 
-ves_status ves_remesh_interface(const ves_model *m, const double *y, const double *phi0c,
-                                int *npts, double **pts, int *pieces) {
+ves_status ves_remesh_interface(const ves_model *m, const double *y, const double *phi0c, int *npts,
+                                double **pts, int *pieces) {
   VES_CHECK(m && y && npts && pts, VES_ERR_ARG);
   const ves_nodes *nd = ves_model_nodes(m);
   const ves_quad *q = ves_model_quad(m);
@@ -397,8 +400,8 @@ ves_status ves_remesh_create(const ves_config *cfg, ves_model *m, const double *
   ves_remesh_info *in = &r->info;
   in->n_old = od->n, in->nq_old = oq->nq;
   if (cfg->box_r != od->LR || cfg->box_z != od->LZ)
-    FAIL(VES_ERR_ARG, "remesh: the box %g x %g is not the model's %g x %g", cfg->box_r,
-         cfg->box_z, od->LR, od->LZ);
+    FAIL(VES_ERR_ARG, "remesh: the box %g x %g is not the model's %g x %g", cfg->box_r, cfg->box_z,
+         od->LR, od->LZ);
   for (int i = 0; i < 2 * od->n; i++)
     if (!isfinite(y[i])) FAIL(VES_ERR_ARG, "remesh: a non-finite position");
   const double k = ves_model_get_k(m);

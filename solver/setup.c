@@ -44,18 +44,23 @@ ves_status ves_setup_nodes(const ves_config *cfg, const ves_shape *shape, ves_si
   double rmax, zmax, margin = (cfg->band + 1) * cfg->epsilon;
   ves_shape_extent(shape, &rmax, &zmax);
   if (rmax + margin >= cfg->box_r || zmax + margin >= cfg->box_z)
-    FAIL(VES_ERR_CONFIG,
-         "[geometry] box_r = %g, box_z = %g: the shape (R up to %.3f, |Z| up to %.3f) with its band "
-         "of (band + 1) eps = %.3f does not fit",
-         cfg->box_r, cfg->box_z, rmax, zmax, margin);
+    FAIL(
+        VES_ERR_CONFIG,
+        "[geometry] box_r = %g, box_z = %g: the shape (R up to %.3f, |Z| up to %.3f) with its band "
+        "of (band + 1) eps = %.3f does not fit",
+        cfg->box_r, cfg->box_z, rmax, zmax, margin);
 
   /* band layers: lattice layers up to band*eps; strip and CVT nodes keep half
    * a layer spacing beyond the last layer */
   double hb = cfg->h_band * cfg->epsilon, dl = 0.5 * sqrt(3.0) * hb;
   double halfwidth = cfg->band * cfg->epsilon;
   double reserve = cfg->band_layers ? (floor(halfwidth / dl + 1e-9) + 0.5) * dl + 0.25 * hb : 0.0;
-  ves_sizing_params zp = {.eps = cfg->epsilon, .h_band = hb, .band = cfg->band, .slope = cfg->slope,
-                          .h_far = cfg->h_far, .reserve = reserve};
+  ves_sizing_params zp = {.eps = cfg->epsilon,
+                          .h_band = hb,
+                          .band = cfg->band,
+                          .slope = cfg->slope,
+                          .h_far = cfg->h_far,
+                          .reserve = reserve};
   if ((st = ves_sizing_create(shape, &zp, cfg->box_r, cfg->box_z, sizing)) != VES_OK)
     FAIL(st, "sizing: %s", ves_status_str(st));
   ves_nodes_params np;
@@ -101,10 +106,14 @@ ves_status ves_setup_create(const ves_config *cfg, ves_phi0_method method, ves_s
 
   ves_shape_params sp;
   ves_shape_params_default(&sp);
-  if (!strcasecmp(cfg->shape_type, "sphere")) sp.kind = VES_SHAPE_SPHERE;
-  else if (!strcasecmp(cfg->shape_type, "spheroid")) sp.kind = VES_SHAPE_SPHEROID;
-  else if (!strcasecmp(cfg->shape_type, "curve")) sp.kind = VES_SHAPE_CURVE;
-  else sp.kind = VES_SHAPE_DISCOCYTE;
+  if (!strcasecmp(cfg->shape_type, "sphere"))
+    sp.kind = VES_SHAPE_SPHERE;
+  else if (!strcasecmp(cfg->shape_type, "spheroid"))
+    sp.kind = VES_SHAPE_SPHEROID;
+  else if (!strcasecmp(cfg->shape_type, "curve"))
+    sp.kind = VES_SHAPE_CURVE;
+  else
+    sp.kind = VES_SHAPE_DISCOCYTE;
   if (sp.kind == VES_SHAPE_CURVE) {
     if ((st = ves_config_read_points(cfg, &sp.npts, &cpts, err, errlen)) != VES_OK) goto fail;
     sp.pts = cpts;
@@ -148,13 +157,15 @@ ves_status ves_setup_create(const ves_config *cfg, ves_phi0_method method, ves_s
   s->phi0c = malloc((size_t)n * sizeof *s->phi0c);
   f = malloc((size_t)s->quad->nq * sizeof *f);
   if (!s->phi0c || !f) FAIL(VES_ERR_ALLOC, "out of memory");
-  /* phi0 at the nodes and points: independent evaluations of a read-only
-   * shape (each a search over the curve's samples), on the OpenMP threads */
+    /* phi0 at the nodes and points: independent evaluations of a read-only
+     * shape (each a search over the curve's samples), on the OpenMP threads */
 #pragma omp parallel for schedule(static)
-  for (int a = 0; a < n; a++) s->phi0c[a] = ves_shape_phi0(s->shape, cfg->epsilon, s->nodes->x + 2 * a);
+  for (int a = 0; a < n; a++)
+    s->phi0c[a] = ves_shape_phi0(s->shape, cfg->epsilon, s->nodes->x + 2 * a);
   if (method == VES_PHI0_L2) {
 #pragma omp parallel for schedule(static)
-    for (int p = 0; p < s->quad->nq; p++) f[p] = ves_shape_phi0(s->shape, cfg->epsilon, s->quad->x + 2 * p);
+    for (int p = 0; p < s->quad->nq; p++)
+      f[p] = ves_shape_phi0(s->shape, cfg->epsilon, s->quad->x + 2 * p);
     /* sparse Cholesky + at most 3 refinement steps (proj_refinements counts
      * them); 1e-12: the fit error then sits far below the discretization error */
     st = ves_sparse_project_l2(s->quad, n, f, s->phi0c, 1e-12, 3, &s->proj_refinements,

@@ -27,16 +27,16 @@
 #define EF_C4 (-4.39)
 
 struct ves_shape {
-  ves_shape_params par; /* as given */
-  double a, c;          /* spheroid semi-axes (equatorial, polar) */
-  double scale;         /* discocyte: factor to area 4 pi */
+  ves_shape_params par;                          /* as given */
+  double a, c;                                   /* spheroid semi-axes (equatorial, polar) */
+  double scale;                                  /* discocyte: factor to area 4 pi */
   double ts[VES_SHAPE_NS], ps[2 * VES_SHAPE_NS]; /* samples t_i, P(t_i) */
-  double ds_max;        /* largest distance between consecutive samples */
+  double ds_max;                                 /* largest distance between consecutive samples */
   /* curve: periodic cubic spline through the points and their mirror image */
-  int ns;               /* knots of the closed loop, 2 (npts - 1) */
-  double *u;            /* ns + 1 chord-length parameters, u[ns] = U */
-  double *kp;           /* 2 (ns + 1) knot coordinates (R, Z), last = first */
-  double *m2;           /* 2 ns second derivatives d2/du2 at the knots */
+  int ns;     /* knots of the closed loop, 2 (npts - 1) */
+  double *u;  /* ns + 1 chord-length parameters, u[ns] = U */
+  double *kp; /* 2 (ns + 1) knot coordinates (R, Z), last = first */
+  double *m2; /* 2 ns second derivatives d2/du2 at the knots */
 };
 
 void ves_shape_params_default(ves_shape_params *par) {
@@ -87,7 +87,10 @@ static void base_curve(const ves_shape *s, double t, double P[2], double D[2], d
     int lo = 0, hi = s->ns - 1;
     while (lo < hi) { /* last knot with u_k <= uu */
       int mid = (lo + hi + 1) / 2;
-      if (s->u[mid] <= uu) lo = mid; else hi = mid - 1;
+      if (s->u[mid] <= uu)
+        lo = mid;
+      else
+        hi = mid - 1;
     }
     int k = lo;
     double h = s->u[k + 1] - s->u[k], a = (s->u[k + 1] - uu) / h, b = 1 - a;
@@ -104,8 +107,9 @@ static void base_curve(const ves_shape *s, double t, double P[2], double D[2], d
   case VES_SHAPE_DISCOCYTE: {
     /* R = (D/2) sin t, Z = (1/2) cos t (C0 + C2 sin^2 t + C4 sin^4 t), scaled */
     double s2 = st * st, q = EF_C0 + EF_C2 * s2 + EF_C4 * s2 * s2;
-    double dq = (2 * EF_C2 + 4 * EF_C4 * s2) * st * ct;                   /* dq/dt */
-    double ddq = 2 * EF_C2 * (ct * ct - s2) + 4 * EF_C4 * (3 * s2 * ct * ct - s2 * s2); /* d2q/dt2 */
+    double dq = (2 * EF_C2 + 4 * EF_C4 * s2) * st * ct; /* dq/dt */
+    double ddq =
+        2 * EF_C2 * (ct * ct - s2) + 4 * EF_C4 * (3 * s2 * ct * ct - s2 * s2); /* d2q/dt2 */
     double k = s->scale;
     P[0] = k * 0.5 * EF_D * st, P[1] = k * 0.5 * ct * q;
     D[0] = k * 0.5 * EF_D * ct, D[1] = k * 0.5 * (-st * q + ct * dq);
@@ -287,7 +291,10 @@ ves_status ves_shape_create(const ves_shape_params *par, ves_shape **out) {
     double lo = par->prolate ? 1.0 : 1e-3, hi = par->prolate ? 1e3 : 1.0;
     for (int it = 0; it < 200; it++) {
       double mid = 0.5 * (lo + hi), vm = spheroid_v(mid);
-      if ((vm < par->v) == (par->prolate == 0)) lo = mid; else hi = mid;
+      if ((vm < par->v) == (par->prolate == 0))
+        lo = mid;
+      else
+        hi = mid;
     }
     double rho = 0.5 * (lo + hi);
     s->a = 1.0, s->c = rho;
@@ -361,17 +368,20 @@ void ves_shape_sharp(const ves_shape *s, double *area, double *volume) {
 
 /* Minimize g(t) = |P(t) - X|^2 / 2 on [lo, hi] from t; returns the distance
  * and the parameter in *tbest. */
-static double newton_closest(const ves_shape *s, const double X[2], double t, double lo,
-                             double hi, double *tbest) {
+static double newton_closest(const ves_shape *s, const double X[2], double t, double lo, double hi,
+                             double *tbest) {
   double P[2], D[2], DD[2];
   for (int it = 0; it < 60; it++) {
     curve(s, t, P, D, DD);
     double ex = P[0] - X[0], ez = P[1] - X[1];
-    double g1 = ex * D[0] + ez * D[1];                            /* g'(t) */
+    double g1 = ex * D[0] + ez * D[1];                               /* g'(t) */
     double g2 = D[0] * D[0] + D[1] * D[1] + ex * DD[0] + ez * DD[1]; /* g''(t) */
-    if (g1 > 0) hi = t; else lo = t;                              /* the minimum is bracketed */
+    if (g1 > 0)
+      hi = t;
+    else
+      lo = t; /* the minimum is bracketed */
     double tn = g2 > 0 ? t - g1 / g2 : 0.5 * (lo + hi);
-    if (!(tn > lo && tn < hi)) tn = 0.5 * (lo + hi);              /* safeguard: bisect */
+    if (!(tn > lo && tn < hi)) tn = 0.5 * (lo + hi); /* safeguard: bisect */
     if (fabs(tn - t) <= 1e-15 * (1 + fabs(t))) {
       t = tn;
       break;
@@ -417,8 +427,8 @@ double ves_shape_phi0(const ves_shape *s, double eps, const double X[2]) {
 
 #define VES_BAND_NS 16384 /* samples per layer for its arclength table */
 
-ves_status ves_shape_band_nodes(const ves_shape *s, double h, double halfwidth, int *n,
-                                double **x, int **flag) {
+ves_status ves_shape_band_nodes(const ves_shape *s, double h, double halfwidth, int *n, double **x,
+                                int **flag) {
   VES_CHECK(s && n && x && flag && h > 0 && halfwidth >= 0, VES_ERR_ARG);
   *n = 0, *x = NULL, *flag = NULL;
   const double dl = 0.5 * sqrt(3.0) * h; /* layer spacing of a hex lattice */
@@ -501,8 +511,8 @@ struct ves_sizing {
   double *ad;       /* nr * nz values of |d| */
 };
 
-ves_status ves_sizing_create(const ves_shape *s, const ves_sizing_params *par, double LR,
-                             double LZ, ves_sizing **out) {
+ves_status ves_sizing_create(const ves_shape *s, const ves_sizing_params *par, double LR, double LZ,
+                             ves_sizing **out) {
   VES_CHECK(s && par && out && LR > 0 && LZ > 0, VES_ERR_ARG);
   VES_CHECK(par->eps > 0 && par->h_band > 0 && par->band >= 0 && par->slope > 0 &&
                 par->h_far >= par->h_band && par->reserve >= 0,

@@ -7,8 +7,8 @@
 
 const char *ves_status_str(ves_status s) {
   switch (s) {
-#define VES_STATUS_CASE_(name, value, msg)                                     \
-  case name:                                                                   \
+#define VES_STATUS_CASE_(name, value, msg)                                                         \
+  case name:                                                                                       \
     return msg;
     VES_STATUS_LIST(VES_STATUS_CASE_)
 #undef VES_STATUS_CASE_

@@ -212,7 +212,7 @@ static long cell_max_steps(const ves_study *s) {
 }
 
 ves_status ves_study_cell_signature(const ves_study *s, long k, char *buf, size_t len) {
-  char (*sets)[VES_STUDY_SETLEN] = malloc(VES_STUDY_CELL_SETS * sizeof *sets);
+  char(*sets)[VES_STUDY_SETLEN] = malloc(VES_STUDY_CELL_SETS * sizeof *sets);
   if (!sets) return VES_ERR_ALLOC;
   int n = 0;
   ves_status st = ves_study_cell_sets(s, k, sets, &n, NULL, 0);
@@ -228,8 +228,8 @@ ves_status ves_study_cell_signature(const ves_study *s, long k, char *buf, size_
   return st;
 }
 
-void ves_study_cell_path(const ves_study *s, long k, const char *dir, const char *suffix,
-                         char *buf, size_t len) {
+void ves_study_cell_path(const ves_study *s, long k, const char *dir, const char *suffix, char *buf,
+                         size_t len) {
   char name[PATH_MAX / 2];
   ves_study_cell_name(s, k, name, sizeof name);
   snprintf(buf, len, "%s/cells/%s%s", dir, name, suffix);
@@ -239,7 +239,7 @@ ves_status ves_study_cell_argv(const ves_study *s, long k, const char *program, 
                                int *argc, char ***argv, char *err, size_t errlen) {
   VES_CHECK(s && program && dir && argc && argv, VES_ERR_ARG);
   *argv = NULL, *argc = 0;
-  char (*sets)[VES_STUDY_SETLEN] = malloc(VES_STUDY_CELL_SETS * sizeof *sets);
+  char(*sets)[VES_STUDY_SETLEN] = malloc(VES_STUDY_CELL_SETS * sizeof *sets);
   if (!sets) return VES_ERR_ALLOC;
   int n = 0;
   ves_status st = ves_study_cell_sets(s, k, sets, &n, err, errlen);
@@ -295,7 +295,7 @@ static int cmp_names(const void *a, const void *b) {
 
 /* Every cell's problem loads, and the names are distinct. */
 static ves_status check_cells(const ves_study *s, char *err, size_t errlen) {
-  char (*sets)[VES_STUDY_SETLEN] = malloc(VES_STUDY_CELL_SETS * sizeof *sets);
+  char(*sets)[VES_STUDY_SETLEN] = malloc(VES_STUDY_CELL_SETS * sizeof *sets);
   char **names = calloc((size_t)s->ncells, sizeof *names);
   ves_status st = sets && names ? VES_OK : VES_ERR_ALLOC;
   for (long k = 0; k < s->ncells && st == VES_OK; k++) {
@@ -303,8 +303,10 @@ static ves_status check_cells(const ves_study *s, char *err, size_t errlen) {
     int n = 0;
     ves_study_cell_name(s, k, name, sizeof name);
     if (strlen(name) > STUDY_NAME_MAX) { /* + ".result" within a file name's 255 */
-      say(err, errlen, "%s: [axes] cell %.40s...: a name of %zu characters, more than %d "
-          "(shorter values or fewer axes)", s->path, name, strlen(name), STUDY_NAME_MAX);
+      say(err, errlen,
+          "%s: [axes] cell %.40s...: a name of %zu characters, more than %d "
+          "(shorter values or fewer axes)",
+          s->path, name, strlen(name), STUDY_NAME_MAX);
       st = VES_ERR_CONFIG;
       break;
     }
@@ -387,8 +389,8 @@ static ves_status read_study(dictionary *d, ves_study *s, char *err, size_t errl
       double num;
       if (!strcasecmp(sec, "study")) {
         if (!in_list(key, STUDY_KEYS, 4)) {
-          say(err, errlen, "%s: [study] %s: unknown key (problem, run, steps, time_limit)",
-              s->path, key);
+          say(err, errlen, "%s: [study] %s: unknown key (problem, run, steps, time_limit)", s->path,
+              key);
           st = VES_ERR_CONFIG;
         } else if (!strcasecmp(key, "problem")) {
           if (!*val || strlen(val) >= sizeof problem) {
@@ -404,8 +406,7 @@ static ves_status read_study(dictionary *d, ves_study *s, char *err, size_t errl
           else if (!strcasecmp(val, "t_end"))
             s->mode = VES_STUDY_T_END;
           else {
-            say(err, errlen, "%s: [study] run = '%s': not one of step, steps, t_end", s->path,
-                val);
+            say(err, errlen, "%s: [study] run = '%s': not one of step, steps, t_end", s->path, val);
             st = VES_ERR_CONFIG;
           }
         } else if (!strcasecmp(key, "steps")) {
@@ -432,8 +433,9 @@ static ves_status read_study(dictionary *d, ves_study *s, char *err, size_t errl
           for (const char *c = val; *c && !bad; c++) /* goes into a shell script */
             bad = !(isalnum((unsigned char)*c) || strchr("._-,", *c));
           if (bad) {
-            say(err, errlen, "%s: [slurm] %s = '%s': only letters, digits and . _ - , (at most %zu)",
-                s->path, key, val, cap - 1);
+            say(err, errlen,
+                "%s: [slurm] %s = '%s': only letters, digits and . _ - , (at most %zu)", s->path,
+                key, val, cap - 1);
             st = VES_ERR_CONFIG;
           } else
             snprintf(dst, cap, "%s", val);
@@ -442,8 +444,7 @@ static ves_status read_study(dictionary *d, ves_study *s, char *err, size_t errl
         char canon[64];
         const int axes = !strcasecmp(sec, "axes");
         if (canonical_key(key, canon, sizeof canon)) {
-          say(err, errlen, "%s: [%s] %s: unknown problem key (see vesica keys)", s->path, sec,
-              key);
+          say(err, errlen, "%s: [%s] %s: unknown problem key (see vesica keys)", s->path, sec, key);
           st = VES_ERR_CONFIG;
         } else if (axes) {
           if (s->naxes == VES_STUDY_MAX_AXES) {
@@ -481,8 +482,8 @@ static ves_status read_study(dictionary *d, ves_study *s, char *err, size_t errl
     snprintf(s->problem, sizeof s->problem, "%s", problem);
   } else {
     const char *slash = strrchr(s->path, '/');
-    snprintf(s->problem, sizeof s->problem, "%.*s%s%s", slash ? (int)(slash - s->path) : 0,
-             s->path, slash ? "/" : "", problem);
+    snprintf(s->problem, sizeof s->problem, "%.*s%s%s", slash ? (int)(slash - s->path) : 0, s->path,
+             slash ? "/" : "", problem);
   }
   char abs[PATH_MAX];
   if (!realpath(s->problem, abs)) {
@@ -589,8 +590,8 @@ void ves_study_print_keys(FILE *f) {
   };
   fprintf(f, "| section | key | type | default | allowed | meaning |\n|---|---|---|---|---|---|\n");
   for (size_t i = 0; i < sizeof rows / sizeof rows[0]; i++)
-    fprintf(f, "| %s | %s | %s | %s | %s | %s |\n", rows[i][0], rows[i][1], rows[i][2],
-            rows[i][3], rows[i][4], rows[i][5]);
+    fprintf(f, "| %s | %s | %s | %s | %s | %s |\n", rows[i][0], rows[i][1], rows[i][2], rows[i][3],
+            rows[i][4], rows[i][5]);
 }
 
 void ves_study_destroy(ves_study **s) {
@@ -707,8 +708,7 @@ void ves_study_classify(int exit_code, int sig, int timed_out, double time_limit
     snprintf(r->reason, sizeof r->reason, "%.200s", why);
   } else {
     snprintf(r->outcome, sizeof r->outcome, "crashed");
-    snprintf(r->reason, sizeof r->reason, "exit code %d%s%.200s", exit_code, *why ? ": " : "",
-             why);
+    snprintf(r->reason, sizeof r->reason, "exit code %d%s%.200s", exit_code, *why ? ": " : "", why);
   }
 }
 
@@ -719,7 +719,7 @@ typedef struct {
   ves_study_result res; /* how the process ended */
   char status[16];      /* res.outcome, or energy_rose / no_output */
   char reason[320];
-  int have;             /* the .h5 was read */
+  int have; /* the .h5 was read */
   long steps;
   int nodes;
   double t_final, dt_first, iterations, f_evals, g_evals, h_evals, retries, violation;
@@ -742,8 +742,9 @@ static int read_row(const ves_study *s, long k, const char *dir, cell_row *row) 
   if (access(path, R_OK) == 0 && ves_io_open(path, 0, &io, err, sizeof err) == VES_OK) {
     const ves_io_info *in = ves_io_get_info(io);
     const long R = ves_io_rows(io);
-    const char *names[] = {"t", "dt", "E", "A", "V", "V_target", "iterations", "f_evals",
-                           "g_evals", "h_evals", "retries", "violation", "wall_seconds"};
+    const char *names[] = {"t",        "dt",         "E",           "A",       "V",
+                           "V_target", "iterations", "f_evals",     "g_evals", "h_evals",
+                           "retries",  "violation",  "wall_seconds"};
     enum { NC = sizeof names / sizeof names[0] };
     double *col[NC] = {0};
     int ok = 1;
@@ -770,8 +771,7 @@ static int read_row(const ves_study *s, long k, const char *dir, cell_row *row) 
   if (!strcmp(row->status, "converged")) {
     if (!row->have || (s->mode != VES_STUDY_T_END && row->steps == 0)) {
       snprintf(row->status, sizeof row->status, "no_output");
-      snprintf(row->reason, sizeof row->reason, "exit 0 but no step in a readable %.200s",
-               path);
+      snprintf(row->reason, sizeof row->reason, "exit 0 but no step in a readable %.200s", path);
     } else if (s->mode == VES_STUDY_STEP && row->E1 > row->E0 + STUDY_RISE_TOL * fabs(row->E0)) {
       /* explicit Euler is not checked by the integrator: a step that
        * raises E* is its instability, not a solution */
@@ -897,7 +897,7 @@ ves_status ves_study_plot(const ves_study *s, const char *dir, char *err, size_t
     return VES_ERR_IO;
   }
   double *front = malloc((size_t)G * sizeof *front);
-  char (*label)[256] = malloc((size_t)G * sizeof *label);
+  char(*label)[256] = malloc((size_t)G * sizeof *label);
   if (!front || !label) {
     fclose(f), unlink(script), free(front), free(label);
     return VES_ERR_ALLOC;
@@ -928,8 +928,7 @@ ves_status ves_study_plot(const ves_study *s, const char *dir, char *err, size_t
     const double dt = strtod(s->axis[ad].values[idx[ad]], NULL);
     const int conv = !strcmp(r.status, "converged");
     if (conv && !(front[g] >= dt)) front[g] = dt;
-    fprintf(f, "%ld %.9g %d %.6g\n", g, dt, conv,
-            conv && r.steps ? r.loop / (double)r.steps : NAN);
+    fprintf(f, "%ld %.9g %d %.6g\n", g, dt, conv, conv && r.steps ? r.loop / (double)r.steps : NAN);
   }
   fprintf(f, "NaN NaN NaN NaN\nEOD\n$front << EOD\n");
   for (long g = 0; g < G; g++) fprintf(f, "%ld %.9g\n", g, front[g]);
@@ -937,8 +936,9 @@ ves_status ves_study_plot(const ves_study *s, const char *dir, char *err, size_t
   char title[PATH_MAX + 64], path[PATH_MAX];
   const char *base = strrchr(s->path, '/') ? strrchr(s->path, '/') + 1 : s->path;
   ves_plot_gp_escape(title, sizeof title, base);
-  fprintf(f, "set terminal pngcairo size 900,%ld font ',10'\nset logscale x\nset format x '10^{%%L}'\n",
-          480 + 24 * (G > 8 ? G - 8 : 0));
+  fprintf(
+      f, "set terminal pngcairo size 900,%ld font ',10'\nset logscale x\nset format x '10^{%%L}'\n",
+      480 + 24 * (G > 8 ? G - 8 : 0));
   fprintf(f, "set grid\nset key outside right top\nset offsets graph 0.04, graph 0.04\n");
   snprintf(path, sizeof path, "%s/study_frontier.png", dir);
   fputs("set output ", f), ves_plot_gp_quote(f, path), fputc('\n', f);
@@ -954,8 +954,9 @@ ves_status ves_study_plot(const ves_study *s, const char *dir, char *err, size_t
              "t 'not converged', \\\n  $front u 2:1 w p pt 6 ps 3 lc rgb 'black' t 'largest'\n");
   snprintf(path, sizeof path, "%s/study_cost.png", dir);
   fputs("set output ", f), ves_plot_gp_quote(f, path), fputc('\n', f);
-  fprintf(f, "set title 'cost: %s (converged cells)'\nset ytics auto\nset autoscale y\n"
-             "set logscale y\nset ylabel 'seconds per step'\nplot ",
+  fprintf(f,
+          "set title 'cost: %s (converged cells)'\nset ytics auto\nset autoscale y\n"
+          "set logscale y\nset ylabel 'seconds per step'\nplot ",
           title);
   for (long g = 0; g < G; g++) {
     fprintf(f, "%s$d u ($1 == %ld ? $2 : NaN):4 w lp pt 7 t ", g ? ", \\\n  " : "", g);
@@ -1031,7 +1032,8 @@ ves_status ves_study_write_sbatch(const ves_study *s, const char *program, const
   for (char *c = job; *c; c++)
     if (!isalnum((unsigned char)*c) && *c != '-' && *c != '_') *c = '_';
   fprintf(f, "#!/bin/bash\n# vesica study %s: %ld cells, one per array task.\n", study, s->ncells);
-  fprintf(f, "# Submit: sbatch %s\n# Then: vesica study %s --out %s --collect\n", path, study, adir);
+  fprintf(f, "# Submit: sbatch %s\n# Then: vesica study %s --out %s --collect\n", path, study,
+          adir);
   fprintf(f, "#SBATCH --job-name=%s\n#SBATCH --array=0-%ld\n#SBATCH --ntasks=1\n", job,
           s->ncells - 1);
   fprintf(f, "#SBATCH --cpus-per-task=%d\n#SBATCH --mem=%s\n", s->cpus_per_task, s->mem);

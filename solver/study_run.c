@@ -24,11 +24,11 @@
 
 /* A running cell. */
 typedef struct {
-  pid_t pid;       /* 0: free slot */
-  long cell;       /* grid index */
-  double start;    /* ves_wall_seconds at fork */
-  double term_at;  /* when SIGTERM was sent (0: not yet) */
-  int timed_out;   /* the limit ended it */
+  pid_t pid;      /* 0: free slot */
+  long cell;      /* grid index */
+  double start;   /* ves_wall_seconds at fork */
+  double term_at; /* when SIGTERM was sent (0: not yet) */
+  int timed_out;  /* the limit ended it */
 } slot;
 
 static void say(char *err, size_t errlen, const char *fmt, const char *a, const char *b) {
@@ -111,10 +111,8 @@ ves_status ves_study_run(const ves_study *s, const ves_study_run_opts *o, char *
     if (!ves_study_cell_done(s, k, o->dir, o->retry_failed)) pending[npending++] = k;
   long cores = sysconf(_SC_NPROCESSORS_ONLN);
   const int threads = cores > o->jobs ? (int)(cores / o->jobs) : 1;
-  ves_study_progress p = {.total = last - first + 1,
-                          .skipped = last - first + 1 - npending,
-                          .eta = -1,
-                          .cell = -1};
+  ves_study_progress p = {
+      .total = last - first + 1, .skipped = last - first + 1 - npending, .eta = -1, .cell = -1};
   if (o->progress) o->progress(o->ctx, &p);
   long next = 0;
   double spent = 0; /* wall seconds of the cells ended in this run */

@@ -17,25 +17,25 @@
  * defaults are the problem file's [solver] keys (config.c's table of keys,
  * the one source: vesica keys lists them). */
 typedef struct {
-  double tol;          /* optimality / KKT residual tolerance (relative; [solver] tol) */
-  double ctol;         /* constraint violation tolerance, relative to A0, V ([solver] ctol) */
-  int max_iter;        /* iteration limit per step ([solver] max_iter) */
-  int freeze_hessian;  /* newton: 0 = a fresh Hessian every iteration; 1 = assembled
-                          once per step, rebuilt when the chord stalls (paper);
-                          2 = also kept across steps (backend_newton.c) */
-  int verbose;         /* 0 quiet; > 0 lets the solver print (ipopt print_level) */
+  double tol;         /* optimality / KKT residual tolerance (relative; [solver] tol) */
+  double ctol;        /* constraint violation tolerance, relative to A0, V ([solver] ctol) */
+  int max_iter;       /* iteration limit per step ([solver] max_iter) */
+  int freeze_hessian; /* newton: 0 = a fresh Hessian every iteration; 1 = assembled
+                         once per step, rebuilt when the chord stalls (paper);
+                         2 = also kept across steps (backend_newton.c) */
+  int verbose;        /* 0 quiet; > 0 lets the solver print (ipopt print_level) */
 } ves_backend_options;
 
 /* Statistics of one solve, the same for every backend. */
 typedef struct {
-  int iterations;      /* outer iterations (Newton steps, Ipopt iterations, ...) */
-  int f_evals;         /* objective evaluations */
-  int g_evals;         /* gradient evaluations */
-  int h_evals;         /* Hessian assemblies */
-  int factorizations;  /* newton, euler: KKT factorizations (inertia corrections included) */
-  double violation;    /* final max |c_i| / target_i */
-  double seconds;      /* wall time */
-  int solver_status;   /* the backend's own code (Ipopt ApplicationReturnStatus, nlopt_result) */
+  int iterations;     /* outer iterations (Newton steps, Ipopt iterations, ...) */
+  int f_evals;        /* objective evaluations */
+  int g_evals;        /* gradient evaluations */
+  int h_evals;        /* Hessian assemblies */
+  int factorizations; /* newton, euler: KKT factorizations (inertia corrections included) */
+  double violation;   /* final max |c_i| / target_i */
+  double seconds;     /* wall time */
+  int solver_status;  /* the backend's own code (Ipopt ApplicationReturnStatus, nlopt_result) */
 } ves_backend_stats;
 
 typedef struct {

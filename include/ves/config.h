@@ -57,11 +57,11 @@ typedef struct {
   /* [constraints] */
   int area, volume; /* 1: hold A = A0, V = V_target */
   /* [protocol] */
-  double volume_rate;  /* dV/dt / V0 (1/t*), < 0 deflates */
-  double volume_final; /* V/V0 where the ramp stops */
-  double c0_time;      /* time of a step change of C0 (< 0: none) */
-  double c0_after;     /* C0 R0 after it */
-  double c0_until;     /* time C0 returns to c0 (< 0: never) */
+  double volume_rate;   /* dV/dt / V0 (1/t*), < 0 deflates */
+  double volume_final;  /* V/V0 where the ramp stops */
+  double c0_time;       /* time of a step change of C0 (< 0: none) */
+  double c0_after;      /* C0 R0 after it */
+  double c0_until;      /* time C0 returns to c0 (< 0: never) */
   double c0_ramp_start; /* a C0 ramp from c0 at this time (< 0: none) ... */
   double c0_ramp_end;   /* ... to c0_ramp_to at this time, then held */
   double c0_ramp_to;    /* C0 R0 at the ramp's end */

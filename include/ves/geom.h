@@ -38,8 +38,8 @@ ves_status ves_geom_search_create(int n, const double *x, const double *radius,
  * cap indices to idx and the true count to *count (if *count > cap, idx holds
  * cap of the matches in no particular order: call again with a larger buffer).
  * idx may be NULL when cap = 0. Reads s only (concurrent queries are safe). */
-ves_status ves_geom_search_query(const ves_geom_search *s, const double X[2],
-                                 int cap, int *idx, int *count);
+ves_status ves_geom_search_query(const ves_geom_search *s, const double X[2], int cap, int *idx,
+                                 int *count);
 
 /* Candidates for every point within rho (>= 0) of X: all a with
  * |X - x_a| <= radius_a + rho, and possibly a few up to a relative 1e-9
@@ -67,29 +67,29 @@ typedef int (*ves_region_fn)(const double X[2], void *ctx);
 
 /* Parameters of an adapted node set. */
 typedef struct {
-  double LR, LZ;        /* the box [0, LR] x [-LZ, LZ] (units of R0) */
-  ves_sizing_fn h;      /* target spacing h(X) (units of R0) */
-  void *h_ctx;          /* passed to h, borrowed */
-  double axis_spacings; /* width of the regular lattice strip along the axis,
-                           in local spacings (>= 8; default 10) */
-  int lloyd_iter;       /* Lloyd (CVT) iterations (default 60) */
-  unsigned seed;        /* seed of the deterministic initial sampling */
-  int nfixed;           /* caller-supplied fixed nodes, e.g. the interface-aligned
-                           band layers of ves_shape_band_nodes (default 0) */
-  const double *xfixed; /* 2 nfixed positions (R >= 0, inside the box), copied */
-  const int *fixed_flag;/* nfixed VES_NODE_* flags (AXIS for R = 0), copied; BAND
-                           is added */
+  double LR, LZ;          /* the box [0, LR] x [-LZ, LZ] (units of R0) */
+  ves_sizing_fn h;        /* target spacing h(X) (units of R0) */
+  void *h_ctx;            /* passed to h, borrowed */
+  double axis_spacings;   /* width of the regular lattice strip along the axis,
+                             in local spacings (>= 8; default 10) */
+  int lloyd_iter;         /* Lloyd (CVT) iterations (default 60) */
+  unsigned seed;          /* seed of the deterministic initial sampling */
+  int nfixed;             /* caller-supplied fixed nodes, e.g. the interface-aligned
+                             band layers of ves_shape_band_nodes (default 0) */
+  const double *xfixed;   /* 2 nfixed positions (R >= 0, inside the box), copied */
+  const int *fixed_flag;  /* nfixed VES_NODE_* flags (AXIS for R = 0), copied; BAND
+                             is added */
   ves_region_fn reserved; /* where only the caller's nodes may lie: strip and
                            CVT nodes keep out (NULL: nowhere) */
-  void *reserved_ctx;   /* passed to reserved, borrowed */
+  void *reserved_ctx;     /* passed to reserved, borrowed */
 } ves_nodes_params;
 
 /* Node flags. */
 enum {
-  VES_NODE_AXIS = 1,     /* R = 0: r stays 0, z free */
-  VES_NODE_WALL = 2,     /* on R = LR or |Z| = LZ: fixed (no-slip wall) */
-  VES_NODE_LATTICE = 4,  /* part of the regular axis strip */
-  VES_NODE_BAND = 8      /* a caller-supplied fixed node (interface band layers) */
+  VES_NODE_AXIS = 1,    /* R = 0: r stays 0, z free */
+  VES_NODE_WALL = 2,    /* on R = LR or |Z| = LZ: fixed (no-slip wall) */
+  VES_NODE_LATTICE = 4, /* part of the regular axis strip */
+  VES_NODE_BAND = 8     /* a caller-supplied fixed node (interface band layers) */
 };
 
 /* An adapted node set with its ghosts. Real nodes are 0..n-1 (R >= 0); the

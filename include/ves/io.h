@@ -144,10 +144,10 @@ ves_status ves_io_tsv_row(FILE *f, const ves_io_row *row, double A0);
 
 /* What was written with a snapshot besides y and phi. */
 typedef struct {
-  ves_sim_state state; /* the integrator's state (t, step = state.nstep, ...) */
-  double wall_seconds; /* wall time of the time loop at the snapshot */
-  int reconnections;   /* resets so far */
-  long rows;           /* series rows at the snapshot */
+  ves_sim_state state;  /* the integrator's state (t, step = state.nstep, ...) */
+  double wall_seconds;  /* wall time of the time loop at the snapshot */
+  int reconnections;    /* resets so far */
+  long rows;            /* series rows at the snapshot */
   const double *y_prev; /* written with the snapshot when state.dt_prev > 0: y^{n-1}
                            (2n, ves_sim_y_prev), dataset y_prev; never set by a read
                            (ves_io_read_snapshot_prev reads it) */
@@ -357,8 +357,8 @@ ves_status ves_io_read_remesh_triangles(ves_io *io, int k, int *tri);
  * another size. */
 ves_status ves_io_read_snapshot_prev(ves_io *io, int k, int nbuf, double *y_prev);
 
-ves_status ves_io_read_snapshot_n(ves_io *io, int k, int nbuf, double *y, double *x,
-                                  double *phi, ves_io_snapinfo *si);
+ves_status ves_io_read_snapshot_n(ves_io *io, int k, int nbuf, double *y, double *x, double *phi,
+                                  ves_io_snapinfo *si);
 
 /* The reference mesh: X (2n) and tri (3 ntri), either may be NULL. */
 ves_status ves_io_read_mesh(ves_io *io, double *X, int *tri);
@@ -385,8 +385,8 @@ typedef struct {
  * to it, the references and remeshings it stands on all read whole and
  * match the checksums written with them — and copies the header,
  * parameters, mesh, those rows, snapshots 0..K, references and remeshings;
- * the XDMF file of `path` is rewritten for them. VES_ERR_ARG: path is not cut short; VES_ERR_IO: nothing complete
- * survived, or out cannot be written (nothing left at out); message in err. */
+ * the XDMF file of `path` is rewritten for them. VES_ERR_ARG: path is not cut short; VES_ERR_IO:
+ * nothing complete survived, or out cannot be written (nothing left at out); message in err. */
 ves_status ves_io_salvage(const char *path, const char *out, ves_io_salvaged *res, char *err,
                           size_t errlen);
 

@@ -59,8 +59,8 @@ int ves_lme_work_size(int m);
  *   VES_ERR_NOCONV  X outside the hull (lambda diverges), or newton_tol not
  *                   reached in max_iter iterations.
  * X must lie strictly inside the convex hull of the neighbours. */
-ves_status ves_lme_eval(const ves_lme_params *par, const double X[2], int m,
-                        const double *xa, const double *beta, double lambda[2],
-                        int nder, double *tab, double *work, ves_lme_info *info);
+ves_status ves_lme_eval(const ves_lme_params *par, const double X[2], int m, const double *xa,
+                        const double *beta, double lambda[2], int nder, double *tab, double *work,
+                        ves_lme_info *info);
 
 #endif

@@ -56,30 +56,30 @@ typedef struct {
   ves_quad_rulespec rule; /* the rule of ves_quad_create_rule ({0, 0} for
                            ves_quad_create_points: a reset sets sub and rule
                            to those of the quadrature it moves) */
-  int nq;               /* quadrature points, VES_QUAD_NPT * ntri */
-  double *x;            /* 2 nq reference positions (R, Z), units of R0 */
-  double *w;            /* nq weights of the measure dR dZ (units R0^2); the
-                           axisymmetric factor 2 pi r det F belongs to the model */
+  int nq;                 /* quadrature points, VES_QUAD_NPT * ntri */
+  double *x;              /* 2 nq reference positions (R, Z), units of R0 */
+  double *w;              /* nq weights of the measure dR dZ (units R0^2); the
+                             axisymmetric factor 2 pi r det F belongs to the model */
   /* Tables (NULL until ves_quad_tables): CSR over the points. */
-  int *ptr;             /* nq + 1 offsets into nbr, mirror; m_a = ptr[a+1]-ptr[a] */
-  int *nbr;             /* ptr[nq] real node indices */
-  unsigned char *mirror;/* ptr[nq] flags: 1 when the entry is the ghost (-R, Z)
-                           of node nbr[k] (r-coefficient -1, z and phi0 +1) */
-  double *tab;          /* 6 ptr[nq]: point a's table starts at tab + 6 ptr[a],
-                           row-major 6 x m_a, rows p, p_R, p_Z, p_RR, p_RZ, p_ZZ */
-  ves_lme_params lme;   /* the LME parameters the tables were built with (a copy,
-                           set by ves_quad_tables): tables built later for the
-                           same discretization (a reset, points at the nodes)
-                           take them from here */
+  int *ptr;              /* nq + 1 offsets into nbr, mirror; m_a = ptr[a+1]-ptr[a] */
+  int *nbr;              /* ptr[nq] real node indices */
+  unsigned char *mirror; /* ptr[nq] flags: 1 when the entry is the ghost (-R, Z)
+                            of node nbr[k] (r-coefficient -1, z and phi0 +1) */
+  double *tab;           /* 6 ptr[nq]: point a's table starts at tab + 6 ptr[a],
+                            row-major 6 x m_a, rows p, p_R, p_Z, p_RR, p_RZ, p_ZZ */
+  ves_lme_params lme;    /* the LME parameters the tables were built with (a copy,
+                            set by ves_quad_tables): tables built later for the
+                            same discretization (a reset, points at the nodes)
+                            take them from here */
 } ves_quad;
 
 /* Statistics of a table build. */
 typedef struct {
-  double m_mean;      /* mean neighbours per point (ghost entries included) */
-  int m_max;          /* largest neighbour count */
-  double iter_mean;   /* mean Newton iterations of the LME dual */
-  int iter_max;       /* largest Newton iteration count */
-  double seconds;     /* wall time of the build */
+  double m_mean;    /* mean neighbours per point (ghost entries included) */
+  int m_max;        /* largest neighbour count */
+  double iter_mean; /* mean Newton iterations of the LME dual */
+  int iter_max;     /* largest Newton iteration count */
+  double seconds;   /* wall time of the build */
 } ves_quad_info;
 
 /* Triangulate the real nodes (Delaunay) and place VES_QUAD_NPT points per
@@ -118,8 +118,8 @@ ves_status ves_quad_create_at_nodes(const ves_nodes *nodes, ves_quad **out);
 /* Build the tables for the current points against the current nodes (real +
  * ghost), with support radii ves_lme_radius(lme, h_a) and beta_a = gamma/h_a^2.
  * Replaces previous tables; lme is copied into q->lme. info may be NULL. */
-ves_status ves_quad_tables(ves_quad *q, const ves_nodes *nodes,
-                           const ves_lme_params *lme, ves_quad_info *info);
+ves_status ves_quad_tables(ves_quad *q, const ves_nodes *nodes, const ves_lme_params *lme,
+                           ves_quad_info *info);
 
 /* The least-squares (L2) projection of a field onto these tables is
  * ves_sparse_project_l2 (sparse.h): it needs the direct solver. */

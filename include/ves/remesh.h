@@ -64,26 +64,26 @@ void ves_remesh_params_default(ves_remesh_params *par);
 
 /* What a remeshing changed. E in units of k (E*). */
 typedef struct {
-  int n_old, n_new;          /* real nodes before and after */
-  int nq_old, nq_new;        /* quadrature points before and after */
-  int curve_points;          /* knots of the interface curve */
-  double curve_length;       /* its length (units R0) */
+  int n_old, n_new;              /* real nodes before and after */
+  int nq_old, nq_new;            /* quadrature points before and after */
+  int curve_points;              /* knots of the interface curve */
+  double curve_length;           /* its length (units R0) */
   double E_old, A_old, V_old;    /* the old model at y */
   double E_proj, A_proj, V_proj; /* the new model at the identity, before the correction */
   double E, A, V;                /* the new model at the corrected positions */
-  double dE, dA, dV;         /* E_proj - E_old, A_proj / A_old - 1, V_proj / V_old - 1 */
-  double corr_max;           /* max_a |delta_a| / h_a, the correction at the nodes */
-  double corr_norm;          /* |delta| (units R0, all dofs) */
-  int corr_iter;             /* Newton iterations of the correction */
-  double res_A, res_V;       /* |A / A_target - 1|, |V / V_target - 1| after it (0 when
-                                not held) */
-  double disp_max, disp_mean;/* distance of the new interface's points from the old
-                                interface curve: max and mean (units R0) */
-  ves_quad_info qinfo;       /* the new tables */
-  int proj_refinements;      /* refinement steps of the projection */
-  double proj_residual;      /* its relative residual */
-  double seconds_interface, seconds_nodes, seconds_tables, seconds_project,
-      seconds_correct, seconds; /* wall times: the steps and the whole */
+  double dE, dA, dV;             /* E_proj - E_old, A_proj / A_old - 1, V_proj / V_old - 1 */
+  double corr_max;               /* max_a |delta_a| / h_a, the correction at the nodes */
+  double corr_norm;              /* |delta| (units R0, all dofs) */
+  int corr_iter;                 /* Newton iterations of the correction */
+  double res_A, res_V;           /* |A / A_target - 1|, |V / V_target - 1| after it (0 when
+                                    not held) */
+  double disp_max, disp_mean;    /* distance of the new interface's points from the old
+                                    interface curve: max and mean (units R0) */
+  ves_quad_info qinfo;           /* the new tables */
+  int proj_refinements;          /* refinement steps of the projection */
+  double proj_residual;          /* its relative residual */
+  double seconds_interface, seconds_nodes, seconds_tables, seconds_project, seconds_correct,
+      seconds; /* wall times: the steps and the whole */
 } ves_remesh_info;
 
 /* A remeshed reference: it owns its nodes, quadrature (with tables), phi0
@@ -124,12 +124,12 @@ ves_status ves_remesh_restore(const ves_model *m, int n, const double *x, const 
  * longer be in use. */
 void ves_remesh_destroy(ves_remesh **r);
 
-ves_model *ves_remesh_model(ves_remesh *r);              /* owned by r */
+ves_model *ves_remesh_model(ves_remesh *r); /* owned by r */
 const ves_model *ves_remesh_model_const(const ves_remesh *r);
-const ves_nodes *ves_remesh_nodes(const ves_remesh *r);  /* owned by r */
-const ves_quad *ves_remesh_quad(const ves_remesh *r);    /* owned by r */
-const double *ves_remesh_phi0c(const ves_remesh *r);     /* n phi0 coefficients */
-const double *ves_remesh_y(const ves_remesh *r);         /* 2n corrected positions */
+const ves_nodes *ves_remesh_nodes(const ves_remesh *r); /* owned by r */
+const ves_quad *ves_remesh_quad(const ves_remesh *r);   /* owned by r */
+const double *ves_remesh_phi0c(const ves_remesh *r);    /* n phi0 coefficients */
+const double *ves_remesh_y(const ves_remesh *r);        /* 2n corrected positions */
 void ves_remesh_get_info(const ves_remesh *r, ves_remesh_info *info);
 
 /* The interface of the state y of model m as a polyline from the north
@@ -140,15 +140,15 @@ void ves_remesh_get_info(const ves_remesh *r, ves_remesh_info *info);
  * phi0c (may be NULL): nodal coefficients of phi0 on m's basis when known
  * (the fit is then skipped). VES_ERR_GEOM when no piece runs from the axis
  * to the axis. */
-ves_status ves_remesh_interface(const ves_model *m, const double *y, const double *phi0c,
-                                int *npts, double **pts, int *pieces);
+ves_status ves_remesh_interface(const ves_model *m, const double *y, const double *phi0c, int *npts,
+                                double **pts, int *pieces);
 
 /* When to remesh (the integrator's policy; due when any enabled criterion
  * holds). */
 typedef struct {
-  int every;       /* accepted steps between remeshings (0: off) */
-  double cond_max; /* remesh when max cond_2 F exceeds this (> 1; 0: off) */
-  double det_min;  /* remesh when min det F drops below this (in (0, 1); 0: off) */
+  int every;           /* accepted steps between remeshings (0: off) */
+  double cond_max;     /* remesh when max cond_2 F exceeds this (> 1; 0: off) */
+  double det_min;      /* remesh when min det F drops below this (in (0, 1); 0: off) */
   int on_failed_reset; /* 1: remesh when a reset of the reference was due and failed */
 } ves_remesh_policy;
 

@@ -27,8 +27,8 @@ typedef struct {
   double area_sharp;    /* sharp area of the initial shape (units R0^2) */
   double volume_sharp;  /* sharp volume (units R0^3) */
   ves_quad_info qinfo;  /* table statistics */
-  int proj_refinements;  /* iterative-refinement steps of the projection (direct solve) */
-  double proj_residual;  /* final relative residual |Mc - b| / |b| of the projection */
+  int proj_refinements; /* iterative-refinement steps of the projection (direct solve) */
+  double proj_residual; /* final relative residual |Mc - b| / |b| of the projection */
   double seconds_nodes, seconds_tables, seconds_project, seconds_total; /* wall times */
 } ves_setup;
 

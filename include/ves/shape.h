@@ -7,8 +7,8 @@
 #include "ves/status.h"
 
 typedef enum {
-  VES_SHAPE_SPHERE = 0,   /* circle of radius `radius` */
-  VES_SHAPE_SPHEROID = 1, /* ellipse with reduced volume v, area 4 pi */
+  VES_SHAPE_SPHERE = 0,    /* circle of radius `radius` */
+  VES_SHAPE_SPHEROID = 1,  /* ellipse with reduced volume v, area 4 pi */
   VES_SHAPE_DISCOCYTE = 2, /* Evans-Fung biconcave disc, area 4 pi */
   VES_SHAPE_CURVE = 3      /* points (R, Z) from the north pole to the south pole,
                               periodic cubic spline (with the mirror image) by
@@ -18,17 +18,17 @@ typedef enum {
 /* What the user gives. Lengths in units of R0 = sqrt(A0 / 4 pi). */
 typedef struct {
   ves_shape_kind kind;
-  double radius;  /* sphere radius (default 1) */
-  double v;       /* spheroid: reduced volume in (0, 1] (default 0.9) */
-  int prolate;    /* spheroid: 1 long axis along Z (prolate), 0 oblate */
-  int mode;       /* perturbation: the curve is scaled radially by
-                     1 + delta P_mode(cos t), t the polar parameter; 0 = none */
-  double delta;   /* perturbation amplitude (|delta| < 0.5) */
-  int npts;       /* curve: number of points (>= 4), first and last on the axis */
+  double radius;     /* sphere radius (default 1) */
+  double v;          /* spheroid: reduced volume in (0, 1] (default 0.9) */
+  int prolate;       /* spheroid: 1 long axis along Z (prolate), 0 oblate */
+  int mode;          /* perturbation: the curve is scaled radially by
+                        1 + delta P_mode(cos t), t the polar parameter; 0 = none */
+  double delta;      /* perturbation amplitude (|delta| < 0.5) */
+  int npts;          /* curve: number of points (>= 4), first and last on the axis */
   const double *pts; /* curve: 2 npts coordinates (R >= 0, Z), copied */
-  int keep_scale; /* curve: 1 keeps the points' own scale (an interface
-                     extracted from a state, remesh.h), 0 (default) scales
-                     the curve to area 4 pi */
+  int keep_scale;    /* curve: 1 keeps the points' own scale (an interface
+                        extracted from a state, remesh.h), 0 (default) scales
+                        the curve to area 4 pi */
 } ves_shape_params;
 
 typedef struct ves_shape ves_shape;
@@ -75,25 +75,25 @@ double ves_shape_phi0(const ves_shape *s, double eps, const double X[2]);
  * dropped. *x (2 *n) and *flag (*n, VES_NODE_AXIS on R = 0) are taken by the
  * caller. VES_ERR_GEOM when a layer folds (halfwidth beyond a curvature
  * radius). */
-ves_status ves_shape_band_nodes(const ves_shape *s, double h, double halfwidth, int *n,
-                                double **x, int **flag);
+ves_status ves_shape_band_nodes(const ves_shape *s, double h, double halfwidth, int *n, double **x,
+                                int **flag);
 
 /* Node sizing: h = h_band for |d| < band*eps, then growing linearly with
  * `slope` to h_far. d is tabulated on a grid (spacing <= h_band) and
  * interpolated bilinearly, so an evaluation is O(1). */
 typedef struct {
-  double eps;    /* interface width eps (units R0) */
-  double h_band; /* spacing in the band (default 0.5 eps) */
-  double band;   /* half-width of the band in units of eps (default 4) */
-  double slope;  /* growth rate of h away from the band (default 0.15, < 0.2) */
-  double h_far;  /* largest spacing (default 0.2) */
-  double reserve;/* ves_sizing_reserved is true where |d| < reserve (0: never) */
+  double eps;     /* interface width eps (units R0) */
+  double h_band;  /* spacing in the band (default 0.5 eps) */
+  double band;    /* half-width of the band in units of eps (default 4) */
+  double slope;   /* growth rate of h away from the band (default 0.15, < 0.2) */
+  double h_far;   /* largest spacing (default 0.2) */
+  double reserve; /* ves_sizing_reserved is true where |d| < reserve (0: never) */
 } ves_sizing_params;
 
 typedef struct ves_sizing ves_sizing;
 
-ves_status ves_sizing_create(const ves_shape *s, const ves_sizing_params *par,
-                             double LR, double LZ, ves_sizing **out);
+ves_status ves_sizing_create(const ves_shape *s, const ves_sizing_params *par, double LR, double LZ,
+                             ves_sizing **out);
 void ves_sizing_destroy(ves_sizing **z);
 /* ves_sizing_fn-compatible: ctx is a ves_sizing *. */
 double ves_sizing_eval(const double X[2], void *ctx);

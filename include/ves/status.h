@@ -6,19 +6,19 @@
 
 /* X-macro list: name, value, message. 0 is success, < 0 an error, > 0 a
  * non-error outcome (step rejected, iteration limit) the caller may act on. */
-#define VES_STATUS_LIST(X)                                                     \
-  X(VES_OK, 0, "ok")                                                           \
-  X(VES_ERR_ALLOC, -1, "out of memory")                                        \
-  X(VES_ERR_ARG, -2, "invalid argument")                                       \
-  X(VES_ERR_NOCONV, -3, "iteration did not converge")                          \
-  X(VES_ERR_GEOM, -4, "geometry error")                                        \
-  X(VES_ERR_DOMAIN, -5, "point outside the domain (det F <= 0 or r <= 0)")     \
-  X(VES_ERR_SINGULAR, -6, "singular matrix")                                   \
-  X(VES_ERR_IO, -7, "input/output error")                                      \
-  X(VES_ERR_CONFIG, -8, "invalid configuration")                               \
-  X(VES_ERR_INTERNAL, -9, "internal error")                                    \
-  X(VES_ERR_SOLVER, -10, "solver failure")                                     \
-  X(VES_STEP_REJECTED, 1, "step rejected")                                     \
+#define VES_STATUS_LIST(X)                                                                         \
+  X(VES_OK, 0, "ok")                                                                               \
+  X(VES_ERR_ALLOC, -1, "out of memory")                                                            \
+  X(VES_ERR_ARG, -2, "invalid argument")                                                           \
+  X(VES_ERR_NOCONV, -3, "iteration did not converge")                                              \
+  X(VES_ERR_GEOM, -4, "geometry error")                                                            \
+  X(VES_ERR_DOMAIN, -5, "point outside the domain (det F <= 0 or r <= 0)")                         \
+  X(VES_ERR_SINGULAR, -6, "singular matrix")                                                       \
+  X(VES_ERR_IO, -7, "input/output error")                                                          \
+  X(VES_ERR_CONFIG, -8, "invalid configuration")                                                   \
+  X(VES_ERR_INTERNAL, -9, "internal error")                                                        \
+  X(VES_ERR_SOLVER, -10, "solver failure")                                                         \
+  X(VES_STEP_REJECTED, 1, "step rejected")                                                         \
   X(VES_MAXITER, 2, "iteration limit reached")
 
 typedef enum {
@@ -51,11 +51,11 @@ typedef struct {
 } ves_error_place;
 
 typedef struct {
-  ves_status code;                         /* VES_OK: nothing recorded */
-  ves_error_place origin;                  /* where the failure was detected */
-  char what[192];                          /* the failed condition or call, or a message */
-  int depth;                               /* places in trace (at most VES_ERROR_TRACE) */
-  ves_error_place trace[VES_ERROR_TRACE];  /* the VES_CALLs it passed, innermost first */
+  ves_status code;                        /* VES_OK: nothing recorded */
+  ves_error_place origin;                 /* where the failure was detected */
+  char what[192];                         /* the failed condition or call, or a message */
+  int depth;                              /* places in trace (at most VES_ERROR_TRACE) */
+  ves_error_place trace[VES_ERROR_TRACE]; /* the VES_CALLs it passed, innermost first */
 } ves_error;
 
 /* Start a record (overwriting this thread's last); returns code. */
@@ -81,8 +81,7 @@ const char *ves_error_format(ves_status code, char *buf, size_t len);
 #define VES_CALL(expr)                                                                             \
   do {                                                                                             \
     ves_status ves_call_s_ = (expr);                                                               \
-    if (ves_call_s_ < 0)                                                                           \
-      return ves_error_pass(ves_call_s_, __FILE__, __LINE__, __func__, #expr);                     \
+    if (ves_call_s_ < 0) return ves_error_pass(ves_call_s_, __FILE__, __LINE__, __func__, #expr);  \
   } while (0)
 
 /* Validate an input condition; always on (not an assert). The failed

@@ -40,28 +40,28 @@ typedef enum {
 
 /* One axis: a problem key and its values, as text handed to --set. */
 typedef struct {
-  char key[64];                                     /* "section.key", the problem table's spelling */
-  int nvalues;                                      /* >= 1 */
+  char key[64]; /* "section.key", the problem table's spelling */
+  int nvalues;  /* >= 1 */
   char values[VES_STUDY_MAX_VALUES][VES_STUDY_VALUE]; /* in the study file's order */
 } ves_study_axis;
 
 /* A parsed, validated study (plain data; ves_study_load allocates it). */
 typedef struct {
-  char path[PATH_MAX];               /* the study file */
-  char problem[PATH_MAX];            /* the base problem file (absolute when resolvable) */
-  ves_study_mode mode;               /* [study] run */
-  long steps;                        /* [study] steps (VES_STUDY_STEPS) */
-  double time_limit;                 /* [study] time_limit: wall seconds per cell, 0 none */
-  int nset;                          /* fixed overrides, applied to every cell */
+  char path[PATH_MAX];    /* the study file */
+  char problem[PATH_MAX]; /* the base problem file (absolute when resolvable) */
+  ves_study_mode mode;    /* [study] run */
+  long steps;             /* [study] steps (VES_STUDY_STEPS) */
+  double time_limit;      /* [study] time_limit: wall seconds per cell, 0 none */
+  int nset;               /* fixed overrides, applied to every cell */
   char set[VES_STUDY_MAX_SET][VES_STUDY_SETLEN]; /* "section.key=value" */
-  int naxes;                         /* >= 1 */
-  ves_study_axis axis[VES_STUDY_MAX_AXES]; /* the first axis varies slowest */
-  long ncells;                       /* product of the axes' sizes */
+  int naxes;                                     /* >= 1 */
+  ves_study_axis axis[VES_STUDY_MAX_AXES];       /* the first axis varies slowest */
+  long ncells;                                   /* product of the axes' sizes */
   /* [slurm] resources of one array task */
-  char partition[64];                /* "" for the cluster's default */
-  char account[64];                  /* "" for none */
-  char mem[32];                      /* e.g. "4G" */
-  int cpus_per_task;                 /* threads of one cell */
+  char partition[64]; /* "" for the cluster's default */
+  char account[64];   /* "" for none */
+  char mem[32];       /* e.g. "4G" */
+  int cpus_per_task;  /* threads of one cell */
 } ves_study;
 
 /* Read and validate the study file `path`: unknown sections or keys, an
@@ -113,19 +113,19 @@ ves_status ves_study_cell_argv(const ves_study *s, long k, const char *program, 
 
 /* How a cell ended (DIR/cells/NAME.result, written once the process ended). */
 typedef struct {
-  char outcome[16];   /* converged | failed | timeout | crashed | bad_input */
-  char reason[256];   /* the run's last message, the signal, the limit; "" when converged */
-  int exit_code;      /* of the process; -1 when killed by a signal */
-  int signal;         /* the signal that ended it, 0 none */
-  double wall_seconds; /* the process, start to end */
-  double cpu_seconds;  /* user + system time of the process */
-  double peak_mb;      /* its peak resident memory (MB) */
+  char outcome[16];     /* converged | failed | timeout | crashed | bad_input */
+  char reason[256];     /* the run's last message, the signal, the limit; "" when converged */
+  int exit_code;        /* of the process; -1 when killed by a signal */
+  int signal;           /* the signal that ended it, 0 none */
+  double wall_seconds;  /* the process, start to end */
+  double cpu_seconds;   /* user + system time of the process */
+  double peak_mb;       /* its peak resident memory (MB) */
   char signature[4096]; /* the cell's command without the program: a changed study reruns it */
 } ves_study_result;
 
 /* Paths of a cell's files: DIR/cells/NAME + suffix (".h5", ".log", ".result"). */
-void ves_study_cell_path(const ves_study *s, long k, const char *dir, const char *suffix,
-                         char *buf, size_t len);
+void ves_study_cell_path(const ves_study *s, long k, const char *dir, const char *suffix, char *buf,
+                         size_t len);
 
 /* Write (atomically: a temporary file renamed) and read a .result file. */
 ves_status ves_study_result_write(const char *path, const ves_study_result *r);
@@ -177,13 +177,13 @@ ves_status ves_study_write_sbatch(const ves_study *s, const char *program, const
 
 /* Progress of a run (for the caller's progress line). */
 typedef struct {
-  long total;     /* cells to consider */
-  long skipped;   /* done before this run */
-  long done;      /* ended in this run */
-  long failed;    /* of those, not converged */
-  int running;    /* processes now */
-  double eta;     /* seconds to the end (mean cell time x cells left / jobs), -1 unknown */
-  long cell;      /* the cell that just ended, or -1 */
+  long total;   /* cells to consider */
+  long skipped; /* done before this run */
+  long done;    /* ended in this run */
+  long failed;  /* of those, not converged */
+  int running;  /* processes now */
+  double eta;   /* seconds to the end (mean cell time x cells left / jobs), -1 unknown */
+  long cell;    /* the cell that just ended, or -1 */
   const ves_study_result *result; /* its result, or NULL */
 } ves_study_progress;
 
@@ -191,16 +191,16 @@ typedef void (*ves_study_progress_fn)(void *ctx, const ves_study_progress *p);
 
 /* Options of ves_study_run. */
 typedef struct {
-  const char *program;        /* the vesica binary (borrowed) */
-  const char *dir;            /* the study folder (created with cells/ if missing) */
-  int jobs;                   /* cells at a time (>= 1) */
-  int retry_failed;           /* rerun cells that ended but did not converge */
-  long only;                  /* run this cell only (the Slurm task), -1 all */
-  double grace;               /* seconds between SIGTERM and SIGKILL at the limit */
-  volatile sig_atomic_t *stop; /* set (by a signal handler) to stop: running cells are
-                                  terminated and stay not done; may be NULL */
+  const char *program;            /* the vesica binary (borrowed) */
+  const char *dir;                /* the study folder (created with cells/ if missing) */
+  int jobs;                       /* cells at a time (>= 1) */
+  int retry_failed;               /* rerun cells that ended but did not converge */
+  long only;                      /* run this cell only (the Slurm task), -1 all */
+  double grace;                   /* seconds between SIGTERM and SIGKILL at the limit */
+  volatile sig_atomic_t *stop;    /* set (by a signal handler) to stop: running cells are
+                                     terminated and stay not done; may be NULL */
   ves_study_progress_fn progress; /* called at the start and after every cell, may be NULL */
-  void *ctx;                  /* passed to progress */
+  void *ctx;                      /* passed to progress */
 } ves_study_run_opts;
 
 /* Run the cells not done, opts->jobs at a time, each with its own process,
