@@ -175,7 +175,4 @@ int cli_parse_long(const char *cmd, const char *opt, const char *v, long lo, lon
   return 0;
 }
 
-const char *cli_why(ves_status st) {
-  static char buf[1024]; /* the program is single-threaded; one message at a time */
-  return ves_error_format(st, buf, sizeof buf);
-}
+const char *cli_why(ves_status st) { return ves_error_text(st); }

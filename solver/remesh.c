@@ -387,6 +387,7 @@ ves_status ves_remesh_create(const ves_config *cfg, ves_model *m, const double *
                              size_t errlen) {
   VES_CHECK(cfg && m && y && par && out && err && errlen, VES_ERR_ARG);
   *out = NULL;
+  ves_error_clear(); /* err names the record of this remeshing's failure (status.h) */
   const double t0 = ves_wall_seconds();
   const ves_nodes *od = ves_model_nodes(m);
   const ves_quad *oq = ves_model_quad(m);
@@ -411,7 +412,7 @@ ves_status ves_remesh_create(const ves_config *cfg, ves_model *m, const double *
     double E, A, V;
     if ((st = ves_model_eval(m, y, VES_F_E | VES_F_A | VES_F_V, &E, &A, &V, NULL, NULL, NULL)) !=
         VES_OK)
-      FAIL(st, "remesh: the state: %s", ves_status_str(st));
+      FAIL(st, "remesh: the state: %s", ves_error_text(st));
     in->E_old = E / k, in->A_old = A, in->V_old = V;
   }
 
@@ -419,31 +420,31 @@ ves_status ves_remesh_create(const ves_config *cfg, ves_model *m, const double *
   double t = ves_wall_seconds();
   int np = 0, nk = 0, pieces = 0;
   if ((st = ves_remesh_interface(m, y, NULL, &np, &poly, &pieces)) != VES_OK)
-    FAIL(st, "remesh: interface: %s (no zero line of phi from pole to pole)", ves_status_str(st));
+    FAIL(st, "remesh: interface: %s (no zero line of phi from pole to pole)", ves_error_text(st));
   if (pieces != 1)
     FAIL(VES_ERR_GEOM, "remesh: the interface has %d pieces (one vesicle only)", pieces);
   if ((st = resample(np, poly, par->curve_spacing * cfg->epsilon, &nk, &knots,
                      &in->curve_length)) != VES_OK)
-    FAIL(st, "remesh: %s", ves_status_str(st));
+    FAIL(st, "remesh: %s", ves_error_text(st));
   in->curve_points = nk;
   ves_shape_params sp;
   ves_shape_params_default(&sp);
   sp.kind = VES_SHAPE_CURVE, sp.npts = nk, sp.pts = knots, sp.keep_scale = 1;
   if ((st = ves_shape_create(&sp, &r->shape)) != VES_OK)
-    FAIL(st, "remesh: interface curve: %s", ves_status_str(st));
+    FAIL(st, "remesh: interface curve: %s", ves_error_text(st));
   in->seconds_interface = ves_wall_seconds() - t;
 
   /* 2. nodes, quadrature, tables */
   t = ves_wall_seconds();
   if ((st = ves_setup_nodes(cfg, r->shape, &sizing, &gen, err, errlen)) != VES_OK) goto fail;
   if ((st = make_nodes(gen->LR, gen->LZ, gen->n, gen->x, gen->h, gen->flag, &r->nodes)) != VES_OK)
-    FAIL(st, "remesh: %s", ves_status_str(st));
+    FAIL(st, "remesh: %s", ves_error_text(st));
   ves_nodes_destroy(&gen);
   ves_sizing_destroy(&sizing);
   in->seconds_nodes = ves_wall_seconds() - t;
   t = ves_wall_seconds();
   if ((st = build(r, oq)) != VES_OK)
-    FAIL(st, "remesh: quadrature or LME tables: %s", ves_status_str(st));
+    FAIL(st, "remesh: quadrature or LME tables: %s", ves_error_text(st));
   in->n_new = r->nodes->n, in->nq_new = r->quad->nq;
   in->seconds_tables = ves_wall_seconds() - t;
 
@@ -456,25 +457,25 @@ ves_status ves_remesh_create(const ves_config *cfg, ves_model *m, const double *
   r->phi0c = malloc((size_t)n * sizeof *r->phi0c);
   if (!xq || !wq || !f || !r->phi0c) FAIL(VES_ERR_ALLOC, "remesh: out of memory");
   if ((st = moved_points(oq, y, xq, wq)) != VES_OK)
-    FAIL(st, "remesh: the state: %s", ves_status_str(st));
+    FAIL(st, "remesh: the state: %s", ves_error_text(st));
   ves_model_point_data(m, f);
   for (int al = 0; al < oq->nq; al++) f[al] = f[6 * (size_t)al]; /* phi0 row, in place */
   if ((st = ves_quad_create_points(oq->nq, xq, wq, 0, NULL, &cross)) != VES_OK ||
       (st = ves_quad_tables(cross, r->nodes, &oq->lme, NULL)) != VES_OK)
-    FAIL(st, "remesh: the moved points on the new basis: %s", ves_status_str(st));
+    FAIL(st, "remesh: the moved points on the new basis: %s", ves_error_text(st));
   /* the setup's tolerance: the fit error far below the discretization's */
   st = ves_sparse_project_l2(cross, n, f, r->phi0c, 1e-12, 3, &in->proj_refinements,
                              &in->proj_residual);
   if (st != VES_OK)
     FAIL(st < 0 ? st : VES_ERR_NOCONV, "remesh: phi projection: %s (relative residual %.2e)",
-         ves_status_str(st), in->proj_residual);
+         ves_error_text(st), in->proj_residual);
   ves_quad_destroy(&cross);
   in->seconds_project = ves_wall_seconds() - t;
 
   /* 4. the model at the identity, then the correction */
   t = ves_wall_seconds();
   if ((st = ves_model_create(r->nodes, r->quad, r->phi0c, &mp, &r->model)) != VES_OK)
-    FAIL(st, "remesh: model: %s", ves_status_str(st));
+    FAIL(st, "remesh: model: %s", ves_error_text(st));
   r->y = malloc(2 * (size_t)n * sizeof *r->y);
   gA = malloc(2 * (size_t)n * sizeof *gA);
   gV = malloc(2 * (size_t)n * sizeof *gV);
@@ -484,13 +485,13 @@ ves_status ves_remesh_create(const ves_config *cfg, ves_model *m, const double *
     double E, A, V;
     if ((st = ves_model_eval(r->model, r->y, VES_F_E | VES_F_A | VES_F_V, &E, &A, &V, NULL, NULL,
                              NULL)) != VES_OK)
-      FAIL(st, "remesh: the projected state: %s", ves_status_str(st));
+      FAIL(st, "remesh: the projected state: %s", ves_error_text(st));
     in->E_proj = E / k, in->A_proj = A, in->V_proj = V;
     in->dE = in->E_proj - in->E_old;
     in->dA = A / in->A_old - 1, in->dV = V / in->V_old - 1;
   }
   ves_status cst = correct(r, par, gA, gV);
-  if (cst < 0) FAIL(cst, "remesh: correction: %s", ves_status_str(cst));
+  if (cst < 0) FAIL(cst, "remesh: correction: %s", ves_error_text(cst));
   in->seconds_correct = ves_wall_seconds() - t;
 
   /* 5. the interface's displacement: the new state's zero line against the
@@ -498,7 +499,7 @@ ves_status ves_remesh_create(const ves_config *cfg, ves_model *m, const double *
   free(poly);
   poly = NULL;
   if ((st = ves_remesh_interface(r->model, r->y, r->phi0c, &np, &poly, NULL)) != VES_OK)
-    FAIL(st, "remesh: the new interface: %s", ves_status_str(st));
+    FAIL(st, "remesh: the new interface: %s", ves_error_text(st));
   double dmax = 0, dsum = 0;
   for (int i = 0; i < np; i++) {
     const double d = fabs(ves_shape_distance(r->shape, poly + 2 * i));

@@ -62,7 +62,7 @@ ves_status ves_setup_nodes(const ves_config *cfg, const ves_shape *shape, ves_si
                           .h_far = cfg->h_far,
                           .reserve = reserve};
   if ((st = ves_sizing_create(shape, &zp, cfg->box_r, cfg->box_z, sizing)) != VES_OK)
-    FAIL(st, "sizing: %s", ves_status_str(st));
+    FAIL(st, "sizing: %s", ves_error_text(st));
   ves_nodes_params np;
   ves_nodes_params_default(&np);
   np.LR = cfg->box_r, np.LZ = cfg->box_z;
@@ -77,12 +77,12 @@ ves_status ves_setup_nodes(const ves_config *cfg, const ves_shape *shape, ves_si
       FAIL(st == VES_ERR_GEOM ? VES_ERR_CONFIG : st,
            "band layers: %s: band*epsilon = %g exceeds a radius of curvature of the shape "
            "(set a smaller [geometry] band, or band_layers = 0)",
-           ves_status_str(st), halfwidth);
+           ves_error_text(st), halfwidth);
     np.xfixed = bx, np.fixed_flag = bflag;
     np.reserved = ves_sizing_reserved, np.reserved_ctx = *sizing;
   }
   if ((st = ves_nodes_generate(&np, nodes)) != VES_OK)
-    FAIL(st, "node generation: %s", ves_status_str(st));
+    FAIL(st, "node generation: %s", ves_error_text(st));
   free(bx);
   free(bflag);
   return VES_OK;
@@ -98,6 +98,7 @@ ves_status ves_setup_create(const ves_config *cfg, ves_phi0_method method, ves_s
                             char *err, size_t errlen) {
   VES_CHECK(cfg && out && err && errlen, VES_ERR_ARG);
   *out = NULL;
+  ves_error_clear(); /* err names the record of this setup's failure (status.h) */
   double t0 = ves_wall_seconds(), t;
   ves_status st;
   double *f = NULL, *cpts = NULL;
@@ -131,7 +132,7 @@ ves_status ves_setup_create(const ves_config *cfg, ves_phi0_method method, ves_s
          "[shape] points = %s: the spline through the points crosses the axis (R < 0 between "
          "the poles) or encloses no volume; add points along its longest segments",
          cfg->points);
-  if (st != VES_OK) FAIL(st, "shape: %s", ves_status_str(st));
+  if (st != VES_OK) FAIL(st, "shape: %s", ves_error_text(st));
   ves_shape_sharp(s->shape, &s->area_sharp, &s->volume_sharp);
   t = ves_wall_seconds();
   if ((st = ves_setup_nodes(cfg, s->shape, &s->sizing, &s->nodes, err, errlen)) != VES_OK)
@@ -143,12 +144,12 @@ ves_status ves_setup_create(const ves_config *cfg, ves_phi0_method method, ves_s
   if (ves_quad_rule_parse(cfg->quadrature, &rule) != VES_OK)
     FAIL(VES_ERR_CONFIG, "[geometry] quadrature = %s: not a rule", cfg->quadrature);
   if ((st = ves_quad_create_rule(s->nodes, rule, &s->quad)) != VES_OK)
-    FAIL(st, "quadrature: %s", ves_status_str(st));
+    FAIL(st, "quadrature: %s", ves_error_text(st));
   ves_lme_params lp;
   ves_lme_params_default(&lp);
   lp.gamma = cfg->gamma, lp.tol0 = cfg->support_tol;
   if ((st = ves_quad_tables(s->quad, s->nodes, &lp, &s->qinfo)) != VES_OK)
-    FAIL(st, "LME tables: %s", ves_status_str(st));
+    FAIL(st, "LME tables: %s", ves_error_text(st));
   s->seconds_tables = ves_wall_seconds() - t;
 
   /* phi0 coefficients: sampled values, then (L2) the least-squares fit */
@@ -173,7 +174,7 @@ ves_status ves_setup_create(const ves_config *cfg, ves_phi0_method method, ves_s
     if (st != VES_OK)
       FAIL(st < 0 ? st : VES_ERR_NOCONV,
            "phi0 projection: %s (relative residual %.2e after %d refinement steps)",
-           ves_status_str(st), s->proj_residual, s->proj_refinements);
+           ves_error_text(st), s->proj_residual, s->proj_refinements);
   }
   s->seconds_project = ves_wall_seconds() - t;
 
@@ -185,7 +186,7 @@ ves_status ves_setup_create(const ves_config *cfg, ves_phi0_method method, ves_s
                          .drift = cfg->drift_damping,
                          .stab = cfg->stabilization};
   if ((st = ves_model_create(s->nodes, s->quad, s->phi0c, &mp, &s->model)) != VES_OK)
-    FAIL(st, "model: %s", ves_status_str(st));
+    FAIL(st, "model: %s", ves_error_text(st));
   s->seconds_total = ves_wall_seconds() - t0;
   free(f);
   *out = s;

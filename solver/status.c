@@ -16,8 +16,10 @@ const char *ves_status_str(ves_status s) {
   return "unknown status";
 }
 
-/* One record per thread: no state shared between threads (status.h). */
+/* One record per thread, and its text: no state shared between threads
+ * (status.h). */
 static _Thread_local ves_error last;
+static _Thread_local char text[1024];
 
 /* The file name without its folders (__FILE__ may carry a build path). */
 static const char *base(const char *file) {
@@ -63,3 +65,5 @@ const char *ves_error_format(ves_status code, char *buf, size_t len) {
   if (w < (int)len) snprintf(buf + w, len - (size_t)w, ")");
   return buf;
 }
+
+const char *ves_error_text(ves_status code) { return ves_error_format(code, text, sizeof text); }

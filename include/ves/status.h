@@ -71,6 +71,8 @@ void ves_error_clear(void);
 /* "what (file:line in func, via f:l, ...)" of the last error when it holds
  * code, else ves_status_str(code) alone; into buf, which is returned. */
 const char *ves_error_format(ves_status code, char *buf, size_t len);
+/* The same in this thread's text buffer (valid until the next call). */
+const char *ves_error_text(ves_status code);
 
 #ifdef __cplusplus
 }
