@@ -41,13 +41,7 @@ int cmd_check(int argc, char **argv) {
         return 2;
       }
       method = !strcmp(argv[++i], "sampled") ? VES_PHI0_SAMPLED : VES_PHI0_L2;
-    } else if (argv[i][0] == '-') {
-      fprintf(stderr, "vesica check: unknown option '%s' (see vesica check --help)\n", argv[i]);
-      return 2;
-    } else if (!path) {
-      path = argv[i];
-    } else {
-      fprintf(stderr, "vesica check: more than one configuration file ('%s')\n", argv[i]);
+    } else if (cli_operand("check", "configuration file", argv[i][0] == '-', argv[i], &path)) {
       return 2;
     }
   }

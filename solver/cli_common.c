@@ -176,3 +176,23 @@ int cli_parse_long(const char *cmd, const char *opt, const char *v, long lo, lon
 }
 
 const char *cli_why(ves_status st) { return ves_error_text(st); }
+
+int cli_operand(const char *cmd, const char *what, int is_option, const char *a,
+                const char **path) {
+  if (is_option) {
+    fprintf(stderr, "vesica %s: unknown option '%s' (see vesica %s --help)\n", cmd, a, cmd);
+    return 2;
+  }
+  if (*path) {
+    fprintf(stderr, "vesica %s: more than one %s ('%s')\n", cmd, what, a);
+    return 2;
+  }
+  *path = a;
+  return 0;
+}
+
+int cli_need(const char *path, void (*usage_fn)(FILE *)) {
+  if (path) return 0;
+  usage_fn(stderr);
+  return 2;
+}

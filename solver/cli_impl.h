@@ -47,6 +47,12 @@ int cli_load_problem(const char *cmd, const char *path, void (*usage_fn)(FILE *)
                      const char *const *set, ves_config *cfg);
 /* A --set argument at argv[*i]: 0 when taken, else the exit code. */
 int cli_take_set(const char *cmd, int argc, char **argv, int *i, int *nset, const char **set);
+/* An operand a of command cmd (what: "file", ...): an unknown option when
+ * is_option, a second operand when *path is set (2, message printed), else
+ * taken into *path (0). */
+int cli_operand(const char *cmd, const char *what, int is_option, const char *a, const char **path);
+/* 0 when the operand path was given, else 2 with the usage on stderr. */
+int cli_need(const char *path, void (*usage_fn)(FILE *));
 /* A long in [lo, hi] for option opt; 0, or 2 with a message. */
 int cli_parse_long(const char *cmd, const char *opt, const char *v, long lo, long hi, long *out);
 /* The folder of path exists and is writable, path is not a folder: 0, else 2. */

@@ -131,19 +131,11 @@ int cmd_info(int argc, char **argv) {
     if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
       usage_info(stdout);
       return 0;
-    } else if (argv[i][0] == '-') {
-      fprintf(stderr, "vesica info: unknown option '%s' (see vesica info --help)\n", argv[i]);
-      return 2;
-    } else if (path) {
-      fprintf(stderr, "vesica info: more than one file ('%s')\n", argv[i]);
+    } else if (cli_operand("info", "file", argv[i][0] == '-', argv[i], &path)) {
       return 2;
     }
-    path = argv[i];
   }
-  if (!path) {
-    usage_info(stderr);
-    return 2;
-  }
+  if (cli_need(path, usage_info)) return 2;
   char err[1024] = "";
   ves_io *io = NULL;
   if (ves_io_open(path, 0, &io, err, sizeof err) != VES_OK) {

@@ -88,20 +88,11 @@ int cmd_plot(int argc, char **argv) {
         outdir = argv[++i];
       else if (parse_times(argv[++i], &p))
         return 2;
-    } else if (argv[i][0] == '-') {
-      fprintf(stderr, "vesica plot: unknown option '%s' (see vesica plot --help)\n", argv[i]);
+    } else if (cli_operand("plot", "file", argv[i][0] == '-', argv[i], &path)) {
       return 2;
-    } else if (path) {
-      fprintf(stderr, "vesica plot: more than one file ('%s')\n", argv[i]);
-      return 2;
-    } else {
-      path = argv[i];
     }
   }
-  if (!path) {
-    usage_plot(stderr);
-    return 2;
-  }
+  if (cli_need(path, usage_plot)) return 2;
   char err[1024] = "", dir[PATH_MAX], stem[PATH_MAX];
   const char *slash = strrchr(path, '/'), *base = slash ? slash + 1 : path;
   size_t l = strlen(base);

@@ -222,13 +222,7 @@ int cmd_run(int argc, char **argv) {
       quiet = 1;
     } else if (!strcmp(a, "--force")) {
       force = 1;
-    } else if (a[0] == '-') {
-      fprintf(stderr, "vesica run: unknown option '%s' (see vesica run --help)\n", a);
-      return 2;
-    } else if (!path) {
-      path = a;
-    } else {
-      fprintf(stderr, "vesica run: more than one configuration file ('%s')\n", a);
+    } else if (cli_operand("run", "configuration file", a[0] == '-', a, &path)) {
       return 2;
     }
   }

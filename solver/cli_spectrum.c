@@ -156,20 +156,12 @@ static int spectrum_parse(int argc, char **argv, spectrum_args *o) {
       }
       int rc = spectrum_value(a, argv[++i], o);
       if (rc) return rc;
-    } else if (a[0] == '-' && a[1] && !isdigit((unsigned char)a[1])) {
-      fprintf(stderr, "vesica spectrum: unknown option '%s' (see vesica spectrum --help)\n", a);
+    } else if (cli_operand("spectrum", "file", a[0] == '-' && a[1] && !isdigit((unsigned char)a[1]),
+                           a, &o->path)) {
       return 2;
-    } else if (o->path) {
-      fprintf(stderr, "vesica spectrum: more than one file ('%s')\n", a);
-      return 2;
-    } else {
-      o->path = a;
     }
   }
-  if (!o->path) {
-    usage_spectrum(stderr);
-    return 2;
-  }
+  if (cli_need(o->path, usage_spectrum)) return 2;
   if (o->modes > o->lanczos) {
     fprintf(stderr, "vesica spectrum: --modes %ld is more than --lanczos %ld\n", o->modes,
             o->lanczos);

@@ -122,20 +122,11 @@ static int study_parse(int argc, char **argv, study_args *o) {
       o->collect = 1;
     } else if (!strcmp(a, "--quiet")) {
       o->quiet = 1;
-    } else if (a[0] == '-') {
-      fprintf(stderr, "vesica study: unknown option '%s' (see vesica study --help)\n", a);
+    } else if (cli_operand("study", "study file", a[0] == '-', a, &o->path)) {
       return 2;
-    } else if (o->path) {
-      fprintf(stderr, "vesica study: more than one study file ('%s')\n", a);
-      return 2;
-    } else {
-      o->path = a;
     }
   }
-  if (!o->path) {
-    usage_study(stderr);
-    return 2;
-  }
+  if (cli_need(o->path, usage_study)) return 2;
   if (o->emit && strcmp(o->emit, "slurm")) {
     fprintf(stderr, "vesica study: --emit '%s': only slurm\n", o->emit);
     return 2;

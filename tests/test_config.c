@@ -58,10 +58,8 @@ static void expect_error(const char *text, int nset, const char *const *set, ves
                          const char *fragment) {
   char path[64], err[512] = "";
   ves_config c;
-  if (text)
-    write_tmp(path, sizeof path, text);
-  else
-    snprintf(path, sizeof path, "/nonexistent/vesica.ini");
+  if (text) write_tmp(path, sizeof path, text);
+  else snprintf(path, sizeof path, "/nonexistent/vesica.ini");
   ves_status st = ves_config_load(path, nset, set, &c, err, sizeof err);
   if (st != want || !strstr(err, fragment))
     fail_msg("input [%s]: status %d (want %d), message '%s' (want '%s')", text ? text : path, st,
@@ -82,8 +80,7 @@ static void test_errors(void **state) {
   expect_error("[geometry]\nepsilon = 0.04 0.05\n", 0, NULL, VES_ERR_CONFIG, "not a number");
   expect_error("[geometry]\nepsilom = 0.04\n", 0, NULL, VES_ERR_CONFIG, "unknown key");
   expect_error("[geometri]\nepsilon = 0.04\n", 0, NULL, VES_ERR_CONFIG, "unknown section");
-  expect_error("[shape]\ntype = cube\n", 0, NULL, VES_ERR_CONFIG,
-               "allowed: sphere|spheroid|discocyte");
+  expect_error("[shape]\ntype = cube\n", 0, NULL, VES_ERR_CONFIG, "allowed: sphere|spheroid|discocyte");
   expect_error("[shape]\nmode = 2.5\n", 0, NULL, VES_ERR_CONFIG, "not an integer");
   expect_error("[shape]\nreduced_volume = 1.2\n", 0, NULL, VES_ERR_CONFIG, "reduced_volume");
   expect_error("[material]\nlambda_ratio = 5\n", 0, NULL, VES_ERR_CONFIG, "lambda_ratio");
@@ -105,12 +102,11 @@ static void test_errors(void **state) {
                "must be above 1");
   expect_error("[protocol]\nc0_after = 3\n", 0, NULL, VES_ERR_CONFIG, "c0_after");
   expect_error("[protocol]\nc0_until = 3\n", 0, NULL, VES_ERR_CONFIG, "c0_until");
-  expect_error("[protocol]\nc0_time = 0.5\nc0_after = 1\nc0_until = 0.5\n", 0, NULL, VES_ERR_CONFIG,
-               "c0_until");
+  expect_error("[protocol]\nc0_time = 0.5\nc0_after = 1\nc0_until = 0.5\n", 0, NULL,
+               VES_ERR_CONFIG, "c0_until");
   /* the C0 ramp: its keys need its start, an end after it, no c0_time, a change, a start
    * before t_end (default t_end 1) */
-  expect_error("[protocol]\nc0_ramp_to = 3\n", 0, NULL, VES_ERR_CONFIG,
-               "c0_ramp_to: has no effect");
+  expect_error("[protocol]\nc0_ramp_to = 3\n", 0, NULL, VES_ERR_CONFIG, "c0_ramp_to: has no effect");
   expect_error("[protocol]\nc0_ramp_end = 3\n", 0, NULL, VES_ERR_CONFIG, "c0_ramp_end: has no");
   expect_error("[protocol]\nc0_ramp_start = 0.5\nc0_ramp_end = 0.5\nc0_ramp_to = 2\n", 0, NULL,
                VES_ERR_CONFIG, "c0_ramp_end must come after it");

@@ -323,8 +323,8 @@ static void test_references(void **state) {
     for (int i = 0; i < 2 * NQ; i++) xq[i] = i / 7.0 + k;
     for (int i = 0; i < NQ; i++) wq[i] = 1.0 / (i + 3 + k);
     for (int i = 0; i < 6 * NQ; i++) pd[i] = sin(i + k);
-    ves_io_reference ref = {
-        .step = 10 * (k + 1), .nq = NQ, .x = x, .h = h, .xq = xq, .wq = wq, .pd = pd};
+    ves_io_reference ref = {.step = 10 * (k + 1), .nq = NQ, .x = x, .h = h, .xq = xq, .wq = wq,
+                            .pd = pd};
     assert_int_equal(ves_io_write_reference(io, &ref), VES_OK);
     assert_int_equal(ves_io_references(io), k + 1);
   }
@@ -934,8 +934,8 @@ static void test_self_describing(void **state) {
   assert_true(H5Ovisit(h5, H5_INDEX_NAME, H5_ITER_INC, described, &count) >= 0);
   /* root, parameters, mesh + 3, series + 20, snapshots + 0 + 3, references + 0 + 5 */
   assert_int_equal(count, 1 + 1 + 4 + 21 + 5 + 7);
-  const char *root[] = {"program", "version",        "problem",
-                        "source",  "format_version", "format_description"};
+  const char *root[] = {"program", "version", "problem", "source", "format_version",
+                        "format_description"};
   for (size_t i = 0; i < sizeof root / sizeof root[0]; i++)
     if (H5Aexists(h5, root[i]) <= 0) fail_msg("root: no attribute %s", root[i]);
   /* the status codes as an enumeration: every value with its name */

@@ -340,20 +340,16 @@ static void test_pattern(void **state) {
   for (int a = 0; a < n; a++)
     for (int b = 0; b < n; b++) {
       long t = ves_pattern_find(p, a, b);
-      if (b <= a && coupled[(size_t)a * n + b])
-        assert_true(t >= 0 && p->col[t] == b), count++;
-      else
-        assert_true(t < 0);
+      if (b <= a && coupled[(size_t)a * n + b]) assert_true(t >= 0 && p->col[t] == b), count++;
+      else assert_true(t < 0);
     }
   assert_int_equal(count, p->ptr[n]);
   for (int a = 0; a < n; a++)
     for (int t = p->ptr[a] + 1; t < p->ptr[a + 1]; t++) assert_true(p->col[t] > p->col[t - 1]);
   int nfree = 0;
   for (int i = 0; i < 2 * n; i++) {
-    if (fixed[i])
-      assert_int_equal(p->dof[i], -1);
-    else
-      assert_int_equal(p->dof[i], nfree++);
+    if (fixed[i]) assert_int_equal(p->dof[i], -1);
+    else assert_int_equal(p->dof[i], nfree++);
   }
   assert_int_equal(p->nfree, nfree);
   /* random block values -> triplets -> symv, against the dense free matrix */
@@ -477,8 +473,8 @@ static void test_project_folding(void **state) {
   enum { NQ = 7, N = 4, M = 4 };
   /* every point sees M = 4 entries; point 2 sees node 1 twice (real and
    * ghost), point 5 sees node 0 twice */
-  int nbr[NQ * M] = {0, 1, 2, 3, 0, 1, 2, 3, 1, 1, 2, 3, 0, 1,
-                     3, 2, 2, 3, 0, 1, 0, 0, 1, 3, 3, 2, 1, 0};
+  int nbr[NQ * M] = {0, 1, 2, 3, 0, 1, 2, 3, 1, 1, 2, 3, 0, 1, 3, 2,
+                     2, 3, 0, 1, 0, 0, 1, 3, 3, 2, 1, 0};
   unsigned char mirror[NQ * M] = {0};
   mirror[9] = mirror[21] = 1;
   int ptr[NQ + 1];
