@@ -139,16 +139,21 @@ ves_status ves_sim_create(ves_model *model, const ves_backend_type *backend,
                           ves_sim **out) {
   VES_CHECK(model && backend && bopt && ip && out, VES_ERR_ARG);
   *out = NULL;
-  VES_CHECK(ip->t_end > 0 && ip->dt_initial > 0 && ip->dt_max >= ip->dt_initial &&
-                ip->dt_min > 0 && ip->dt_min <= ip->dt_initial && ip->growth_max >= 1 &&
-                ip->dE_target > 0 && ip->volume_final > 0 && ip->retry_memory >= 0 &&
-                ip->retry_cap > 0 && ip->retry_cap <= 1,
-            VES_ERR_ARG);
-  VES_CHECK(ip->reconnect_every >= 0 &&
-                (ip->reconnect_cond_max == 0 || ip->reconnect_cond_max > 1) &&
-                ip->reconnect_det_min >= 0 && ip->reconnect_det_min < 1 &&
-                (ip->reconnect_nodes == VES_RESET_NODES_COEF ||
-                 ip->reconnect_nodes == VES_RESET_NODES_MOTION),
+  /* one condition a check: the error record names the one that failed */
+  VES_CHECK(ip->t_end > 0, VES_ERR_ARG);
+  VES_CHECK(ip->dt_initial > 0, VES_ERR_ARG);
+  VES_CHECK(ip->dt_max >= ip->dt_initial, VES_ERR_ARG);
+  VES_CHECK(ip->dt_min > 0 && ip->dt_min <= ip->dt_initial, VES_ERR_ARG);
+  VES_CHECK(ip->growth_max >= 1, VES_ERR_ARG);
+  VES_CHECK(ip->dE_target > 0, VES_ERR_ARG);
+  VES_CHECK(ip->volume_final > 0, VES_ERR_ARG);
+  VES_CHECK(ip->retry_memory >= 0, VES_ERR_ARG);
+  VES_CHECK(ip->retry_cap > 0 && ip->retry_cap <= 1, VES_ERR_ARG);
+  VES_CHECK(ip->reconnect_every >= 0, VES_ERR_ARG);
+  VES_CHECK(ip->reconnect_cond_max == 0 || ip->reconnect_cond_max > 1, VES_ERR_ARG);
+  VES_CHECK(ip->reconnect_det_min >= 0 && ip->reconnect_det_min < 1, VES_ERR_ARG);
+  VES_CHECK(ip->reconnect_nodes == VES_RESET_NODES_COEF ||
+                ip->reconnect_nodes == VES_RESET_NODES_MOTION,
             VES_ERR_ARG);
   VES_CHECK(ip->c0_until < 0 || (ip->c0_time >= 0 && ip->c0_until > ip->c0_time), VES_ERR_ARG);
   VES_CHECK(ip->c0_ramp_start < 0 ||
@@ -560,7 +565,9 @@ ves_status ves_sim_step(ves_sim *s, ves_step_report *rep) {
     rep->retries = retries;
     if (dt < s->ip.dt_min) {
       s->dt = s->ip.dt_min;
-      return st == VES_STEP_REJECTED || st == VES_MAXITER ? VES_ERR_NOCONV : st;
+      if (st == VES_STEP_REJECTED) VES_FAIL(VES_ERR_NOCONV, "the last attempt raised E*");
+      if (st == VES_MAXITER) VES_FAIL(VES_ERR_NOCONV, "the last attempt hit max_iter");
+      return ves_error_pass(st, __FILE__, __LINE__, __func__, "the last attempt");
     }
   }
 }
@@ -596,7 +603,10 @@ ves_status ves_sim_set_state(ves_sim *s, const ves_sim_state *st, const double *
   const double v[] = {st->t,  st->dt, st->E,         st->A,         st->V,  st->E0,      st->A0,
                       st->V0, st->lambda[0], st->lambda[1], st->c0, st->dt_rejected, st->dt_prev};
   for (size_t i = 0; i < sizeof v / sizeof v[0]; i++) VES_CHECK(isfinite(v[i]), VES_ERR_ARG);
-  VES_CHECK(st->t >= 0 && st->dt > 0 && st->nstep >= 0 && st->A0 > 0 && st->V0 > 0, VES_ERR_ARG);
+  VES_CHECK(st->t >= 0, VES_ERR_ARG);
+  VES_CHECK(st->dt > 0, VES_ERR_ARG);
+  VES_CHECK(st->nstep >= 0, VES_ERR_ARG);
+  VES_CHECK(st->A0 > 0 && st->V0 > 0, VES_ERR_ARG);
   VES_CHECK(st->dt_rejected >= 0 && st->since_rejected >= 0, VES_ERR_ARG);
   for (int i = 0; i < 2 * s->n; i++) VES_CHECK(isfinite(y[i]), VES_ERR_ARG);
   VES_CHECK(st->dt_prev >= 0 && (st->dt_prev == 0 || y_prev), VES_ERR_ARG);
