@@ -426,6 +426,9 @@ static void test_reconnect_every(void **state) {
   ves_sim_get_state(sim, &st, NULL);
   st.nstep = 5;
   assert_int_equal(ves_sim_set_state(sim, &st, ves_sim_y(sim), ves_sim_y_prev(sim)), VES_ERR_ARG);
+  /* the error record names the failed condition and where (status.h) */
+  assert_string_equal(ves_error_last()->origin.func, "ves_sim_set_state");
+  assert_non_null(strstr(ves_error_last()->what, "st->nstep >= s->reset_step"));
   ves_sim_get_state(sim, &st2, NULL);
   assert_int_equal(st2.nstep, 6);
   st.nstep = 6;
@@ -463,10 +466,15 @@ static void test_reconnect_threshold(void **state) {
   const ves_backend_type *bk = ves_backend_find("newton");
   relax_params(&ip, 0, 1.0, 0); /* cond_2 F >= 1 always: must be > 1 */
   assert_int_equal(ves_sim_create(s->model, bk, &bo, &ip, &sim), VES_ERR_ARG);
+  assert_string_equal(ves_error_last()->what,
+                      "failed: ip->reconnect_cond_max == 0 || ip->reconnect_cond_max > 1");
   relax_params(&ip, 0, 0, 1.0); /* det_min in [0, 1) */
   assert_int_equal(ves_sim_create(s->model, bk, &bo, &ip, &sim), VES_ERR_ARG);
+  assert_string_equal(ves_error_last()->what,
+                      "failed: ip->reconnect_det_min >= 0 && ip->reconnect_det_min < 1");
   relax_params(&ip, -1, 0, 0);
   assert_int_equal(ves_sim_create(s->model, bk, &bo, &ip, &sim), VES_ERR_ARG);
+  assert_string_equal(ves_error_last()->what, "failed: ip->reconnect_every >= 0");
   assert_null(sim);
   ves_setup_destroy(&s);
 }
