@@ -262,7 +262,8 @@ static const char *ini_trim(const char *s, size_t *n) {
  * and a UTF-8 byte-order mark accepted. Refused, with the line and the
  * cause: a key outside a section, an unknown or repeated section, an
  * unknown or repeated key, a header without its ']', a line without '=',
- * a NUL byte (not a text file). */
+ * a NUL byte (not a text file). One pass over the lines: the state
+ * (section, line number, the keys seen) is the loop's, hence one function. */
 static ves_status parse_ini(const char *text, size_t len, const char *name, ves_config *cfg,
                             char *err, size_t errlen) {
   int sec_line[NKEYS] = {0}; /* where each section began (by known_section - 1) */
@@ -458,6 +459,8 @@ ves_status ves_config_load_text(const char *text, const char *name, ves_config *
   return ves_config_validate(cfg, err, errlen);
 }
 
+/* A list of independent checks, one a key or a pair of keys, each with its
+ * message: long, but read line by line. */
 ves_status ves_config_validate(const ves_config *cfg, char *err, size_t errlen) {
   const char *src = cfg->source[0] ? cfg->source : "(defaults)";
   if (!strcasecmp(cfg->shape_type, "curve") && !strcmp(cfg->points, "none")) {

@@ -382,6 +382,9 @@ static ves_status correct(ves_remesh *r, const ves_remesh_params *par, double *g
     goto fail;                                                                                     \
   } while (0)
 
+/* Longer than most functions, on purpose: one pipeline (interface, new
+ * nodes, quadrature and tables, projection, correction) with one cleanup
+ * exit (STYLE.md §4), as ves_setup_create. */
 ves_status ves_remesh_create(const ves_config *cfg, ves_model *m, const double *y,
                              const ves_remesh_params *par, ves_remesh **out, char *err,
                              size_t errlen) {

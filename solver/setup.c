@@ -94,6 +94,10 @@ fail:
   return st;
 }
 
+/* Longer than most functions, on purpose: one pipeline (shape, nodes,
+ * quadrature, tables, projection, model) with one cleanup exit (STYLE.md
+ * §4); each stage's message names the stage, and helpers would only pass
+ * the half-built objects around. */
 ves_status ves_setup_create(const ves_config *cfg, ves_phi0_method method, ves_setup **out,
                             char *err, size_t errlen) {
   VES_CHECK(cfg && out && err && errlen, VES_ERR_ARG);

@@ -362,7 +362,8 @@ static ves_status study_number(const ves_study *s, const char *sec, const char *
   return VES_OK;
 }
 
-/* The sections of the study file into s. */
+/* The sections of the study file into s: one section after the other, each
+ * read and checked in place (long, but in the file's order). */
 static ves_status read_study(dictionary *d, ves_study *s, char *err, size_t errlen) {
   char problem[PATH_MAX] = "";
   for (ssize_t i = 0; i < d->size; i++)
