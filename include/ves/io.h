@@ -87,9 +87,7 @@
 #include <stdio.h>
 
 #include "ves/config.h"
-#include "ves/geom.h"
 #include "ves/integrate.h"
-#include "ves/lme.h"
 #include "ves/status.h"
 
 #define VES_IO_FORMAT 2 /* format_version written; 1 is read too (read-only) */
