@@ -3,6 +3,7 @@
  * or exits). Exit codes: 0 ok, 2 bad input (usage, configuration, files), 3
  * numerical failure (or a write error during a run), 130/143 stopped by
  * SIGINT/SIGTERM (the last state saved). */
+
 #include <stdio.h>
 #include <string.h>
 

@@ -1,15 +1,9 @@
 /* vesica check: the initial state of a problem and its derived quantities. */
-#include <ctype.h>
-#include <errno.h>
-#include <limits.h>
+
 #include <math.h>
-#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/stat.h>
-#include <time.h>
-#include <unistd.h>
 
 #include "cli_impl.h"
 

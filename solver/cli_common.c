@@ -1,15 +1,13 @@
 /* vesica — the command line's shared pieces: options, the problem file, the
  * setup's estimate, output paths, the library's error text (cli_impl.h). */
-#include <ctype.h>
+
 #include <errno.h>
 #include <limits.h>
 #include <math.h>
-#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
-#include <time.h>
 #include <unistd.h>
 
 #include "cli_impl.h"

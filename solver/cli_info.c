@@ -1,15 +1,9 @@
 /* vesica info: the summary of a run, one key = value a line. */
-#include <ctype.h>
-#include <errno.h>
-#include <limits.h>
+
 #include <math.h>
-#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/stat.h>
-#include <time.h>
-#include <unistd.h>
 
 #include "cli_impl.h"
 #include "ves/plot.h"

@@ -1,5 +1,7 @@
 /* vesica — the time loop of vesica run, new or restarted: steps, the file's
  * rows and snapshots, the --series text, progress, signals, the end. */
+
+#include <errno.h>
 #include <math.h>
 #include <signal.h>
 #include <stdio.h>

@@ -1,15 +1,11 @@
 /* vesica run --restart: continue a stored run from its last snapshot,
  * salvaging a file cut short. */
-#include <ctype.h>
+
 #include <errno.h>
 #include <limits.h>
-#include <math.h>
-#include <signal.h>
 #include <stdio.h>
-#include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
-#include <time.h>
 #include <unistd.h>
 
 #include "cli_impl.h"

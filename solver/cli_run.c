@@ -1,15 +1,12 @@
 /* vesica run: a new run and the time loop (progress, rows, snapshots, the
  * end of a run). */
-#include <ctype.h>
+
 #include <errno.h>
 #include <limits.h>
-#include <math.h>
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/stat.h>
-#include <time.h>
 #include <unistd.h>
 
 #include "cli_impl.h"

@@ -1,17 +1,11 @@
 /* vesica — a run's state for the command line: setup and integrator from the
  * problem, snapshots, references and remeshings written and rebuilt from a
  * file (run, its restart, spectrum). */
-#include <ctype.h>
-#include <errno.h>
-#include <limits.h>
+
 #include <math.h>
-#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/stat.h>
-#include <time.h>
-#include <unistd.h>
 
 #include "cli_impl.h"
 #include "ves/reconnect.h"
