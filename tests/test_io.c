@@ -971,27 +971,11 @@ static void test_tsv_row(void **state) {
   FILE *f = fmemopen(buf, sizeof buf, "w");
   assert_non_null(f);
   assert_int_equal(ves_io_tsv_header(f), VES_OK);
-  ves_io_row row = {.step = 7,
-                    .t = 0.125,
-                    .dt = 0.5,
-                    .E = 6.25,
-                    .A = 12.6,
-                    .V = 4.2,
-                    .V_target = 4.0,
-                    .lambda_A = -1.5,
-                    .lambda_V = 2.5,
-                    .iterations = 3,
-                    .f_evals = 4,
-                    .g_evals = 5,
-                    .h_evals = 6,
-                    .solve_seconds = 1.25,
-                    .retries = 1,
-                    .reconnections = 2,
-                    .rejected_iterations = 9,
-                    .rejected_seconds = 0.5,
-                    .c0 = 3,
-                    .violation = 1e-12,
-                    .status = 0};
+  ves_io_row row = {.step = 7, .t = 0.125, .dt = 0.5, .E = 6.25, .A = 12.6, .V = 4.2,
+                    .V_target = 4.0, .lambda_A = -1.5, .lambda_V = 2.5, .iterations = 3,
+                    .f_evals = 4, .g_evals = 5, .h_evals = 6, .solve_seconds = 1.25,
+                    .retries = 1, .reconnections = 2, .rejected_iterations = 9,
+                    .rejected_seconds = 0.5, .c0 = 3, .violation = 1e-12, .status = 0};
   assert_int_equal(ves_io_tsv_row(f, &row, 12.0), VES_OK);
   fclose(f);
   assert_string_equal(buf, "# step\tt\tdt\tE\tA/A0-1\tV/Vt-1\tlambda_A\tlambda_V\titer\tf\tg\th\t"
