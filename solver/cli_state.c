@@ -75,7 +75,7 @@ ves_status cli_snapshot(run_ctx *r, double wall) {
   VES_CALL(cli_ensure_nodes(r, n));
   ves_sim_get_state(r->sim, &si.state, r->y);
   si.y_prev = ves_sim_y_prev(r->sim); /* the predictor's state, when held */
-  ves_sim_restart_point(r->sim); /* a restart from here repeats the next steps exactly */
+  ves_sim_restart_point(r->sim);      /* a restart from here repeats the next steps exactly */
   r->last_snapshot_step = si.state.nstep;
   ves_status st = ves_sim_node_material(r->sim, r->x, r->phi);
   if (st != VES_OK) { /* x and phi are for looking at: the run and its state go on */

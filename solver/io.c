@@ -1272,7 +1272,8 @@ ves_status ves_io_read_snapshot_n(ves_io *io, int k, int nbuf, double *y, double
     if (st == VES_OK && H5Aexists(g, "since_rejected") > 0)
       st = attr_read(g, "since_rejected", H5T_NATIVE_LONG, &s->since_rejected);
     /* the predictor's state (absent before 2026-12-02 and when none was held) */
-    if (st == VES_OK && H5Aexists(g, "dt_prev") > 0) st = attr_read_double(g, "dt_prev", &s->dt_prev);
+    if (st == VES_OK && H5Aexists(g, "dt_prev") > 0)
+      st = attr_read_double(g, "dt_prev", &s->dt_prev);
     if (st == VES_OK && !(isfinite(s->dt_prev) && s->dt_prev >= 0)) st = VES_ERR_IO;
   }
   H5Gclose(g);
