@@ -80,13 +80,12 @@ static void catch_signals(void) {
 }
 
 /* Room for the next step's writes and a last snapshot after them: a run on
- * a filling disk stops here, between complete writes (io.h). */
-static ves_status room_for_step(run_ctx *r, long nstep) {
+ * a filling disk stops here, between complete writes (io.h); resets: a step
+ * may also write a reference. */
+static ves_status room_for_step(run_ctx *r, long nstep, int resets) {
   const int due = (nstep + 1) % r->cfg.snapshot_every == 0;
-  ves_problem_params p;
-  ves_problem_params_from_config(&r->cfg, &p);
   const int nq = ves_model_quad(ves_sim_model(r->sim))->nq;
-  return ves_io_room(r->io, 1 + due, p.resets ? nq : 0); /* a remeshing is smaller */
+  return ves_io_room(r->io, 1 + due, resets ? nq : 0); /* a remeshing is smaller */
 }
 
 /* The accepted step rep into the file (row, a reset's reference, a
@@ -213,6 +212,8 @@ static int finish(run_ctx *r, const loop_ctx *L, ves_status st, ves_status wst, 
 
 int cli_loop(run_ctx *r) {
   loop_ctx L = {.t0 = ves_wall_seconds(), .tty = isatty(2)};
+  ves_problem_params p; /* whether a step may write a reference (resets, remeshings) */
+  ves_problem_params_from_config(&r->cfg, &p);
   ves_step_report rep;
   ves_status st = VES_OK, wst = VES_OK, room = VES_OK;
   catch_signals();
@@ -221,7 +222,7 @@ int cli_loop(run_ctx *r) {
     ves_sim_get_state(r->sim, &now, NULL);
     if (r->max_steps > 0 && now.nstep >= r->max_steps) break;
     if (stop_signal) break;
-    if ((room = room_for_step(r, now.nstep)) != VES_OK) break;
+    if ((room = room_for_step(r, now.nstep, p.resets)) != VES_OK) break;
     ves_error_clear(); /* the record of this step's failure alone */
     if ((st = ves_sim_step(r->sim, &rep)) != VES_OK) break;
     L.steps++;
