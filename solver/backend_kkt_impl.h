@@ -16,7 +16,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "ves/sparse.h"
+#include "ves/ldl.h"
 #include "ves/step.h"
 
 #define KKT_NROWS 2 /* constraint rows in the structure (area, volume) */

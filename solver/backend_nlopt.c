@@ -12,7 +12,8 @@
  * diagonal), with a diagonal shift M + alpha diag(M), alpha = 0, 1e-3, 1e-2,
  * ... until it is positive definite. L is the exact (dense, LAPACK dpotrf)
  * Cholesky factor up to NLB_DENSE_MAX variables (n^2 doubles: 150 MB at the
- * default oblate's 4.3k dofs), above that IC(0) on the Hessian pattern. The
+ * default oblate's 4.3k dofs), above that IC(0) on the Hessian pattern
+ * (ves_ldl_ic, ldl.h). The
  * Hessian of F in u is then the identity at the start, and LBFGS's unit step
  * a Newton step. The wrapper ves_ldl (MUMPS) that newton uses cannot serve:
  * it offers A^{-1} v only, not the half solves L^{-1} v, L^{-T} v that a
@@ -80,6 +81,7 @@
 #include <nlopt.h>
 
 #include "ves/backend.h"
+#include "ves/ldl.h"
 #include "clock_impl.h"
 
 #define NLB_EVALS_PER_ITER 100 /* maxeval = this * max_iter */
@@ -109,22 +111,12 @@
 #define NLB_DENSE_MAX 12000 /* largest nvar with the exact (dense) factor: 1.15 GB */
 #endif
 
-/* Lower-triangular factor in compressed rows, the diagonal last in each row. */
-typedef struct {
-  int n;
-  int *ptr;  /* n + 1 */
-  int *col;  /* ptr[n], ascending in each row */
-  double *a; /* ptr[n] values of M (summed duplicates) */
-  double *l; /* ptr[n] values of L */
-  int *map;  /* nnz: triplet k -> position in col (or -1 above the diagonal) */
-} nlb_ic;
-
 /* The typed context of the callbacks. */
 typedef struct {
   ves_step *s;          /* the step problem (borrowed) */
   nlopt_opt opt;        /* the outer optimizer (for nlopt_force_stop) */
   int n, m;             /* nvar, ncon */
-  const nlb_ic *L;      /* the factor of the change of variables (IC(0)) */
+  const ves_ldl_ic *L;  /* the factor of the change of variables (IC(0)) */
   const double *Ld;     /* or the exact one: n x n, column-major, lower (NULL: IC(0)) */
   const double *xs;     /* n the start x_start */
   double root;          /* x = x_start + root L^{-T} u */
@@ -146,7 +138,7 @@ typedef struct {
   int n, nnz;                        /* sizes the arrays are for */
   double *x, *g, *J, *u, *xs, *hval; /* scratch, u, start, Hessian values */
   int *hi, *hj;                      /* Hessian structure (lower triplets) */
-  nlb_ic L;                          /* preconditioner: IC(0) on the Hessian pattern */
+  ves_ldl_ic *L;                     /* preconditioner: IC(0) on the Hessian pattern */
   double *Ld;             /* or the exact Cholesky factor, n x n (NULL above NLB_DENSE_MAX) */
   double shift;           /* the diagonal shift alpha of the last factorization */
   int pass;               /* 0: M was the Hessian of the Lagrangian; 1: K */
@@ -155,136 +147,21 @@ typedef struct {
   nlb_ctx ctx;
 } nlb_state;
 
-/* ---- IC(0) ------------------------------------------------------------- */
-
-static void nlb_ic_free(nlb_ic *L) {
-  free(L->ptr), free(L->col), free(L->a), free(L->l), free(L->map);
-  memset(L, 0, sizeof *L);
-}
-
-/* Pattern of the lower triplets (irow >= jcol) in compressed rows, columns
- * ascending, duplicates merged; map[k] the slot of triplet k. */
-static ves_status nlb_ic_pattern(nlb_ic *L, int n, int nnz, const int *hi, const int *hj) {
-  L->n = n;
-  L->ptr = calloc((size_t)n + 1, sizeof(int));
-  L->map = malloc((size_t)(nnz > 0 ? nnz : 1) * sizeof(int));
-  int *cnt = calloc((size_t)n + 1, sizeof(int));
-  int *tmp = malloc((size_t)(nnz + n + 1) * sizeof(int));
-  ves_status rc = VES_ERR_ALLOC;
-  if (!L->ptr || !L->map || !cnt || !tmp) goto out;
-  /* rows with the diagonal forced in: count, fill, sort, merge */
-  for (int k = 0; k < nnz; k++) {
-    if (hi[k] < 0 || hi[k] >= n || hj[k] < 0 || hj[k] > hi[k]) {
-      rc = VES_ERR_ARG;
-      goto out;
-    }
-    cnt[hi[k] + 1]++;
-  }
-  for (int i = 0; i < n; i++) cnt[i + 1] += cnt[i] + 1; /* + 1: the diagonal */
-  int *pos = L->ptr;                                    /* fill positions */
-  for (int i = 0; i < n; i++) pos[i] = cnt[i], tmp[pos[i]++] = i;
-  for (int k = 0; k < nnz; k++) tmp[pos[hi[k]]++] = hj[k];
-  int w = 0;
-  for (int i = 0; i < n; i++) {
-    int b = cnt[i], e = cnt[i + 1];
-    for (int p = b + 1; p < e; p++) /* insertion sort (rows are short) */
-      for (int q = p; q > b && tmp[q - 1] > tmp[q]; q--) {
-        int t = tmp[q];
-        tmp[q] = tmp[q - 1], tmp[q - 1] = t;
-      }
-    L->ptr[i] = w;
-    for (int p = b; p < e; p++)
-      if (p == b || tmp[p] != tmp[p - 1]) tmp[w++] = tmp[p];
-  }
-  L->ptr[n] = w;
-  L->col = malloc((size_t)w * sizeof(int));
-  L->a = malloc((size_t)w * sizeof(double));
-  L->l = malloc((size_t)w * sizeof(double));
-  if (!L->col || !L->a || !L->l) goto out;
-  memcpy(L->col, tmp, (size_t)w * sizeof(int));
-  for (int k = 0; k < nnz; k++) { /* binary search of the slot */
-    int lo = L->ptr[hi[k]], hi_ = L->ptr[hi[k] + 1] - 1;
-    while (lo < hi_) {
-      int mid = (lo + hi_) / 2;
-      if (L->col[mid] < hj[k])
-        lo = mid + 1;
-      else
-        hi_ = mid;
-    }
-    L->map[k] = lo;
-  }
-  rc = VES_OK;
-out:
-  free(cnt), free(tmp);
-  if (rc != VES_OK) nlb_ic_free(L);
-  return rc;
-}
-
-/* L L^T = M + alpha diag(M) on the pattern of M (row-wise IC(0)):
- * L_ij = (M_ij - sum_{k<j} L_ik L_jk) / L_jj,  L_ii = sqrt(M_ii(1 + alpha) - sum L_ik^2).
- * Returns 0 on success, -1 on a breakdown (a pivot <= 0). */
-static int nlb_ic_factor(nlb_ic *L, double alpha) {
-  const int *ptr = L->ptr, *col = L->col;
-  for (int i = 0; i < L->n; i++) {
-    int bi = ptr[i], ei = ptr[i + 1] - 1; /* ei: the diagonal */
-    for (int p = bi; p <= ei; p++) {
-      int j = col[p];
-      double sum = L->a[p] * (j == i ? 1.0 + alpha : 1.0);
-      /* sparse dot of rows i and j over columns < j */
-      int q = bi, r = ptr[j], er = ptr[j + 1] - 1;
-      while (q < p && r < er) {
-        if (col[q] == col[r])
-          sum -= L->l[q++] * L->l[r++];
-        else if (col[q] < col[r])
-          q++;
-        else
-          r++;
-      }
-      if (j < i) {
-        L->l[p] = sum / L->l[er];
-      } else {
-        if (!(sum > 0.0) || !isfinite(sum)) return -1;
-        L->l[p] = sqrt(sum);
-      }
-    }
-  }
-  return 0;
-}
-
-/* w = L^{-1} v (forward substitution, in place). */
-static void nlb_ic_lsolve(const nlb_ic *L, double *v) {
-  for (int i = 0; i < L->n; i++) {
-    int e = L->ptr[i + 1] - 1;
-    double s = v[i];
-    for (int p = L->ptr[i]; p < e; p++) s -= L->l[p] * v[L->col[p]];
-    v[i] = s / L->l[e];
-  }
-}
-
-/* w = L^{-T} v (backward substitution, in place). */
-static void nlb_ic_ltsolve(const nlb_ic *L, double *v) {
-  for (int i = L->n - 1; i >= 0; i--) {
-    int e = L->ptr[i + 1] - 1;
-    v[i] /= L->l[e];
-    for (int p = L->ptr[i]; p < e; p++) v[L->col[p]] -= L->l[p] * v[i];
-  }
-}
-
 /* v = L^{-1} v with the factor in use: the exact one Ld when there is one,
  * else IC(0). */
-static void nlb_lsolve(const nlb_ic *L, const double *Ld, double *v) {
+static void nlb_lsolve(const ves_ldl_ic *L, const double *Ld, double *v) {
   if (Ld)
     cblas_dtrsv(CblasColMajor, CblasLower, CblasNoTrans, CblasNonUnit, L->n, Ld, L->n, v, 1);
   else
-    nlb_ic_lsolve(L, v);
+    ves_ldl_ic_lsolve(L, v);
 }
 
 /* v = L^{-T} v with the factor in use. */
-static void nlb_ltsolve(const nlb_ic *L, const double *Ld, double *v) {
+static void nlb_ltsolve(const ves_ldl_ic *L, const double *Ld, double *v) {
   if (Ld)
     cblas_dtrsv(CblasColMajor, CblasLower, CblasTrans, CblasNonUnit, L->n, Ld, L->n, v, 1);
   else
-    nlb_ic_ltsolve(L, v);
+    ves_ldl_ic_ltsolve(L, v);
 }
 
 /* Ld Ld^T = (M + sum_i w_i grad c_i grad c_i^T)(1 + alpha on the diagonal),
@@ -409,7 +286,7 @@ static void nlb_free_arrays(nlb_state *st) {
   st->Ld = NULL;
   st->x = st->g = st->J = st->u = st->xs = st->hval = NULL;
   st->hi = st->hj = NULL;
-  nlb_ic_free(&st->L);
+  ves_ldl_ic_destroy(&st->L);
   st->n = 0, st->nnz = 0;
 }
 
@@ -438,7 +315,7 @@ static ves_status nlb_alloc(nlb_state *st, ves_step *s) {
     }
   }
 #endif
-  ves_status rc = nlb_ic_pattern(&st->L, n, nnz, st->hi, st->hj);
+  ves_status rc = ves_ldl_ic_create(n, nnz, st->hi, st->hj, &st->L);
   if (rc != VES_OK) {
     nlb_free_arrays(st);
     return rc;
@@ -476,7 +353,7 @@ static ves_status nlb_create(const ves_backend_options *opt, ves_step *s, void *
  * Cholesky factor when st->Ld is allocated, else IC(0). */
 static ves_status nlb_precondition(nlb_state *st, ves_step *s, const double *x,
                                    const double *lambda, int m, const double *J) {
-  nlb_ic *L = &st->L;
+  ves_ldl_ic *L = st->L;
   const double *K = ves_step_K(s);
   VES_CHECK(K != NULL, VES_ERR_ARG);
   VES_CALL(ves_step_eval_hess(s, x, 1.0, lambda, st->hval));
@@ -503,8 +380,7 @@ static ves_status nlb_precondition(nlb_state *st, ves_step *s, const double *x,
 #endif
   for (int pass = 0; pass < 2; pass++) {
     const double *v = pass == 0 ? st->hval : K;
-    memset(L->a, 0, (size_t)L->ptr[L->n] * sizeof(double));
-    for (int k = 0; k < st->nnz; k++) L->a[L->map[k]] += v[k];
+    ves_ldl_ic_set(L, v);
     int posdiag = 1;
     for (int i = 0; i < L->n; i++) posdiag &= L->a[L->ptr[i + 1] - 1] > 0.0;
 #ifdef NLB_DIAGONAL_ONLY /* measurement: the diagonal scaling alone */
@@ -515,7 +391,7 @@ static ves_status nlb_precondition(nlb_state *st, ves_step *s, const double *x,
     double alpha = 0.0;
     for (int t = 0; t < NLB_IC_SHIFTS; t++, alpha = alpha == 0.0 ? 1e-3 : 10.0 * alpha) {
       if (st->Ld ? nlb_dense_factor(st->Ld, st->n, st->nnz, st->hi, st->hj, v, m, J, w, alpha) == 0
-                 : nlb_ic_factor(L, alpha) == 0) {
+                 : ves_ldl_ic_factor(L, alpha) == VES_OK) {
         st->shift = alpha, st->pass = pass;
         return VES_OK;
       }
@@ -604,8 +480,8 @@ static ves_status nlb_phase(nlb_state *st, ves_step *s, double *x, double *lambd
     if (rc == VES_OK) rc = nlb_precondition(st, s, x, m > 0 ? lam_m : NULL, m, st->J);
     if (rc != VES_OK) break;
     c->g_evals++, c->h_evals++;
-    nlb_lsolve(&st->L, st->Ld, st->g); /* the gradient in u at root = 1 */
-    for (int i = 0; i < m; i++) nlb_lsolve(&st->L, st->Ld, st->J + (size_t)i * n);
+    nlb_lsolve(st->L, st->Ld, st->g); /* the gradient in u at root = 1 */
+    for (int i = 0; i < m; i++) nlb_lsolve(st->L, st->Ld, st->J + (size_t)i * n);
     have_qp = m > 0 && st->Ld != NULL; /* an estimate, also from a shifted factor */
     if (!have_qp) break;
     nlb_multipliers(n, m, st->J, st->g, c0, lam_qp);
@@ -734,7 +610,7 @@ static ves_status nlb_solve(void *state, ves_step *s, double *x, double *lambda,
   *c = (nlb_ctx){.s = s,
                  .n = n,
                  .m = m,
-                 .L = &st->L,
+                 .L = st->L,
                  .Ld = st->Ld,
                  .xs = st->xs,
                  .x = st->x,

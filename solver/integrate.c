@@ -44,7 +44,7 @@
 #include "ves/quad.h"
 #include "ves/reconnect.h"
 #include "ves/remesh.h"
-#include "ves/sparse.h"
+#include "ves/project.h"
 
 struct ves_sim {
   ves_model *model;                 /* in use: the creation model (borrowed) or ref's */
@@ -652,7 +652,7 @@ static ves_status node_points(ves_sim *s) {
 
 /* phi at the reference's nodes into s->node_phi: the L2 projection of the
  * model's point values of phi0 onto the reference's basis
- * (ves_sparse_project_l2, as the setup fits phi0), evaluated at the nodes.
+ * (ves_project_l2, as the setup fits phi0), evaluated at the nodes.
  * On the creation model this is the setup's field again; after a reset the
  * pushed-forward one (the model has no nodal coefficients then). */
 static ves_status node_phi_fit(ves_sim *s) {
@@ -670,7 +670,7 @@ static ves_status node_phi_fit(ves_sim *s) {
     ves_model_point_data(s->model, pd);
     for (int al = 0; al < q->nq; al++) pd[al] = pd[6 * (size_t)al]; /* phi0 row, in place */
     /* the setup's tolerance: the fit error far below the discretization's */
-    st = ves_sparse_project_l2(q, n, pd, c, 1e-12, 3, NULL, NULL);
+    st = ves_project_l2(q, n, pd, c, 1e-12, 3, NULL, NULL);
     if (st == VES_MAXITER) st = VES_OK; /* the best iterate: ample for output */
   }
   if (st == VES_OK) {

@@ -47,6 +47,7 @@
  * patterns along which the discrete E has negative curvature: it turns the
  * relaxed sphere from a saddle into a minimum (bench/RESULTS.md, issue 22). */
 #include "ves/model.h"
+#include "ves/project.h"
 
 #include <assert.h>
 #include <math.h>

@@ -12,7 +12,7 @@
 
 #include "ves/reconnect.h"
 #include "ves/setup.h"
-#include "ves/sparse.h"
+#include "ves/project.h"
 
 #include "clock_impl.h"
 
@@ -77,7 +77,7 @@ static ves_status node_state(const ves_model *m, const double *y, const double *
     if (st == VES_OK) {
       ves_model_point_data(m, pd);
       for (int al = 0; al < q->nq; al++) pd[al] = pd[6 * (size_t)al]; /* phi0 row, in place */
-      st = ves_sparse_project_l2(q, n, pd, c, 1e-12, 3, NULL, NULL);
+      st = ves_project_l2(q, n, pd, c, 1e-12, 3, NULL, NULL);
       if (st == VES_MAXITER) st = VES_OK; /* the best iterate: ample for a curve */
     }
     phi0c = c;
@@ -467,7 +467,7 @@ ves_status ves_remesh_create(const ves_config *cfg, ves_model *m, const double *
       (st = ves_quad_tables(cross, r->nodes, &oq->lme, NULL)) != VES_OK)
     FAIL(st, "remesh: the moved points on the new basis: %s", ves_error_text(st));
   /* the setup's tolerance: the fit error far below the discretization's */
-  st = ves_sparse_project_l2(cross, n, f, r->phi0c, 1e-12, 3, &in->proj_refinements,
+  st = ves_project_l2(cross, n, f, r->phi0c, 1e-12, 3, &in->proj_refinements,
                              &in->proj_residual);
   if (st != VES_OK)
     FAIL(st < 0 ? st : VES_ERR_NOCONV, "remesh: phi projection: %s (relative residual %.2e)",

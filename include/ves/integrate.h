@@ -228,7 +228,7 @@ void ves_sim_initial(const ves_sim *s, double *E, double *A, double *V); /* at t
  * The first call after a reset builds a point set at the nodes with its
  * tables (~n/nq of the setup's table build) and, for phi, the fit (a sparse
  * factorization); later calls evaluate only. VES_ERR_ARG, VES_ERR_ALLOC, or
- * the errors of ves_quad_tables and ves_sparse_project_l2; the simulation
+ * the errors of ves_quad_tables and ves_project_l2; the simulation
  * state is never changed. */
 ves_status ves_sim_node_material(ves_sim *s, double *x, double *phi);
 

@@ -122,7 +122,7 @@ ves_status ves_quad_tables(ves_quad *q, const ves_nodes *nodes, const ves_lme_pa
                            ves_quad_info *info);
 
 /* The least-squares (L2) projection of a field onto these tables is
- * ves_sparse_project_l2 (sparse.h): it needs the direct solver. */
+ * ves_project_l2 (project.h): it needs the direct solver. */
 
 /* Evaluate an even field from coefficients: out[6 nq] rows (value, d/dR,
  * d/dZ, d2/dR2, d2/dRdZ, d2/dZ2) at every point, point-major: out[6 alpha + j].

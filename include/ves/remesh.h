@@ -18,7 +18,7 @@
  *      initial shape (ves_setup_nodes: band, grading, axis lattice, band
  *      layers, ghosts; the same [geometry] keys and seed), the Delaunay
  *      quadrature on them and the LME tables with the old tables' parameters;
- *   3. phi0' = the L2 projection (ves_sparse_project_l2, as the setup fits
+ *   3. phi0' = the L2 projection (ves_project_l2, as the setup fits
  *      phi0) of the current phi onto the new basis, c minimizing
  *        sum_alpha w_alpha det F(Xh_alpha) (sum_a p'_a(y(Xh_alpha)) c_a - phi0(Xh_alpha))^2,
  *      i.e. over the old quadrature moved with the material (points y(Xh),

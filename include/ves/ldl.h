@@ -1,0 +1,110 @@
+/* vesica — sparse symmetric factorizations of a matrix given by its lower
+ * triplets (0-based): the direct solver LDL^T / Cholesky on sequential MUMPS
+ * (the KKT systems, the L2 projection) and the incomplete Cholesky factor
+ * IC(0) (the nlopt backend's change of variables). Knows only status codes:
+ * no quadrature, no model. */
+#ifndef VES_LDL_H
+#define VES_LDL_H
+
+#include "ves/status.h"
+
+/* ---- Sparse symmetric direct solver (MUMPS, sequential) ----
+ *
+ * A = L D L^T of a symmetric n x n matrix given by its lower-triangle
+ * triplets (0-based; duplicates are summed). The pattern is analysed once at
+ * create; factor may be called again with new values on the same pattern. The
+ * object is opaque: it owns a MUMPS instance and 1-based copies of the indices
+ * and of the values. MUMPS prints nothing; ordering: approximate minimum fill
+ * (ICNTL(7) = 2, measured faster than SCOTCH/AMD/QAMD/PORD on our matrices). */
+typedef struct ves_ldl ves_ldl;
+
+/* Diagnostics of the last MUMPS call (create, factor or solve). */
+typedef struct {
+  int infog1;          /* MUMPS INFOG(1): 0 ok, < 0 error, > 0 warning */
+  int infog2;          /* MUMPS INFOG(2): detail of INFOG(1) (see the MUMPS guide) */
+  int neg_pivots;      /* INFOG(12) of the last factorization: negative pivots, i.e.
+                          negative eigenvalues of A (the inertia the KKT path checks) */
+  double factor_entries; /* entries in the factors (INFOG(29)), 0 before a factorization */
+  int icntl14;         /* ICNTL(14) in use: workspace relaxation, percent */
+  int retries;         /* workspace retries (INFOG(1) = -8/-9) in the last factorization */
+} ves_ldl_info;
+
+/* Analyse the pattern (MUMPS JOB = 1). irow[nnz], jcol[nnz]: 0-based lower
+ * triplets, irow[k] >= jcol[k] (copied). spd != 0: A is symmetric positive
+ * definite (Cholesky, MUMPS SYM = 1); spd == 0: symmetric indefinite (LDL^T with
+ * 2x2 pivots, SYM = 2). *out taken by the caller.
+ * Returns VES_OK, VES_ERR_ARG (n < 1, nnz < 1, an index out of range or above
+ * the diagonal), VES_ERR_ALLOC, VES_ERR_SINGULAR (structurally singular),
+ * VES_ERR_SOLVER (another MUMPS error; no object is returned, so its codes
+ * are not available: for valid input this does not happen). */
+ves_status ves_ldl_create(int n, int nnz, const int *irow, const int *jcol, int spd,
+                          ves_ldl **out);
+
+/* Numeric factorization (JOB = 2) reusing the analysis; val[nnz] in the order
+ * of the triplets given to create (copied). Retries with twice the workspace
+ * relaxation ICNTL(14) when MUMPS runs out of workspace (up to
+ * VES_LDL_MAX_RETRIES times; the larger value is kept for later calls).
+ * Returns VES_OK, VES_ERR_ARG, VES_ERR_SINGULAR (a zero pivot: INFOG(1) = -10
+ * or -6; for spd also a negative pivot, INFOG(12) > 0 with INFOG(1) = 0, since
+ * MUMPS's SYM = 1 is an unpivoted LDL^T that accepts an indefinite matrix),
+ * VES_ERR_ALLOC, VES_ERR_SOLVER
+ * (other MUMPS errors; codes in ves_ldl_get_info). After a failure the
+ * analysis is still valid and factor may be called again. */
+ves_status ves_ldl_factor(ves_ldl *f, const double *val);
+
+/* Solve A x = rhs in place (JOB = 3): rhs[n] in, x out. Requires a successful
+ * factor. Returns VES_OK, VES_ERR_ARG (no valid factorization), VES_ERR_SOLVER. */
+ves_status ves_ldl_solve(ves_ldl *f, double *rhs);
+
+/* Order of the matrix. */
+int ves_ldl_size(const ves_ldl *f);
+
+/* Copy the diagnostics of the last call into *info. */
+void ves_ldl_get_info(const ves_ldl *f, ves_ldl_info *info);
+
+/* Free (JOB = -2); accepts NULL and sets *f to NULL. */
+void ves_ldl_destroy(ves_ldl **f);
+
+#define VES_LDL_MAX_RETRIES 3 /* workspace retries in ves_ldl_factor */
+
+/* ---- Incomplete Cholesky IC(0) ----
+ *
+ * L L^T ~= M + alpha diag(M) with L restricted to the lower pattern of M
+ * (row-wise IC(0), no fill). Plain data: the factor in compressed rows, open
+ * so a caller can read M's diagonal before factoring. */
+typedef struct {
+  int n;     /* order */
+  int nnz;   /* triplets the pattern was built from */
+  int *ptr;  /* n + 1 row offsets */
+  int *col;  /* ptr[n] columns, ascending in each row, the diagonal last */
+  double *a; /* ptr[n] values of M (the triplets summed, ves_ldl_ic_set) */
+  double *l; /* ptr[n] values of L (ves_ldl_ic_factor) */
+  int *map;  /* nnz: the slot in col of triplet k */
+} ves_ldl_ic;
+
+/* The pattern of the lower triplets irow[nnz] >= jcol[nnz] (copied; the
+ * diagonal added where missing, duplicates merged). *out taken by the caller.
+ * Returns VES_OK, VES_ERR_ARG (n < 1, nnz < 0, an index out of range or above
+ * the diagonal), VES_ERR_ALLOC. */
+ves_status ves_ldl_ic_create(int n, int nnz, const int *irow, const int *jcol, ves_ldl_ic **out);
+
+/* M = the triplet values val[nnz] (in the order given to create) summed into
+ * the pattern: L->a. */
+void ves_ldl_ic_set(ves_ldl_ic *L, const double *val);
+
+/* L L^T = M + alpha diag(M) on the pattern of M (M from ves_ldl_ic_set):
+ *   L_ij = (M_ij - sum_{k<j} L_ik L_jk) / L_jj,
+ *   L_ii = sqrt(M_ii (1 + alpha) - sum_{k<i} L_ik^2).
+ * Returns VES_OK, VES_ERR_SINGULAR (a breakdown: a pivot <= 0 or not finite). */
+ves_status ves_ldl_ic_factor(ves_ldl_ic *L, double alpha);
+
+/* v = L^{-1} v (forward substitution, in place). */
+void ves_ldl_ic_lsolve(const ves_ldl_ic *L, double *v);
+
+/* v = L^{-T} v (backward substitution, in place). */
+void ves_ldl_ic_ltsolve(const ves_ldl_ic *L, double *v);
+
+/* Free; accepts NULL and sets *L to NULL. */
+void ves_ldl_ic_destroy(ves_ldl_ic **L);
+
+#endif

@@ -1,0 +1,292 @@
+/* vesica — the sparse symmetric direct solver on sequential MUMPS (LDL^T or
+ * Cholesky of a matrix given by lower triplets) and the incomplete Cholesky
+ * factor IC(0) on the pattern of such a matrix. Knows only status codes. */
+#include "ves/ldl.h"
+
+#include <dmumps_c.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* ---- MUMPS LDL^T ---- */
+
+#define ICNTL(i) icntl[(i) - 1] /* MUMPS documents its controls 1-based */
+#define INFOG(i) infog[(i) - 1]
+#define JOB_INIT (-1)
+#define JOB_END (-2)
+#define JOB_ANALYSE 1
+#define JOB_FACTOR 2
+#define JOB_SOLVE 3
+#define USE_COMM_WORLD (-987654) /* the Fortran MPI_COMM_WORLD of the sequential fake MPI */
+
+struct ves_ldl {
+  DMUMPS_STRUC_C id; /* the MUMPS instance */
+  int n;             /* order */
+  int nnz;           /* triplets */
+  int *irn, *jcn;    /* nnz 1-based row and column indices (MUMPS keeps the pointers) */
+  double *a;         /* nnz values of the last factorization */
+  int live;          /* 1 once JOB = -1 succeeded (JOB = -2 needed) */
+  int factored;      /* 1 after a successful factorization */
+  ves_ldl_info info; /* diagnostics of the last call */
+};
+
+/* Run one MUMPS job and record INFOG(1), INFOG(2). */
+static void mumps_run(ves_ldl *f, int job) {
+  f->id.job = job;
+  dmumps_c(&f->id);
+  f->info.infog1 = f->id.INFOG(1);
+  f->info.infog2 = f->id.INFOG(2);
+}
+
+/* Our status for a MUMPS INFOG(1) (>= 0: ok; warnings are not errors). */
+static ves_status mumps_status(int infog1) {
+  if (infog1 >= 0) return VES_OK;
+  switch (infog1) {
+  case -6:  /* structurally singular */
+  case -10: /* numerically singular, or (SYM = 1) a non-positive pivot */
+    return VES_ERR_SINGULAR;
+  case -7:  /* integer allocation failed */
+  case -13: /* Fortran ALLOCATE failed */
+    return VES_ERR_ALLOC;
+  default:
+    return VES_ERR_SOLVER;
+  }
+}
+
+void ves_ldl_destroy(ves_ldl **f) {
+  if (!f || !*f) return;
+  if ((*f)->live) mumps_run(*f, JOB_END);
+  free((*f)->irn);
+  free((*f)->jcn);
+  free((*f)->a);
+  free(*f);
+  *f = NULL;
+}
+
+ves_status ves_ldl_create(int n, int nnz, const int *irow, const int *jcol, int spd,
+                          ves_ldl **out) {
+  VES_CHECK(out, VES_ERR_ARG);
+  *out = NULL;
+  VES_CHECK(n > 0 && nnz > 0 && irow && jcol, VES_ERR_ARG);
+  for (int k = 0; k < nnz; k++)
+    VES_CHECK(irow[k] >= 0 && irow[k] < n && jcol[k] >= 0 && jcol[k] <= irow[k], VES_ERR_ARG);
+  ves_status s = VES_ERR_ALLOC;
+  ves_ldl *f = calloc(1, sizeof *f);
+  if (!f) return VES_ERR_ALLOC;
+  f->n = n, f->nnz = nnz;
+  f->irn = malloc((size_t)nnz * sizeof *f->irn);
+  f->jcn = malloc((size_t)nnz * sizeof *f->jcn);
+  f->a = calloc((size_t)nnz, sizeof *f->a);
+  if (!f->irn || !f->jcn || !f->a) goto fail;
+  for (int k = 0; k < nnz; k++) f->irn[k] = irow[k] + 1, f->jcn[k] = jcol[k] + 1; /* 1-based */
+
+  f->id.sym = spd ? 1 : 2; /* 1: SPD (Cholesky), 2: general symmetric (LDL^T, 2x2 pivots) */
+  f->id.par = 1;           /* the host works */
+  f->id.comm_fortran = USE_COMM_WORLD;
+  mumps_run(f, JOB_INIT);
+  if ((s = mumps_status(f->info.infog1)) != VES_OK) goto fail;
+  f->live = 1;
+  f->id.ICNTL(1) = -1; /* no error messages */
+  f->id.ICNTL(2) = -1; /* no diagnostics */
+  f->id.ICNTL(3) = -1; /* no global information */
+  f->id.ICNTL(4) = 0;  /* print level: nothing */
+  f->info.icntl14 = f->id.ICNTL(14);
+  /* ordering: approximate minimum fill. On the projection matrix at eps =
+   * 0.01 (21k nodes, 2.9M entries) its analysis takes 0.15 s against 2.5 s for
+   * the default choice (SCOTCH), and the factors come out 8% smaller. */
+  f->id.ICNTL(7) = 2;
+  /* symmetric indefinite (the KKT matrices): no maximum weighted matching
+   * (ICNTL(6) = 0) and the plain ordering of the graph (ICNTL(12) = 1)
+   * instead of the compressed one built on the matching. On the Newton KKT
+   * matrix at eps = 0.02 (25k unknowns) the analysis takes 0.7 s against
+   * 3-4 s, the factorization ~15% less, the factors are the same size
+   * (bench/RESULTS.md, "MUMPS options"); the pivoting within the fronts,
+   * and so the inertia, are unaffected. */
+  if (!spd) {
+    f->id.ICNTL(6) = 0;
+    f->id.ICNTL(12) = 1;
+  }
+  f->id.n = n;
+  f->id.nnz = nnz;
+  f->id.nz = nnz; /* the deprecated 32-bit count, kept consistent */
+  f->id.irn = f->irn;
+  f->id.jcn = f->jcn;
+  f->id.a = f->a;
+  mumps_run(f, JOB_ANALYSE);
+  if ((s = mumps_status(f->info.infog1)) != VES_OK) goto fail;
+  *out = f;
+  return VES_OK;
+fail:
+  ves_ldl_destroy(&f);
+  return s;
+}
+
+/* A = L D L^T for the values val (JOB = 2), more workspace on INFOG(1) = -8/-9. */
+ves_status ves_ldl_factor(ves_ldl *f, const double *val) {
+  VES_CHECK(f && val, VES_ERR_ARG);
+  memcpy(f->a, val, (size_t)f->nnz * sizeof *f->a);
+  f->factored = 0;
+  f->info.retries = 0;
+  for (;;) {
+    mumps_run(f, JOB_FACTOR);
+    int e = f->info.infog1;
+    if ((e != -8 && e != -9) || f->info.retries == VES_LDL_MAX_RETRIES) break;
+    f->id.ICNTL(14) = 2 * f->id.ICNTL(14) + 20; /* relaxation percent: 20 -> 60 -> 140 -> 300 */
+    f->info.icntl14 = f->id.ICNTL(14);
+    f->info.retries++;
+  }
+  ves_status s = mumps_status(f->info.infog1);
+  f->info.neg_pivots = f->id.INFOG(12);
+  /* SYM = 1 is an LDL^T without pivoting: an indefinite matrix factors
+   * "successfully" with negative pivots. Not SPD counts as singular here. */
+  if (s == VES_OK && f->id.sym == 1 && f->info.neg_pivots > 0) s = VES_ERR_SINGULAR;
+  int e29 = f->id.INFOG(29); /* real entries in the factors; < 0: millions */
+  f->info.factor_entries = s == VES_OK ? (e29 >= 0 ? (double)e29 : -1e6 * e29) : 0.0;
+  f->factored = s == VES_OK;
+  return s;
+}
+
+/* rhs <- A^-1 rhs (JOB = 3). */
+ves_status ves_ldl_solve(ves_ldl *f, double *rhs) {
+  VES_CHECK(f && rhs && f->factored, VES_ERR_ARG);
+  f->id.ICNTL(20) = 0; /* dense right-hand side */
+  f->id.ICNTL(21) = 0; /* solution centralized, overwriting rhs */
+  f->id.nrhs = 1;
+  f->id.lrhs = f->n;
+  f->id.rhs = rhs;
+  mumps_run(f, JOB_SOLVE);
+  f->id.rhs = NULL; /* borrowed for this call only */
+  ves_status s = mumps_status(f->info.infog1);
+  return s == VES_ERR_SINGULAR ? VES_ERR_SOLVER : s;
+}
+
+int ves_ldl_size(const ves_ldl *f) { return f ? f->n : 0; }
+
+void ves_ldl_get_info(const ves_ldl *f, ves_ldl_info *info) {
+  if (f && info) *info = f->info;
+}
+
+/* ---- IC(0) ---- */
+
+void ves_ldl_ic_destroy(ves_ldl_ic **L) {
+  if (!L || !*L) return;
+  free((*L)->ptr), free((*L)->col), free((*L)->a), free((*L)->l), free((*L)->map);
+  free(*L);
+  *L = NULL;
+}
+
+/* Pattern of the lower triplets (irow >= jcol) in compressed rows, columns
+ * ascending, the diagonal forced in, duplicates merged; map[k] the slot of
+ * triplet k. */
+ves_status ves_ldl_ic_create(int n, int nnz, const int *irow, const int *jcol, ves_ldl_ic **out) {
+  VES_CHECK(out, VES_ERR_ARG);
+  *out = NULL;
+  VES_CHECK(n > 0 && nnz >= 0 && (nnz == 0 || (irow && jcol)), VES_ERR_ARG);
+  for (int k = 0; k < nnz; k++)
+    VES_CHECK(irow[k] >= 0 && irow[k] < n && jcol[k] >= 0 && jcol[k] <= irow[k], VES_ERR_ARG);
+  ves_ldl_ic *L = calloc(1, sizeof *L);
+  if (!L) return VES_ERR_ALLOC;
+  L->n = n, L->nnz = nnz;
+  L->ptr = calloc((size_t)n + 1, sizeof(int));
+  L->map = malloc((size_t)(nnz > 0 ? nnz : 1) * sizeof(int));
+  int *cnt = calloc((size_t)n + 1, sizeof(int));
+  int *tmp = malloc((size_t)(nnz + n + 1) * sizeof(int));
+  ves_status rc = VES_ERR_ALLOC;
+  if (!L->ptr || !L->map || !cnt || !tmp) goto out;
+  /* rows with the diagonal forced in: count, fill, sort, merge */
+  for (int k = 0; k < nnz; k++) cnt[irow[k] + 1]++;
+  for (int i = 0; i < n; i++) cnt[i + 1] += cnt[i] + 1; /* + 1: the diagonal */
+  int *pos = L->ptr;                                    /* fill positions */
+  for (int i = 0; i < n; i++) pos[i] = cnt[i], tmp[pos[i]++] = i;
+  for (int k = 0; k < nnz; k++) tmp[pos[irow[k]]++] = jcol[k];
+  int w = 0;
+  for (int i = 0; i < n; i++) {
+    int b = cnt[i], e = cnt[i + 1];
+    for (int p = b + 1; p < e; p++) /* insertion sort (rows are short) */
+      for (int q = p; q > b && tmp[q - 1] > tmp[q]; q--) {
+        int t = tmp[q];
+        tmp[q] = tmp[q - 1], tmp[q - 1] = t;
+      }
+    L->ptr[i] = w;
+    for (int p = b; p < e; p++)
+      if (p == b || tmp[p] != tmp[p - 1]) tmp[w++] = tmp[p];
+  }
+  L->ptr[n] = w;
+  L->col = malloc((size_t)w * sizeof(int));
+  L->a = malloc((size_t)w * sizeof(double));
+  L->l = malloc((size_t)w * sizeof(double));
+  if (!L->col || !L->a || !L->l) goto out;
+  memcpy(L->col, tmp, (size_t)w * sizeof(int));
+  for (int k = 0; k < nnz; k++) { /* binary search of the slot */
+    int lo = L->ptr[irow[k]], hi = L->ptr[irow[k] + 1] - 1;
+    while (lo < hi) {
+      int mid = (lo + hi) / 2;
+      if (L->col[mid] < jcol[k])
+        lo = mid + 1;
+      else
+        hi = mid;
+    }
+    L->map[k] = lo;
+  }
+  rc = VES_OK;
+  *out = L;
+  L = NULL;
+out:
+  free(cnt), free(tmp);
+  ves_ldl_ic_destroy(&L);
+  return rc;
+}
+
+/* a = sum_k val_k at slot map[k] */
+void ves_ldl_ic_set(ves_ldl_ic *L, const double *val) {
+  memset(L->a, 0, (size_t)L->ptr[L->n] * sizeof(double));
+  for (int k = 0; k < L->nnz; k++) L->a[L->map[k]] += val[k];
+}
+
+/* Row-wise IC(0) of M + alpha diag(M) (ldl.h). */
+ves_status ves_ldl_ic_factor(ves_ldl_ic *L, double alpha) {
+  const int *ptr = L->ptr, *col = L->col;
+  for (int i = 0; i < L->n; i++) {
+    int bi = ptr[i], ei = ptr[i + 1] - 1; /* ei: the diagonal */
+    for (int p = bi; p <= ei; p++) {
+      int j = col[p];
+      double sum = L->a[p] * (j == i ? 1.0 + alpha : 1.0);
+      /* sparse dot of rows i and j over columns < j */
+      int q = bi, r = ptr[j], er = ptr[j + 1] - 1;
+      while (q < p && r < er) {
+        if (col[q] == col[r])
+          sum -= L->l[q++] * L->l[r++];
+        else if (col[q] < col[r])
+          q++;
+        else
+          r++;
+      }
+      if (j < i) {
+        L->l[p] = sum / L->l[er];
+      } else {
+        if (!(sum > 0.0) || !isfinite(sum)) return VES_ERR_SINGULAR;
+        L->l[p] = sqrt(sum);
+      }
+    }
+  }
+  return VES_OK;
+}
+
+/* v = L^{-1} v (forward substitution, in place). */
+void ves_ldl_ic_lsolve(const ves_ldl_ic *L, double *v) {
+  for (int i = 0; i < L->n; i++) {
+    int e = L->ptr[i + 1] - 1;
+    double s = v[i];
+    for (int p = L->ptr[i]; p < e; p++) s -= L->l[p] * v[L->col[p]];
+    v[i] = s / L->l[e];
+  }
+}
+
+/* v = L^{-T} v (backward substitution, in place). */
+void ves_ldl_ic_ltsolve(const ves_ldl_ic *L, double *v) {
+  for (int i = L->n - 1; i >= 0; i--) {
+    int e = L->ptr[i + 1] - 1;
+    v[i] /= L->l[e];
+    for (int p = L->ptr[i]; p < e; p++) v[L->col[p]] -= L->l[p] * v[i];
+  }
+}

@@ -1,0 +1,419 @@
+/* vesica — tests of the ldl module: the MUMPS LDL^T / Cholesky solver
+ * (against dense LAPACK) and the incomplete Cholesky factor IC(0). */
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <setjmp.h>
+#include <cmocka.h>
+
+#include <lapacke.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "ves/ldl.h"
+
+#define U 0x1.0p-52 /* double unit roundoff (2u, machine epsilon) */
+
+/* Deterministic uniform numbers in [0, 1) (xorshift64*). */
+static double urand(uint64_t *s) {
+  *s ^= *s >> 12;
+  *s ^= *s << 25;
+  *s ^= *s >> 27;
+  return (double)((*s * 2685821657736338717ULL) >> 11) * 0x1.0p-53;
+}
+
+static double norm2(int n, const double *x) {
+  double s = 0.0;
+  for (int i = 0; i < n; i++) s += x[i] * x[i];
+  return sqrt(s);
+}
+
+/* Lower triplets of the dense symmetric A[n*n] (entries with |A_ij| > 0, j <= i).
+ * Returns the count; arrays sized n(n+1)/2 by the caller. */
+static int dense_to_lower(int n, const double *A, int *ir, int *jc, double *v) {
+  int nnz = 0;
+  for (int i = 0; i < n; i++)
+    for (int j = 0; j <= i; j++)
+      if (A[i * n + j] != 0.0) ir[nnz] = i, jc[nnz] = j, v[nnz++] = A[i * n + j];
+  return nnz;
+}
+
+/* A sparse SPD matrix, Gershgorin-bounded: symmetric random off-diagonal
+ * entries in [-1, 1] on ~ 40% of the pairs, diagonal = row sum of |offdiag| +
+ * 1 + U[0, 1]. Eigenvalues lie in [min(d_i - R_i), max(d_i + R_i)] with
+ * R_i the off-diagonal row sum: returns that bound on cond_2(A). */
+static double make_spd(int n, double *A, uint64_t *seed) {
+  memset(A, 0, (size_t)n * n * sizeof *A);
+  for (int i = 0; i < n; i++)
+    for (int j = 0; j < i; j++)
+      if (urand(seed) < 0.4) A[i * n + j] = A[j * n + i] = 2.0 * urand(seed) - 1.0;
+  double lo = INFINITY, hi = 0.0;
+  for (int i = 0; i < n; i++) {
+    double R = 0.0;
+    for (int j = 0; j < n; j++)
+      if (j != i) R += fabs(A[i * n + j]);
+    A[i * n + i] = R + 1.0 + urand(seed);
+    lo = fmin(lo, A[i * n + i] - R);
+    hi = fmax(hi, A[i * n + i] + R);
+  }
+  return hi / lo;
+}
+
+/* ---- ves_ldl ---- */
+
+/* SPD: MUMPS Cholesky against LAPACK dpotrf/dpotrs, with one entry split
+ * into two triplets (MUMPS sums duplicates). */
+static void test_ldl_spd_vs_lapack(void **state) {
+  (void)state;
+  enum { N = 12 };
+  uint64_t seed = 2024;
+  double A[N * N], L[N * N], x[N], xl[N];
+  double cond = make_spd(N, A, &seed);
+  int ir[N * (N + 1) / 2 + 1], jc[N * (N + 1) / 2 + 1];
+  double v[N * (N + 1) / 2 + 1];
+  int nnz = dense_to_lower(N, A, ir, jc, v);
+  /* split the diagonal entry (3, 3) in two halves */
+  for (int k = 0; k < nnz; k++)
+    if (ir[k] == 3 && jc[k] == 3) {
+      v[k] *= 0.5;
+      ir[nnz] = 3, jc[nnz] = 3, v[nnz] = v[k];
+      nnz++;
+      break;
+    }
+  for (int i = 0; i < N; i++) xl[i] = x[i] = sin(1.0 + i);
+  ves_ldl *f = NULL;
+  assert_int_equal(ves_ldl_create(N, nnz, ir, jc, 1, &f), VES_OK);
+  assert_int_equal(ves_ldl_size(f), N);
+  assert_int_equal(ves_ldl_factor(f, v), VES_OK);
+  assert_int_equal(ves_ldl_solve(f, x), VES_OK);
+  ves_ldl_info info;
+  ves_ldl_get_info(f, &info);
+  assert_int_equal(info.infog1, 0);
+  assert_int_equal(info.neg_pivots, 0);
+  assert_true(info.factor_entries >= N);
+  memcpy(L, A, sizeof A);
+  assert_int_equal(LAPACKE_dpotrf(LAPACK_ROW_MAJOR, 'L', N, L, N), 0);
+  assert_int_equal(LAPACKE_dpotrs(LAPACK_ROW_MAJOR, 'L', N, 1, L, N, xl, 1), 0);
+  double d[N];
+  for (int i = 0; i < N; i++) d[i] = x[i] - xl[i];
+  double err = norm2(N, d) / norm2(N, xl);
+  printf("# spd: cond bound %.2f, |x_mumps - x_lapack|/|x| = %.2e\n", cond, err);
+  /* both are backward stable: each solution is within ~ n u cond of the
+   * exact one (forward error bound of Cholesky), so they differ by at most
+   * twice that; cond is the Gershgorin bound computed above */
+  assert_true(err <= 2.0 * N * U * cond);
+  ves_ldl_destroy(&f);
+  assert_null(f);
+}
+
+/* KKT-like [K a; a^T 0], K SPD: inertia (N, 1, 0), so one negative pivot;
+ * the solution against LAPACK's dsysv (Bunch-Kaufman). */
+static void test_ldl_kkt(void **state) {
+  (void)state;
+  enum { NK = 8, N = NK + 1 };
+  uint64_t seed = 7;
+  double K[NK * NK], A[N * N] = {0}, b[N], x[N], xl[N];
+  make_spd(NK, K, &seed);
+  for (int i = 0; i < NK; i++) {
+    for (int j = 0; j < NK; j++) A[i * N + j] = K[i * NK + j];
+    A[NK * N + i] = A[i * N + NK] = 1.0 + 0.1 * i; /* the constraint gradient a */
+  }
+  int ir[N * N], jc[N * N];
+  double v[N * N];
+  int nnz = dense_to_lower(N, A, ir, jc, v);
+  for (int i = 0; i < N; i++) b[i] = x[i] = xl[i] = cos(0.5 * i);
+  ves_ldl *f = NULL;
+  assert_int_equal(ves_ldl_create(N, nnz, ir, jc, 0, &f), VES_OK);
+  assert_int_equal(ves_ldl_factor(f, v), VES_OK);
+  assert_int_equal(ves_ldl_solve(f, x), VES_OK);
+  ves_ldl_info info;
+  ves_ldl_get_info(f, &info);
+  assert_int_equal(info.neg_pivots, 1); /* Sylvester: one negative eigenvalue */
+  double Ad[N * N];
+  lapack_int ipiv[N];
+  memcpy(Ad, A, sizeof A);
+  assert_int_equal(LAPACKE_dsysv(LAPACK_ROW_MAJOR, 'L', N, 1, Ad, N, ipiv, xl, 1), 0);
+  double d[N], r[N];
+  for (int i = 0; i < N; i++) {
+    d[i] = x[i] - xl[i];
+    r[i] = -b[i];
+    for (int j = 0; j < N; j++) r[i] += A[i * N + j] * x[j];
+  }
+  double err = norm2(N, d) / norm2(N, xl), res = norm2(N, r) / norm2(N, b);
+  printf("# kkt: |x - x_lapack|/|x| = %.2e, |Ax - b|/|b| = %.2e\n", err, res);
+  /* O(1) entries, N = 9, and a KKT matrix of moderate conditioning (K's
+   * Gershgorin bound is ~ 10, a has norm ~ 3): backward-stable residual ~ N u,
+   * forward error ~ N u cond with cond << 1e3 */
+  assert_true(res <= 1e-14);
+  assert_true(err <= 1e-12);
+  ves_ldl_destroy(&f);
+}
+
+/* New values on the same pattern: the second factorization must not see the
+ * first (A2 = 3 A1 + diag shift changes the solution non-trivially). */
+static void test_ldl_refactor(void **state) {
+  (void)state;
+  enum { N = 10 };
+  uint64_t seed = 99;
+  double A[N * N], x[N], b[N];
+  make_spd(N, A, &seed);
+  int ir[N * N], jc[N * N];
+  double v[N * N], v2[N * N];
+  int nnz = dense_to_lower(N, A, ir, jc, v);
+  ves_ldl *f = NULL;
+  assert_int_equal(ves_ldl_create(N, nnz, ir, jc, 1, &f), VES_OK);
+  for (int rep = 0; rep < 3; rep++) {
+    double scale = 1.0 + rep, shift = 0.5 * rep;
+    for (int k = 0; k < nnz; k++) v2[k] = scale * v[k] + (ir[k] == jc[k] ? shift : 0.0);
+    assert_int_equal(ves_ldl_factor(f, v2), VES_OK);
+    for (int i = 0; i < N; i++) b[i] = x[i] = 1.0 / (1.0 + i);
+    assert_int_equal(ves_ldl_solve(f, x), VES_OK);
+    double r[N];
+    for (int i = 0; i < N; i++) {
+      r[i] = -b[i];
+      for (int j = 0; j < N; j++) r[i] += (scale * A[i * N + j] + (i == j ? shift : 0.0)) * x[j];
+    }
+    /* backward stable, well conditioned (Gershgorin bound < 10): ~ N u */
+    assert_true(norm2(N, r) <= 1e-14 * norm2(N, b));
+    /* a second solve with the same factors gives the same answer */
+    double y[N];
+    memcpy(y, b, sizeof y);
+    assert_int_equal(ves_ldl_solve(f, y), VES_OK);
+    assert_memory_equal(x, y, sizeof y);
+  }
+  ves_ldl_destroy(&f);
+}
+
+/* Singular matrices are VES_ERR_SINGULAR with the MUMPS code kept; a failed
+ * factorization leaves the analysis usable; solve without factors is refused. */
+static void test_ldl_singular(void **state) {
+  (void)state;
+  /* [1 1; 1 1] (+ a regular third row): a zero pivot after one step */
+  int ir[4] = {0, 1, 1, 2}, jc[4] = {0, 0, 1, 2};
+  double sing[4] = {1, 1, 1, 1}, good[4] = {2, 1, 2, 1}, x[3] = {1, 1, 1};
+  for (int spd = 1; spd >= 0; spd--) {
+    ves_ldl *f = NULL;
+    assert_int_equal(ves_ldl_create(3, 4, ir, jc, spd, &f), VES_OK);
+    assert_int_equal(ves_ldl_solve(f, x), VES_ERR_ARG); /* not factored yet */
+    assert_int_equal(ves_ldl_factor(f, sing), VES_ERR_SINGULAR);
+    ves_ldl_info info;
+    ves_ldl_get_info(f, &info);
+    printf("# singular (spd = %d): INFOG(1) = %d, INFOG(2) = %d\n", spd, info.infog1, info.infog2);
+    assert_true(info.infog1 == -10 || info.infog1 == -6);
+    assert_int_equal(ves_ldl_solve(f, x), VES_ERR_ARG); /* the failed factors are not used */
+    assert_int_equal(ves_ldl_factor(f, good), VES_OK);
+    ves_ldl_get_info(f, &info);
+    assert_int_equal(info.infog1, 0);
+    assert_int_equal(ves_ldl_solve(f, x), VES_OK);
+    /* [2 1; 1 2] x = 1 -> 1/3; 1 x = 1 -> 1: two or three roundings of O(1)
+     * numbers, so a few 1e-16 */
+    assert_true(fabs(x[0] - 1.0 / 3) < 1e-15 && fabs(x[1] - 1.0 / 3) < 1e-15);
+    assert_true(fabs(x[2] - 1) < 1e-15);
+    x[0] = x[1] = x[2] = 1.0;
+    ves_ldl_destroy(&f);
+  }
+  /* spd requested but indefinite: [1 2; 2 1] has eigenvalues 3, -1 */
+  int ir2[3] = {0, 1, 1}, jc2[3] = {0, 0, 1};
+  double indef[3] = {1, 2, 1};
+  ves_ldl *f = NULL;
+  assert_int_equal(ves_ldl_create(2, 3, ir2, jc2, 1, &f), VES_OK);
+  ves_status s = ves_ldl_factor(f, indef);
+  ves_ldl_info info;
+  ves_ldl_get_info(f, &info);
+  printf("# indefinite as spd: %s, INFOG(1) = %d, INFOG(12) = %d\n", ves_status_str(s), info.infog1,
+         info.neg_pivots);
+  assert_int_equal(s, VES_ERR_SINGULAR);
+  ves_ldl_destroy(&f);
+  /* the same matrix as symmetric indefinite: fine, one negative pivot */
+  assert_int_equal(ves_ldl_create(2, 3, ir2, jc2, 0, &f), VES_OK);
+  assert_int_equal(ves_ldl_factor(f, indef), VES_OK);
+  ves_ldl_get_info(f, &info);
+  assert_int_equal(info.neg_pivots, 1);
+  ves_ldl_destroy(&f);
+}
+
+static void test_ldl_errors(void **state) {
+  (void)state;
+  int ir[2] = {0, 1}, jc[2] = {0, 0}, up[2] = {0, 0};
+  double v[2] = {1, 0};
+  ves_ldl *f = (ves_ldl *)&f; /* a non-NULL value that must be overwritten */
+  assert_int_equal(ves_ldl_create(0, 2, ir, jc, 1, &f), VES_ERR_ARG);
+  assert_null(f);
+  assert_int_equal(ves_ldl_create(2, 0, ir, jc, 1, &f), VES_ERR_ARG);
+  assert_int_equal(ves_ldl_create(2, 2, NULL, jc, 1, &f), VES_ERR_ARG);
+  assert_int_equal(ves_ldl_create(2, 2, ir, NULL, 1, &f), VES_ERR_ARG);
+  assert_int_equal(ves_ldl_create(2, 2, ir, jc, 1, NULL), VES_ERR_ARG);
+  assert_int_equal(ves_ldl_create(2, 2, up, ir, 1, &f), VES_ERR_ARG); /* (0, 1): upper */
+  int out_of_range[2] = {0, 2};
+  assert_int_equal(ves_ldl_create(2, 2, out_of_range, jc, 1, &f), VES_ERR_ARG);
+  int negative[2] = {0, -1};
+  assert_int_equal(ves_ldl_create(2, 2, ir, negative, 1, &f), VES_ERR_ARG);
+  assert_null(f);
+  assert_int_equal(ves_ldl_factor(NULL, v), VES_ERR_ARG);
+  assert_int_equal(ves_ldl_solve(NULL, v), VES_ERR_ARG);
+  assert_int_equal(ves_ldl_create(2, 2, ir, jc, 1, &f), VES_OK);
+  assert_int_equal(ves_ldl_factor(f, NULL), VES_ERR_ARG);
+  assert_int_equal(ves_ldl_solve(f, NULL), VES_ERR_ARG);
+  assert_int_equal(ves_ldl_size(NULL), 0);
+  ves_ldl_destroy(&f);
+  assert_null(f);
+  ves_ldl_destroy(&f);
+  ves_ldl_destroy(NULL);
+}
+
+/* ---- IC(0) ---- */
+
+/* On the full lower pattern IC(0) drops nothing: it is the Cholesky factor,
+ * against LAPACK dpotrf entry by entry, and the two half solves solve A x = b.
+ * The triplets come with one entry split in two (summed by ves_ldl_ic_set). */
+static void test_ic_full_pattern(void **state) {
+  (void)state;
+  enum { N = 10 };
+  uint64_t seed = 31;
+  double A[N * N], L[N * N], x[N], b[N];
+  double cond = make_spd(N, A, &seed);
+  int ir[N * (N + 1) / 2 + 1], jc[N * (N + 1) / 2 + 1];
+  double v[N * (N + 1) / 2 + 1];
+  int nnz = 0;
+  for (int i = 0; i < N; i++) /* every (i, j <= i), zeros too: the full pattern */
+    for (int j = 0; j <= i; j++) ir[nnz] = i, jc[nnz] = j, v[nnz++] = A[i * N + j];
+  for (int k = 0; k < nnz; k++)
+    if (ir[k] == 4 && jc[k] == 2) {
+      v[k] *= 0.25;
+      ir[nnz] = 4, jc[nnz] = 2, v[nnz++] = 3.0 * v[k];
+      break;
+    }
+  for (int i = 0; i < N * N; i++) L[i] = A[i];
+  assert_int_equal(LAPACKE_dpotrf(LAPACK_ROW_MAJOR, 'L', N, L, N), 0);
+  ves_ldl_ic *F = NULL;
+  assert_int_equal(ves_ldl_ic_create(N, nnz, ir, jc, &F), VES_OK);
+  assert_int_equal(F->ptr[N], N * (N + 1) / 2); /* duplicates merged */
+  ves_ldl_ic_set(F, v);
+  assert_int_equal(ves_ldl_ic_factor(F, 0.0), VES_OK);
+  double worst = 0.0;
+  for (int i = 0; i < N; i++) {
+    assert_int_equal(F->col[F->ptr[i + 1] - 1], i); /* the diagonal last */
+    for (int p = F->ptr[i]; p < F->ptr[i + 1]; p++)
+      worst = fmax(worst, fabs(F->l[p] - L[i * N + F->col[p]]) / sqrt(A[i * N + i]));
+  }
+  /* the same algorithm up to the order of the sums: entries of size
+   * sqrt(A_ii) agree to a few N u */
+  assert_true(worst <= 4.0 * N * U);
+  for (int i = 0; i < N; i++) b[i] = x[i] = sin(0.3 + i);
+  ves_ldl_ic_lsolve(F, x);
+  ves_ldl_ic_ltsolve(F, x);
+  double r[N];
+  for (int i = 0; i < N; i++) {
+    r[i] = -b[i];
+    for (int j = 0; j < N; j++) r[i] += A[i * N + j] * x[j];
+  }
+  /* backward stable Cholesky solve: residual ~ N u |A| |x|, |A| <= cond-bound scale */
+  printf("# ic full: |L - L_lapack| %.2e, |Ax - b|/|b| %.2e (cond bound %.1f)\n", worst,
+         norm2(N, r) / norm2(N, b), cond);
+  assert_true(norm2(N, r) <= 4.0 * N * U * cond * norm2(N, b));
+  ves_ldl_ic_destroy(&F);
+  assert_null(F);
+}
+
+/* The defining property of IC(0) where fill is dropped: (L L^T)_ij = M_ij on
+ * the pattern of M, here the 5-point Laplacian of a 4 x 4 grid (+ 0.1 I),
+ * given by its off-diagonal triplets first and the diagonal after. */
+static void test_ic_laplacian(void **state) {
+  (void)state;
+  enum { G = 4, N = G * G, NZ = N + 2 * G * (G - 1) };
+  int ir[NZ], jc[NZ], nnz = 0;
+  double v[NZ], M[N * N] = {0};
+  for (int i = 0; i < N; i++) {
+    if (i % G > 0) ir[nnz] = i, jc[nnz] = i - 1, v[nnz++] = -1.0;
+    if (i >= G) ir[nnz] = i, jc[nnz] = i - G, v[nnz++] = -1.0;
+  }
+  for (int i = 0; i < N; i++) ir[nnz] = jc[nnz] = i, v[nnz++] = 4.1;
+  assert_int_equal(nnz, NZ);
+  for (int k = 0; k < nnz; k++) M[ir[k] * N + jc[k]] = M[jc[k] * N + ir[k]] = v[k];
+  ves_ldl_ic *F = NULL;
+  assert_int_equal(ves_ldl_ic_create(N, nnz, ir, jc, &F), VES_OK);
+  ves_ldl_ic_set(F, v);
+  for (int i = 0; i < N; i++) assert_true(F->a[F->ptr[i + 1] - 1] == 4.1);
+  assert_int_equal(ves_ldl_ic_factor(F, 0.0), VES_OK);
+  double Ld[N * N] = {0}, worst = 0.0, dropped = 0.0;
+  for (int i = 0; i < N; i++)
+    for (int p = F->ptr[i]; p < F->ptr[i + 1]; p++) Ld[i * N + F->col[p]] = F->l[p];
+  for (int i = 0; i < N; i++)
+    for (int j = 0; j <= i; j++) {
+      double s = 0.0;
+      for (int k = 0; k <= j; k++) s += Ld[i * N + k] * Ld[j * N + k];
+      if (M[i * N + j] != 0.0 || i == j)
+        worst = fmax(worst, fabs(s - M[i * N + j]));
+      else
+        dropped = fmax(dropped, fabs(s)); /* fill outside the pattern: not matched */
+    }
+  printf("# ic laplacian: on the pattern %.2e, off it up to %.2e\n", worst, dropped);
+  /* O(1) entries, sums of at most 3 products: a few u */
+  assert_true(worst <= 16 * U);
+  assert_true(dropped > 0.01); /* the dropped fill is real: this is not Cholesky */
+  ves_ldl_ic_destroy(&F);
+}
+
+/* A breakdown is VES_ERR_SINGULAR; a diagonal shift cures it; the diagonal is
+ * forced into the pattern when the triplets lack it. */
+static void test_ic_shift(void **state) {
+  (void)state;
+  int ir[2] = {1, 1}, jc[2] = {0, 1}; /* no (0, 0) triplet */
+  double v[2] = {2.0, 1.0};           /* M = [0 2; 2 1] */
+  ves_ldl_ic *F = NULL;
+  assert_int_equal(ves_ldl_ic_create(2, 2, ir, jc, &F), VES_OK);
+  assert_int_equal(F->ptr[2], 3);
+  ves_ldl_ic_set(F, v);
+  assert_true(F->a[0] == 0.0);
+  assert_int_equal(ves_ldl_ic_factor(F, 0.0), VES_ERR_SINGULAR); /* pivot 0 */
+  int ir2[3] = {0, 1, 1}, jc2[3] = {0, 0, 1};
+  double v2[3] = {1.0, 2.0, 1.0}; /* [1 2; 2 1]: eigenvalues 3, -1 */
+  ves_ldl_ic_destroy(&F);
+  assert_int_equal(ves_ldl_ic_create(2, 3, ir2, jc2, &F), VES_OK);
+  ves_ldl_ic_set(F, v2);
+  assert_int_equal(ves_ldl_ic_factor(F, 0.0), VES_ERR_SINGULAR); /* 1 - 4 < 0 */
+  /* alpha = 10: [11 2; 2 11], L = [sqrt 11, 0; 2/sqrt 11, sqrt(11 - 4/11)] */
+  assert_int_equal(ves_ldl_ic_factor(F, 10.0), VES_OK);
+  assert_true(fabs(F->l[0] - sqrt(11.0)) <= 2 * U * sqrt(11.0));
+  assert_true(fabs(F->l[1] - 2.0 / sqrt(11.0)) <= 4 * U);
+  assert_true(fabs(F->l[2] - sqrt(11.0 - 4.0 / 11.0)) <= 8 * U * sqrt(11.0));
+  ves_ldl_ic_destroy(&F);
+}
+
+static void test_ic_errors(void **state) {
+  (void)state;
+  int ir[2] = {0, 1}, jc[2] = {0, 0}, up[2] = {0, 1}, big[2] = {0, 2}, neg[2] = {0, -1};
+  ves_ldl_ic *F = (ves_ldl_ic *)&F; /* a non-NULL value that must be overwritten */
+  assert_int_equal(ves_ldl_ic_create(0, 2, ir, jc, &F), VES_ERR_ARG);
+  assert_null(F);
+  assert_int_equal(ves_ldl_ic_create(2, -1, ir, jc, &F), VES_ERR_ARG);
+  assert_int_equal(ves_ldl_ic_create(2, 2, NULL, jc, &F), VES_ERR_ARG);
+  assert_int_equal(ves_ldl_ic_create(2, 2, ir, NULL, &F), VES_ERR_ARG);
+  assert_int_equal(ves_ldl_ic_create(2, 2, ir, jc, NULL), VES_ERR_ARG);
+  assert_int_equal(ves_ldl_ic_create(2, 2, jc, up, &F), VES_ERR_ARG); /* (0, 1): upper */
+  assert_int_equal(ves_ldl_ic_create(2, 2, big, jc, &F), VES_ERR_ARG);
+  assert_int_equal(ves_ldl_ic_create(2, 2, ir, neg, &F), VES_ERR_ARG);
+  assert_null(F);
+  assert_int_equal(ves_ldl_ic_create(2, 0, NULL, NULL, &F), VES_OK); /* the diagonal alone */
+  assert_int_equal(F->ptr[2], 2);
+  ves_ldl_ic_destroy(&F);
+  assert_null(F);
+  ves_ldl_ic_destroy(&F);
+  ves_ldl_ic_destroy(NULL);
+}
+
+int main(void) {
+  setvbuf(stdout, NULL, _IOLBF, 0); /* keep output in order with cmocka's stderr */
+  // clang-format off
+  const struct CMUnitTest tests[] = {
+      cmocka_unit_test(test_ldl_spd_vs_lapack), cmocka_unit_test(test_ldl_kkt),
+      cmocka_unit_test(test_ldl_refactor),      cmocka_unit_test(test_ldl_singular),
+      cmocka_unit_test(test_ldl_errors),        cmocka_unit_test(test_ic_full_pattern),
+      cmocka_unit_test(test_ic_laplacian),      cmocka_unit_test(test_ic_shift),
+      cmocka_unit_test(test_ic_errors),
+  };
+  // clang-format on
+  return cmocka_run_group_tests(tests, NULL, NULL);
+}
