@@ -229,7 +229,7 @@ static int measure(const ves_config *cfg, ves_setup *s, int nsteps, row *r) {
     t0 = now();
     st = ves_sim_step(sim, &rep);
     wall += now() - t0;
-    if (st == VES_MAXITER) {
+    if (st == VES_DONE) {
       fprintf(stderr, "bench_scale: t_end reached after %d of %d steps\n", i, nsteps);
       goto done;
     }

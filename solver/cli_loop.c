@@ -189,7 +189,7 @@ static int finish(run_ctx *r, const loop_ctx *L, ves_status st, ves_status wst, 
             "vesica run --restart %s\n",
             (int)stop_signal, fin.nstep, fin.t, r->out);
     status = "stopped", code = 128 + (int)stop_signal;
-  } else if (st != VES_MAXITER && fin.t < tend - 1e-12 * (1 + fabs(tend))) {
+  } else if (st != VES_DONE && fin.t < tend - 1e-12 * (1 + fabs(tend))) {
     status = "stopped"; /* --max-steps */
   }
   if (fin.nstep != r->last_snapshot_step && (wst = cli_snapshot(r, wall)) != VES_OK) {

@@ -444,7 +444,7 @@ ves_status ves_sim_step(ves_sim *s, ves_step_report *rep) {
   VES_CHECK(s && rep, VES_ERR_ARG);
   memset(rep, 0, sizeof *rep);
   const double tiny = 1e-12 * (1.0 + fabs(s->t));
-  if (s->t >= s->ip.t_end - tiny) return VES_MAXITER;
+  if (s->t >= s->ip.t_end - tiny) return VES_DONE;
   /* protocol: C0 switches when its time is reached (steps end on the events) */
   double c0 = s->ip.c0_ramp_start >= 0 ? s->c0 : s->c0_base; /* a ramp: in the steps below */
   if (s->ip.c0_time >= 0 && s->t >= s->ip.c0_time - tiny &&

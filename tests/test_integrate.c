@@ -260,7 +260,8 @@ static void test_protocols(void **state) {
   assert_true(saw_c0 && saw_end);
   assert_true(fabs(ves_sim_time(sim) - 0.03) < 1e-12);
   /* at t_end: nothing more to do */
-  assert_int_equal(ves_sim_step(sim, &rep), VES_MAXITER);
+  assert_int_equal(ves_sim_step(sim, &rep), VES_DONE);
+  assert_string_equal(ves_status_str(VES_DONE), "end time reached");
   ves_sim_destroy(&sim);
   ves_setup_destroy(&s);
 }

@@ -108,7 +108,7 @@ void ves_sim_destroy(ves_sim **s);
  * on the new model, y, t, dt, A0, V0, E0 and the multipliers are kept, E, A,
  * V re-evaluated on it). A reset allocates (~ the setup's LME tables); until
  * it has succeeded in full the old reference stays in use.
- * VES_OK: a step was taken (rep filled); VES_MAXITER: t_end already reached,
+ * VES_OK: a step was taken (rep filled); VES_DONE: t_end already reached,
  * nothing done; < 0: no acceptable step down to dt_min — the state is the
  * last accepted one and rep describes the last attempt. */
 ves_status ves_sim_step(ves_sim *s, ves_step_report *rep);

@@ -5,7 +5,8 @@
 #include <stddef.h>
 
 /* X-macro list: name, value, message. 0 is success, < 0 an error, > 0 a
- * non-error outcome (step rejected, iteration limit) the caller may act on. */
+ * non-error outcome (step rejected, iteration limit, end time reached) the
+ * caller may act on. */
 #define VES_STATUS_LIST(X)                                                                         \
   X(VES_OK, 0, "ok")                                                                               \
   X(VES_ERR_ALLOC, -1, "out of memory")                                                            \
@@ -19,7 +20,8 @@
   X(VES_ERR_INTERNAL, -9, "internal error")                                                        \
   X(VES_ERR_SOLVER, -10, "solver failure")                                                         \
   X(VES_STEP_REJECTED, 1, "step rejected")                                                         \
-  X(VES_MAXITER, 2, "iteration limit reached")
+  X(VES_MAXITER, 2, "iteration limit reached")                                                     \
+  X(VES_DONE, 3, "end time reached")
 
 typedef enum {
 #define VES_STATUS_ENUM_(name, value, msg) name = value,
