@@ -95,9 +95,7 @@ static ves_status euler_solve(void *state, ves_step *s, double *x, double *lambd
   stt->iterations = 1;
   /* constraint drift at the new state */
   double c[KKT_NROWS] = {0, 0}, tgt[KKT_NROWS] = {1, 1};
-  int k = 0;
-  if (par->hold_area) tgt[k++] = par->A0;
-  if (par->hold_volume) tgt[k++] = par->V_target;
+  ves_step_get_targets(s, tgt);
   stt->f_evals = 1;
   st = ves_step_eval_c(s, x, c);
   if (st != VES_OK) {

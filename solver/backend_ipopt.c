@@ -141,15 +141,6 @@ static Bool ipopt_intermediate(Index alg_mod, Index iter, Number obj, Number inf
   return TRUE;
 }
 
-/* The targets c_i is measured against: A0 and/or V_target (area first). */
-static int ipopt_targets(ves_step *s, double *tgt) {
-  const ves_step_params *p = ves_step_get_params(s);
-  int k = 0;
-  if (p->hold_area) tgt[k++] = fabs(p->A0);
-  if (p->hold_volume) tgt[k++] = fabs(p->V_target);
-  return k;
-}
-
 /* (Re)build the IpoptProblem for the current sizes of s and set the options
  * that do not depend on the step (tolerances depending on the targets and on
  * the start are set in solve). */
@@ -234,7 +225,7 @@ static ves_status ipopt_solve(void *state, ves_step *s, double *x, double *lambd
   int n = st->n, m = st->m;
   VES_CHECK(m == 0 || lambda != NULL, VES_ERR_ARG);
   double tgt[2] = {1.0, 1.0};
-  VES_CHECK(ipopt_targets(s, tgt) == m, VES_ERR_INTERNAL);
+  VES_CHECK(ves_step_get_targets(s, tgt) == m, VES_ERR_INTERNAL);
   ves_backend_stats zero = {0};
   if (stats) *stats = zero;
 

@@ -374,11 +374,7 @@ static ves_status newton_solve(void *state, ves_step *s, double *x, double *lamb
   VES_CHECK(ncon == 0 || lambda, VES_ERR_ARG);
   double tgt[KKT_NROWS] = {1, 1}, lam[KKT_NROWS] = {0, 0}, c[KKT_NROWS] = {0, 0},
          ct[KKT_NROWS] = {0, 0};
-  {
-    int k = 0;
-    if (par->hold_area) tgt[k++] = par->A0;
-    if (par->hold_volume) tgt[k++] = par->V_target;
-  }
+  ves_step_get_targets(s, tgt);
   for (int i = 0; i < ncon; i++) lam[i] = lambda[i];
 
   double f, ft, mu = 0;

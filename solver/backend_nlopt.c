@@ -617,11 +617,8 @@ static ves_status nlb_solve(void *state, ves_step *s, double *x, double *lambda,
                  .g = st->g,
                  .J = st->J,
                  .reason = VES_OK};
-  double tgt[2] = {1.0, 1.0};
-  int k = 0;
-  if (par->hold_area) tgt[k++] = fabs(par->A0);
-  if (par->hold_volume) tgt[k++] = fabs(par->V_target);
-  VES_CHECK(k == m, VES_ERR_INTERNAL);
+  double tgt[2];
+  VES_CHECK(ves_step_get_targets(s, tgt) == m, VES_ERR_INTERNAL);
 
   /* A first phase to the loose tolerance NLB_TOL1 (in the metric of the
    * Hessian at the start), then the final one in the metric of the Hessian

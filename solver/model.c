@@ -896,6 +896,16 @@ static ves_status assemble(ves_model *m, asm_kind kind, const double fac[3], con
   return VES_OK;
 }
 
+/* The prefactors of the integrands of E, A and V: 2 pi (the axisymmetric
+ * measure) times f_E = 3k/(16 sqrt2 eps), f_A = 3/(2 sqrt2), f_V = 1
+ * (DESIGN.md §1), each times its coefficient c[i]. */
+static void functional_factors(const ves_model *m, double cE, double cA, double cV,
+                               double fac[3]) {
+  fac[0] = 2 * M_PI * 3 * m->par.k / (16 * M_SQRT2 * m->par.eps) * cE;
+  fac[1] = 2 * M_PI * 3 / (2 * M_SQRT2) * cA;
+  fac[2] = 2 * M_PI * cV;
+}
+
 /* The values and gradients of triangle t's points for slab k: w e of the
  * selected functionals into m->ev (by the triangle's first slab only), and
  * the gradient entries of the slab's nodes. With a step reference sr (E
@@ -904,8 +914,8 @@ static ves_status assemble(ves_model *m, asm_kind kind, const double fac[3], con
  * (the velocity variables; K = sum 2 pi w B^T D B). */
 static ves_status triangle_eval(ves_model *m, model_ws *w, int which, const step_ref *sr, double cE,
                                 int t, int k, const double *y, double *const g[3]) {
-  const double fac[3] = {2 * M_PI * 3 * m->par.k / (16 * M_SQRT2 * m->par.eps),
-                         2 * M_PI * 3 / (2 * M_SQRT2), 2 * M_PI};
+  double fac[3];
+  functional_factors(m, 1.0, 1.0, 1.0, fac);
   static ves_model_local_fn *const fn[3] = {ves_model_local_energy, ves_model_local_area,
                                             ves_model_local_volume};
   for (int p = 0; p < NPT; p++) {
@@ -949,8 +959,9 @@ static ves_status eval_points(ves_model *m, const double *y, int which, const st
                               double *gA, double *gV) {
   VES_CHECK(m && y, VES_ERR_ARG);
   int n = m->nodes->n;
-  const double fE = 2 * M_PI * 3 * m->par.k / (16 * M_SQRT2 * m->par.eps),
-               fA = 2 * M_PI * 3 / (2 * M_SQRT2), fV = 2 * M_PI;
+  double fac[3];
+  functional_factors(m, 1.0, 1.0, 1.0, fac);
+  const double fE = fac[0], fA = fac[1], fV = fac[2];
   double *const g[3] = {(which & VES_F_E) ? gE : NULL, (which & VES_F_A) ? gA : NULL,
                         (which & VES_F_V) ? gV : NULL};
   ves_status st[64];
@@ -1050,8 +1061,8 @@ ves_status ves_model_dissipation_ref(ves_model *m, const double *y, double *qn) 
 ves_status ves_model_hessian(ves_model *m, const double *y, double cE, double cA, double cV,
                              double *blk) {
   VES_CHECK(m && y && blk, VES_ERR_ARG);
-  const double fac[3] = {2 * M_PI * 3 * m->par.k / (16 * M_SQRT2 * m->par.eps) * cE,
-                         2 * M_PI * 3 / (2 * M_SQRT2) * cA, 2 * M_PI * cV};
+  double fac[3];
+  functional_factors(m, cE, cA, cV, fac);
   VES_CALL(assemble(m, ASM_HESS, fac, NULL, y, blk));
   if (m->sblk && cE != 0) /* + cE Hess E_s, constant */
     for (size_t i = 0; i < 4 * (size_t)m->pat->ptr[m->nodes->n]; i++) blk[i] += cE * m->sblk[i];
@@ -1061,8 +1072,8 @@ ves_status ves_model_hessian(ves_model *m, const double *y, double cE, double cA
 ves_status ves_model_hessian_step(ves_model *m, const double *y, const double *qn, double cE,
                                   double cA, double cV, double cK, double *blk) {
   VES_CHECK(m && y && qn && blk && isfinite(cK), VES_ERR_ARG);
-  const double fac[3] = {2 * M_PI * 3 * m->par.k / (16 * M_SQRT2 * m->par.eps) * cE,
-                         2 * M_PI * 3 / (2 * M_SQRT2) * cA, 2 * M_PI * cV};
+  double fac[3];
+  functional_factors(m, cE, cA, cV, fac);
   const step_ref sr = {qn, cK};
   VES_CALL(assemble(m, ASM_HESS, fac, &sr, y, blk));
   if (m->sblk && cE != 0) /* + cE Hess E_s, constant */

@@ -267,3 +267,12 @@ ves_model *ves_step_model(ves_step *s) { return s ? s->m : NULL; }
 const ves_step_params *ves_step_get_params(const ves_step *s) {
   return s && s->is_set ? &s->par : NULL;
 }
+
+int ves_step_get_targets(const ves_step *s, double tgt[2]) {
+  int k = 0;
+  tgt[0] = tgt[1] = 1.0;
+  if (!s || !s->is_set) return 0;
+  if (s->par.hold_area) tgt[k++] = s->par.A0;
+  if (s->par.hold_volume) tgt[k++] = s->par.V_target;
+  return k;
+}

@@ -81,4 +81,10 @@ ves_status ves_step_eval_energy_grad(ves_step *s, const double *x, double *E, do
 ves_model *ves_step_model(ves_step *s);
 const ves_step_params *ves_step_get_params(const ves_step *s);
 
+/* The targets of the held constraints, area first: tgt[k] = A0, then
+ * V_target (both > 0: ves_step_set checks), the scale of the relative
+ * violation |c_k| / tgt[k] every backend reports; tgt[k] = 1 past the held
+ * ones. Returns their count (ves_step_ncon; 0 before ves_step_set). */
+int ves_step_get_targets(const ves_step *s, double tgt[2]);
+
 #endif
