@@ -19,6 +19,7 @@
 #include <time.h>
 
 #include "bench_common.h"
+#include "ves/problem.h"
 #include "ves/setup.h"
 
 #define MAXS 100000
@@ -43,23 +44,15 @@ static int run(const ves_config *cfg, int every, long max_steps, traj *tr) {
     fprintf(stderr, "setup: %s\n", err);
     return 1;
   }
-  ves_integrate_params ip;
-  ves_integrate_params_default(&ip);
-  ip.t_end = cfg->t_end, ip.dt_initial = cfg->dt_initial, ip.dt_max = cfg->dt_max;
-  ip.dt_min = cfg->dt_min, ip.adaptive = cfg->adaptive, ip.dE_target = cfg->dE_target;
-  ip.growth_max = cfg->growth_max, ip.iter_target = cfg->iter_target;
-  ip.retry_memory = cfg->retry_memory, ip.retry_cap = cfg->retry_cap;
-  ip.hold_area = cfg->area, ip.hold_volume = cfg->volume;
-  ves_backend_options bo;
-  bench_backend_options(cfg, &bo);
+  ves_problem_params pp; /* as vesica run maps the problem file */
+  ves_problem_params_from_config(cfg, &pp);
   ves_sim *sim = NULL;
-  if (ves_sim_create(su->model, ves_backend_find(cfg->backend), &bo, &ip, &sim) != VES_OK) {
+  if (ves_sim_create(su->model, pp.backend, &pp.bopt, &pp.ip, &sim) != VES_OK) {
     fprintf(stderr, "sim_create failed\n");
     return 1;
   }
-  ves_remesh_policy pol = {.every = every, .cond_max = cfg->remesh_cond_max,
-                           .det_min = cfg->remesh_det_min,
-                           .on_failed_reset = cfg->remesh_on_failed_reset};
+  ves_remesh_policy pol = pp.remesh_policy;
+  pol.every = every;
   if (every > 0 || pol.cond_max > 0 || pol.det_min > 0) ves_sim_set_remesh(sim, cfg, &pol);
   double A0, V0;
   ves_sim_initial(sim, &tr->E[0], &A0, &V0);

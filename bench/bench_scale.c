@@ -31,7 +31,7 @@
 #include "ves/config.h"
 #include "ves/integrate.h"
 #include "ves/model.h"
-#include "ves/reconnect.h"
+#include "ves/problem.h"
 #include "ves/setup.h"
 #include "ves/step.h"
 #include "backend_kkt_impl.h"
@@ -53,31 +53,6 @@ static double median(double *t) {
       t[j] = t[j - 1], t[j - 1] = s;
     }
   return t[NREP / 2];
-}
-
-/* Integrator parameters from cfg, as `vesica run` maps them (solver/cli.c, build). */
-static void run_params(const ves_config *c, ves_integrate_params *ip) {
-  ves_integrate_params_default(ip);
-  ip->t_end = c->t_end, ip->dt_initial = c->dt_initial, ip->dt_max = c->dt_max;
-  ip->dt_min = c->dt_min, ip->adaptive = c->adaptive, ip->dE_target = c->dE_target;
-  ip->growth_max = c->growth_max, ip->iter_target = c->iter_target;
-  ip->retry_memory = c->retry_memory, ip->retry_cap = c->retry_cap;
-  ip->hold_area = c->area, ip->hold_volume = c->volume;
-  ip->volume_rate = c->volume_rate, ip->volume_final = c->volume_final;
-  ip->c0_time = c->c0_time, ip->c0_after = c->c0_after, ip->c0_until = c->c0_until;
-  ip->c0_ramp_start = c->c0_ramp_start, ip->c0_ramp_end = c->c0_ramp_end;
-  ip->c0_ramp_to = c->c0_ramp_to;
-  ip->reconnect_every = c->reconnect_every, ip->reconnect_cond_max = c->reconnect_cond_max;
-  ip->reconnect_det_min = c->reconnect_det_min;
-  ip->reconnect_nodes =
-      strcmp(c->reconnect_nodes, "motion") ? VES_RESET_NODES_COEF : VES_RESET_NODES_MOTION;
-}
-
-/* Backend options from cfg, as `vesica run` maps them. */
-static void run_options(const ves_config *c, ves_backend_options *bo) {
-  ves_backend_options_default(bo);
-  bo->tol = c->tol, bo->ctol = c->ctol, bo->max_iter = c->max_iter;
-  bo->freeze_hessian = c->freeze_hessian;
 }
 
 /* Report a failed call and give the exit code. */
@@ -213,11 +188,9 @@ static int measure(const ves_config *cfg, ves_setup *s, int nsteps, row *r) {
   H = J = x0 = g = y = NULL;
 
   /* NSTEPS accepted steps of the newton backend from the reference state */
-  ves_integrate_params ip;
-  ves_backend_options bo;
-  run_params(cfg, &ip);
-  run_options(cfg, &bo);
-  if ((st = ves_sim_create(m, &ves_backend_newton, &bo, &ip, &sim)) != VES_OK) {
+  ves_problem_params pp; /* as vesica run maps the problem file (the backend: newton) */
+  ves_problem_params_from_config(cfg, &pp);
+  if ((st = ves_sim_create(m, &ves_backend_newton, &pp.bopt, &pp.ip, &sim)) != VES_OK) {
     rc = fail("ves_sim_create (newton)", st);
     goto done;
   }
