@@ -13,22 +13,7 @@
 #include <string.h>
 
 #include "ves/ldl.h"
-
-#define U 0x1.0p-52 /* double unit roundoff (2u, machine epsilon) */
-
-/* Deterministic uniform numbers in [0, 1) (xorshift64*). */
-static double urand(uint64_t *s) {
-  *s ^= *s >> 12;
-  *s ^= *s << 25;
-  *s ^= *s >> 27;
-  return (double)((*s * 2685821657736338717ULL) >> 11) * 0x1.0p-53;
-}
-
-static double norm2(int n, const double *x) {
-  double s = 0.0;
-  for (int i = 0; i < n; i++) s += x[i] * x[i];
-  return sqrt(s);
-}
+#include "numeric_impl.h"
 
 /* Lower triplets of the dense symmetric A[n*n] (entries with |A_ij| > 0, j <= i).
  * Returns the count; arrays sized n(n+1)/2 by the caller. */
@@ -37,6 +22,20 @@ static int dense_to_lower(int n, const double *A, int *ir, int *jc, double *v) {
   for (int i = 0; i < n; i++)
     for (int j = 0; j <= i; j++)
       if (A[i * n + j] != 0.0) ir[nnz] = i, jc[nnz] = j, v[nnz++] = A[i * n + j];
+  return nnz;
+}
+
+/* Split the triplet (i, j) in two: f of its value and the rest (the
+ * factorizations sum duplicates). Returns the new count (room for one more
+ * triplet given by the caller). */
+static int split_entry(int nnz, int *ir, int *jc, double *v, int i, int j, double f) {
+  for (int k = 0; k < nnz; k++)
+    if (ir[k] == i && jc[k] == j) {
+      const double rest = v[k] - f * v[k];
+      v[k] *= f;
+      ir[nnz] = i, jc[nnz] = j, v[nnz] = rest;
+      return nnz + 1;
+    }
   return nnz;
 }
 
@@ -74,14 +73,7 @@ static void test_ldl_spd_vs_lapack(void **state) {
   int ir[N * (N + 1) / 2 + 1], jc[N * (N + 1) / 2 + 1];
   double v[N * (N + 1) / 2 + 1];
   int nnz = dense_to_lower(N, A, ir, jc, v);
-  /* split the diagonal entry (3, 3) in two halves */
-  for (int k = 0; k < nnz; k++)
-    if (ir[k] == 3 && jc[k] == 3) {
-      v[k] *= 0.5;
-      ir[nnz] = 3, jc[nnz] = 3, v[nnz] = v[k];
-      nnz++;
-      break;
-    }
+  nnz = split_entry(nnz, ir, jc, v, 3, 3, 0.5); /* the diagonal entry (3, 3) in two halves */
   for (int i = 0; i < N; i++) xl[i] = x[i] = sin(1.0 + i);
   ves_ldl *f = NULL;
   assert_int_equal(ves_ldl_create(N, nnz, ir, jc, 1, &f), VES_OK);
@@ -267,29 +259,24 @@ static void test_ldl_errors(void **state) {
 
 /* On the full lower pattern IC(0) drops nothing: it is the Cholesky factor,
  * against LAPACK dpotrf entry by entry, and the two half solves solve A x = b.
- * The triplets come with one entry split in two (summed by ves_ldl_ic_set). */
+ * A: the Kac-Murdock-Szego matrix A_ij = rho^|i-j|, dense and SPD, its
+ * eigenvalues in ((1 - rho)/(1 + rho), (1 + rho)/(1 - rho)), so cond_2(A) <
+ * ((1 + rho)/(1 - rho))^2 = 9 at rho = 1/2. The triplets come with one entry
+ * split in two (summed by ves_ldl_ic_set). */
 static void test_ic_full_pattern(void **state) {
   (void)state;
-  enum { N = 10 };
-  uint64_t seed = 31;
-  double A[N * N], L[N * N], x[N], b[N];
-  double cond = make_spd(N, A, &seed);
-  int ir[N * (N + 1) / 2 + 1], jc[N * (N + 1) / 2 + 1];
-  double v[N * (N + 1) / 2 + 1];
-  int nnz = 0;
-  for (int i = 0; i < N; i++) /* every (i, j <= i), zeros too: the full pattern */
-    for (int j = 0; j <= i; j++) ir[nnz] = i, jc[nnz] = j, v[nnz++] = A[i * N + j];
-  for (int k = 0; k < nnz; k++)
-    if (ir[k] == 4 && jc[k] == 2) {
-      v[k] *= 0.25;
-      ir[nnz] = 4, jc[nnz] = 2, v[nnz++] = 3.0 * v[k];
-      break;
-    }
+  enum { N = 10, NZ = N * (N + 1) / 2 };
+  const double rho = 0.5, cond = 9.0;
+  double A[N * N], L[N * N], x[N], b[N], v[NZ + 1];
+  int ir[NZ + 1], jc[NZ + 1];
+  for (int i = 0; i < N; i++)
+    for (int j = 0; j < N; j++) A[i * N + j] = pow(rho, abs(i - j)); /* exact: powers of 2 */
+  int nnz = split_entry(dense_to_lower(N, A, ir, jc, v), ir, jc, v, 4, 2, 0.25);
   for (int i = 0; i < N * N; i++) L[i] = A[i];
   assert_int_equal(LAPACKE_dpotrf(LAPACK_ROW_MAJOR, 'L', N, L, N), 0);
   ves_ldl_ic *F = NULL;
   assert_int_equal(ves_ldl_ic_create(N, nnz, ir, jc, &F), VES_OK);
-  assert_int_equal(F->ptr[N], N * (N + 1) / 2); /* duplicates merged */
+  assert_int_equal(F->ptr[N], NZ); /* duplicates merged */
   ves_ldl_ic_set(F, v);
   assert_int_equal(ves_ldl_ic_factor(F, 0.0), VES_OK);
   double worst = 0.0;
@@ -309,7 +296,7 @@ static void test_ic_full_pattern(void **state) {
     r[i] = -b[i];
     for (int j = 0; j < N; j++) r[i] += A[i * N + j] * x[j];
   }
-  /* backward stable Cholesky solve: residual ~ N u |A| |x|, |A| <= cond-bound scale */
+  /* backward stable Cholesky solve: |r| ~ N u |A| |x| <= N u cond(A) |b| */
   printf("# ic full: |L - L_lapack| %.2e, |Ax - b|/|b| %.2e (cond bound %.1f)\n", worst,
          norm2(N, r) / norm2(N, b), cond);
   assert_true(norm2(N, r) <= 4.0 * N * U * cond * norm2(N, b));

@@ -14,24 +14,9 @@
 #include <string.h>
 
 #include "ves/project.h"
+#include "numeric_impl.h"
 
 #include <omp.h>
-
-#define U 0x1.0p-52 /* double unit roundoff (2u, machine epsilon) */
-
-/* Deterministic uniform numbers in [0, 1) (xorshift64*). */
-static double urand(uint64_t *s) {
-  *s ^= *s >> 12;
-  *s ^= *s << 25;
-  *s ^= *s >> 27;
-  return (double)((*s * 2685821657736338717ULL) >> 11) * 0x1.0p-53;
-}
-
-static double norm2(int n, const double *x) {
-  double s = 0.0;
-  for (int i = 0; i < n; i++) s += x[i] * x[i];
-  return sqrt(s);
-}
 
 /* ---- the pattern ---- */
 
@@ -107,16 +92,20 @@ static void test_pattern(void **state) {
   for (int a = 0; a < n; a++)
     for (int b = 0; b < n; b++) {
       long t = ves_pattern_find(p, a, b);
-      if (b <= a && coupled[(size_t)a * n + b]) assert_true(t >= 0 && p->col[t] == b), count++;
-      else assert_true(t < 0);
+      if (b <= a && coupled[(size_t)a * n + b])
+        assert_true(t >= 0 && p->col[t] == b), count++;
+      else
+        assert_true(t < 0);
     }
   assert_int_equal(count, p->ptr[n]);
   for (int a = 0; a < n; a++)
     for (int t = p->ptr[a] + 1; t < p->ptr[a + 1]; t++) assert_true(p->col[t] > p->col[t - 1]);
   int nfree = 0;
   for (int i = 0; i < 2 * n; i++) {
-    if (fixed[i]) assert_int_equal(p->dof[i], -1);
-    else assert_int_equal(p->dof[i], nfree++);
+    if (fixed[i])
+      assert_int_equal(p->dof[i], -1);
+    else
+      assert_int_equal(p->dof[i], nfree++);
   }
   assert_int_equal(p->nfree, nfree);
   /* random block values -> triplets -> symv, against the dense free matrix */
@@ -240,8 +229,8 @@ static void test_project_folding(void **state) {
   enum { NQ = 7, N = 4, M = 4 };
   /* every point sees M = 4 entries; point 2 sees node 1 twice (real and
    * ghost), point 5 sees node 0 twice */
-  int nbr[NQ * M] = {0, 1, 2, 3, 0, 1, 2, 3, 1, 1, 2, 3, 0, 1, 3, 2,
-                     2, 3, 0, 1, 0, 0, 1, 3, 3, 2, 1, 0};
+  int nbr[NQ * M] = {0, 1, 2, 3, 0, 1, 2, 3, 1, 1, 2, 3, 0, 1,
+                     3, 2, 2, 3, 0, 1, 0, 0, 1, 3, 3, 2, 1, 0};
   unsigned char mirror[NQ * M] = {0};
   mirror[9] = mirror[21] = 1;
   int ptr[NQ + 1];
@@ -459,11 +448,13 @@ static void test_project_smooth(void **state) {
 
 int main(void) {
   setvbuf(stdout, NULL, _IOLBF, 0); /* keep output in order with cmocka's stderr */
+  // clang-format off
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_project_folding), cmocka_unit_test(test_project_groups),
       cmocka_unit_test(test_project_threads), cmocka_unit_test(test_pattern),
       cmocka_unit_test(test_project_affine),  cmocka_unit_test(test_project_smooth),
   };
+  // clang-format on
   /* the node set and tables are built once for the group (the tests only
    * read them); the tests without fixture ignore the state */
   return cmocka_run_group_tests_name("project", tests, setup_tables, teardown_tables);
