@@ -7,7 +7,6 @@
 #include <hdf5.h>
 #include <limits.h>
 #include <math.h>
-#include <stdarg.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -96,14 +95,6 @@ struct ves_io {
   long summed_rows;         /* rows in series_sum */
   int tolerant;             /* salvage: count the snapshots up to the first unreadable one */
 };
-
-static void say(char *err, size_t errlen, const char *fmt, ...) {
-  if (!err || !errlen) return;
-  va_list ap;
-  va_start(ap, fmt);
-  vsnprintf(err, errlen, fmt, ap);
-  va_end(ap);
-}
 
 /* HDF5 prints its error stack by default: the library stays silent. Its
  * exit-time cleanup is declined: after a failed write (a full disk) H5Fclose
@@ -735,7 +726,7 @@ ves_status ves_io_create(const char *path, const ves_io_header *h, ves_io **out,
   *out = NULL;
   quiet_hdf5();
   if (strlen(path) >= PATH_MAX - 8) {
-    say(err, errlen, "%s: path too long", path);
+    ves_error_say(err, errlen, "%s: path too long", path);
     return VES_ERR_IO;
   }
   /* an HDF5 file there may be the output of a running vesica (which holds
@@ -743,8 +734,9 @@ ves_status ves_io_create(const char *path, const ves_io_header *h, ves_io **out,
   if (H5Fis_hdf5(path) > 0) {
     hid_t f = H5Fopen(path, H5F_ACC_RDWR, H5P_DEFAULT);
     if (f < 0) {
-      say(err, errlen, "%s: exists and cannot be opened for writing (in use by a running vesica?)",
-          path);
+      ves_error_say(err, errlen,
+                    "%s: exists and cannot be opened for writing (in use by a running vesica?)",
+                    path);
       return VES_ERR_IO;
     }
     H5Fclose(f);
@@ -753,7 +745,7 @@ ves_status ves_io_create(const char *path, const ves_io_header *h, ves_io **out,
   if (!io) return VES_ERR_ALLOC;
   io->file = H5Fcreate(path, H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
   if (io->file < 0) {
-    say(err, errlen, "%s: cannot create the HDF5 file", path);
+    ves_error_say(err, errlen, "%s: cannot create the HDF5 file", path);
     ves_io_close(&io);
     return VES_ERR_IO;
   }
@@ -762,8 +754,8 @@ ves_status ves_io_create(const char *path, const ves_io_header *h, ves_io **out,
   ves_status st = io->info.problem && io->info.source ? write_header(io, h) : VES_ERR_ALLOC;
   if (st != VES_OK) { /* the file is ours (just created): nothing half-written stays */
     int e = errno;
-    say(err, errlen, "%s: cannot write the header: %s", path,
-        e && st == VES_ERR_IO ? strerror(e) : ves_status_str(st));
+    ves_error_say(err, errlen, "%s: cannot write the header: %s", path,
+                  e && st == VES_ERR_IO ? strerror(e) : ves_status_str(st));
     ves_io_close(&io);
     remove(path);
     return st;
@@ -850,13 +842,13 @@ ves_status ves_io_open(const char *path, int writable, ves_io **out, char *err, 
   quiet_hdf5();
   FILE *probe = fopen(path, writable ? "r+" : "r");
   if (!probe) {
-    say(err, errlen, "%s: cannot open%s: %s", path, writable ? " for writing" : "",
-        strerror(errno));
+    ves_error_say(err, errlen, "%s: cannot open%s: %s", path, writable ? " for writing" : "",
+                  strerror(errno));
     return VES_ERR_IO;
   }
   fclose(probe);
   if (H5Fis_hdf5(path) <= 0) {
-    say(err, errlen, "%s: not an HDF5 file", path);
+    ves_error_say(err, errlen, "%s: not an HDF5 file", path);
     return VES_ERR_IO;
   }
   ves_io *io = io_alloc(path, writable);
@@ -879,10 +871,12 @@ ves_status ves_io_open(const char *path, int writable, ves_io **out, char *err, 
     if (ro >= 0) H5Pclose(ro);
     if (f >= 0) {
       H5Fclose(f);
-      say(err, errlen, "%s: cannot open the HDF5 file for writing (in use by a running vesica?)",
-          path);
+      ves_error_say(err, errlen,
+                    "%s: cannot open the HDF5 file for writing (in use by a running vesica?)",
+                    path);
     } else {
-      say(err, errlen, "%s: the HDF5 file is damaged: %s%s", path, why[0] ? why : "unreadable",
+      ves_error_say(
+          err, errlen, "%s: the HDF5 file is damaged: %s%s", path, why[0] ? why : "unreadable",
           strstr(why, "truncated") ? " (cut short: a copy interrupted, or a full disk; vesica run "
                                      "--restart salvages its last complete snapshot)"
                                    : "");
@@ -893,17 +887,18 @@ ves_status ves_io_open(const char *path, int writable, ves_io **out, char *err, 
   ves_status st = read_header(io);
   if (st != VES_OK) {
     if (st == VES_ERR_CONFIG && io->info.format_version > VES_IO_FORMAT)
-      say(err, errlen, "%s: format_version %d: this vesica reads format_version 1 to %d", path,
-          io->info.format_version, VES_IO_FORMAT);
+      ves_error_say(err, errlen, "%s: format_version %d: this vesica reads format_version 1 to %d",
+                    path, io->info.format_version, VES_IO_FORMAT);
     else if (st == VES_ERR_CONFIG && writable && io->info.format_version >= 1 &&
              io->info.format_version < VES_IO_FORMAT)
-      say(err, errlen,
-          "%s: format_version %d (an older vesica) is read-only: it cannot be continued", path,
-          io->info.format_version);
+      ves_error_say(err, errlen,
+                    "%s: format_version %d (an older vesica) is read-only: it cannot be continued",
+                    path, io->info.format_version);
     else if (st == VES_ERR_CONFIG)
-      say(err, errlen, "%s: not a vesica output file (missing or malformed layout)", path);
+      ves_error_say(err, errlen, "%s: not a vesica output file (missing or malformed layout)",
+                    path);
     else
-      say(err, errlen, "%s: cannot read the header: %s", path, ves_status_str(st));
+      ves_error_say(err, errlen, "%s: cannot read the header: %s", path, ves_status_str(st));
     ves_io_close(&io);
     return st;
   }
@@ -1897,7 +1892,7 @@ static ves_status salvage_write(ves_io *src, const char *path, const char *out, 
   if (!dst) return VES_ERR_ALLOC;
   hid_t d = H5Fcreate(out, H5F_ACC_EXCL, H5P_DEFAULT, H5P_DEFAULT);
   if (d < 0) {
-    say(why, whylen, "!%s: cannot create it (it must not exist)", out);
+    ves_error_say(why, whylen, "!%s: cannot create it (it must not exist)", out);
     ves_io_close(&dst);
     return VES_ERR_IO;
   }
@@ -1940,9 +1935,9 @@ static ves_status salvage_write(ves_io *src, const char *path, const char *out, 
     char reason[128] = ""; /* a system error is the new file's (the image has none) */
     H5Ewalk2(H5E_DEFAULT, H5E_WALK_UPWARD, sys_reason, reason);
     if (reason[0])
-      say(why, whylen, "!%s: cannot write: %s", out, reason);
+      ves_error_say(why, whylen, "!%s: cannot write: %s", out, reason);
     else
-      say(why, whylen, "snapshot %d: %s do not copy", K, step);
+      ves_error_say(why, whylen, "snapshot %d: %s do not copy", K, step);
   }
   if (st == VES_OK) { /* the XDMF file of path shows the snapshots kept */
     dst->nsnap = dst->snap_cap = K + 1;
@@ -1963,7 +1958,8 @@ ves_status ves_io_salvage(const char *path, const char *out, ves_io_salvaged *re
   quiet_hdf5();
   long long size = 0, stored = 0;
   if (!ves_io_cut_short(path, &size, &stored)) {
-    say(err, errlen, "%s: not cut short (its size is the one its superblock records)", path);
+    ves_error_say(err, errlen, "%s: not cut short (its size is the one its superblock records)",
+                  path);
     return VES_ERR_ARG;
   }
   res->size = size, res->stored_size = stored;
@@ -1975,7 +1971,7 @@ ves_status ves_io_salvage(const char *path, const char *out, ves_io_salvaged *re
   if (f) fclose(f);
   if (!read_ok) {
     free(img);
-    say(err, errlen, "%s: %s", path, img ? "cannot read it" : "out of memory");
+    ves_error_say(err, errlen, "%s: %s", path, img ? "cannot read it" : "out of memory");
     return img ? VES_ERR_IO : VES_ERR_ALLOC;
   }
   hid_t fapl = H5Pcreate(H5P_FILE_ACCESS);
@@ -1990,7 +1986,7 @@ ves_status ves_io_salvage(const char *path, const char *out, ves_io_salvaged *re
     /* a name no file has: the core driver refuses an image named as a file */
     src->file = H5Fopen("/nonexistent/vesica-salvage-image", H5F_ACC_RDONLY, fapl);
     st = src->file < 0 || read_header(src) != VES_OK ? VES_ERR_IO : VES_OK;
-    if (st != VES_OK) say(err, errlen, "%s: its header is lost too", path);
+    if (st != VES_OK) ves_error_say(err, errlen, "%s: its header is lost too", path);
   }
   if (fapl >= 0) H5Pclose(fapl);
   /* the last snapshot that is complete and copies whole (a copy can still
@@ -2012,14 +2008,16 @@ ves_status ves_io_salvage(const char *path, const char *out, ves_io_salvaged *re
   if (st == VES_OK && K < 0) {
     st = VES_ERR_IO;
     if (found)
-      say(err, errlen, "%s: its surviving snapshots cannot be copied whole (%s)", path, why);
+      ves_error_say(err, errlen, "%s: its surviving snapshots cannot be copied whole (%s)", path,
+                    why);
     else
-      say(err, errlen,
+      ves_error_say(
+          err, errlen,
           "%s: none of its %d snapshot(s) survived whole (or they carry no checksums: written "
           "by an older vesica)",
           path, src->nsnap);
   } else if (st != VES_OK && why[0] == '!') {
-    say(err, errlen, "%s", why + 1);
+    ves_error_say(err, errlen, "%s", why + 1);
   }
   if (st == VES_OK) {
     hid_t g = H5Gopen2(src->file, "snapshots", H5P_DEFAULT); /* as counted, lost or not */

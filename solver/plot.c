@@ -5,7 +5,6 @@
 #include <errno.h>
 #include <limits.h>
 #include <math.h>
-#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -18,14 +17,6 @@ const char *const ves_plot_figures[VES_PLOT_NFIG] = {"energy", "snapshots", "con
 #define PLOT_FLOOR 1e-17   /* drift values below this are drawn at it (log axis) */
 #define PLOT_PANEL 560     /* pixels per snapshot panel */
 #define PLOT_INTERFACE 0.1 /* |phi| below this marks an interface node */
-
-static void say(char *err, size_t errlen, const char *fmt, ...) {
-  if (!err || !errlen) return;
-  va_list ap;
-  va_start(ap, fmt);
-  vsnprintf(err, errlen, fmt, ap);
-  va_end(ap);
-}
 
 void ves_plot_gp_quote(FILE *f, const char *s) {
   fputc('\'', f);
@@ -298,7 +289,7 @@ ves_status ves_plot_write(ves_io *io, const ves_plot_params *p, char *err, size_
   long R = ves_io_rows(io);
   int S = ves_io_snapshots(io);
   if (R < 1 || S < 1) {
-    say(err, errlen, "nothing to plot: %ld steps, %d snapshots", R, S);
+    ves_error_say(err, errlen, "nothing to plot: %ld steps, %d snapshots", R, S);
     return VES_ERR_ARG;
   }
   ves_status st = VES_ERR_ALLOC;
@@ -326,7 +317,7 @@ ves_status ves_plot_write(ves_io *io, const ves_plot_params *p, char *err, size_
   int fd = mkstemp(script);
   if (fd < 0 || !(f = fdopen(fd, "w"))) {
     if (fd >= 0) close(fd);
-    say(err, errlen, "cannot create a temporary file %s: %s", script, strerror(errno));
+    ves_error_say(err, errlen, "cannot create a temporary file %s: %s", script, strerror(errno));
     script[0] = 0;
     st = VES_ERR_IO;
     goto done;
@@ -338,7 +329,7 @@ ves_status ves_plot_write(ves_io *io, const ves_plot_params *p, char *err, size_
   bad |= fclose(f) != 0;
   f = NULL;
   if (bad) {
-    say(err, errlen, "cannot write the gnuplot script %s", script);
+    ves_error_say(err, errlen, "cannot write the gnuplot script %s", script);
     st = VES_ERR_IO;
     goto done;
   }
@@ -347,7 +338,7 @@ ves_status ves_plot_write(ves_io *io, const ves_plot_params *p, char *err, size_
   snprintf(cmd, sizeof cmd, "gnuplot %s 2>&1", script);
   FILE *g = popen(cmd, "r");
   if (!g) {
-    say(err, errlen, "cannot run gnuplot: %s", strerror(errno));
+    ves_error_say(err, errlen, "cannot run gnuplot: %s", strerror(errno));
     st = VES_ERR_IO;
     goto done;
   }
@@ -358,9 +349,9 @@ ves_status ves_plot_write(ves_io *io, const ves_plot_params *p, char *err, size_
   if (code != 0) {
     msg[strcspn(msg, "\n")] = 0;
     if (msg[0])
-      say(err, errlen, "gnuplot failed (exit status %d): %s", code, msg);
+      ves_error_say(err, errlen, "gnuplot failed (exit status %d): %s", code, msg);
     else
-      say(err, errlen, "gnuplot failed (exit status %d)", code);
+      ves_error_say(err, errlen, "gnuplot failed (exit status %d)", code);
     st = VES_ERR_IO;
     goto done;
   }
@@ -371,7 +362,7 @@ ves_status ves_plot_write(ves_io *io, const ves_plot_params *p, char *err, size_
     char part[PATH_MAX], why[128];
     fig_path(part, sizeof part, p, k, 1);
     if (png_complete(part, why, sizeof why)) {
-      say(err, errlen, "figure %s: %s", part, why);
+      ves_error_say(err, errlen, "figure %s: %s", part, why);
       st = VES_ERR_IO;
     }
   }
@@ -380,7 +371,7 @@ ves_status ves_plot_write(ves_io *io, const ves_plot_params *p, char *err, size_
     fig_path(part, sizeof part, p, k, 1);
     fig_path(final, sizeof final, p, k, 0);
     if (rename(part, final) != 0) {
-      say(err, errlen, "cannot rename %s to %s: %s", part, final, strerror(errno));
+      ves_error_say(err, errlen, "cannot rename %s to %s: %s", part, final, strerror(errno));
       st = VES_ERR_IO;
     }
   }

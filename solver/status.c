@@ -2,6 +2,7 @@
  * per-thread record of the last error (status.h). */
 #include "ves/status.h"
 
+#include <stdarg.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -67,3 +68,11 @@ const char *ves_error_format(ves_status code, char *buf, size_t len) {
 }
 
 const char *ves_error_text(ves_status code) { return ves_error_format(code, text, sizeof text); }
+
+void ves_error_say(char *err, size_t errlen, const char *fmt, ...) {
+  if (!err || !errlen) return;
+  va_list ap;
+  va_start(ap, fmt);
+  vsnprintf(err, errlen, fmt, ap);
+  va_end(ap);
+}

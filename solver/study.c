@@ -9,7 +9,6 @@
 #include <errno.h>
 #include <iniparser/iniparser.h>
 #include <math.h>
-#include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
@@ -25,14 +24,6 @@
 #define STUDY_RISE_TOL 1e-10
 /* Longest cell name: NAME.result must fit a file name (255 bytes). */
 #define STUDY_NAME_MAX 200
-
-static void say(char *err, size_t errlen, const char *fmt, ...) {
-  if (!err || !errlen) return;
-  va_list ap;
-  va_start(ap, fmt);
-  vsnprintf(err, errlen, fmt, ap);
-  va_end(ap);
-}
 
 static int ini_quiet(const char *fmt, ...) {
   (void)fmt;
@@ -78,19 +69,19 @@ ves_status ves_study_parse_axis(const char *text, ves_study_axis *ax, char *err,
     char close = 0, extra = 0;
     if (sscanf(text + 4, "%lf , %lf , %lf %c %c", &a, &b, &n, &close, &extra) != 4 ||
         close != ')' || !isfinite(a) || !isfinite(b) || n != floor(n)) {
-      say(err, errlen, "'%s': expected %s(from, to, count)", text, lg ? "log" : "lin");
+      ves_error_say(err, errlen, "'%s': expected %s(from, to, count)", text, lg ? "log" : "lin");
       return VES_ERR_CONFIG;
     }
     if (n < 2 || n > VES_STUDY_MAX_VALUES) {
-      say(err, errlen, "'%s': count must lie in [2, %d]", text, VES_STUDY_MAX_VALUES);
+      ves_error_say(err, errlen, "'%s': count must lie in [2, %d]", text, VES_STUDY_MAX_VALUES);
       return VES_ERR_CONFIG;
     }
     if (lg && (a <= 0 || b <= 0)) {
-      say(err, errlen, "'%s': a log range needs from, to > 0", text);
+      ves_error_say(err, errlen, "'%s': a log range needs from, to > 0", text);
       return VES_ERR_CONFIG;
     }
     if (a == b) {
-      say(err, errlen, "'%s': from and to are equal", text);
+      ves_error_say(err, errlen, "'%s': from and to are equal", text);
       return VES_ERR_CONFIG;
     }
     for (int i = 0; i < (int)n; i++) { /* 12 digits: 10^-3 prints as 0.001, not 0.00099999... */
@@ -105,21 +96,23 @@ ves_status ves_study_parse_axis(const char *text, ves_study_axis *ax, char *err,
   for (;;) {
     size_t l = strcspn(p, ",");
     if (ax->nvalues == VES_STUDY_MAX_VALUES) {
-      say(err, errlen, "more than %d values", VES_STUDY_MAX_VALUES);
+      ves_error_say(err, errlen, "more than %d values", VES_STUDY_MAX_VALUES);
       return VES_ERR_CONFIG;
     }
     char *v = ax->values[ax->nvalues];
     if (trim_copy(v, VES_STUDY_VALUE, p, l)) {
-      say(err, errlen, "value '%.*s': longer than %d characters", (int)l, p, VES_STUDY_VALUE - 1);
+      ves_error_say(err, errlen, "value '%.*s': longer than %d characters", (int)l, p,
+                    VES_STUDY_VALUE - 1);
       return VES_ERR_CONFIG;
     }
     if (!*v) {
-      say(err, errlen, "%s", ax->nvalues || p[l] ? "an empty value in the list" : "empty axis");
+      ves_error_say(err, errlen, "%s",
+                    ax->nvalues || p[l] ? "an empty value in the list" : "empty axis");
       return VES_ERR_CONFIG;
     }
     for (int j = 0; j < ax->nvalues; j++)
       if (!strcmp(ax->values[j], v)) {
-        say(err, errlen, "value '%s' given twice", v);
+        ves_error_say(err, errlen, "value '%s' given twice", v);
         return VES_ERR_CONFIG;
       }
     ax->nvalues++;
@@ -183,7 +176,7 @@ ves_status ves_study_cell_sets(const ves_study *s, long k, char buf[][VES_STUDY_
       if (!strncmp(buf[i], "time.dt_initial=", 16)) snprintf(dt, sizeof dt, "%s", buf[i] + 16);
     if (!dt[0]) {
       if (ves_config_load(s->problem, 0, NULL, &cfg, msg, sizeof msg) != VES_OK) {
-        say(err, errlen, "%s", msg);
+        ves_error_say(err, errlen, "%s", msg);
         *nset = n;
         return VES_ERR_CONFIG;
       }
@@ -198,8 +191,9 @@ ves_status ves_study_cell_sets(const ves_study *s, long k, char buf[][VES_STUDY_
   for (int i = 0; i < n; i++) ptr[i] = buf[i];
   *nset = n;
   if (ves_config_load(s->problem, n, ptr, &cfg, msg, sizeof msg) != VES_OK) {
-    say(err, errlen, "%s%s", msg,
-        s->mode == VES_STUDY_STEP ? " (one step: dt_min = dt_max = t_end = dt_initial)" : "");
+    ves_error_say(err, errlen, "%s%s", msg,
+                  s->mode == VES_STUDY_STEP ? " (one step: dt_min = dt_max = t_end = dt_initial)"
+                                            : "");
     return VES_ERR_CONFIG;
   }
   *nset = n;
@@ -303,15 +297,15 @@ static ves_status check_cells(const ves_study *s, char *err, size_t errlen) {
     int n = 0;
     ves_study_cell_name(s, k, name, sizeof name);
     if (strlen(name) > STUDY_NAME_MAX) { /* + ".result" within a file name's 255 */
-      say(err, errlen,
-          "%s: [axes] cell %.40s...: a name of %zu characters, more than %d "
-          "(shorter values or fewer axes)",
-          s->path, name, strlen(name), STUDY_NAME_MAX);
+      ves_error_say(err, errlen,
+                    "%s: [axes] cell %.40s...: a name of %zu characters, more than %d "
+                    "(shorter values or fewer axes)",
+                    s->path, name, strlen(name), STUDY_NAME_MAX);
       st = VES_ERR_CONFIG;
       break;
     }
     if ((st = ves_study_cell_sets(s, k, sets, &n, msg, sizeof msg)) != VES_OK) {
-      say(err, errlen, "%s: [axes] cell %s: %s", s->path, name, msg);
+      ves_error_say(err, errlen, "%s: [axes] cell %s: %s", s->path, name, msg);
       break;
     }
     if (!(names[k] = strdup(name))) st = VES_ERR_ALLOC;
@@ -320,7 +314,8 @@ static ves_status check_cells(const ves_study *s, char *err, size_t errlen) {
     qsort(names, (size_t)s->ncells, sizeof *names, cmp_names);
     for (long k = 1; k < s->ncells; k++)
       if (!strcmp(names[k - 1], names[k])) {
-        say(err, errlen,
+        ves_error_say(
+            err, errlen,
             "%s: [axes]: two cells are both named '%s' (values that differ only in characters "
             "a file name cannot hold)",
             s->path, names[k]);
@@ -354,8 +349,8 @@ static ves_status study_number(const ves_study *s, const char *sec, const char *
   while (isspace((unsigned char)*end)) end++;
   if (end == val || *end || errno || !isfinite(v) || (want_int && v != floor(v)) || v < lo ||
       v > hi) {
-    say(err, errlen, "%s: [%s] %s = '%s': not %s in [%g, %g]", s->path, sec, key, val,
-        want_int ? "an integer" : "a number", lo, hi);
+    ves_error_say(err, errlen, "%s: [%s] %s = '%s': not %s in [%g, %g]", s->path, sec, key, val,
+                  want_int ? "an integer" : "a number", lo, hi);
     return VES_ERR_CONFIG;
   }
   *out = v;
@@ -368,14 +363,15 @@ static ves_status read_study(dictionary *d, ves_study *s, char *err, size_t errl
   char problem[PATH_MAX] = "";
   for (ssize_t i = 0; i < d->size; i++)
     if (d->key[i] && d->key[i][0] == ':') {
-      say(err, errlen, "%s: %s: key outside a section", s->path, d->key[i] + 1);
+      ves_error_say(err, errlen, "%s: %s: key outside a section", s->path, d->key[i] + 1);
       return VES_ERR_CONFIG;
     }
   for (int i = 0; i < iniparser_getnsec(d); i++) {
     const char *sec = iniparser_getsecname(d, i);
     if (strcasecmp(sec, "study") && strcasecmp(sec, "set") && strcasecmp(sec, "axes") &&
         strcasecmp(sec, "slurm")) {
-      say(err, errlen, "%s: [%s]: unknown section (study, set, axes, slurm)", s->path, sec);
+      ves_error_say(err, errlen, "%s: [%s]: unknown section (study, set, axes, slurm)", s->path,
+                    sec);
       return VES_ERR_CONFIG;
     }
     int nk = iniparser_getsecnkeys(d, sec);
@@ -390,12 +386,13 @@ static ves_status read_study(dictionary *d, ves_study *s, char *err, size_t errl
       double num;
       if (!strcasecmp(sec, "study")) {
         if (!in_list(key, STUDY_KEYS, 4)) {
-          say(err, errlen, "%s: [study] %s: unknown key (problem, run, steps, time_limit)", s->path,
-              key);
+          ves_error_say(err, errlen,
+                        "%s: [study] %s: unknown key (problem, run, steps, time_limit)", s->path,
+                        key);
           st = VES_ERR_CONFIG;
         } else if (!strcasecmp(key, "problem")) {
           if (!*val || strlen(val) >= sizeof problem) {
-            say(err, errlen, "%s: [study] problem: empty or too long", s->path);
+            ves_error_say(err, errlen, "%s: [study] problem: empty or too long", s->path);
             st = VES_ERR_CONFIG;
           } else
             snprintf(problem, sizeof problem, "%s", val);
@@ -407,7 +404,8 @@ static ves_status read_study(dictionary *d, ves_study *s, char *err, size_t errl
           else if (!strcasecmp(val, "t_end"))
             s->mode = VES_STUDY_T_END;
           else {
-            say(err, errlen, "%s: [study] run = '%s': not one of step, steps, t_end", s->path, val);
+            ves_error_say(err, errlen, "%s: [study] run = '%s': not one of step, steps, t_end",
+                          s->path, val);
             st = VES_ERR_CONFIG;
           }
         } else if (!strcasecmp(key, "steps")) {
@@ -419,8 +417,9 @@ static ves_status read_study(dictionary *d, ves_study *s, char *err, size_t errl
         }
       } else if (!strcasecmp(sec, "slurm")) {
         if (!in_list(key, SLURM_KEYS, 4)) {
-          say(err, errlen, "%s: [slurm] %s: unknown key (partition, account, mem, cpus_per_task)",
-              s->path, key);
+          ves_error_say(err, errlen,
+                        "%s: [slurm] %s: unknown key (partition, account, mem, cpus_per_task)",
+                        s->path, key);
           st = VES_ERR_CONFIG;
         } else if (!strcasecmp(key, "cpus_per_task")) {
           if ((st = study_number(s, "slurm", key, val, 1, 1024, 1, &num, err, errlen)) == VES_OK)
@@ -434,9 +433,9 @@ static ves_status read_study(dictionary *d, ves_study *s, char *err, size_t errl
           for (const char *c = val; *c && !bad; c++) /* goes into a shell script */
             bad = !(isalnum((unsigned char)*c) || strchr("._-,", *c));
           if (bad) {
-            say(err, errlen,
-                "%s: [slurm] %s = '%s': only letters, digits and . _ - , (at most %zu)", s->path,
-                key, val, cap - 1);
+            ves_error_say(err, errlen,
+                          "%s: [slurm] %s = '%s': only letters, digits and . _ - , (at most %zu)",
+                          s->path, key, val, cap - 1);
             st = VES_ERR_CONFIG;
           } else
             snprintf(dst, cap, "%s", val);
@@ -445,27 +444,29 @@ static ves_status read_study(dictionary *d, ves_study *s, char *err, size_t errl
         char canon[64];
         const int axes = !strcasecmp(sec, "axes");
         if (canonical_key(key, canon, sizeof canon)) {
-          say(err, errlen, "%s: [%s] %s: unknown problem key (see vesica keys)", s->path, sec, key);
+          ves_error_say(err, errlen, "%s: [%s] %s: unknown problem key (see vesica keys)", s->path,
+                        sec, key);
           st = VES_ERR_CONFIG;
         } else if (axes) {
           if (s->naxes == VES_STUDY_MAX_AXES) {
-            say(err, errlen, "%s: [axes] %s: more than %d axes", s->path, canon,
-                VES_STUDY_MAX_AXES);
+            ves_error_say(err, errlen, "%s: [axes] %s: more than %d axes", s->path, canon,
+                          VES_STUDY_MAX_AXES);
             st = VES_ERR_CONFIG;
           } else {
             ves_study_axis *ax = &s->axis[s->naxes];
             char msg[256] = "";
             snprintf(ax->key, sizeof ax->key, "%s", canon);
             if ((st = ves_study_parse_axis(val, ax, msg, sizeof msg)) != VES_OK)
-              say(err, errlen, "%s: [axes] %s: %s", s->path, canon, msg);
+              ves_error_say(err, errlen, "%s: [axes] %s: %s", s->path, canon, msg);
             else
               s->naxes++;
           }
         } else if (s->nset == VES_STUDY_MAX_SET) {
-          say(err, errlen, "%s: [set] %s: more than %d keys", s->path, canon, VES_STUDY_MAX_SET);
+          ves_error_say(err, errlen, "%s: [set] %s: more than %d keys", s->path, canon,
+                        VES_STUDY_MAX_SET);
           st = VES_ERR_CONFIG;
         } else if (!*val || strlen(canon) + strlen(val) + 2 > VES_STUDY_SETLEN) {
-          say(err, errlen, "%s: [set] %s: empty or too long a value", s->path, canon);
+          ves_error_say(err, errlen, "%s: [set] %s: empty or too long a value", s->path, canon);
           st = VES_ERR_CONFIG;
         } else {
           snprintf(s->set[s->nset++], VES_STUDY_SETLEN, "%s=%s", canon, val);
@@ -476,7 +477,7 @@ static ves_status read_study(dictionary *d, ves_study *s, char *err, size_t errl
     if (st != VES_OK) return st;
   }
   if (!problem[0]) {
-    say(err, errlen, "%s: [study] problem: missing (the base problem file)", s->path);
+    ves_error_say(err, errlen, "%s: [study] problem: missing (the base problem file)", s->path);
     return VES_ERR_CONFIG;
   }
   if (problem[0] == '/') { /* relative to the study file's folder */
@@ -488,25 +489,25 @@ static ves_status read_study(dictionary *d, ves_study *s, char *err, size_t errl
   }
   char abs[PATH_MAX];
   if (!realpath(s->problem, abs)) {
-    say(err, errlen, "%s: [study] problem = %s: cannot open %s: %s", s->path, problem, s->problem,
-        strerror(errno));
+    ves_error_say(err, errlen, "%s: [study] problem = %s: cannot open %s: %s", s->path, problem,
+                  s->problem, strerror(errno));
     return VES_ERR_IO;
   }
   snprintf(s->problem, sizeof s->problem, "%s", abs);
   if (s->naxes == 0) {
-    say(err, errlen, "%s: [axes]: no axis (at least one key with its values)", s->path);
+    ves_error_say(err, errlen, "%s: [axes]: no axis (at least one key with its values)", s->path);
     return VES_ERR_CONFIG;
   }
   for (int a = 0; a < s->naxes; a++) {
     for (int i = 0; i < s->nset; i++)
       if (!strncmp(s->set[i], s->axis[a].key, strlen(s->axis[a].key)) &&
           s->set[i][strlen(s->axis[a].key)] == '=') {
-        say(err, errlen, "%s: [axes] %s: also fixed in [set]", s->path, s->axis[a].key);
+        ves_error_say(err, errlen, "%s: [axes] %s: also fixed in [set]", s->path, s->axis[a].key);
         return VES_ERR_CONFIG;
       }
     for (int b = 0; b < a; b++)
       if (!strcmp(s->axis[a].key, s->axis[b].key)) {
-        say(err, errlen, "%s: [axes] %s: given twice", s->path, s->axis[a].key);
+        ves_error_say(err, errlen, "%s: [axes] %s: given twice", s->path, s->axis[a].key);
         return VES_ERR_CONFIG;
       }
   }
@@ -519,7 +520,7 @@ ves_status ves_study_load(const char *path, long max_cells, ves_study **out, cha
   *out = NULL;
   FILE *f = fopen(path, "r");
   if (!f) {
-    say(err, errlen, "%s: cannot open: %s", path, strerror(errno));
+    ves_error_say(err, errlen, "%s: cannot open: %s", path, strerror(errno));
     return VES_ERR_IO;
   }
   fclose(f);
@@ -533,7 +534,7 @@ ves_status ves_study_load(const char *path, long max_cells, ves_study **out, cha
   dictionary *d = iniparser_load(path);
   ves_status st = VES_OK;
   if (!d) {
-    say(err, errlen, "%s: not a readable INI file", path);
+    ves_error_say(err, errlen, "%s: not a readable INI file", path);
     st = VES_ERR_CONFIG;
   }
   if (st == VES_OK) st = read_study(d, s, err, errlen);
@@ -545,7 +546,8 @@ ves_status ves_study_load(const char *path, long max_cells, ves_study **out, cha
       if (s->ncells > max_cells) {
         long total = 1;
         for (int b = 0; b < s->naxes && total <= 1000000000L; b++) total *= s->axis[b].nvalues;
-        say(err, errlen,
+        ves_error_say(
+            err, errlen,
             "%s: [axes]: the grid has %s%ld cells, more than the limit %ld (raise it with "
             "--max-cells)",
             path, total > 1000000000L ? "over " : "", total > 1000000000L ? 1000000000L : total,
@@ -813,7 +815,7 @@ ves_status ves_study_collect(const ves_study *s, const char *dir, ves_study_tabl
   snprintf(tmp, sizeof tmp, "%s.tmp", path);
   FILE *f = fopen(tmp, "w");
   if (!f) {
-    say(err, errlen, "%s: cannot write: %s", tmp, strerror(errno));
+    ves_error_say(err, errlen, "%s: cannot write: %s", tmp, strerror(errno));
     return VES_ERR_IO;
   }
   fputs("cell", f);
@@ -868,7 +870,7 @@ ves_status ves_study_collect(const ves_study *s, const char *dir, ves_study_tabl
   int bad = ferror(f);
   bad |= fclose(f) != 0;
   if (bad || rename(tmp, path) != 0) {
-    say(err, errlen, "%s: cannot write: %s", path, strerror(errno));
+    ves_error_say(err, errlen, "%s: cannot write: %s", path, strerror(errno));
     remove(tmp);
     return VES_ERR_IO;
   }
@@ -883,7 +885,7 @@ ves_status ves_study_plot(const ves_study *s, const char *dir, char *err, size_t
   for (int a = 0; a < s->naxes; a++)
     if (!strcmp(s->axis[a].key, "time.dt_initial")) ad = a;
   if (ad < 0) {
-    say(err, errlen, "no time.dt_initial axis: no figures");
+    ves_error_say(err, errlen, "no time.dt_initial axis: no figures");
     return VES_STEP_REJECTED;
   }
   const long G = s->ncells / s->axis[ad].nvalues; /* groups: the other axes' values */
@@ -894,7 +896,7 @@ ves_status ves_study_plot(const ves_study *s, const char *dir, char *err, size_t
   FILE *f = fd >= 0 ? fdopen(fd, "w") : NULL;
   if (!f) {
     if (fd >= 0) close(fd), unlink(script);
-    say(err, errlen, "cannot create a temporary file %s: %s", script, strerror(errno));
+    ves_error_say(err, errlen, "cannot create a temporary file %s: %s", script, strerror(errno));
     return VES_ERR_IO;
   }
   double *front = malloc((size_t)G * sizeof *front);
@@ -969,7 +971,7 @@ ves_status ves_study_plot(const ves_study *s, const char *dir, char *err, size_t
   bad |= fclose(f) != 0;
   if (bad) {
     unlink(script);
-    say(err, errlen, "cannot write the gnuplot script %s", script);
+    ves_error_say(err, errlen, "cannot write the gnuplot script %s", script);
     return VES_ERR_IO;
   }
   char cmd[PATH_MAX + 32], msg[512] = "", line[512];
@@ -977,7 +979,7 @@ ves_status ves_study_plot(const ves_study *s, const char *dir, char *err, size_t
   FILE *g = popen(cmd, "r");
   if (!g) {
     unlink(script);
-    say(err, errlen, "cannot run gnuplot: %s", strerror(errno));
+    ves_error_say(err, errlen, "cannot run gnuplot: %s", strerror(errno));
     return VES_ERR_IO;
   }
   while (fgets(line, sizeof line, g)) /* keep gnuplot's last message: its reason */
@@ -986,7 +988,8 @@ ves_status ves_study_plot(const ves_study *s, const char *dir, char *err, size_t
   unlink(script);
   if (code != 0) {
     msg[strcspn(msg, "\n")] = 0;
-    say(err, errlen, "gnuplot failed (exit status %d)%s%s", code, msg[0] ? ": " : "", msg);
+    ves_error_say(err, errlen, "gnuplot failed (exit status %d)%s%s", code, msg[0] ? ": " : "",
+                  msg);
     return VES_ERR_IO;
   }
   return VES_OK;
@@ -1012,19 +1015,19 @@ ves_status ves_study_write_sbatch(const ves_study *s, const char *program, const
   char path[PATH_MAX + 16], logs[PATH_MAX + 8], study[PATH_MAX], adir[PATH_MAX];
   char tmp[PATH_MAX + 24];
   if (!realpath(dir, adir) || !realpath(s->path, study)) {
-    say(err, errlen, "%s: cannot resolve: %s", dir, strerror(errno));
+    ves_error_say(err, errlen, "%s: cannot resolve: %s", dir, strerror(errno));
     return VES_ERR_IO;
   }
   snprintf(logs, sizeof logs, "%s/slurm", adir);
   if (mkdir(logs, 0777) != 0 && errno != EEXIST) {
-    say(err, errlen, "%s: cannot create: %s", logs, strerror(errno));
+    ves_error_say(err, errlen, "%s: cannot create: %s", logs, strerror(errno));
     return VES_ERR_IO;
   }
   snprintf(path, sizeof path, "%s/study.sbatch", adir);
   snprintf(tmp, sizeof tmp, "%s.tmp", path);
   FILE *f = fopen(tmp, "w");
   if (!f) {
-    say(err, errlen, "%s: cannot write: %s", tmp, strerror(errno));
+    ves_error_say(err, errlen, "%s: cannot write: %s", tmp, strerror(errno));
     return VES_ERR_IO;
   }
   const char *base = strrchr(study, '/') + 1;
@@ -1055,7 +1058,7 @@ ves_status ves_study_write_sbatch(const ves_study *s, const char *program, const
   int bad = ferror(f);
   bad |= fclose(f) != 0;
   if (bad || rename(tmp, path) != 0 || chmod(path, 0755) != 0) {
-    say(err, errlen, "%s: cannot write: %s", path, strerror(errno));
+    ves_error_say(err, errlen, "%s: cannot write: %s", path, strerror(errno));
     remove(tmp);
     return VES_ERR_IO;
   }

@@ -75,6 +75,9 @@ void ves_error_clear(void);
 const char *ves_error_format(ves_status code, char *buf, size_t len);
 /* The same in this thread's text buffer (valid until the next call). */
 const char *ves_error_text(ves_status code);
+/* printf into a caller's message buffer err[errlen] (the err/errlen pair of
+ * the functions that explain a refusal); nothing when err is NULL or errlen 0. */
+void ves_error_say(char *err, size_t errlen, const char *fmt, ...);
 
 #ifdef __cplusplus
 }
