@@ -1,4 +1,5 @@
-/* vesica — benchmark of geom: adapted node sets for a sphere, quadrature size and LME neighbours. */
+/* vesica — benchmark of geom: adapted node sets for a sphere, quadrature size and LME neighbours.
+ */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>

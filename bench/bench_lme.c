@@ -49,8 +49,7 @@ static int lattice(double *x, int cap, double L, double jitter, uint64_t *s) {
 
 /* Points along a meandering path (steps of 0.05 h, as consecutive quadrature
  * points would be), with their neighbours by brute force. */
-static double setup(point *pts, const double *x, int n,
-                    const ves_lme_params *par, uint64_t *s) {
+static double setup(point *pts, const double *x, int n, const ves_lme_params *par, uint64_t *s) {
   double rad = ves_lme_radius(par, 1.0), beta = par->gamma, X[2] = {0, 0};
   double ang = 0, msum = 0;
   for (int i = 0; i < NPTS; i++) {
@@ -76,9 +75,8 @@ static double setup(point *pts, const double *x, int n,
 }
 
 /* Time ~1 s of sweeps over the path; returns evaluations per second. */
-static double run(const point *pts, const ves_lme_params *par, int nder,
-                  int warm, double *tab, double *work, double *mean_it,
-                  int *fails) {
+static double run(const point *pts, const ves_lme_params *par, int nder, int warm, double *tab,
+                  double *work, double *mean_it, int *fails) {
   long evals = 0, its = 0;
   double t0 = now(), t = t0, sink = 0;
   *fails = 0;
@@ -87,8 +85,8 @@ static double run(const point *pts, const ves_lme_params *par, int nder,
     for (int i = 0; i < NPTS; i++) {
       if (!warm) lam[0] = lam[1] = 0; /* cold: lambda from 0 */
       ves_lme_info info;
-      ves_status st = ves_lme_eval(par, pts[i].X, pts[i].m, pts[i].xa,
-                                   pts[i].beta, lam, nder, tab, work, &info);
+      ves_status st = ves_lme_eval(par, pts[i].X, pts[i].m, pts[i].xa, pts[i].beta, lam, nder, tab,
+                                   work, &info);
       if (st != VES_OK) (*fails)++;
       its += info.iterations;
       sink += tab[0];
@@ -115,8 +113,8 @@ int main(void) {
          "%d points along a path, steps 0.05 h;\nwarm = lambda from the "
          "previous point. ~1 s per row, single thread.\n\n",
          par.gamma, par.tol0, par.newton_tol, NPTS);
-  printf("%-22s %6s %5s %5s %12s %10s %6s\n", "lattice", "m", "nder", "start",
-         "evals/s", "us/eval", "Newton");
+  printf("%-22s %6s %5s %5s %12s %10s %6s\n", "lattice", "m", "nder", "start", "evals/s", "us/eval",
+         "Newton");
   const char *names[2] = {"hex", "hex, jitter 0.2 h"};
   const double jit[2] = {0.0, 0.2};
   for (int l = 0; l < 2; l++) {
@@ -129,8 +127,7 @@ int main(void) {
         int fails;
         double rate = run(pts, &par, nder, warm, tab, work, &it, &fails);
         printf("%-22s %6.1f %5d %5s %12.0f %10.2f %6.2f%s\n", names[l], m, nder,
-               warm ? "warm" : "cold", rate, 1e6 / rate, it,
-               fails ? "  (failures!)" : "");
+               warm ? "warm" : "cold", rate, 1e6 / rate, it, fails ? "  (failures!)" : "");
       }
   }
   free(x);

@@ -56,40 +56,34 @@ static int run(double eps, row *r) {
   }
   const ves_pattern *pat = ves_model_pattern(s->model);
   const int n = s->nodes->n;
-  r->eps = eps, r->n = n, r->nfree = pat->nfree, r->nq = s->quad->nq,
-  r->m_mean = s->qinfo.m_mean;
+  r->eps = eps, r->n = n, r->nfree = pat->nfree, r->nq = s->quad->nq, r->m_mean = s->qinfo.m_mean;
   r->nnz_blocks = pat->ptr[n], r->nnz_free = pat->nnz;
   r->mem_tab = 6.0 * 8 * s->quad->ptr[s->quad->nq] / 1e6;
   r->mem_blk = 4.0 * 8 * pat->ptr[n] / 1e6;
-  double *y = malloc(2 * (size_t)n * sizeof *y),
-         *g = malloc(6 * (size_t)n * sizeof *g);
+  double *y = malloc(2 * (size_t)n * sizeof *y), *g = malloc(6 * (size_t)n * sizeof *g);
   double *blk = malloc(4 * (size_t)pat->ptr[n] * sizeof *blk);
-  if (!y || !g || !blk)
-    return 1;
+  if (!y || !g || !blk) return 1;
   ves_model_reference(s->model, y);
   double E, A, V;
   t = now();
-  st = ves_model_eval(s->model, y, VES_F_E | VES_F_A | VES_F_V, &E, &A, &V, g,
-                      g + 2 * n, g + 4 * n);
+  st =
+      ves_model_eval(s->model, y, VES_F_E | VES_F_A | VES_F_V, &E, &A, &V, g, g + 2 * n, g + 4 * n);
   r->t_eval = now() - t;
   double c = cpu();
   t = now();
-  if (st == VES_OK)
-    st = ves_model_hessian(s->model, y, 1, 1, 1, blk);
+  if (st == VES_OK) st = ves_model_hessian(s->model, y, 1, 1, 1, blk);
   r->t_hess = now() - t, r->c_hess = cpu() - c;
   c = cpu();
   t = now();
-  if (st == VES_OK)
-    st = ves_model_dissipation(s->model, y, blk);
+  if (st == VES_OK) st = ves_model_dissipation(s->model, y, blk);
   r->t_diss = now() - t, r->c_diss = cpu() - c;
   if (st != VES_OK)
-    fprintf(stderr, "bench_model: model at eps = %g: %s\n", eps,
-            ves_status_str(st));
+    fprintf(stderr, "bench_model: model at eps = %g: %s\n", eps, ves_status_str(st));
   printf("# eps = %g: E* = %.6f (sphere: 2 pi = 6.283185), A/4pi - 1 = %.2e, "
          "setup: nodes %.1f s, "
          "tables %.1f s, projection %.1f s\n",
-         eps, E, A / (4 * 3.141592653589793) - 1, s->seconds_nodes,
-         s->seconds_tables, s->seconds_project);
+         eps, E, A / (4 * 3.141592653589793) - 1, s->seconds_nodes, s->seconds_tables,
+         s->seconds_project);
   free(y), free(g), free(blk);
   ves_setup_destroy(&s);
   return st != VES_OK;
@@ -100,8 +94,7 @@ int main(int argc, char **argv) {
   double def[2] = {0.04, 0.01};
   int nrow = argc > 1 ? argc - 1 : 2;
   row rows[16];
-  if (nrow > 16)
-    nrow = 16;
+  if (nrow > 16) nrow = 16;
   const char *thr = getenv("OPENBLAS_NUM_THREADS");
 #ifdef _OPENMP
   const int nthr = omp_get_max_threads();
@@ -113,18 +106,16 @@ int main(int argc, char **argv) {
          "OPENBLAS_NUM_THREADS = %s; model threads (OpenMP) = %d\n",
          thr ? thr : "(unset)", nthr);
   for (int i = 0; i < nrow; i++)
-    if (run(argc > 1 ? atof(argv[i + 1]) : def[i], rows + i))
-      return 1;
-  printf("%6s %7s %7s %8s %5s %9s %10s %8s %8s %8s %9s %9s %9s %9s %9s\n", "eps",
-         "nodes", "free", "points", "m", "blocks", "nnz(free)", "tab MB",
-         "blk MB", "setup s", "E+A+V+g s", "Hess s", "K s", "Hess cpu", "K cpu");
+    if (run(argc > 1 ? atof(argv[i + 1]) : def[i], rows + i)) return 1;
+  printf("%6s %7s %7s %8s %5s %9s %10s %8s %8s %8s %9s %9s %9s %9s %9s\n", "eps", "nodes", "free",
+         "points", "m", "blocks", "nnz(free)", "tab MB", "blk MB", "setup s", "E+A+V+g s", "Hess s",
+         "K s", "Hess cpu", "K cpu");
   for (int i = 0; i < nrow; i++) {
     const row *r = rows + i;
     printf("%6.3f %7d %7d %8d %5.1f %9ld %10ld %8.1f %8.1f %8.2f %9.3f %9.3f "
            "%9.3f %9.3f %9.3f\n",
-           r->eps, r->n, r->nfree, r->nq, r->m_mean, r->nnz_blocks, r->nnz_free,
-           r->mem_tab, r->mem_blk, r->t_setup, r->t_eval, r->t_hess, r->t_diss, r->c_hess,
-           r->c_diss);
+           r->eps, r->n, r->nfree, r->nq, r->m_mean, r->nnz_blocks, r->nnz_free, r->mem_tab,
+           r->mem_blk, r->t_setup, r->t_eval, r->t_hess, r->t_diss, r->c_hess, r->c_diss);
   }
   return 0;
 }

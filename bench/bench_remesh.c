@@ -101,9 +101,12 @@ int main(int argc, char **argv) {
   int nset = 0;
   if (argc < 2) set[nset++] = "geometry.epsilon=0.1", set[nset++] = "geometry.band=3";
   for (int i = argc > 1 && argv[1][0] != '-' ? 2 : 1; i < argc; i++) {
-    if (!strcmp(argv[i], "--every") && i + 1 < argc) every = atoi(argv[++i]);
-    else if (!strcmp(argv[i], "--steps") && i + 1 < argc) steps = atol(argv[++i]);
-    else if (!strcmp(argv[i], "--set") && i + 1 < argc && nset < 64) set[nset++] = argv[++i];
+    if (!strcmp(argv[i], "--every") && i + 1 < argc)
+      every = atoi(argv[++i]);
+    else if (!strcmp(argv[i], "--steps") && i + 1 < argc)
+      steps = atol(argv[++i]);
+    else if (!strcmp(argv[i], "--set") && i + 1 < argc && nset < 64)
+      set[nset++] = argv[++i];
     else {
       fprintf(stderr, "bench_remesh: unknown argument %s\n", argv[i]);
       return 2;

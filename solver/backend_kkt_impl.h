@@ -22,14 +22,14 @@
 #define KKT_NROWS 2 /* constraint rows in the structure (area, volume) */
 
 typedef struct {
-  int nvar;       /* free dofs */
-  int nh;         /* triplets of the (1,1) block (the step Hessian pattern) */
-  int nnz;        /* all triplets: nh + KKT_NROWS (nvar + 1) */
-  int *irow;      /* nnz triplet rows (lower triangle) */
-  int *jcol;      /* nnz triplet columns */
-  double *val;    /* nnz values of the current matrix */
-  ves_ldl *ldl;   /* MUMPS LDL^T, analysed at create */
-  int neg;        /* negative pivots of the last factorization */
+  int nvar;     /* free dofs */
+  int nh;       /* triplets of the (1,1) block (the step Hessian pattern) */
+  int nnz;      /* all triplets: nh + KKT_NROWS (nvar + 1) */
+  int *irow;    /* nnz triplet rows (lower triangle) */
+  int *jcol;    /* nnz triplet columns */
+  double *val;  /* nnz values of the current matrix */
+  ves_ldl *ldl; /* MUMPS LDL^T, analysed at create */
+  int neg;      /* negative pivots of the last factorization */
 } kkt_system;
 
 static inline void kkt_destroy(kkt_system *k) {
@@ -71,8 +71,10 @@ static inline void kkt_fill(kkt_system *k, const double *H, double delta, const 
   for (int t = 0; t < k->nh; t++) k->val[t] = H[t] + (delta != 0 ? delta * K[t] : 0.0);
   int t = k->nh;
   for (int i = 0; i < KKT_NROWS; i++) {
-    if (i < ncon) memcpy(k->val + t, J + (size_t)i * nv, (size_t)nv * sizeof *J);
-    else memset(k->val + t, 0, (size_t)nv * sizeof *k->val);
+    if (i < ncon)
+      memcpy(k->val + t, J + (size_t)i * nv, (size_t)nv * sizeof *J);
+    else
+      memset(k->val + t, 0, (size_t)nv * sizeof *k->val);
     t += nv;
     k->val[t++] = i < ncon ? 0.0 : -1.0;
   }
@@ -88,6 +90,8 @@ static inline ves_status kkt_factor(kkt_system *k) {
 }
 
 /* Solve in place: rhs[nvar + KKT_NROWS]. */
-static inline ves_status kkt_solve(kkt_system *k, double *rhs) { return ves_ldl_solve(k->ldl, rhs); }
+static inline ves_status kkt_solve(kkt_system *k, double *rhs) {
+  return ves_ldl_solve(k->ldl, rhs);
+}
 
 #endif

@@ -13,11 +13,10 @@
  * ... until it is positive definite. L is the exact (dense, LAPACK dpotrf)
  * Cholesky factor up to NLB_DENSE_MAX variables (n^2 doubles: 150 MB at the
  * default oblate's 4.3k dofs), above that IC(0) on the Hessian pattern
- * (ves_ldl_ic, ldl.h). The
- * Hessian of F in u is then the identity at the start, and LBFGS's unit step
- * a Newton step. The wrapper ves_ldl (MUMPS) that newton uses cannot serve:
- * it offers A^{-1} v only, not the half solves L^{-1} v, L^{-T} v that a
- * change of variables needs.
+ * (ves_ldl_ic, ldl.h). The Hessian of F in u is then the identity at the
+ * start, and LBFGS's unit step a Newton step. The wrapper ves_ldl (MUMPS)
+ * that newton uses cannot serve: it offers A^{-1} v only, not the half solves
+ * L^{-1} v, L^{-T} v that a change of variables needs.
  * Two phases: AUGLAG to the loose relative tolerance NLB_TOL1 (constraints
  * NLB_CTOL1) in the metric of the start, then a new factor where it ended and
  * AUGLAG to the requested tolerances (the Hessian far from the start is the

@@ -10,8 +10,8 @@
 
 /* ---- MUMPS LDL^T ---- */
 
-#define ICNTL(i) icntl[(i) - 1] /* MUMPS documents its controls 1-based */
-#define INFOG(i) infog[(i) - 1]
+#define ICNTL(i) icntl[(i)-1] /* MUMPS documents its controls 1-based */
+#define INFOG(i) infog[(i)-1]
 #define JOB_INIT (-1)
 #define JOB_END (-2)
 #define JOB_ANALYSE 1

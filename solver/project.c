@@ -401,7 +401,8 @@ ves_status ves_pattern_create(const ves_quad *q, const ves_quad *q2, int n,
         for (int i = 0; i < 2; i++)
           for (int j = 0; j < 2; j++) {
             int di = p->dof[2 * a + i], dj = p->dof[2 * b + j];
-            if (di < 0 || dj < 0 || (a == b && j > i)) continue; /* fixed, or upper half of a diagonal block */
+            if (di < 0 || dj < 0 || (a == b && j > i))
+              continue; /* fixed, or upper half of a diagonal block */
             if (pass) {
               /* rows >= cols in free numbering: a > b gives di > dj since dofs
                * are numbered node by node */
@@ -450,8 +451,8 @@ static double residual(int n, const int *ptr, const int *col, const double *val,
   return bnorm > 0 ? sqrt(rn) / bnorm : sqrt(rn);
 }
 
-ves_status ves_project_l2(const ves_quad *q, int n, const double *f, double *c,
-                                 double rtol, int maxref, int *refinements, double *relres) {
+ves_status ves_project_l2(const ves_quad *q, int n, const double *f, double *c, double rtol,
+                          int maxref, int *refinements, double *relres) {
   VES_CHECK(q && q->tab && f && c && n > 0 && rtol >= 0 && maxref >= 0, VES_ERR_ARG);
   folded fo = {0};
   int *ptr = NULL, *col = NULL, *irow = NULL;

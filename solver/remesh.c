@@ -467,8 +467,7 @@ ves_status ves_remesh_create(const ves_config *cfg, ves_model *m, const double *
       (st = ves_quad_tables(cross, r->nodes, &oq->lme, NULL)) != VES_OK)
     FAIL(st, "remesh: the moved points on the new basis: %s", ves_error_text(st));
   /* the setup's tolerance: the fit error far below the discretization's */
-  st = ves_project_l2(cross, n, f, r->phi0c, 1e-12, 3, &in->proj_refinements,
-                             &in->proj_residual);
+  st = ves_project_l2(cross, n, f, r->phi0c, 1e-12, 3, &in->proj_refinements, &in->proj_residual);
   if (st != VES_OK)
     FAIL(st < 0 ? st : VES_ERR_NOCONV, "remesh: phi projection: %s (relative residual %.2e)",
          ves_error_text(st), in->proj_residual);

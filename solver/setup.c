@@ -173,8 +173,7 @@ ves_status ves_setup_create(const ves_config *cfg, ves_phi0_method method, ves_s
       f[p] = ves_shape_phi0(s->shape, cfg->epsilon, s->quad->x + 2 * p);
     /* sparse Cholesky + at most 3 refinement steps (proj_refinements counts
      * them); 1e-12: the fit error then sits far below the discretization error */
-    st = ves_project_l2(s->quad, n, f, s->phi0c, 1e-12, 3, &s->proj_refinements,
-                               &s->proj_residual);
+    st = ves_project_l2(s->quad, n, f, s->phi0c, 1e-12, 3, &s->proj_refinements, &s->proj_residual);
     if (st != VES_OK)
       FAIL(st < 0 ? st : VES_ERR_NOCONV,
            "phi0 projection: %s (relative residual %.2e after %d refinement steps)",

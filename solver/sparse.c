@@ -24,7 +24,10 @@ long ves_pattern_find(const ves_pattern *p, int a, int b) {
   while (lo <= hi) { /* binary search in the sorted row */
     int mid = (lo + hi) / 2;
     if (p->col[mid] == b) return mid;
-    if (p->col[mid] < b) lo = mid + 1; else hi = mid - 1;
+    if (p->col[mid] < b)
+      lo = mid + 1;
+    else
+      hi = mid - 1;
   }
   return -1;
 }

@@ -73,7 +73,8 @@ ves_status ves_step_create(ves_model *m, ves_step **out) {
   s->xc = malloc(nv * sizeof *s->xc);
   s->qn = malloc((ves_model_dissipation_ref_size(m) + 1) * sizeof *s->qn);
   const double *S = ves_model_drift_blocks(m);
-  if (S && (s->S = malloc(((size_t)pat->nnz + 1) * sizeof *s->S))) ves_pattern_extract(pat, S, s->S);
+  if (S && (s->S = malloc(((size_t)pat->nnz + 1) * sizeof *s->S)))
+    ves_pattern_extract(pat, S, s->S);
   if (!s->yn || !s->x0 || !s->K || !s->blk || !s->y || !s->d || !s->Sd || !s->gfull || !s->xc ||
       !s->qn || (S && !s->S)) {
     ves_step_destroy(&s);
@@ -179,8 +180,7 @@ ves_status ves_step_eval_grad(ves_step *s, const double *x, double *g) {
   STEP_READY(s, x);
   VES_CHECK(g, VES_ERR_ARG);
   VES_CALL(ensure(s, x, 2));
-  if (s->S)
-    memcpy(g, s->Sd, (size_t)s->nvar * sizeof *g);
+  if (s->S) memcpy(g, s->Sd, (size_t)s->nvar * sizeof *g);
   restrict_grad(s, s->gfull, 1.0, s->S != NULL, g);
   return VES_OK;
 }

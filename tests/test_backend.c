@@ -42,13 +42,13 @@ typedef struct {
   ves_step *step;
   ves_step_params par;
   int n2, nvar;
-  double *yn;              /* 2n reference positions y^n */
-  double *x0;              /* nvar start */
-  double E0, A0, V0;       /* at y^n */
-  double *x_ipopt;         /* Ipopt's solution (set by the first test) */
-  double *x_nlopt;         /* NLopt's (set by the second: it is slow, run once) */
+  double *yn;        /* 2n reference positions y^n */
+  double *x0;        /* nvar start */
+  double E0, A0, V0; /* at y^n */
+  double *x_ipopt;   /* Ipopt's solution (set by the first test) */
+  double *x_nlopt;   /* NLopt's (set by the second: it is slow, run once) */
   int have_nlopt;
-  double lambda_ipopt[2];  /* its multipliers */
+  double lambda_ipopt[2]; /* its multipliers */
   int have_ipopt;
 } fixture;
 
@@ -80,8 +80,8 @@ static int group_setup(void **state) {
   if (ves_model_eval(m, FX.yn, VES_F_E | VES_F_A | VES_F_V, &FX.E0, &FX.A0, &FX.V0, NULL, NULL,
                      NULL) != VES_OK)
     return -1;
-  FX.par = (ves_step_params){.dt = DT, .hold_area = 1, .A0 = FX.A0, .hold_volume = 1,
-                             .V_target = FX.V0};
+  FX.par =
+      (ves_step_params){.dt = DT, .hold_area = 1, .A0 = FX.A0, .hold_volume = 1, .V_target = FX.V0};
   if (ves_step_set(FX.step, FX.yn, &FX.par) != VES_OK) return -1;
   ves_step_x0(FX.step, FX.x0);
   printf("# problem: %d nodes, %d free dofs, Hessian nnz %d; E0 = %.10g, A0 = %.10g, V0 = "
@@ -103,9 +103,9 @@ static void eval_at(const double *x, double *E, double *A, double *V) {
   double *y = malloc((size_t)FX.n2 * sizeof(double));
   assert_non_null(y);
   ves_step_expand(FX.step, x, y);
-  assert_int_equal(ves_model_eval(FX.setup->model, y, VES_F_E | VES_F_A | VES_F_V, E, A, V, NULL,
-                                  NULL, NULL),
-                   VES_OK);
+  assert_int_equal(
+      ves_model_eval(FX.setup->model, y, VES_F_E | VES_F_A | VES_F_V, E, A, V, NULL, NULL, NULL),
+      VES_OK);
   free(y);
 }
 
@@ -123,8 +123,8 @@ static double max_abs(const double *a, int n) {
 
 static void print_stats(const char *name, ves_status st, const ves_backend_stats *s) {
   printf("# %-7s %-28s iter %4d  f %5d  g %5d  H %4d  viol %.2e  %.3f s  (solver status %d)\n",
-         name, ves_status_str(st), s->iterations, s->f_evals, s->g_evals, s->h_evals,
-         s->violation, s->seconds, s->solver_status);
+         name, ves_status_str(st), s->iterations, s->f_evals, s->g_evals, s->h_evals, s->violation,
+         s->seconds, s->solver_status);
 }
 
 /* Run backend `name` from x0 with multipliers lambda (in/out); x out. */
@@ -224,9 +224,8 @@ static void test_nlopt_matches_ipopt(void **state) {
   printf("# nlopt: max |x - x_ipopt| = %.3e (%.3e of the displacement, %.3e of max |y|), "
          "|A/A0-1| = %.2e, |V/V0-1| = %.2e, dE = %.3e, lambda = (%.6e, %.6e) vs ipopt "
          "(%.6e, %.6e)\n",
-         d, d / move, d / max_abs(FX.x_ipopt, FX.nvar), fabs(A / FX.A0 - 1),
-         fabs(V / FX.V0 - 1), E - FX.E0, lambda[0], lambda[1], FX.lambda_ipopt[0],
-         FX.lambda_ipopt[1]);
+         d, d / move, d / max_abs(FX.x_ipopt, FX.nvar), fabs(A / FX.A0 - 1), fabs(V / FX.V0 - 1),
+         E - FX.E0, lambda[0], lambda[1], FX.lambda_ipopt[0], FX.lambda_ipopt[1]);
   assert_int_equal(st, VES_OK);
   FX.have_nlopt = 1;
   assert_true(fabs(A / FX.A0 - 1) <= 1e-9);
@@ -277,9 +276,8 @@ static void test_nlopt_small_step(void **state) {
   assert_non_null(yn), assert_non_null(x0), assert_non_null(xs[0]), assert_non_null(xs[1]);
   ves_model_reference(m, yn);
   double E0, A0, V0;
-  assert_int_equal(ves_model_eval(m, yn, VES_F_E | VES_F_A | VES_F_V, &E0, &A0, &V0, NULL, NULL,
-                                  NULL),
-                   VES_OK);
+  assert_int_equal(
+      ves_model_eval(m, yn, VES_F_E | VES_F_A | VES_F_V, &E0, &A0, &V0, NULL, NULL, NULL), VES_OK);
   ves_step_params par = {.dt = DT, .hold_area = 1, .A0 = A0, .hold_volume = 1, .V_target = V0};
   assert_int_equal(ves_step_set(sp, yn, &par), VES_OK);
   ves_step_x0(sp, x0);
@@ -345,8 +343,8 @@ static void test_conformance(void **state) {
   print_stats("newton", st, &stats);
   assert_int_equal(st, VES_OK);
   double d = max_abs_diff(x, FX.x_ipopt, FX.nvar);
-  printf("# newton vs ipopt: max |dy| / max |y| = %.2e, lambda (%.6e, %.6e)\n", d / ymax,
-         lambda[0], lambda[1]);
+  printf("# newton vs ipopt: max |dy| / max |y| = %.2e, lambda (%.6e, %.6e)\n", d / ymax, lambda[0],
+         lambda[1]);
   assert_true(d <= 1e-6 * ymax);
   free(x);
 }
@@ -482,11 +480,13 @@ static void test_bad_arguments(void **state) {
 
 int main(void) {
   setvbuf(stdout, NULL, _IOLBF, 0);
+  // clang-format off
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_ipopt_converges), cmocka_unit_test(test_nlopt_small_step),
       cmocka_unit_test(test_nlopt_matches_ipopt),
       cmocka_unit_test(test_conformance),     cmocka_unit_test(test_domain_start),
       cmocka_unit_test(test_huge_dt),         cmocka_unit_test(test_bad_arguments),
   };
+  // clang-format on
   return cmocka_run_group_tests(tests, group_setup, group_teardown);
 }

@@ -223,8 +223,8 @@ static void test_problem_files_check(void **state) {
     for (int j = 0; j < 2 && i + j < count; j++) {
       result r;
       collect_tag(pid[j], &r, tag[j]);
-      const char *keys[] = {"nodes = ", "energy = ", "area_ratio = ", "volume_ratio = ",
-                            "reduced_volume = "};
+      const char *keys[] = {
+          "nodes = ", "energy = ", "area_ratio = ", "volume_ratio = ", "reduced_volume = "};
       const double tol[] = {0, 1e-8, 1e-10, 1e-10, 1e-10}; /* energy relative, the rest absolute */
       char val[5][32];
       double got[5], want[5];
@@ -232,8 +232,8 @@ static void test_problem_files_check(void **state) {
         value_of(r.out, keys[k], val[k], sizeof val[k]);
         got[k] = strtod(val[k], NULL);
       }
-      printf("# check\t%s\t%s\t%s\t%s\t%s\t%s\t(exit %d)\n", paths[i + j], val[0], val[1],
-             val[2], val[3], val[4], r.code);
+      printf("# check\t%s\t%s\t%s\t%s\t%s\t%s\t(exit %d)\n", paths[i + j], val[0], val[1], val[2],
+             val[3], val[4], r.code);
       if (r.code != 0) fail_msg("vesica check %s: exit %d: %s", paths[i + j], r.code, r.err);
       if (stored_check(paths[i + j], want))
         fail_msg("%s: no stored values in data/check_reference.tsv", paths[i + j]);
@@ -1286,7 +1286,7 @@ static void test_setup_estimate(void **state) {
   const char *l = strstr(r.err, "vesica check: setting up about ");
   assert_non_null(l);
   long n = strtol(l + strlen("vesica check: setting up about "), NULL, 10);
-  assert_true(n > 20000 && n < 60000); /* band 20 at eps 0.02: ~32,000 */
+  assert_true(n > 20000 && n < 60000);            /* band 20 at eps 0.02: ~32,000 */
   assert_true(strstr(r.err, "does not fit") > l); /* the line comes first */
   const double have = (double)sysconf(_SC_PHYS_PAGES) * (double)sysconf(_SC_PAGESIZE);
   if (have < 1e12) { /* ~6e6 nodes, ~1 TB: refused on any smaller machine */
@@ -1319,8 +1319,7 @@ static int files_in(const char *d) {
   DIR *dd = opendir(d);
   int n = 0;
   struct dirent *e;
-  while (dd && (e = readdir(dd)))
-    n += strcmp(e->d_name, ".") && strcmp(e->d_name, "..");
+  while (dd && (e = readdir(dd))) n += strcmp(e->d_name, ".") && strcmp(e->d_name, "..");
   if (dd) closedir(dd);
   return n;
 }
@@ -1352,8 +1351,8 @@ static void test_no_overwrite(void **state) {
   assert_non_null(strstr(r.err, xdmf));
   rename(tsv, out);
   write_file(tsv, "keep\n");
-  run(&r, "run", ini, TINY, "--out", out, "--series", tsv, "--force", "--quiet", "--max-steps",
-      "1", NULL);
+  run(&r, "run", ini, TINY, "--out", out, "--series", tsv, "--force", "--quiet", "--max-steps", "1",
+      NULL);
   assert_int_equal(r.code, 0); /* --force: out, xdmf and the series overwritten */
   assert_true(file_size(tsv) > 5);
   unlink(tsv);
@@ -1711,6 +1710,7 @@ int main(int argc, char **argv) {
     return 1;
   }
   H5Eset_auto2(H5E_DEFAULT, NULL, NULL);
+  // clang-format off
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_help),
       cmocka_unit_test(test_malformed_input),
@@ -1732,5 +1732,6 @@ int main(int argc, char **argv) {
       cmocka_unit_test(test_no_overwrite),
       cmocka_unit_test(test_setup_estimate),
   };
+  // clang-format on
   return cmocka_run_group_tests_name("cli", tests, setup_all, teardown_all);
 }

@@ -58,8 +58,10 @@ static void expect_error(const char *text, int nset, const char *const *set, ves
                          const char *fragment) {
   char path[64], err[512] = "";
   ves_config c;
-  if (text) write_tmp(path, sizeof path, text);
-  else snprintf(path, sizeof path, "/nonexistent/vesica.ini");
+  if (text)
+    write_tmp(path, sizeof path, text);
+  else
+    snprintf(path, sizeof path, "/nonexistent/vesica.ini");
   ves_status st = ves_config_load(path, nset, set, &c, err, sizeof err);
   if (st != want || !strstr(err, fragment))
     fail_msg("input [%s]: status %d (want %d), message '%s' (want '%s')", text ? text : path, st,
@@ -73,6 +75,8 @@ static void expect_error(const char *text, int nset, const char *const *set, ves
 
 static void test_errors(void **state) {
   (void)state;
+  /* a table of cases, laid out by hand */
+  // clang-format off
   expect_error(NULL, 0, NULL, VES_ERR_IO, "cannot open");
   expect_error("[geometry]\nepsilon = abc\n", 0, NULL, VES_ERR_CONFIG, "epsilon");
   expect_error("[geometry]\nepsilon = abc\n", 0, NULL, VES_ERR_CONFIG, "not a number");
@@ -122,6 +126,7 @@ static void test_errors(void **state) {
   expect_error("[reconnect]\nevery = -1\n", 0, NULL, VES_ERR_CONFIG, "out of range");
   expect_error("[protocol]\nc0_time = 2\nc0_after = 3\n", 0, NULL, VES_ERR_CONFIG,
                "after [time] t_end");
+  // clang-format on
   const char *s1[] = {"geometry.epsilon"};
   expect_error("", 1, s1, VES_ERR_CONFIG, "section.key=value");
   const char *s2[] = {"geometry.nope=1"};
@@ -431,6 +436,7 @@ static void test_defaults_agree(void **state) {
 
 int main(void) {
   setvbuf(stdout, NULL, _IOLBF, 0); /* keep output in order with cmocka's stderr */
+  // clang-format off
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_defaults_and_overrides),
       cmocka_unit_test(test_errors),
@@ -441,5 +447,6 @@ int main(void) {
       cmocka_unit_test(test_key_listing),
       cmocka_unit_test(test_defaults_agree),
   };
+  // clang-format on
   return cmocka_run_group_tests_name("config", tests, NULL, NULL);
 }

@@ -178,7 +178,7 @@ static void test_search(void **state) {
   long total = 0;
   for (int q = 0; q <= Q + 1; q++) {
     double X[2] = {-0.1 + 1.2 * uni(&s), -0.1 + 1.2 * uni(&s)};
-    if (q == Q) X[0] = 0.75, X[1] = 0.5;      /* on the circle of node N-2 */
+    if (q == Q) X[0] = 0.75, X[1] = 0.5;           /* on the circle of node N-2 */
     if (q == Q + 1) X[0] = 0.25, X[1] = 0.5078125; /* on the circle of node N-1 */
     int c = -1;
     assert_int_equal(ves_geom_search_query(sr, X, N, got, &c), VES_OK);
@@ -358,7 +358,8 @@ static void test_nodes_sphere(void **state) {
       if (e == 2 && R == par.LR) w[m++] = Z;
     }
     qsort(w, (size_t)m, sizeof(double), cmp_dbl);
-    assert_true(m >= 2 && w[0] == (e == 2 ? -par.LZ : 0.0) && w[m - 1] == (e == 2 ? par.LZ : par.LR));
+    assert_true(m >= 2 && w[0] == (e == 2 ? -par.LZ : 0.0) &&
+                w[m - 1] == (e == 2 ? par.LZ : par.LR));
     for (int i = 0; i + 1 < m; i++) {
       double c = 0.5 * (w[i] + w[i + 1]);
       double X[2] = {e == 2 ? par.LR : c, e == 0 ? -par.LZ : (e == 1 ? par.LZ : c)};
@@ -399,7 +400,8 @@ static void test_nodes_sphere(void **state) {
     }
   }
   printf("nodes: axis window %d nodes (%d lattice), h_a/h_band in [%.4f, %.4f]; "
-         "inner %d nodes in [%.4f, %.4f]\n", cnt, lat, lo, hi, icnt, ilo, ihi);
+         "inner %d nodes in [%.4f, %.4f]\n",
+         cnt, lat, lo, hi, icnt, ilo, ihi);
   assert_true(cnt > 100 && icnt > 100);
   /* inner window: exact hex lattice in the band, up to the 1D grading's global rescale
    * (< 1%) and the ~1% rise of h one spacing off the axis at the window's outer corner */
@@ -529,11 +531,13 @@ static void test_nodes_fixed_reserved(void **state) {
 
 int main(void) {
   setvbuf(stdout, NULL, _IOLBF, 0); /* keep output in order with cmocka's stderr */
+  // clang-format off
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_nodes_fixed_reserved),
       cmocka_unit_test(test_delaunay_random), cmocka_unit_test(test_delaunay_errors),
       cmocka_unit_test(test_spacing_hex),     cmocka_unit_test(test_search),
       cmocka_unit_test(test_nodes_sphere),    cmocka_unit_test(test_nodes_errors),
   };
+  // clang-format on
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -289,7 +289,9 @@ static void test_c0_ramp(void **state) {
   while (ves_sim_step(sim, &rep) == VES_OK) {
     n++;
     last_c0 = rep.c0;
-    const double want = rep.t <= 0.0075 ? 0.0 : rep.t >= 0.0175 ? 2.0 : 2.0 * (rep.t - 0.0075) / 0.01;
+    const double want = rep.t <= 0.0075   ? 0.0
+                        : rep.t >= 0.0175 ? 2.0
+                                          : 2.0 * (rep.t - 0.0075) / 0.01;
     double E;
     ves_model *m = ves_sim_model(sim);
     assert_int_equal(ves_model_eval(m, ves_sim_y(sim), VES_F_E, &E, NULL, NULL, NULL, NULL, NULL),
@@ -568,6 +570,7 @@ static void test_reconnect_off(void **state) {
 
 int main(void) {
   setvbuf(stdout, NULL, _IOLBF, 0); /* keep output in order with cmocka's stderr */
+  // clang-format off
   const struct CMUnitTest tests[] = {
       /* first in the process: see there */
       cmocka_unit_test(test_reconnect_off),       cmocka_unit_test(test_relaxation),
@@ -578,5 +581,6 @@ int main(void) {
       cmocka_unit_test(test_failure_keeps_state), cmocka_unit_test(test_reconnect_every),
       cmocka_unit_test(test_reconnect_threshold), cmocka_unit_test(test_reconnect_failure),
   };
+  // clang-format on
   return cmocka_run_group_tests_name("integrate", tests, NULL, NULL);
 }

@@ -323,8 +323,8 @@ static void test_references(void **state) {
     for (int i = 0; i < 2 * NQ; i++) xq[i] = i / 7.0 + k;
     for (int i = 0; i < NQ; i++) wq[i] = 1.0 / (i + 3 + k);
     for (int i = 0; i < 6 * NQ; i++) pd[i] = sin(i + k);
-    ves_io_reference ref = {.step = 10 * (k + 1), .nq = NQ, .x = x, .h = h, .xq = xq, .wq = wq,
-                            .pd = pd};
+    ves_io_reference ref = {
+        .step = 10 * (k + 1), .nq = NQ, .x = x, .h = h, .xq = xq, .wq = wq, .pd = pd};
     assert_int_equal(ves_io_write_reference(io, &ref), VES_OK);
     assert_int_equal(ves_io_references(io), k + 1);
   }
@@ -934,8 +934,8 @@ static void test_self_describing(void **state) {
   assert_true(H5Ovisit(h5, H5_INDEX_NAME, H5_ITER_INC, described, &count) >= 0);
   /* root, parameters, mesh + 3, series + 20, snapshots + 0 + 3, references + 0 + 5 */
   assert_int_equal(count, 1 + 1 + 4 + 21 + 5 + 7);
-  const char *root[] = {"program", "version", "problem", "source", "format_version",
-                        "format_description"};
+  const char *root[] = {"program", "version",        "problem",
+                        "source",  "format_version", "format_description"};
   for (size_t i = 0; i < sizeof root / sizeof root[0]; i++)
     if (H5Aexists(h5, root[i]) <= 0) fail_msg("root: no attribute %s", root[i]);
   /* the status codes as an enumeration: every value with its name */
@@ -971,11 +971,27 @@ static void test_tsv_row(void **state) {
   FILE *f = fmemopen(buf, sizeof buf, "w");
   assert_non_null(f);
   assert_int_equal(ves_io_tsv_header(f), VES_OK);
-  ves_io_row row = {.step = 7, .t = 0.125, .dt = 0.5, .E = 6.25, .A = 12.6, .V = 4.2,
-                    .V_target = 4.0, .lambda_A = -1.5, .lambda_V = 2.5, .iterations = 3,
-                    .f_evals = 4, .g_evals = 5, .h_evals = 6, .solve_seconds = 1.25,
-                    .retries = 1, .reconnections = 2, .rejected_iterations = 9,
-                    .rejected_seconds = 0.5, .c0 = 3, .violation = 1e-12, .status = 0};
+  ves_io_row row = {.step = 7,
+                    .t = 0.125,
+                    .dt = 0.5,
+                    .E = 6.25,
+                    .A = 12.6,
+                    .V = 4.2,
+                    .V_target = 4.0,
+                    .lambda_A = -1.5,
+                    .lambda_V = 2.5,
+                    .iterations = 3,
+                    .f_evals = 4,
+                    .g_evals = 5,
+                    .h_evals = 6,
+                    .solve_seconds = 1.25,
+                    .retries = 1,
+                    .reconnections = 2,
+                    .rejected_iterations = 9,
+                    .rejected_seconds = 0.5,
+                    .c0 = 3,
+                    .violation = 1e-12,
+                    .status = 0};
   assert_int_equal(ves_io_tsv_row(f, &row, 12.0), VES_OK);
   fclose(f);
   assert_string_equal(buf, "# step\tt\tdt\tE\tA/A0-1\tV/Vt-1\tlambda_A\tlambda_V\titer\tf\tg\th\t"
@@ -988,6 +1004,7 @@ int main(int argc, char **argv) {
   if (argc == 3 && !strcmp(argv[1], "--write-fail")) return write_fail_child(argv[2]);
   snprintf(self, sizeof self, "%s", argv[0]);
   setvbuf(stdout, NULL, _IOLBF, 0); /* keep output in order with cmocka's stderr */
+  // clang-format off
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_roundtrip),       cmocka_unit_test(test_truncate_continue),
       cmocka_unit_test(test_killed_writer),   cmocka_unit_test(test_references),
@@ -996,5 +1013,6 @@ int main(int argc, char **argv) {
       cmocka_unit_test(test_truncated),       cmocka_unit_test(test_salvage),
       cmocka_unit_test(test_self_describing), cmocka_unit_test(test_tsv_row),
   };
+  // clang-format on
   return cmocka_run_group_tests_name("io", tests, setup_all, teardown_all);
 }

@@ -73,9 +73,7 @@ static void hex_lattice(nodeset *ns, double h, int K, double L) {
 
 /* Local spacing of the graded set: h(R) = ln3/(2n) (1 + 2R), 0.034 .. 0.103
  * for n = 16 (a factor 3 across the box). */
-static double graded_h(double R, int n) {
-  return log(3.0) / (2.0 * n) * (1 + 2 * R);
-}
+static double graded_h(double R, int n) { return log(3.0) / (2.0 * n) * (1 + 2 * R); }
 
 /* Graded, randomly perturbed node set in the box [0,1]^2: columns at
  * R_i = (3^{i/n} - 1)/2, in each column Z_j = j/n_i with n_i = round(1/h);
@@ -99,8 +97,8 @@ static void graded_box(nodeset *ns, int n, uint64_t seed) {
 }
 
 /* Gather the nodes whose support (radius ves_lme_radius(h_a)) contains X. */
-static void gather(const nodeset *ns, const ves_lme_params *par,
-                   const double X[2], hood *H, const double *fnode) {
+static void gather(const nodeset *ns, const ves_lme_params *par, const double X[2], hood *H,
+                   const double *fnode) {
   H->m = 0;
   for (int a = 0; a < ns->n; a++) {
     double dR = X[0] - ns->x[2 * a], dZ = X[1] - ns->x[2 * a + 1];
@@ -135,24 +133,21 @@ static double maxd(double a, double b) { return a > b ? a : b; }
 /* Evaluate at X (nder = 2, lambda from 0) and fold the errors into c. The
  * sums are accumulated in long double so that they measure the basis, not
  * the summation in the test. */
-static void check_point(const ves_lme_params *par, const nodeset *ns,
-                        const double X[2], hood *H, consist *c) {
+static void check_point(const ves_lme_params *par, const nodeset *ns, const double X[2], hood *H,
+                        consist *c) {
   gather(ns, par, X, H, NULL);
   double lam[2] = {0, 0};
   ves_lme_info info;
-  ves_status st = ves_lme_eval(par, X, H->m, H->xa, H->beta, lam, 2, H->tab,
-                               H->work, &info);
+  ves_status st = ves_lme_eval(par, X, H->m, H->xa, H->beta, lam, 2, H->tab, H->work, &info);
   if (st != VES_OK)
-    print_error("point (%.17g, %.17g): m = %d, status %s, it %d, |r| %g\n",
-                X[0], X[1], H->m, ves_status_str(st), info.iterations,
-                info.residual);
+    print_error("point (%.17g, %.17g): m = %d, status %s, it %d, |r| %g\n", X[0], X[1], H->m,
+                ves_status_str(st), info.iterations, info.residual);
   assert_int_equal(st, VES_OK);
   int m = H->m;
   long double s[6] = {0}, x[2] = {0}, gx[4] = {0}, hx[6] = {0};
   for (int a = 0; a < m; a++) {
     long double Ra = H->xa[2 * a], Za = H->xa[2 * a + 1];
-    for (int k = 0; k < 6; k++)
-      s[k] += H->tab[k * m + a];
+    for (int k = 0; k < 6; k++) s[k] += H->tab[k * m + a];
     x[0] += H->tab[a] * Ra;
     x[1] += H->tab[a] * Za;
     gx[0] += H->tab[m + a] * Ra;     /* d/dR sum p R_a = 1 */
@@ -169,10 +164,9 @@ static void check_point(const ves_lme_params *par, const nodeset *ns,
   c->pu[1] = maxd(c->pu[1], maxd(fabsl(s[1]), fabsl(s[2])));
   c->pu[2] = maxd(c->pu[2], maxd(fabsl(s[3]), maxd(fabsl(s[4]), fabsl(s[5]))));
   c->rep[0] = maxd(c->rep[0], maxd(fabsl(x[0] - X[0]), fabsl(x[1] - X[1])));
-  c->rep[1] = maxd(c->rep[1], maxd(maxd(fabsl(gx[0] - 1), fabsl(gx[1])),
-                                   maxd(fabsl(gx[2]), fabsl(gx[3] - 1))));
-  for (int k = 0; k < 6; k++)
-    c->rep[2] = maxd(c->rep[2], fabsl(hx[k]));
+  c->rep[1] = maxd(
+      c->rep[1], maxd(maxd(fabsl(gx[0] - 1), fabsl(gx[1])), maxd(fabsl(gx[2]), fabsl(gx[3] - 1))));
+  for (int k = 0; k < 6; k++) c->rep[2] = maxd(c->rep[2], fabsl(hx[k]));
   if (info.iterations > c->it_max) c->it_max = info.iterations;
   c->it_sum += info.iterations;
   c->npts++;
@@ -181,8 +175,8 @@ static void check_point(const ves_lme_params *par, const nodeset *ns,
 static void consist_report(const char *what, const consist *c) {
   printf("  %-26s pts %3d  PU %.1e %.1e %.1e  affine %.1e %.1e %.1e  "
          "Newton mean %.2f max %d\n",
-         what, c->npts, c->pu[0], c->pu[1], c->pu[2], c->rep[0], c->rep[1],
-         c->rep[2], c->it_sum / c->npts, c->it_max);
+         what, c->npts, c->pu[0], c->pu[1], c->pu[2], c->rep[0], c->rep[1], c->rep[2],
+         c->it_sum / c->npts, c->it_max);
 }
 
 /* Partition of unity and affine reproduction (values, gradients, Hessians):
@@ -355,8 +349,8 @@ static double relerr(int m, const double *fd, const double *an) {
 
 /* Gradients and Hessians against central differences of p and grad p with
  * the neighbour set (and node-wise beta) held fixed. */
-static double fd_check(const ves_lme_params *par, const nodeset *ns,
-                       const double X[2], double step, hood *H) {
+static double fd_check(const ves_lme_params *par, const nodeset *ns, const double X[2], double step,
+                       hood *H) {
   gather(ns, par, X, H, NULL);
   int m = H->m;
   double *an = malloc(6 * (size_t)m * sizeof(double));
@@ -365,29 +359,21 @@ static double fd_check(const ves_lme_params *par, const nodeset *ns,
   double *fd = malloc((size_t)m * sizeof(double));
   assert_true(an && tp && tm && fd);
   double lam[2] = {0, 0};
-  assert_int_equal(
-      ves_lme_eval(par, X, m, H->xa, H->beta, lam, 2, an, H->work, NULL),
-      VES_OK);
+  assert_int_equal(ves_lme_eval(par, X, m, H->xa, H->beta, lam, 2, an, H->work, NULL), VES_OK);
   double worst = 0;
   for (int k = 0; k < 2; k++) {
     double Xp[2] = {X[0], X[1]}, Xm[2] = {X[0], X[1]};
     Xp[k] += step;
     Xm[k] -= step;
     double lp[2] = {lam[0], lam[1]}, lm[2] = {lam[0], lam[1]};
-    assert_int_equal(
-        ves_lme_eval(par, Xp, m, H->xa, H->beta, lp, 1, tp, H->work, NULL),
-        VES_OK);
-    assert_int_equal(
-        ves_lme_eval(par, Xm, m, H->xa, H->beta, lm, 1, tm, H->work, NULL),
-        VES_OK);
+    assert_int_equal(ves_lme_eval(par, Xp, m, H->xa, H->beta, lp, 1, tp, H->work, NULL), VES_OK);
+    assert_int_equal(ves_lme_eval(par, Xm, m, H->xa, H->beta, lm, 1, tm, H->work, NULL), VES_OK);
     /* grad p, component k */
-    for (int a = 0; a < m; a++)
-      fd[a] = (tp[a] - tm[a]) / (2 * step);
+    for (int a = 0; a < m; a++) fd[a] = (tp[a] - tm[a]) / (2 * step);
     worst = maxd(worst, relerr(m, fd, an + (1 + k) * m));
     /* d/dX_k of dp/dR and of dp/dZ: rows (RR, RZ) for k = 0, (RZ, ZZ) k = 1 */
     for (int l = 0; l < 2; l++) {
-      for (int a = 0; a < m; a++)
-        fd[a] = (tp[(1 + l) * m + a] - tm[(1 + l) * m + a]) / (2 * step);
+      for (int a = 0; a < m; a++) fd[a] = (tp[(1 + l) * m + a] - tm[(1 + l) * m + a]) / (2 * step);
       worst = maxd(worst, relerr(m, fd, an + (3 + k + l) * m));
     }
   }
@@ -443,9 +429,8 @@ static void test_derivatives_fd(void **state) {
     gather(&ns, &par, X, H, NULL);
     int m = H->m;
     double lam[2] = {0, 0}, J[3] = {0, 0, 0};
-    assert_int_equal(
-        ves_lme_eval(&par, X, m, H->xa, H->beta, lam, 1, H->tab, H->work, NULL),
-        VES_OK);
+    assert_int_equal(ves_lme_eval(&par, X, m, H->xa, H->beta, lam, 1, H->tab, H->work, NULL),
+                     VES_OK);
     for (int a = 0; a < m; a++) {
       double d0 = X[0] - H->xa[2 * a], d1 = X[1] - H->xa[2 * a + 1];
       J[0] += H->tab[a] * d0 * d0;
@@ -502,8 +487,7 @@ static void test_ghost_axis(void **state) {
     gather(&ns, &par, X, H, fe);
     gather(&ns, &par, X, H2, fo);
     double lam[2] = {0, 0};
-    assert_int_equal(ves_lme_eval(&par, X, H->m, H->xa, H->beta, lam, 2, H->tab,
-                                  H->work, NULL),
+    assert_int_equal(ves_lme_eval(&par, X, H->m, H->xa, H->beta, lam, 2, H->tab, H->work, NULL),
                      VES_OK);
     long double dRu = 0, u = 0;
     for (int a = 0; a < H->m; a++) {
@@ -545,59 +529,42 @@ static void test_warm_start_rows(void **state) {
   assert_non_null(t2);
   double lam[2] = {0, 0};
   ves_lme_info icold, iwarm;
-  assert_int_equal(
-      ves_lme_eval(&par, X, m, H->xa, H->beta, lam, 2, H->tab, H->work, &icold),
-      VES_OK);
+  assert_int_equal(ves_lme_eval(&par, X, m, H->xa, H->beta, lam, 2, H->tab, H->work, &icold),
+                   VES_OK);
   assert_true(icold.residual <= par.newton_tol * h); /* the stated criterion */
   /* warm: lambda of a point 0.1 h away */
   double Xn[2] = {X[0] + 0.1 * h, X[1] - 0.05 * h}, lw[2] = {0, 0};
-  assert_int_equal(
-      ves_lme_eval(&par, Xn, m, H->xa, H->beta, lw, 0, t2, H->work, NULL),
-      VES_OK);
-  assert_int_equal(
-      ves_lme_eval(&par, X, m, H->xa, H->beta, lw, 2, t2, H->work, &iwarm),
-      VES_OK);
-  printf("  Newton iterations: cold %d, warm (from 0.1 h away) %d\n",
-         icold.iterations, iwarm.iterations);
+  assert_int_equal(ves_lme_eval(&par, Xn, m, H->xa, H->beta, lw, 0, t2, H->work, NULL), VES_OK);
+  assert_int_equal(ves_lme_eval(&par, X, m, H->xa, H->beta, lw, 2, t2, H->work, &iwarm), VES_OK);
+  printf("  Newton iterations: cold %d, warm (from 0.1 h away) %d\n", icold.iterations,
+         iwarm.iterations);
   assert_true(iwarm.iterations <= icold.iterations);
   /* both solves reach |r| <= 1e-14 h; p depends on lambda through
    * dp = p d . dlambda with |dlambda| <= |J^{-1}| |r| ~ 1e-14 / h: 1e-12
    * relative bounds the difference of every row. */
-  for (int k = 0; k < 6; k++)
-    assert_true(relerr(m, t2 + k * m, H->tab + k * m) <= 1e-12);
+  for (int k = 0; k < 6; k++) assert_true(relerr(m, t2 + k * m, H->tab + k * m) <= 1e-12);
   /* a wild guess (|lambda| dmax ~ 1e4, above the divergence bound: what a
    * previous, unrelated point can leave) is dropped for 0 after its Newton
    * fails: the cold result, bit for bit (the same iteration from 0) */
   double lfar[2] = {3e3 / h, -2e3 / h};
-  assert_int_equal(
-      ves_lme_eval(&par, X, m, H->xa, H->beta, lfar, 2, t2, H->work, NULL),
-      VES_OK);
+  assert_int_equal(ves_lme_eval(&par, X, m, H->xa, H->beta, lfar, 2, t2, H->work, NULL), VES_OK);
   assert_memory_equal(t2, H->tab, 6 * (size_t)m * sizeof(double));
   /* a non-finite guess is replaced by 0: the cold result, bit for bit */
   double lnan[2] = {NAN, 1.0};
-  assert_int_equal(
-      ves_lme_eval(&par, X, m, H->xa, H->beta, lnan, 2, t2, H->work, NULL),
-      VES_OK);
-  for (int k = 0; k < 6 * m; k++)
-    assert_true(t2[k] == H->tab[k]);
+  assert_int_equal(ves_lme_eval(&par, X, m, H->xa, H->beta, lnan, 2, t2, H->work, NULL), VES_OK);
+  for (int k = 0; k < 6 * m; k++) assert_true(t2[k] == H->tab[k]);
   /* row-writing contract: untouched rows keep their sentinel; the written
    * rows are bit-identical (same inputs, same operations) */
-  for (int k = 0; k < 6 * m; k++)
-    t2[k] = -7.0;
+  for (int k = 0; k < 6 * m; k++) t2[k] = -7.0;
   lam[0] = lam[1] = 0;
   ves_lme_eval(&par, X, m, H->xa, H->beta, lam, 1, t2, H->work, NULL);
-  for (int k = 0; k < 3 * m; k++)
-    assert_true(t2[k] == H->tab[k]);
-  for (int k = 3 * m; k < 6 * m; k++)
-    assert_true(t2[k] == -7.0);
-  for (int k = 0; k < 6 * m; k++)
-    t2[k] = -7.0;
+  for (int k = 0; k < 3 * m; k++) assert_true(t2[k] == H->tab[k]);
+  for (int k = 3 * m; k < 6 * m; k++) assert_true(t2[k] == -7.0);
+  for (int k = 0; k < 6 * m; k++) t2[k] = -7.0;
   lam[0] = lam[1] = 0;
   ves_lme_eval(&par, X, m, H->xa, H->beta, lam, 0, t2, H->work, NULL);
-  for (int k = 0; k < m; k++)
-    assert_true(t2[k] == H->tab[k]);
-  for (int k = m; k < 6 * m; k++)
-    assert_true(t2[k] == -7.0);
+  for (int k = 0; k < m; k++) assert_true(t2[k] == H->tab[k]);
+  for (int k = m; k < 6 * m; k++) assert_true(t2[k] == -7.0);
   free(t2);
   free(H);
   nodeset_free(&ns);
@@ -611,50 +578,34 @@ static void test_errors(void **state) {
   double xa[6] = {0, 0, 1, 0, 0, 1}, beta[3] = {1, 1, 1};
   double X[2] = {0.2, 0.2};
   /* a valid call first, so each failure below is due to its one change */
-  assert_int_equal(ves_lme_eval(&par, X, 3, xa, beta, lam, 2, tab, work, NULL),
-                   VES_OK);
+  assert_int_equal(ves_lme_eval(&par, X, 3, xa, beta, lam, 2, tab, work, NULL), VES_OK);
   lam[0] = lam[1] = 0;
   assert_int_equal(ves_lme_eval(&par, X, 2, xa, beta, lam, 0, tab, work, NULL),
                    VES_ERR_ARG); /* m < 3 */
-  assert_int_equal(ves_lme_eval(NULL, X, 3, xa, beta, lam, 0, tab, work, NULL),
-                   VES_ERR_ARG);
-  assert_int_equal(
-      ves_lme_eval(&par, NULL, 3, xa, beta, lam, 0, tab, work, NULL),
-      VES_ERR_ARG);
-  assert_int_equal(
-      ves_lme_eval(&par, X, 3, NULL, beta, lam, 0, tab, work, NULL),
-      VES_ERR_ARG);
-  assert_int_equal(ves_lme_eval(&par, X, 3, xa, NULL, lam, 0, tab, work, NULL),
-                   VES_ERR_ARG);
-  assert_int_equal(ves_lme_eval(&par, X, 3, xa, beta, NULL, 0, tab, work, NULL),
-                   VES_ERR_ARG);
-  assert_int_equal(ves_lme_eval(&par, X, 3, xa, beta, lam, 0, NULL, work, NULL),
-                   VES_ERR_ARG);
-  assert_int_equal(ves_lme_eval(&par, X, 3, xa, beta, lam, 0, tab, NULL, NULL),
-                   VES_ERR_ARG);
+  assert_int_equal(ves_lme_eval(NULL, X, 3, xa, beta, lam, 0, tab, work, NULL), VES_ERR_ARG);
+  assert_int_equal(ves_lme_eval(&par, NULL, 3, xa, beta, lam, 0, tab, work, NULL), VES_ERR_ARG);
+  assert_int_equal(ves_lme_eval(&par, X, 3, NULL, beta, lam, 0, tab, work, NULL), VES_ERR_ARG);
+  assert_int_equal(ves_lme_eval(&par, X, 3, xa, NULL, lam, 0, tab, work, NULL), VES_ERR_ARG);
+  assert_int_equal(ves_lme_eval(&par, X, 3, xa, beta, NULL, 0, tab, work, NULL), VES_ERR_ARG);
+  assert_int_equal(ves_lme_eval(&par, X, 3, xa, beta, lam, 0, NULL, work, NULL), VES_ERR_ARG);
+  assert_int_equal(ves_lme_eval(&par, X, 3, xa, beta, lam, 0, tab, NULL, NULL), VES_ERR_ARG);
   assert_int_equal(ves_lme_eval(&par, X, 3, xa, beta, lam, 3, tab, work, NULL),
                    VES_ERR_ARG); /* nder = 3 */
-  assert_int_equal(ves_lme_eval(&par, X, 3, xa, beta, lam, -1, tab, work, NULL),
-                   VES_ERR_ARG);
+  assert_int_equal(ves_lme_eval(&par, X, 3, xa, beta, lam, -1, tab, work, NULL), VES_ERR_ARG);
   double bneg[3] = {1, -1, 1};
   assert_int_equal(ves_lme_eval(&par, X, 3, xa, bneg, lam, 0, tab, work, NULL),
                    VES_ERR_ARG); /* beta <= 0 */
   ves_lme_params bad = par;
   bad.max_iter = 0;
-  assert_int_equal(ves_lme_eval(&bad, X, 3, xa, beta, lam, 0, tab, work, NULL),
-                   VES_ERR_ARG);
+  assert_int_equal(ves_lme_eval(&bad, X, 3, xa, beta, lam, 0, tab, work, NULL), VES_ERR_ARG);
   double Xnan[2] = {NAN, 0};
-  assert_int_equal(
-      ves_lme_eval(&par, Xnan, 3, xa, beta, lam, 0, tab, work, NULL),
-      VES_ERR_ARG);
+  assert_int_equal(ves_lme_eval(&par, Xnan, 3, xa, beta, lam, 0, tab, work, NULL), VES_ERR_ARG);
 
   /* collinear neighbourhood, X on the line: no 2D hull */
-  double xl[10] = {-0.2, 0, -0.1, 0, 0, 0, 0.1, 0, 0.2, 0},
-         bl[5] = {80, 80, 80, 80, 80};
+  double xl[10] = {-0.2, 0, -0.1, 0, 0, 0, 0.1, 0, 0.2, 0}, bl[5] = {80, 80, 80, 80, 80};
   double Xl[2] = {0.05, 0};
   lam[0] = lam[1] = 0;
-  assert_int_equal(ves_lme_eval(&par, Xl, 5, xl, bl, lam, 0, tab, work, NULL),
-                   VES_ERR_ARG);
+  assert_int_equal(ves_lme_eval(&par, Xl, 5, xl, bl, lam, 0, tab, work, NULL), VES_ERR_ARG);
 
   /* X outside the hull of a real neighbourhood: lambda diverges */
   nodeset ns;
@@ -666,8 +617,7 @@ static void test_errors(void **state) {
   assert_true(H->m >= 3);
   ves_lme_info info;
   lam[0] = lam[1] = 0;
-  assert_int_equal(ves_lme_eval(&par, Xo, H->m, H->xa, H->beta, lam, 2, H->tab,
-                                H->work, &info),
+  assert_int_equal(ves_lme_eval(&par, Xo, H->m, H->xa, H->beta, lam, 2, H->tab, H->work, &info),
                    VES_ERR_NOCONV);
   printf("  outside the hull: NOCONV after %d iterations\n", info.iterations);
 
@@ -675,10 +625,8 @@ static void test_errors(void **state) {
   double Xe[2] = {0.5, 0.0};
   gather(&ns, &par, Xe, H, NULL);
   lam[0] = lam[1] = 0;
-  ves_status st = ves_lme_eval(&par, Xe, H->m, H->xa, H->beta, lam, 2, H->tab,
-                               H->work, &info);
-  printf("  on the hull: %s after %d iterations\n", ves_status_str(st),
-         info.iterations);
+  ves_status st = ves_lme_eval(&par, Xe, H->m, H->xa, H->beta, lam, 2, H->tab, H->work, &info);
+  printf("  on the hull: %s after %d iterations\n", ves_status_str(st), info.iterations);
   assert_int_equal(st, VES_ERR_ARG);
 
   /* iteration limit: one Newton step cannot converge 1e-3 h from an edge */
@@ -687,8 +635,7 @@ static void test_errors(void **state) {
   ves_lme_params one = par;
   one.max_iter = 1;
   lam[0] = lam[1] = 0;
-  assert_int_equal(ves_lme_eval(&one, Xb, H->m, H->xa, H->beta, lam, 0, H->tab,
-                                H->work, &info),
+  assert_int_equal(ves_lme_eval(&one, Xb, H->m, H->xa, H->beta, lam, 0, H->tab, H->work, &info),
                    VES_ERR_NOCONV);
   assert_int_equal(info.iterations, 1);
   free(H);
@@ -697,6 +644,7 @@ static void test_errors(void **state) {
 
 int main(void) {
   setvbuf(stdout, NULL, _IOLBF, 0); /* keep output in order with cmocka's stderr */
+  // clang-format off
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_params),
       cmocka_unit_test(test_consistency_hex),
@@ -707,5 +655,6 @@ int main(void) {
       cmocka_unit_test(test_warm_start_rows),
       cmocka_unit_test(test_errors),
   };
+  // clang-format on
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -50,21 +50,18 @@ typedef struct {
 /* Build a problem from the defaults and the overrides given. Coefficients of
  * phi0 are sampled: faster, and the derivative identities do not depend on
  * how phi0 was fitted. */
-static problem *problem_create(double eps, double box_r, double box_z,
-                               const char *shape, double c0) {
+static problem *problem_create(double eps, double box_r, double box_z, const char *shape,
+                               double c0) {
   problem *P = calloc(1, sizeof *P);
   assert_non_null(P);
   ves_config_default(&P->cfg);
-  P->cfg.epsilon = eps, P->cfg.box_r = box_r, P->cfg.box_z = box_z,
-  P->cfg.c0 = c0;
+  P->cfg.epsilon = eps, P->cfg.box_r = box_r, P->cfg.box_z = box_z, P->cfg.c0 = c0;
   snprintf(P->cfg.shape_type, sizeof P->cfg.shape_type, "%s", shape);
   snprintf(P->cfg.orientation, sizeof P->cfg.orientation, "oblate");
   P->cfg.reduced_volume = 0.9;
   char err[256] = "";
-  ves_status st =
-      ves_setup_create(&P->cfg, VES_PHI0_SAMPLED, &P->s, err, sizeof err);
-  if (st != VES_OK)
-    fprintf(stderr, "setup: %s\n", err);
+  ves_status st = ves_setup_create(&P->cfg, VES_PHI0_SAMPLED, &P->s, err, sizeof err);
+  if (st != VES_OK) fprintf(stderr, "setup: %s\n", err);
   assert_int_equal(st, VES_OK);
   P->pat = ves_model_pattern(P->s->model);
   P->n = P->s->nodes->n, P->nf = P->pat->nfree;
@@ -82,8 +79,7 @@ static problem *problem_create(double eps, double box_r, double box_z,
 }
 
 static void problem_destroy(problem **P) {
-  if (!*P)
-    return;
+  if (!*P) return;
   ves_setup_destroy(&(*P)->s);
   free((*P)->X);
   free((*P)->y);
@@ -95,8 +91,7 @@ static void problem_destroy(problem **P) {
 /* Keep the fixed dofs of y at their reference values. */
 static void fix_dofs(const problem *P, double *y) {
   for (int i = 0; i < 2 * P->n; i++)
-    if (P->pat->dof[i] < 0)
-      y[i] = P->X[i];
+    if (P->pat->dof[i] < 0) y[i] = P->X[i];
 }
 
 /* y = X + u(X), a smooth admissible motion: u_r = amp R w f(R^2, Z) is odd in
@@ -107,10 +102,8 @@ static void motion_smooth(const problem *P, double amp, double *y) {
   for (int a = 0; a < P->n; a++) {
     const double R = P->X[2 * a], Z = P->X[2 * a + 1];
     const double w = (1 - (R / LR) * (R / LR)) * (1 - (Z / LZ) * (Z / LZ));
-    y[2 * a] =
-        R + amp * R * w * (1 + 0.5 * sin(3 * Z + 0.7) + 0.3 * cos(2 * R * R));
-    y[2 * a + 1] =
-        Z + amp * w * (sin(2.5 * Z + 0.3) + 0.5 * cos(3 * R * R - Z));
+    y[2 * a] = R + amp * R * w * (1 + 0.5 * sin(3 * Z + 0.7) + 0.3 * cos(2 * R * R));
+    y[2 * a + 1] = Z + amp * w * (sin(2.5 * Z + 0.3) + 0.5 * cos(3 * R * R - Z));
   }
   fix_dofs(P, y);
 }
@@ -118,16 +111,13 @@ static void motion_smooth(const problem *P, double amp, double *y) {
 /* The local kinematic variables q = B y at point al, computed here directly
  * from the unfolded table (ghost entries carry (-y_r, y_z)), independently of
  * the folding in model.c. */
-static void point_q(const ves_quad *q, const double *y, int al,
-                    double out[VES_NQ]) {
+static void point_q(const ves_quad *q, const double *y, int al, double out[VES_NQ]) {
   const int m = q->ptr[al + 1] - q->ptr[al];
   const double *t = q->tab + 6 * (size_t)q->ptr[al];
-  for (int i = 0; i < VES_NQ; i++)
-    out[i] = 0.0;
+  for (int i = 0; i < VES_NQ; i++) out[i] = 0.0;
   for (int k = 0; k < m; k++) {
     const int a = q->nbr[q->ptr[al] + k];
-    const double yr = (q->mirror[q->ptr[al] + k] ? -1.0 : 1.0) * y[2 * a],
-                 yz = y[2 * a + 1];
+    const double yr = (q->mirror[q->ptr[al] + k] ? -1.0 : 1.0) * y[2 * a], yz = y[2 * a + 1];
     out[VES_Q_R] += t[k] * yr;
     out[VES_Q_FRR] += t[m + k] * yr, out[VES_Q_FRZ] += t[2 * m + k] * yr;
     out[VES_Q_FZR] += t[m + k] * yz, out[VES_Q_FZZ] += t[2 * m + k] * yz;
@@ -143,8 +133,7 @@ static double q_det(const double q[VES_NQ]) {
 }
 
 /* Smallest det F and smallest r over the quadrature points. */
-static void min_det_r(const problem *P, const double *y, double *detmin,
-                      double *rmin) {
+static void min_det_r(const problem *P, const double *y, double *detmin, double *rmin) {
   *detmin = INFINITY, *rmin = INFINITY;
   for (int al = 0; al < P->s->quad->nq; al++) {
     double q[VES_NQ];
@@ -158,13 +147,12 @@ static void min_det_r(const problem *P, const double *y, double *detmin,
  * of the full vector are left alone). */
 static void to_free(const problem *P, const double *x, double *xf) {
   for (int i = 0; i < 2 * P->n; i++)
-    if (P->pat->dof[i] >= 0)
-      xf[P->pat->dof[i]] = x[i];
+    if (P->pat->dof[i] >= 0) xf[P->pat->dof[i]] = x[i];
 }
 
 /* Block values -> lower triplets -> out[nf] = M x (x over the free dofs). */
-static void blk_apply(const problem *P, const double *blk, double *v,
-                      const double *x, double *out) {
+static void blk_apply(const problem *P, const double *blk, double *v, const double *x,
+                      double *out) {
   ves_pattern_extract(P->pat, blk, v);
   ves_pattern_symv(P->pat, v, x, out);
 }
@@ -176,30 +164,22 @@ static double *xmalloc(size_t n) {
 }
 
 /* Length of the block value array (4 ptr[n]). */
-static size_t blk_len(const problem *P) {
-  return 4 * (size_t)P->pat->ptr[P->n];
-}
+static size_t blk_len(const problem *P) { return 4 * (size_t)P->pat->ptr[P->n]; }
 
 /* Pick nsel distinct free dofs: about a third on nodes near the axis
  * (R < 2 h_band), a third on nodes in the interface band |d| < band eps,
  * the rest anywhere. Returns the count actually found. */
 static int select_dofs(const problem *P, uint64_t *rng, int nsel, int *sel) {
-  const double hb = P->cfg.h_band * P->cfg.epsilon,
-               band = P->cfg.band * P->cfg.epsilon;
+  const double hb = P->cfg.h_band * P->cfg.epsilon, band = P->cfg.band * P->cfg.epsilon;
   int cnt = 0;
   for (int tries = 0; cnt < nsel && tries < 200000; tries++) {
     int i = (int)(urand(rng) * 2 * P->n), a = i / 2, kind = cnt % 3;
-    if (P->pat->dof[i] < 0)
-      continue;
-    if (kind == 0 && !(P->X[2 * a] < 2 * hb))
-      continue;
-    if (kind == 1 && !(fabs(P->d[a]) < band))
-      continue;
+    if (P->pat->dof[i] < 0) continue;
+    if (kind == 0 && !(P->X[2 * a] < 2 * hb)) continue;
+    if (kind == 1 && !(fabs(P->d[a]) < band)) continue;
     int dup = 0;
-    for (int k = 0; k < cnt; k++)
-      dup |= sel[k] == i;
-    if (!dup)
-      sel[cnt++] = i;
+    for (int k = 0; k < cnt; k++) dup |= sel[k] == i;
+    if (!dup) sel[cnt++] = i;
   }
   return cnt;
 }
@@ -215,8 +195,7 @@ static problem *P1;
 #define AMP1 0.08
 
 /* The Hessians tested, assembled once at P1->y: E, A, V alone and a mix. */
-static const double COMBO[4][3] = {
-    {1, 0, 0}, {0, 1, 0}, {0, 0, 1}, {0.7, 3.0, -2.0}};
+static const double COMBO[4][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}, {0.7, 3.0, -2.0}};
 static const char *COMBO_NAME[4] = {"E", "A", "V", "0.7E+3A-2V"};
 static double *H1[4];
 
@@ -226,8 +205,8 @@ static int group_setup(void **state) {
   motion_smooth(P1, AMP1, P1->y);
   for (int c = 0; c < 4; c++) {
     H1[c] = xmalloc(blk_len(P1));
-    if (ves_model_hessian(P1->s->model, P1->y, COMBO[c][0], COMBO[c][1],
-                          COMBO[c][2], H1[c]) != VES_OK)
+    if (ves_model_hessian(P1->s->model, P1->y, COMBO[c][0], COMBO[c][1], COMBO[c][2], H1[c]) !=
+        VES_OK)
       return -1;
   }
   return 0;
@@ -235,8 +214,7 @@ static int group_setup(void **state) {
 
 static int group_teardown(void **state) {
   (void)state;
-  for (int c = 0; c < 4; c++)
-    free(H1[c]);
+  for (int c = 0; c < 4; c++) free(H1[c]);
   problem_destroy(&P1);
   return 0;
 }
@@ -254,8 +232,7 @@ static void test_state_and_repeatability(void **state) {
   problem *P = P1;
   double detmin, rmin, umax = 0;
   min_det_r(P, P->y, &detmin, &rmin);
-  for (int i = 0; i < 2 * P->n; i++)
-    umax = fmax(umax, fabs(P->y[i] - P->X[i]));
+  for (int i = 0; i < 2 * P->n; i++) umax = fmax(umax, fabs(P->y[i] - P->X[i]));
   printf("# P1: n = %d, free dofs = %d, points = %d, h_min = %.4f; deformed: "
          "max |u| = %.3f, "
          "min det F = %.3f, min r = %.2e\n",
@@ -268,24 +245,21 @@ static void test_state_and_repeatability(void **state) {
   double *g1 = xmalloc(6 * (size_t)P->n), *g2 = xmalloc(6 * (size_t)P->n);
   const int n2 = 2 * P->n;
   for (int rep = 0; rep < 2; rep++)
-    assert_int_equal(
-        ves_model_eval(P->s->model, P->y, VES_F_E | VES_F_A | VES_F_V, E + rep,
-                       A + rep, V + rep, rep ? g2 : g1, (rep ? g2 : g1) + n2,
-                       (rep ? g2 : g1) + 2 * n2),
-        VES_OK);
+    assert_int_equal(ves_model_eval(P->s->model, P->y, VES_F_E | VES_F_A | VES_F_V, E + rep,
+                                    A + rep, V + rep, rep ? g2 : g1, (rep ? g2 : g1) + n2,
+                                    (rep ? g2 : g1) + 2 * n2),
+                     VES_OK);
   assert_true(E[0] == E[1] && A[0] == A[1] && V[0] == V[1]);
   assert_memory_equal(g1, g2, 3 * (size_t)n2 * sizeof *g1);
   /* a value-only call gives the same values as the call with gradients */
-  assert_int_equal(ves_model_eval(P->s->model, P->y,
-                                  VES_F_E | VES_F_A | VES_F_V, E + 2, A + 2,
+  assert_int_equal(ves_model_eval(P->s->model, P->y, VES_F_E | VES_F_A | VES_F_V, E + 2, A + 2,
                                   V + 2, NULL, NULL, NULL),
                    VES_OK);
   assert_true(E[2] == E[0] && A[2] == A[0] && V[2] == V[0]);
 
   /* unselected outputs are not touched */
   double Eu = -7, Au = -7, Vu = -7;
-  assert_int_equal(ves_model_eval(P->s->model, P->y, VES_F_A, &Eu, &Au, &Vu,
-                                  NULL, NULL, NULL),
+  assert_int_equal(ves_model_eval(P->s->model, P->y, VES_F_A, &Eu, &Au, &Vu, NULL, NULL, NULL),
                    VES_OK);
   assert_true(Eu == -7 && Vu == -7 && Au == A[0]);
 
@@ -293,9 +267,7 @@ static void test_state_and_repeatability(void **state) {
    * A/A_sharp - 1 ~ (pi^2/6 - 1) eps^2 plus the sampling smoothing), V
    * within 10% of the sharp volume (V - V_sharp ~ (pi^2/2) eps^2 V) */
   double Er, Ar, Vr;
-  assert_int_equal(
-      ves_model_eval(P->s->model, P->X, 7, &Er, &Ar, &Vr, NULL, NULL, NULL),
-      VES_OK);
+  assert_int_equal(ves_model_eval(P->s->model, P->X, 7, &Er, &Ar, &Vr, NULL, NULL, NULL), VES_OK);
   printf("# P1 reference: E = %.6f, A/A_sharp = %.5f, V/V_sharp = %.5f; "
          "deformed E = %.6f, "
          "A = %.6f, V = %.6f\n",
@@ -356,23 +328,18 @@ static void test_gradients(void **state) {
 
   double *g = xmalloc(3 * (size_t)n2), *yp = xmalloc(n2);
   double E, A, V;
-  assert_int_equal(
-      ves_model_eval(P->s->model, P->y, 7, &E, &A, &V, g, g + n2, g + 2 * n2),
-      VES_OK);
+  assert_int_equal(ves_model_eval(P->s->model, P->y, 7, &E, &A, &V, g, g + n2, g + 2 * n2), VES_OK);
   /* step objective: K at yn = X, displacement dy = y - X */
   double *blk = xmalloc(blk_len(P)), *v = xmalloc((size_t)P->pat->nnz);
-  double *dyf = xmalloc((size_t)P->nf), *Kd = xmalloc((size_t)P->nf),
-         *dy = xmalloc(n2);
+  double *dyf = xmalloc((size_t)P->nf), *Kd = xmalloc((size_t)P->nf), *dy = xmalloc(n2);
   assert_int_equal(ves_model_dissipation(P->s->model, P->X, blk), VES_OK);
   ves_pattern_extract(P->pat, blk, v);
-  for (int i = 0; i < n2; i++)
-    dy[i] = P->y[i] - P->X[i];
+  for (int i = 0; i < n2; i++) dy[i] = P->y[i] - P->X[i];
   to_free(P, dy, dyf);
   ves_pattern_symv(P->pat, v, dyf, Kd);
   /* gJ over the selection: (K dy)_f + dt gE */
   double gJ[64], fd[4][64], gs[4][64];
-  for (int k = 0; k < ns; k++)
-    gJ[k] = Kd[P->pat->dof[sel[k]]] + dt * g[sel[k]];
+  for (int k = 0; k < ns; k++) gJ[k] = Kd[P->pat->dof[sel[k]]] + dt * g[sel[k]];
 
   memcpy(yp, P->y, n2 * sizeof *yp);
   for (int k = 0; k < ns; k++) {
@@ -380,18 +347,13 @@ static void test_gradients(void **state) {
     double Ep, Ap, Vp, Em, Am, Vm, Jp, Jm;
     for (int sgn = 0; sgn < 2; sgn++) {
       yp[i] = P->y[i] + (sgn ? -delta : delta);
-      double *Eo = sgn ? &Em : &Ep, *Ao = sgn ? &Am : &Ap,
-             *Vo = sgn ? &Vm : &Vp;
-      assert_int_equal(
-          ves_model_eval(P->s->model, yp, 7, Eo, Ao, Vo, NULL, NULL, NULL),
-          VES_OK);
-      for (int j = 0; j < n2; j++)
-        dy[j] = yp[j] - P->X[j];
+      double *Eo = sgn ? &Em : &Ep, *Ao = sgn ? &Am : &Ap, *Vo = sgn ? &Vm : &Vp;
+      assert_int_equal(ves_model_eval(P->s->model, yp, 7, Eo, Ao, Vo, NULL, NULL, NULL), VES_OK);
+      for (int j = 0; j < n2; j++) dy[j] = yp[j] - P->X[j];
       to_free(P, dy, dyf);
       ves_pattern_symv(P->pat, v, dyf, Kd);
       double s = 0;
-      for (int j = 0; j < P->nf; j++)
-        s += dyf[j] * Kd[j];
+      for (int j = 0; j < P->nf; j++) s += dyf[j] * Kd[j];
       *(sgn ? &Jm : &Jp) = 0.5 * s + dt * *Eo;
     }
     yp[i] = P->y[i];
@@ -403,15 +365,12 @@ static void test_gradients(void **state) {
   const char *name[4] = {"E", "A", "V", "J (step objective)"};
   for (int f = 0; f < 4; f++) {
     double gmax = 0, err = 0, errax = 0, errband = 0;
-    for (int k = 0; k < ns; k++)
-      gmax = fmax(gmax, fabs(gs[f][k]));
+    for (int k = 0; k < ns; k++) gmax = fmax(gmax, fabs(gs[f][k]));
     for (int k = 0; k < ns; k++) {
       double e = fabs(fd[f][k] - gs[f][k]) / fmax(fabs(gs[f][k]), 1e-2 * gmax);
       err = fmax(err, e);
-      if (k % 3 == 0)
-        errax = fmax(errax, e);
-      if (k % 3 == 1)
-        errband = fmax(errband, e);
+      if (k % 3 == 0) errax = fmax(errax, e);
+      if (k % 3 == 1) errband = fmax(errband, e);
     }
     printf("# gradient %-18s: %d dofs, step %.1e, max rel error %.2e (near "
            "axis %.2e, band "
@@ -439,18 +398,15 @@ static void test_hessian_columns(void **state) {
   assert_int_equal(select_dofs(P, &rng, NSEL, sel), NSEL);
   /* FD columns of the three Hessians, free rows: fdc[f][k][nf] */
   double *fdc = xmalloc(3 * (size_t)NSEL * nf);
-  double *gp = xmalloc(3 * (size_t)n2), *gm = xmalloc(3 * (size_t)n2),
-         *yp = xmalloc(n2);
+  double *gp = xmalloc(3 * (size_t)n2), *gm = xmalloc(3 * (size_t)n2), *yp = xmalloc(n2);
   memcpy(yp, P->y, n2 * sizeof *yp);
   for (int k = 0; k < NSEL; k++) {
     const int i = sel[k];
     yp[i] = P->y[i] + delta;
-    assert_int_equal(ves_model_eval(P->s->model, yp, 7, NULL, NULL, NULL, gp,
-                                    gp + n2, gp + 2 * n2),
+    assert_int_equal(ves_model_eval(P->s->model, yp, 7, NULL, NULL, NULL, gp, gp + n2, gp + 2 * n2),
                      VES_OK);
     yp[i] = P->y[i] - delta;
-    assert_int_equal(ves_model_eval(P->s->model, yp, 7, NULL, NULL, NULL, gm,
-                                    gm + n2, gm + 2 * n2),
+    assert_int_equal(ves_model_eval(P->s->model, yp, 7, NULL, NULL, NULL, gm, gm + n2, gm + 2 * n2),
                      VES_OK);
     yp[i] = P->y[i];
     for (int f = 0; f < 3; f++)
@@ -465,8 +421,7 @@ static void test_hessian_columns(void **state) {
     const double *blk = H1[c];
     /* diagonal blocks are stored in full: their off-diagonal pair must agree */
     double bmax = 0, asym = 0;
-    for (size_t t = 0; t < blk_len(P); t++)
-      bmax = fmax(bmax, fabs(blk[t]));
+    for (size_t t = 0; t < blk_len(P); t++) bmax = fmax(bmax, fabs(blk[t]));
     for (int a = 0; a < P->n; a++) {
       long t = ves_pattern_find(P->pat, a, a);
       assert_true(t >= 0);
@@ -481,8 +436,7 @@ static void test_hessian_columns(void **state) {
       double cmax = 0, dmax = 0;
       for (int j = 0; j < nf; j++) {
         double f = 0;
-        for (int w = 0; w < 3; w++)
-          f += COMBO[c][w] * fdc[((size_t)w * NSEL + k) * nf + j];
+        for (int w = 0; w < 3; w++) f += COMBO[c][w] * fdc[((size_t)w * NSEL + k) * nf + j];
         cmax = fmax(cmax, fabs(col[j]));
         dmax = fmax(dmax, fabs(f - col[j]));
       }
@@ -502,13 +456,11 @@ static void test_hessian_columns(void **state) {
    * (the combination path of ves_model_hessian) up to rounding */
   double mdiff = 0, mmax = 0;
   for (size_t t = 0; t < blk_len(P); t++) {
-    double l = COMBO[3][0] * H1[0][t] + COMBO[3][1] * H1[1][t] +
-               COMBO[3][2] * H1[2][t];
+    double l = COMBO[3][0] * H1[0][t] + COMBO[3][1] * H1[1][t] + COMBO[3][2] * H1[2][t];
     mdiff = fmax(mdiff, fabs(l - H1[3][t]));
     mmax = fmax(mmax, fabs(H1[3][t]));
   }
-  printf("# mix vs combination of E, A, V Hessians: %.1e of max |H|\n",
-         mdiff / mmax);
+  printf("# mix vs combination of E, A, V Hessians: %.1e of max |H|\n", mdiff / mmax);
   assert_true(mdiff <= 1e-12 * mmax);
   free(fdc), free(gp), free(gm), free(yp), free(v), free(e), free(col);
 }
@@ -524,21 +476,17 @@ static void test_hessian_direction(void **state) {
   const int n2 = 2 * P->n, nf = P->nf;
   const double delta = FD_STEP * P->hmin, dt = 1e-2;
   uint64_t rng = 0x2545F4914F6CDD1DULL;
-  double *x = xmalloc(nf), *xfull = xmalloc(n2), *yp = xmalloc(n2),
-         *ym = xmalloc(n2);
+  double *x = xmalloc(nf), *xfull = xmalloc(n2), *yp = xmalloc(n2), *ym = xmalloc(n2);
   double *gp = xmalloc(3 * (size_t)n2), *gm = xmalloc(3 * (size_t)n2);
-  for (int j = 0; j < nf; j++)
-    x[j] = 2 * urand(&rng) - 1;
+  for (int j = 0; j < nf; j++) x[j] = 2 * urand(&rng) - 1;
   for (int i = 0; i < n2; i++) {
     int f = P->pat->dof[i];
     xfull[i] = f >= 0 ? x[f] : 0.0;
     yp[i] = P->y[i] + delta * xfull[i], ym[i] = P->y[i] - delta * xfull[i];
   }
-  assert_int_equal(ves_model_eval(P->s->model, yp, 7, NULL, NULL, NULL, gp,
-                                  gp + n2, gp + 2 * n2),
+  assert_int_equal(ves_model_eval(P->s->model, yp, 7, NULL, NULL, NULL, gp, gp + n2, gp + 2 * n2),
                    VES_OK);
-  assert_int_equal(ves_model_eval(P->s->model, ym, 7, NULL, NULL, NULL, gm,
-                                  gm + n2, gm + 2 * n2),
+  assert_int_equal(ves_model_eval(P->s->model, ym, 7, NULL, NULL, NULL, gm, gm + n2, gm + 2 * n2),
                    VES_OK);
   double *v = xmalloc((size_t)P->pat->nnz), *Hx = xmalloc(nf);
   double *kblk = xmalloc(blk_len(P)), *Kx = xmalloc(nf);
@@ -547,12 +495,10 @@ static void test_hessian_direction(void **state) {
     double hmax = 0, dmax = 0;
     for (int i = 0; i < n2; i++) {
       int f = P->pat->dof[i];
-      if (f < 0)
-        continue;
+      if (f < 0) continue;
       double fdv = 0;
       for (int w = 0; w < 3; w++)
-        fdv += COMBO[c][w] * (gp[(size_t)w * n2 + i] - gm[(size_t)w * n2 + i]) /
-               (2 * delta);
+        fdv += COMBO[c][w] * (gp[(size_t)w * n2 + i] - gm[(size_t)w * n2 + i]) / (2 * delta);
       hmax = fmax(hmax, fabs(Hx[f]));
       dmax = fmax(dmax, fabs(fdv - Hx[f]));
     }
@@ -563,36 +509,28 @@ static void test_hessian_direction(void **state) {
   }
   /* step objective: Hess J = K(X) + dt Hess E; grad J = K(X)(y - X) + dt gE */
   assert_int_equal(ves_model_dissipation(P->s->model, P->X, kblk), VES_OK);
-  for (size_t t = 0; t < blk_len(P); t++)
-    kblk[t] += dt * H1[0][t];
+  for (size_t t = 0; t < blk_len(P); t++) kblk[t] += dt * H1[0][t];
   blk_apply(P, kblk, v, x, Hx);
   assert_int_equal(ves_model_dissipation(P->s->model, P->X, kblk), VES_OK);
   ves_pattern_extract(P->pat, kblk, v);
   double *dpf = xmalloc(nf), *dmf = xmalloc(nf), *dfull = xmalloc(n2);
-  for (int i = 0; i < n2; i++)
-    dfull[i] = yp[i] - P->X[i];
+  for (int i = 0; i < n2; i++) dfull[i] = yp[i] - P->X[i];
   to_free(P, dfull, dpf);
-  for (int i = 0; i < n2; i++)
-    dfull[i] = ym[i] - P->X[i];
+  for (int i = 0; i < n2; i++) dfull[i] = ym[i] - P->X[i];
   to_free(P, dfull, dmf);
   ves_pattern_symv(P->pat, v, dpf, Kx);
-  ves_pattern_symv(P->pat, v, dmf,
-                   dfull); /* dfull reused: K (ym - X), nf entries */
+  ves_pattern_symv(P->pat, v, dmf, dfull); /* dfull reused: K (ym - X), nf entries */
   double hmax = 0, dmax = 0;
   for (int i = 0; i < n2; i++) {
     int f = P->pat->dof[i];
-    if (f < 0)
-      continue;
-    double fdv =
-        (Kx[f] - dfull[f]) / (2 * delta) + dt * (gp[i] - gm[i]) / (2 * delta);
+    if (f < 0) continue;
+    double fdv = (Kx[f] - dfull[f]) / (2 * delta) + dt * (gp[i] - gm[i]) / (2 * delta);
     hmax = fmax(hmax, fabs(Hx[f]));
     dmax = fmax(dmax, fabs(fdv - Hx[f]));
   }
-  printf("# H x vs FD along random x, step objective J: rel error %.2e\n",
-         dmax / hmax);
+  printf("# H x vs FD along random x, step objective J: rel error %.2e\n", dmax / hmax);
   assert_true(dmax <= FD_REL * hmax);
-  free(x), free(xfull), free(yp), free(ym), free(gp), free(gm), free(v),
-      free(Hx);
+  free(x), free(xfull), free(yp), free(ym), free(gp), free(gm), free(v), free(Hx);
   free(kblk), free(Kx), free(dpf), free(dmf), free(dfull);
 }
 
@@ -600,8 +538,7 @@ static void test_hessian_direction(void **state) {
  * definition (DESIGN.md §1, paper Appendix A):
  *   Diss = 2 pi sum_alpha w [mu |d|^2 + (lambda/2)(div v)^2] r det F,
  *   L = Fdot F^-1, |d|^2 = |sym L|^2 + (rdot/r)^2, div v = tr L + rdot/r. */
-static double dissipation_direct(const problem *P, const double *y,
-                                 const double *vel) {
+static double dissipation_direct(const problem *P, const double *y, const double *vel) {
   const ves_quad *q = P->s->quad;
   const double mu = P->cfg.mu, lambda = P->cfg.lambda_ratio * P->cfg.mu;
   double sum = 0;
@@ -610,18 +547,14 @@ static double dissipation_direct(const problem *P, const double *y,
     point_q(q, y, al, qy);
     point_q(q, vel, al, qv);
     const double r = qy[VES_Q_R], det = q_det(qy);
-    const double Fi[4] = {qy[VES_Q_FZZ] / det, -qy[VES_Q_FRZ] / det,
-                          -qy[VES_Q_FZR] / det,
+    const double Fi[4] = {qy[VES_Q_FZZ] / det, -qy[VES_Q_FRZ] / det, -qy[VES_Q_FZR] / det,
                           qy[VES_Q_FRR] / det}; /* F^-1, rows I, columns i */
-    const double Fd[4] = {qv[VES_Q_FRR], qv[VES_Q_FRZ], qv[VES_Q_FZR],
-                          qv[VES_Q_FZZ]};
+    const double Fd[4] = {qv[VES_Q_FRR], qv[VES_Q_FRZ], qv[VES_Q_FZR], qv[VES_Q_FZZ]};
     double L[4];
     for (int i = 0; i < 2; i++)
-      for (int j = 0; j < 2; j++)
-        L[2 * i + j] = Fd[2 * i] * Fi[j] + Fd[2 * i + 1] * Fi[2 + j];
+      for (int j = 0; j < 2; j++) L[2 * i + j] = Fd[2 * i] * Fi[j] + Fd[2 * i + 1] * Fi[2 + j];
     const double rr = qv[VES_Q_R] / r;
-    const double d2 = L[0] * L[0] + L[3] * L[3] +
-                      0.5 * (L[1] + L[2]) * (L[1] + L[2]) + rr * rr;
+    const double d2 = L[0] * L[0] + L[3] * L[3] + 0.5 * (L[1] + L[2]) * (L[1] + L[2]) + rr * rr;
     const double dv = L[0] + L[3] + rr;
     sum += q->w[al] * (mu * d2 + 0.5 * lambda * dv * dv) * r * det;
   }
@@ -641,8 +574,8 @@ static void test_dissipation(void **state) {
   double *blk = xmalloc(blk_len(P)), *v = xmalloc((size_t)P->pat->nnz);
   assert_int_equal(ves_model_dissipation(P->s->model, P->y, blk), VES_OK);
   ves_pattern_extract(P->pat, blk, v);
-  double *vel = xmalloc(n2), *wel = xmalloc(n2), *sum = xmalloc(n2),
-         *vf = xmalloc(nf), *wf = xmalloc(nf), *Kv = xmalloc(nf);
+  double *vel = xmalloc(n2), *wel = xmalloc(n2), *sum = xmalloc(n2), *vf = xmalloc(nf),
+         *wf = xmalloc(nf), *Kv = xmalloc(nf);
   double err = 0, perr = 0, minq = INFINITY;
   for (int trial = 0; trial < 4; trial++) {
     for (int i = 0; i < n2; i++) {
@@ -653,19 +586,15 @@ static void test_dissipation(void **state) {
     to_free(P, wel, wf);
     ves_pattern_symv(P->pat, v, vf, Kv);
     double vKv = 0, wKv = 0;
-    for (int j = 0; j < nf; j++)
-      vKv += vf[j] * Kv[j], wKv += wf[j] * Kv[j];
+    for (int j = 0; j < nf; j++) vKv += vf[j] * Kv[j], wKv += wf[j] * Kv[j];
     const double D = dissipation_direct(P, P->y, vel);
     err = fmax(err, fabs(0.5 * vKv - D) / D);
     minq = fmin(minq, vKv);
-    for (int i = 0; i < n2; i++)
-      sum[i] = vel[i] + wel[i];
+    for (int i = 0; i < n2; i++) sum[i] = vel[i] + wel[i];
     const double Dp = dissipation_direct(P, P->y, sum);
-    for (int i = 0; i < n2; i++)
-      sum[i] = vel[i] - wel[i];
+    for (int i = 0; i < n2; i++) sum[i] = vel[i] - wel[i];
     const double Dm = dissipation_direct(P, P->y, sum);
-    perr = fmax(perr, fabs(0.5 * (Dp - Dm) - wKv) /
-                          (Dp + Dm)); /* scale: |v|^2 + |w|^2 terms */
+    perr = fmax(perr, fabs(0.5 * (Dp - Dm) - wKv) / (Dp + Dm)); /* scale: |v|^2 + |w|^2 terms */
   }
   printf("# K: (1/2) v^T K v vs direct dissipation: rel error %.2e; "
          "polarization %.2e; "
@@ -686,8 +615,7 @@ static void test_dissipation(void **state) {
   double anorm = LAPACKE_dlansy(LAPACK_COL_MAJOR, '1', 'L', nf, Kd, nf);
   lapack_int info = LAPACKE_dpotrf(LAPACK_COL_MAJOR, 'L', nf, Kd, nf);
   double rcond = 0;
-  if (info == 0)
-    LAPACKE_dpocon(LAPACK_COL_MAJOR, 'L', nf, Kd, nf, anorm, &rcond);
+  if (info == 0) LAPACKE_dpocon(LAPACK_COL_MAJOR, 'L', nf, Kd, nf, anorm, &rcond);
   printf("# K_ff (%d x %d): Cholesky info = %d, 1-norm %.3e, rcond estimate "
          "%.2e\n",
          nf, nf, (int)info, anorm, rcond);
@@ -695,8 +623,7 @@ static void test_dissipation(void **state) {
   /* a numerically safe factorization: rcond far above 1e-16 */
   assert_true(rcond > 1e-12);
   free(Kd);
-  free(blk), free(v), free(vel), free(wel), free(sum), free(vf), free(wf),
-      free(Kv);
+  free(blk), free(v), free(vel), free(wel), free(sum), free(vf), free(wf), free(Kv);
 }
 
 /* Rigid translation along z of ALL nodes (walls included) leaves E, A, V
@@ -716,22 +643,17 @@ static void test_translation_invariance(void **state) {
   for (int b = 0; b < 2; b++)
     for (int s = 0; s < 2; s++) {
       double E0, A0, V0, E1, A1, V1;
-      assert_int_equal(ves_model_eval(P->s->model, base[b], 7, &E0, &A0, &V0,
-                                      NULL, NULL, NULL),
+      assert_int_equal(ves_model_eval(P->s->model, base[b], 7, &E0, &A0, &V0, NULL, NULL, NULL),
                        VES_OK);
       for (int a = 0; a < P->n; a++)
-        yt[2 * a] = base[b][2 * a],
-               yt[2 * a + 1] = base[b][2 * a + 1] + shift[s];
-      assert_int_equal(
-          ves_model_eval(P->s->model, yt, 7, &E1, &A1, &V1, NULL, NULL, NULL),
-          VES_OK);
-      const double e = fmax(fabs(E1 - E0) / E0,
-                            fmax(fabs(A1 - A0) / A0, fabs(V1 - V0) / V0));
+        yt[2 * a] = base[b][2 * a], yt[2 * a + 1] = base[b][2 * a + 1] + shift[s];
+      assert_int_equal(ves_model_eval(P->s->model, yt, 7, &E1, &A1, &V1, NULL, NULL, NULL), VES_OK);
+      const double e = fmax(fabs(E1 - E0) / E0, fmax(fabs(A1 - A0) / A0, fabs(V1 - V0) / V0));
       printf("# translation t = %+.2f of the %s state: |dE|/E = %.1e, |dA|/A = "
              "%.1e, |dV|/V = "
              "%.1e\n",
-             shift[s], b ? "deformed" : "reference", fabs(E1 - E0) / E0,
-             fabs(A1 - A0) / A0, fabs(V1 - V0) / V0);
+             shift[s], b ? "deformed" : "reference", fabs(E1 - E0) / E0, fabs(A1 - A0) / A0,
+             fabs(V1 - V0) / V0);
       worst = fmax(worst, e);
     }
   assert_true(worst <= 1e-12);
@@ -771,50 +693,39 @@ static void test_locality(void **state) {
     const double w = (1 - (R / LR) * (R / LR)) * (1 - (Z / LZ) * (Z / LZ));
     y[2 * a] = R + 1.5 * ramp * w * R * cos(Z);
     y[2 * a + 1] = Z + 1.5 * ramp * w * sin(2 * Z + R * R);
-    if (P->pat->dof[2 * a] < 0)
-      y[2 * a] = R;
-    if (P->pat->dof[2 * a + 1] < 0)
-      y[2 * a + 1] = Z;
-    if (y[2 * a] != R || y[2 * a + 1] != Z)
-      moved[a] = 1, nmoved++;
+    if (P->pat->dof[2 * a] < 0) y[2 * a] = R;
+    if (P->pat->dof[2 * a + 1] < 0) y[2 * a + 1] = Z;
+    if (y[2 * a] != R || y[2 * a + 1] != Z) moved[a] = 1, nmoved++;
   }
   double detmin, rmin;
   min_det_r(P, y, &detmin, &rmin);
   double umax = 0;
-  for (int i = 0; i < n2; i++)
-    umax = fmax(umax, fabs(y[i] - P->X[i]));
+  for (int i = 0; i < n2; i++) umax = fmax(umax, fabs(y[i] - P->X[i]));
 
   /* affected points and the bound */
   const ves_quad *q = P->s->quad;
-  ves_model_local_par lp = {
-      .eps = P->cfg.epsilon, .C0 = P->cfg.c0, .mu = 1, .lambda = 100};
+  ves_model_local_par lp = {.eps = P->cfg.epsilon, .C0 = P->cfg.c0, .mu = 1, .lambda = 100};
   double *fld = xmalloc(6 * (size_t)q->nq);
   ves_quad_field(q, P->s->phi0c, 2, fld);
   double bE = 0, bA = 0, bV = 0, dmin = INFINITY;
   int naff = 0;
   for (int al = 0; al < q->nq; al++) {
     int hit = 0;
-    for (int k = q->ptr[al]; k < q->ptr[al + 1]; k++)
-      hit |= moved[q->nbr[k]];
-    if (!hit)
-      continue;
+    for (int k = q->ptr[al]; k < q->ptr[al + 1]; k++) hit |= moved[q->nbr[k]];
+    if (!hit) continue;
     naff++;
     dmin = fmin(dmin, fabs(ves_shape_distance(P->s->shape, q->x + 2 * al)));
-    ves_model_point pt = {
-        .phi0 = fld[6 * al],
-        .dphi0 = {fld[6 * al + 1], fld[6 * al + 2]},
-        .ddphi0 = {fld[6 * al + 3], fld[6 * al + 4], fld[6 * al + 5]}};
+    ves_model_point pt = {.phi0 = fld[6 * al],
+                          .dphi0 = {fld[6 * al + 1], fld[6 * al + 2]},
+                          .ddphi0 = {fld[6 * al + 3], fld[6 * al + 4], fld[6 * al + 5]}};
     for (int st = 0; st < 2; st++) {
       double qq[VES_NQ], e;
       point_q(q, st ? y : P->X, al, qq);
-      assert_int_equal(ves_model_local_energy(&lp, &pt, qq, &e, NULL, NULL),
-                       VES_OK);
+      assert_int_equal(ves_model_local_energy(&lp, &pt, qq, &e, NULL, NULL), VES_OK);
       bE += q->w[al] * fabs(e);
-      assert_int_equal(ves_model_local_area(&lp, &pt, qq, &e, NULL, NULL),
-                       VES_OK);
+      assert_int_equal(ves_model_local_area(&lp, &pt, qq, &e, NULL, NULL), VES_OK);
       bA += q->w[al] * fabs(e);
-      assert_int_equal(ves_model_local_volume(&lp, &pt, qq, &e, NULL, NULL),
-                       VES_OK);
+      assert_int_equal(ves_model_local_volume(&lp, &pt, qq, &e, NULL, NULL), VES_OK);
       bV += q->w[al] * fabs(e);
     }
   }
@@ -823,12 +734,8 @@ static void test_locality(void **state) {
   bV *= 2 * M_PI;
 
   double E0, A0, V0, E1, A1, V1;
-  assert_int_equal(
-      ves_model_eval(P->s->model, P->X, 7, &E0, &A0, &V0, NULL, NULL, NULL),
-      VES_OK);
-  assert_int_equal(
-      ves_model_eval(P->s->model, y, 7, &E1, &A1, &V1, NULL, NULL, NULL),
-      VES_OK);
+  assert_int_equal(ves_model_eval(P->s->model, P->X, 7, &E0, &A0, &V0, NULL, NULL, NULL), VES_OK);
+  assert_int_equal(ves_model_eval(P->s->model, y, 7, &E1, &A1, &V1, NULL, NULL, NULL), VES_OK);
   printf("# locality (P2: n = %d): %d nodes moved (max |u| = %.3f, min det F = "
          "%.3f), %d points "
          "affected, min |d| there = %.3f = %.1f eps\n",
@@ -836,10 +743,8 @@ static void test_locality(void **state) {
   printf("#   |dE|/E = %.1e (tail bound %.1e), |dA|/A = %.1e (tail bound "
          "%.1e), |dV|/V = %.1e "
          "(tail bound %.1e)\n",
-         fabs(E1 - E0) / E0, bE / E0, fabs(A1 - A0) / A0, bA / A0,
-         fabs(V1 - V0) / V0, bV / V0);
-  assert_true(nmoved > 20 && naff > 100 &&
-              umax > 0.03); /* a real far-field motion */
+         fabs(E1 - E0) / E0, bE / E0, fabs(A1 - A0) / A0, bA / A0, fabs(V1 - V0) / V0, bV / V0);
+  assert_true(nmoved > 20 && naff > 100 && umax > 0.03); /* a real far-field motion */
   assert_true(detmin > 0.5);
   assert_true(fabs(E1 - E0) <= bE + 1e-13 * E0);
   assert_true(fabs(A1 - A0) <= bA + 1e-13 * A0);
@@ -902,8 +807,7 @@ static void reference_assembly(const problem *P, const ves_model_local_par *lp, 
     for (int k = 0; k < m; k++) {
       const double sg = mir[k] ? -1.0 : 1.0;
       for (int l = 0; l < m; l++) {
-        if (nb[k] < nb[l])
-          continue;
+        if (nb[k] < nb[l]) continue;
         const long pos = ves_pattern_find(P->pat, nb[k], nb[l]);
         assert_true(pos >= 0);
         const double *hr = Hr + (size_t)VES_NQ * l, *hz = Hz + (size_t)VES_NQ * l;
@@ -930,10 +834,12 @@ static void reference_assembly(const problem *P, const ves_model_local_par *lp, 
 static void test_assembly_reference(void **state) {
   (void)state;
   problem *P = P1;
-  const ves_model_params par = {.eps = P->cfg.epsilon, .c0 = P->cfg.c0, .k = P->cfg.k,
-                                .mu = P->cfg.mu, .lambda = P->cfg.lambda_ratio * P->cfg.mu};
-  const ves_model_local_par lp = {.eps = par.eps, .C0 = par.c0, .mu = par.mu,
-                                  .lambda = par.lambda};
+  const ves_model_params par = {.eps = P->cfg.epsilon,
+                                .c0 = P->cfg.c0,
+                                .k = P->cfg.k,
+                                .mu = P->cfg.mu,
+                                .lambda = P->cfg.lambda_ratio * P->cfg.mu};
+  const ves_model_local_par lp = {.eps = par.eps, .C0 = par.c0, .mu = par.mu, .lambda = par.lambda};
   const size_t len = blk_len(P), n2 = 2 * (size_t)P->n;
   double *fld = xmalloc(6 * (size_t)P->s->quad->nq), *ref = xmalloc(len);
   double *blk[2] = {xmalloc(len), xmalloc(len)}, *g[2] = {xmalloc(3 * n2), xmalloc(3 * n2)};
@@ -958,8 +864,8 @@ static void test_assembly_reference(void **state) {
       else
         assert_int_equal(ves_model_hessian(m, P->y, COMBO[3][0], COMBO[3][1], COMBO[3][2], b),
                          VES_OK);
-      assert_int_equal(ves_model_eval(m, P->y, 7, val[nt - 1], val[nt - 1] + 1, val[nt - 1] + 2,
-                                      gg, gg + n2, gg + 2 * n2),
+      assert_int_equal(ves_model_eval(m, P->y, 7, val[nt - 1], val[nt - 1] + 1, val[nt - 1] + 2, gg,
+                                      gg + n2, gg + 2 * n2),
                        VES_OK);
       ves_model_destroy(&m);
       double dmax = 0;
@@ -992,20 +898,16 @@ static void test_errors(void **state) {
    * (0.6, 0.3): dz/dZ = -1 at its centre */
   for (int a = 0; a < P->n; a++) {
     const double R = P->X[2 * a], Z = P->X[2 * a + 1];
-    const double b =
-        exp(-((R - 0.6) * (R - 0.6) + (Z - 0.3) * (Z - 0.3)) / (0.15 * 0.15));
+    const double b = exp(-((R - 0.6) * (R - 0.6) + (Z - 0.3) * (Z - 0.3)) / (0.15 * 0.15));
     y[2 * a] = R, y[2 * a + 1] = Z - 2 * (Z - 0.3) * b;
   }
   fix_dofs(P, y);
   min_det_r(P, y, &detmin, &rmin);
   assert_true(detmin <= 0);
-  assert_int_equal(
-      ves_model_eval(P->s->model, y, VES_F_V, NULL, NULL, &E, NULL, NULL, NULL),
-      VES_ERR_DOMAIN);
-  assert_int_equal(ves_model_eval(P->s->model, y, 7, &E, &E, &E, g, NULL, NULL),
+  assert_int_equal(ves_model_eval(P->s->model, y, VES_F_V, NULL, NULL, &E, NULL, NULL, NULL),
                    VES_ERR_DOMAIN);
-  assert_int_equal(ves_model_hessian(P->s->model, y, 1, 1, 1, blk),
-                   VES_ERR_DOMAIN);
+  assert_int_equal(ves_model_eval(P->s->model, y, 7, &E, &E, &E, g, NULL, NULL), VES_ERR_DOMAIN);
+  assert_int_equal(ves_model_hessian(P->s->model, y, 1, 1, 1, blk), VES_ERR_DOMAIN);
   assert_int_equal(ves_model_dissipation(P->s->model, y, blk), VES_ERR_DOMAIN);
   double *W = xmalloc((size_t)P->s->quad->nq);
   assert_int_equal(ves_model_pointwise_W(P->s->model, y, W), VES_ERR_DOMAIN);
@@ -1013,47 +915,35 @@ static void test_errors(void **state) {
   /* r through the axis: r -> R (1 - 1.5 b(X)), b a bump at (0.05, -0.2) */
   for (int a = 0; a < P->n; a++) {
     const double R = P->X[2 * a], Z = P->X[2 * a + 1];
-    const double b =
-        exp(-((R - 0.05) * (R - 0.05) + (Z + 0.2) * (Z + 0.2)) / (0.2 * 0.2));
+    const double b = exp(-((R - 0.05) * (R - 0.05) + (Z + 0.2) * (Z + 0.2)) / (0.2 * 0.2));
     y[2 * a] = R * (1 - 1.5 * b), y[2 * a + 1] = Z;
   }
   fix_dofs(P, y);
   min_det_r(P, y, &detmin, &rmin);
   assert_true(rmin <= 0);
-  assert_int_equal(
-      ves_model_eval(P->s->model, y, VES_F_A, NULL, &E, NULL, NULL, NULL, NULL),
-      VES_ERR_DOMAIN);
+  assert_int_equal(ves_model_eval(P->s->model, y, VES_F_A, NULL, &E, NULL, NULL, NULL, NULL),
+                   VES_ERR_DOMAIN);
 
   /* the deformed state still evaluates after the failures (no stale state) */
   double E1, E2;
-  assert_int_equal(ves_model_eval(P->s->model, P->y, VES_F_E, &E1, NULL, NULL,
-                                  NULL, NULL, NULL),
+  assert_int_equal(ves_model_eval(P->s->model, P->y, VES_F_E, &E1, NULL, NULL, NULL, NULL, NULL),
                    VES_OK);
   assert_int_equal(ves_model_pointwise_W(P->s->model, P->y, W), VES_OK);
-  assert_int_equal(ves_model_eval(P->s->model, P->y, VES_F_E, &E2, NULL, NULL,
-                                  NULL, NULL, NULL),
+  assert_int_equal(ves_model_eval(P->s->model, P->y, VES_F_E, &E2, NULL, NULL, NULL, NULL, NULL),
                    VES_OK);
   assert_true(E1 == E2);
 
   /* argument errors */
-  assert_int_equal(ves_model_eval(NULL, P->y, 7, &E, &E, &E, NULL, NULL, NULL),
-                   VES_ERR_ARG);
-  assert_int_equal(
-      ves_model_eval(P->s->model, NULL, 7, &E, &E, &E, NULL, NULL, NULL),
-      VES_ERR_ARG);
-  assert_int_equal(ves_model_hessian(P->s->model, P->y, 1, 1, 1, NULL),
-                   VES_ERR_ARG);
+  assert_int_equal(ves_model_eval(NULL, P->y, 7, &E, &E, &E, NULL, NULL, NULL), VES_ERR_ARG);
+  assert_int_equal(ves_model_eval(P->s->model, NULL, 7, &E, &E, &E, NULL, NULL, NULL), VES_ERR_ARG);
+  assert_int_equal(ves_model_hessian(P->s->model, P->y, 1, 1, 1, NULL), VES_ERR_ARG);
   assert_int_equal(ves_model_dissipation(P->s->model, NULL, blk), VES_ERR_ARG);
   ves_model *bad = (ves_model *)1;
   ves_model_params par = {.eps = 0, .c0 = 0, .k = 1, .mu = 1, .lambda = 100};
-  assert_int_equal(
-      ves_model_create(P->s->nodes, P->s->quad, P->s->phi0c, &par, &bad),
-      VES_ERR_ARG);
+  assert_int_equal(ves_model_create(P->s->nodes, P->s->quad, P->s->phi0c, &par, &bad), VES_ERR_ARG);
   assert_null(bad);
   par.eps = 0.1, par.k = -1;
-  assert_int_equal(
-      ves_model_create(P->s->nodes, P->s->quad, P->s->phi0c, &par, &bad),
-      VES_ERR_ARG);
+  assert_int_equal(ves_model_create(P->s->nodes, P->s->quad, P->s->phi0c, &par, &bad), VES_ERR_ARG);
   ves_model_destroy(&bad); /* accepts NULL */
   ves_model_destroy(NULL);
   free(y), free(g), free(blk), free(W);
@@ -1093,8 +983,11 @@ static void test_drift_damping(void **state) {
   problem *P = P1;
   const int n = P->n, n2 = 2 * n;
   const double alpha = 0.7;
-  const ves_model_params par = {.eps = P->cfg.epsilon, .c0 = P->cfg.c0, .k = P->cfg.k,
-                                .mu = P->cfg.mu, .lambda = P->cfg.lambda_ratio * P->cfg.mu,
+  const ves_model_params par = {.eps = P->cfg.epsilon,
+                                .c0 = P->cfg.c0,
+                                .k = P->cfg.k,
+                                .mu = P->cfg.mu,
+                                .lambda = P->cfg.lambda_ratio * P->cfg.mu,
                                 .drift = alpha};
   const ves_quad *q = P->s->quad;
   ves_model *m = NULL;
@@ -1129,7 +1022,7 @@ static void test_drift_damping(void **state) {
          LR * LR * LZ, Mmin);
   assert_true(fabs(Msum - Mref) <= 1e-12 * Mref);
   assert_true(fabs(Mref - LR * LR * LZ) <= 1e-12 * Mref); /* degree-4 rule, R linear */
-  assert_true(Mmin > 0);                                 /* the axis nodes too */
+  assert_true(Mmin > 0);                                  /* the axis nodes too */
   double *u = xmalloc(n2);
   uint64_t rng = 0x2545F4914F6CDD1DULL;
   double qs_random = 0;
@@ -1148,8 +1041,7 @@ static void test_drift_damping(void **state) {
     double ref = 0;
     for (int a = 0; a < n; a++) {
       double out[12];
-      if (P->s->nodes->flag[a] & VES_NODE_WALL)
-        continue; /* fixed nodes: no term */
+      if (P->s->nodes->flag[a] & VES_NODE_WALL) continue; /* fixed nodes: no term */
       ves_quad_motion(qn, u, a, 0, out);
       const double dr = u[2 * a] - out[0], dz = u[2 * a + 1] - out[6];
       const double h = P->s->nodes->h[a];
@@ -1157,8 +1049,10 @@ static void test_drift_damping(void **state) {
     }
     const double qd = blk_quadratic(pd, Kd, u), q0 = blk_quadratic(P->pat, K0, u);
     printf("# %s motion: u^T S u = %.6e (reference %.6e), u^T K_0 u = %.6e, ratio S/K_0 %.3e\n",
-           kind == 0 ? "random" : kind == 1 ? "affine" : "smooth", qd - q0, ref, q0,
-           (qd - q0) / q0);
+           kind == 0   ? "random"
+           : kind == 1 ? "affine"
+                       : "smooth",
+           qd - q0, ref, q0, (qd - q0) / q0);
     if (kind == 0) {
       qs_random = ref;
       assert_true(fabs((qd - q0) - ref) <= 1e-10 * (fabs(q0) + ref));
@@ -1288,6 +1182,7 @@ static void test_stabilization(void **state) {
 
 int main(void) {
   setvbuf(stdout, NULL, _IOLBF, 0);
+  // clang-format off
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_state_and_repeatability),
       cmocka_unit_test(test_gradients),
@@ -1301,5 +1196,6 @@ int main(void) {
       cmocka_unit_test(test_assembly_reference),
       cmocka_unit_test(test_errors),
   };
+  // clang-format on
   return cmocka_run_group_tests(tests, group_setup, group_teardown);
 }

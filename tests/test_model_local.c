@@ -33,18 +33,15 @@ static double srand1(uint64_t *s) { return 2.0 * urand(s) - 1.0; }
  * |d2 phi0| entries <= 1/eps^2. */
 static void random_state(uint64_t *s, double q[NQ], ves_model_point *pt) {
   do {
-    for (int a = 0; a < 4; a++)
-      q[1 + a] = (a == 0 || a == 3 ? 1.0 : 0.0) + 0.4 * srand1(s);
+    for (int a = 0; a < 4; a++) q[1 + a] = (a == 0 || a == 3 ? 1.0 : 0.0) + 0.4 * srand1(s);
   } while (q[1] * q[4] - q[2] * q[3] < 0.5);
-  for (int c = 0; c < 6; c++)
-    q[5 + c] = 5.0 * srand1(s);
+  for (int c = 0; c < 6; c++) q[5 + c] = 5.0 * srand1(s);
   q[0] = exp(log(1e-2) + urand(s) * (log(2.0) - log(1e-2)));
   pt->phi0 = 0.999 * srand1(s);
   const double th = 6.283185307179586 * urand(s), mag = urand(s) / EPS;
   pt->dphi0[0] = mag * cos(th);
   pt->dphi0[1] = mag * sin(th);
-  for (int c = 0; c < 3; c++)
-    pt->ddphi0[c] = srand1(s) / (EPS * EPS);
+  for (int c = 0; c < 3; c++) pt->ddphi0[c] = srand1(s) / (EPS * EPS);
 }
 
 /* Scale of each variable for the finite-difference step and the error norm:
@@ -52,10 +49,8 @@ static void random_state(uint64_t *s, double q[NQ], ves_model_point *pt) {
  * max(1, |G|) for G. */
 static void var_scale(const double q[NQ], double sc[NQ]) {
   sc[0] = q[0];
-  for (int a = 1; a < 5; a++)
-    sc[a] = 1.0;
-  for (int c = 5; c < NQ; c++)
-    sc[c] = fmax(1.0, fabs(q[c]));
+  for (int a = 1; a < 5; a++) sc[a] = 1.0;
+  for (int c = 5; c < NQ; c++) sc[c] = fmax(1.0, fabs(q[c]));
 }
 
 typedef struct {
@@ -108,8 +103,7 @@ static void fd_check(ves_model_local_fn *fn, const ves_model_local_par *par,
   }
   double asym = 0.0;
   for (int i = 0; i < NQ; i++)
-    for (int j = 0; j < NQ; j++)
-      asym = fmax(asym, fabs(H[i * NQ + j] - H[j * NQ + i]));
+    for (int j = 0; j < NQ; j++) asym = fmax(asym, fabs(H[i * NQ + j] - H[j * NQ + i]));
   rep->grad = fmax(rep->grad, sqrt(gerr / gnorm));
   rep->hess = fmax(rep->hess, sqrt(herr / hnorm));
   rep->hess_col = fmax(rep->hess_col, colw);
@@ -222,8 +216,7 @@ static void test_identity_state(void **state) {
        entries by |s|/eps, each a product of a few roundings */
     const double s = 2.0 * W * par.eps * r;
     const double dG[6] = {-p[0], 0.0, -p[0], -p[1], 0.0, -p[1]};
-    for (int c = 0; c < 6; c++)
-      assert_true(fabs(g[5 + c] - s * dG[c]) <= 1e-14 * fabs(s) / EPS);
+    for (int c = 0; c < 6; c++) assert_true(fabs(g[5 + c] - s * dG[c]) <= 1e-14 * fabs(s) / EPS);
     /* dE/dr = 2 W eps r dLap/dr + W^2 (dP/dr = det F = 1) */
     assert_true(fabs(g[0] - (s * (-p[0] / (r * r)) + W * W)) <=
                 1e-14 * (fabs(s * p[0] / (r * r)) + W * W));
@@ -309,8 +302,7 @@ static double phi_at(const double F[4], const double G[6], const ves_model_point
     const double dx1 = (-A[2] * res[0] + A[0] * res[1]) / dA;
     X[0] -= dx0;
     X[1] -= dx1;
-    if (fabs(dx0) + fabs(dx1) < 1e-17)
-      break;
+    if (fabs(dx0) + fabs(dx1) < 1e-17) break;
   }
   const double *p = pt->dphi0, *S = pt->ddphi0;
   return pt->phi0 + p[0] * X[0] + p[1] * X[1] +
@@ -324,11 +316,9 @@ static void test_lap_pushforward(void **state) {
   for (int t = 0; t < 20; t++) {
     double q[NQ];
     do {
-      for (int a = 0; a < 4; a++)
-        q[1 + a] = (a == 0 || a == 3 ? 1.0 : 0.0) + 0.4 * srand1(&seed);
+      for (int a = 0; a < 4; a++) q[1 + a] = (a == 0 || a == 3 ? 1.0 : 0.0) + 0.4 * srand1(&seed);
     } while (q[1] * q[4] - q[2] * q[3] < 0.5);
-    for (int c = 0; c < 6; c++)
-      q[5 + c] = srand1(&seed);
+    for (int c = 0; c < 6; c++) q[5 + c] = srand1(&seed);
     q[0] = 0.3 + urand(&seed);
     ves_model_point pt = {0.3 * srand1(&seed),
                           {srand1(&seed), srand1(&seed)},
@@ -368,12 +358,10 @@ static double diss_ref(const ves_model_local_par *par, const double q[NQ], const
   const double Fd[2][2] = {{qd[1], qd[2]}, {qd[3], qd[4]}};
   double L[2][2];
   for (int i = 0; i < 2; i++)
-    for (int j = 0; j < 2; j++)
-      L[i][j] = Fd[i][0] * Fi[0][j] + Fd[i][1] * Fi[1][j];
+    for (int j = 0; j < 2; j++) L[i][j] = Fd[i][0] * Fi[0][j] + Fd[i][1] * Fi[1][j];
   double d2 = 0.0;
   for (int i = 0; i < 2; i++)
-    for (int j = 0; j < 2; j++)
-      d2 += 0.25 * pow(L[i][j] + L[j][i], 2);
+    for (int j = 0; j < 2; j++) d2 += 0.25 * pow(L[i][j] + L[j][i], 2);
   const double s = qd[0] / q[0];
   d2 += s * s;
   const double dv = L[0][0] + L[1][1] + s;
@@ -383,8 +371,7 @@ static double diss_ref(const ves_model_local_par *par, const double q[NQ], const
 static double quad_form(const double D[25], const double x[5]) {
   double v = 0.0;
   for (int i = 0; i < 5; i++)
-    for (int j = 0; j < 5; j++)
-      v += x[i] * D[5 * i + j] * x[j];
+    for (int j = 0; j < 5; j++) v += x[i] * D[5 * i + j] * x[j];
   return 0.5 * v;
 }
 
@@ -409,11 +396,9 @@ static void test_dissip(void **state) {
     random_state(&seed, q, &pt);
     assert_int_equal(ves_model_local_dissip(&par, q, D), VES_OK);
     double dmax = 0.0;
-    for (int i = 0; i < 25; i++)
-      dmax = fmax(dmax, fabs(D[i]));
+    for (int i = 0; i < 25; i++) dmax = fmax(dmax, fabs(D[i]));
     for (int i = 0; i < 5; i++)
-      for (int j = 0; j < 5; j++)
-        assert_true(D[5 * i + j] == D[5 * j + i]);
+      for (int j = 0; j < 5; j++) assert_true(D[5 * i + j] == D[5 * j + i]);
     /* second differences of the reference quadratic form, step h_k = scale */
     const double sc[5] = {q[0], 1.0, 1.0, 1.0, 1.0};
     for (int i = 0; i < 5; i++)
@@ -449,8 +434,7 @@ static void test_dissip(void **state) {
     double C[25];
     memcpy(C, D, sizeof C);
     for (int i = 0; i < 5; i++)
-      for (int j = 0; j < 5; j++)
-        C[5 * i + j] += ev[4] * spin[i] * spin[j];
+      for (int j = 0; j < 5; j++) C[5 * i + j] += ev[4] * spin[i] * spin[j];
     assert_int_equal(LAPACKE_dpotrf(LAPACK_ROW_MAJOR, 'U', 5, C, 5), 0);
 
     const double J = q[1] * q[4] - q[2] * q[3], r = q[0];
@@ -538,6 +522,7 @@ static void test_domain_errors(void **state) {
 
 int main(void) {
   setvbuf(stdout, NULL, _IOLBF, 0); /* keep output in order with cmocka's stderr */
+  // clang-format off
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_fd_energy),       cmocka_unit_test(test_fd_area),
       cmocka_unit_test(test_fd_volume),       cmocka_unit_test(test_optional_outputs),
@@ -545,5 +530,6 @@ int main(void) {
       cmocka_unit_test(test_lap_pushforward), cmocka_unit_test(test_dissip),
       cmocka_unit_test(test_domain_errors),
   };
+  // clang-format on
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -83,6 +83,8 @@ static void test_keys(void **state) {
 }
 
 int main(void) {
+  // clang-format off
   const struct CMUnitTest tests[] = {cmocka_unit_test(test_defaults), cmocka_unit_test(test_keys)};
+  // clang-format on
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

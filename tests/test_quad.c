@@ -290,14 +290,16 @@ static void test_tables(void **state) {
     double want_s[6] = {1, 0, 0, 0, 0, 0}, want_r[6] = {X[0], 1, 0, 0, 0, 0},
            want_z[6] = {X[1], 0, 1, 0, 0, 0};
     for (int d = 0; d < 6; d++) {
-      double e = fmax(fabs(sum[d] - want_s[d]), fmax(fabs(rr[d] - want_r[d]), fabs(zz[d] - want_z[d])));
+      double e =
+          fmax(fabs(sum[d] - want_s[d]), fmax(fabs(rr[d] - want_r[d]), fabs(zz[d] - want_z[d])));
       /* second-derivative rows are O(1/h^2) per entry: scale their error by h^2 */
       double h2 = d >= 3 ? 0.05 * 0.05 : 1.0;
       if (e * h2 > worst) worst = e * h2;
     }
     intR += q->w[p] * rr[0];
   }
-  printf("# tables: worst reproduction error %.2e, points seeing ghosts %d\n", worst, near_axis_with_ghost);
+  printf("# tables: worst reproduction error %.2e, points seeing ghosts %d\n", worst,
+         near_axis_with_ghost);
   /* LME reproduces affine fields to the Newton tolerance (1e-14 h) times the
    * conditioning of the table rows: 1e-10 leaves a wide margin */
   assert_true(worst <= 1e-10);
@@ -516,6 +518,7 @@ static void test_level_set(void **state) {
 
 int main(void) {
   setvbuf(stdout, NULL, _IOLBF, 0); /* keep output in order with cmocka's stderr */
+  // clang-format off
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_rule_exact_degree4),
       cmocka_unit_test(test_rule_not_degree5),
@@ -526,5 +529,6 @@ int main(void) {
       cmocka_unit_test(test_tables_threads),
       cmocka_unit_test(test_level_set),
   };
+  // clang-format on
   return cmocka_run_group_tests_name("quad", tests, NULL, NULL);
 }

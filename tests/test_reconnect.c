@@ -717,12 +717,11 @@ static void test_next_step_deformed(void **state) {
 /* VES_RESET_NODES_MOTION: X'_a = y(X_a). Checked: z(X_a) of the non-wall
  * nodes against the even-field path (ves_quad_field on a point set at the
  * nodes; the motion goes through ves_quad_motion) to 1e-13
- * (rounding of a sum of ~20 terms of size 2); axis nodes at r = 0 exactly, every other r > 0; wall nodes at y^a;
- * the shift max |y^a - y(X_a)| / h_a the same in both modes, and 0 to
- * rounding (1e-12) on a stretch y = (1.2 R, 0.9 Z + 0.05), which the basis
- * reproduces exactly. E, A, V are preserved as with the paper's nodes
- * (1e-12), and the next step agrees with the step without a reset as
- * test_next_step_deformed requires of the paper's nodes (same bounds). */
+ * (rounding of a sum of ~20 terms of size 2); axis nodes at r = 0 exactly, every other r > 0; wall
+ * nodes at y^a; the shift max |y^a - y(X_a)| / h_a the same in both modes, and 0 to rounding
+ * (1e-12) on a stretch y = (1.2 R, 0.9 Z + 0.05), which the basis reproduces exactly. E, A, V are
+ * preserved as with the paper's nodes (1e-12), and the next step agrees with the step without a
+ * reset as test_next_step_deformed requires of the paper's nodes (same bounds). */
 static void test_motion_nodes(void **state) {
   (void)state;
   const int n = P->n, n2 = 2 * n;
@@ -1044,8 +1043,7 @@ static void test_restore(void **state) {
   (void)state;
   const int n = P->n, n2 = 2 * n;
   ves_reconnect *r1 = NULL, *rr = NULL;
-  assert_int_equal(ves_reconnect_create(P->su->model, P->yd, VES_RESET_NODES_MOTION, &r1),
-                   VES_OK);
+  assert_int_equal(ves_reconnect_create(P->su->model, P->yd, VES_RESET_NODES_MOTION, &r1), VES_OK);
   const ves_nodes *nd = ves_reconnect_nodes(r1);
   const ves_quad *q = ves_reconnect_quad(r1);
   const int nq = q->nq;
@@ -1063,12 +1061,12 @@ static void test_restore(void **state) {
   double *y2 = xmalloc((size_t)n2), *g1 = xmalloc(3 * (size_t)n2), *g2 = xmalloc(3 * (size_t)n2);
   double v1[3], v2[3];
   deform(nd, nd->x, 0.5 * AMP, y2);
-  assert_int_equal(ves_model_eval(ves_reconnect_model(r1), y2, 7, v1, v1 + 1, v1 + 2, g1, g1 + n2,
-                                  g1 + 2 * n2),
-                   VES_OK);
-  assert_int_equal(ves_model_eval(ves_reconnect_model(rr), y2, 7, v2, v2 + 1, v2 + 2, g2, g2 + n2,
-                                  g2 + 2 * n2),
-                   VES_OK);
+  assert_int_equal(
+      ves_model_eval(ves_reconnect_model(r1), y2, 7, v1, v1 + 1, v1 + 2, g1, g1 + n2, g1 + 2 * n2),
+      VES_OK);
+  assert_int_equal(
+      ves_model_eval(ves_reconnect_model(rr), y2, 7, v2, v2 + 1, v2 + 2, g2, g2 + n2, g2 + 2 * n2),
+      VES_OK);
   assert_memory_equal(v1, v2, sizeof v1);
   assert_memory_equal(g1, g2, 3 * (size_t)n2 * sizeof *g1);
   /* and the next reset from either */
@@ -1081,8 +1079,8 @@ static void test_restore(void **state) {
                       (size_t)n * sizeof(double));
   assert_memory_equal(ves_reconnect_quad(s1)->tab, ves_reconnect_quad(s2)->tab,
                       6 * (size_t)ves_reconnect_quad(s1)->ptr[nq] * sizeof(double));
-  printf("# restored reference: %d nodes, %d points, tables and model identical; E* %.12g\n", n,
-         nq, v2[0] / P->cfg.k);
+  printf("# restored reference: %d nodes, %d points, tables and model identical; E* %.12g\n", n, nq,
+         v2[0] / P->cfg.k);
   ves_reconnect_destroy(&s1), ves_reconnect_destroy(&s2);
   ves_reconnect_destroy(&rr);
   /* errors */
@@ -1094,14 +1092,12 @@ static void test_restore(void **state) {
                    VES_ERR_ARG);
   assert_null(rr);
   h[7] = 0;
-  assert_int_equal(ves_reconnect_restore(P->su->model, x, h, nq, q->x, q->w, pd, &rr),
-                   VES_ERR_ARG);
+  assert_int_equal(ves_reconnect_restore(P->su->model, x, h, nq, q->x, q->w, pd, &rr), VES_ERR_ARG);
   h[7] = nd->h[7];
   int a = 0;
   while (nd->flag[a] & VES_NODE_AXIS) a++;
   x[2 * a] = -x[2 * a];
-  assert_int_equal(ves_reconnect_restore(P->su->model, x, h, nq, q->x, q->w, pd, &rr),
-                   VES_ERR_ARG);
+  assert_int_equal(ves_reconnect_restore(P->su->model, x, h, nq, q->x, q->w, pd, &rr), VES_ERR_ARG);
   ves_reconnect_destroy(&r1);
   free(pd), free(y2), free(g1), free(g2), free(h), free(x);
 }
@@ -1114,12 +1110,10 @@ static void test_errors(void **state) {
   double *y = xmalloc(n2), c, d;
   ves_reconnect *r = (ves_reconnect *)1;
   /* arguments */
-  assert_int_equal(ves_reconnect_create(NULL, P->yd, VES_RESET_NODES_COEF, &r),
-                   VES_ERR_ARG);
+  assert_int_equal(ves_reconnect_create(NULL, P->yd, VES_RESET_NODES_COEF, &r), VES_ERR_ARG);
   assert_null(r);
   assert_int_equal(ves_reconnect_create(m, NULL, VES_RESET_NODES_COEF, &r), VES_ERR_ARG);
-  assert_int_equal(ves_reconnect_create(m, P->yd, VES_RESET_NODES_COEF, NULL),
-                   VES_ERR_ARG);
+  assert_int_equal(ves_reconnect_create(m, P->yd, VES_RESET_NODES_COEF, NULL), VES_ERR_ARG);
   assert_int_equal(ves_reconnect_create(m, P->yd, (ves_reset_nodes)2, &r), VES_ERR_ARG);
   assert_null(r);
   memcpy(y, P->yd, n2 * sizeof *y);
@@ -1212,6 +1206,7 @@ static void test_errors(void **state) {
 
 int main(void) {
   setvbuf(stdout, NULL, _IOLBF, 0);
+  // clang-format off
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_push_forward_analytic),
       cmocka_unit_test(test_composed_field_fd),
@@ -1228,5 +1223,6 @@ int main(void) {
       cmocka_unit_test(test_restore),
       cmocka_unit_test(test_errors),
   };
+  // clang-format on
   return cmocka_run_group_tests(tests, group_setup, group_teardown);
 }

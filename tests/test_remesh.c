@@ -29,8 +29,8 @@ typedef struct {
   ves_config cfg;
   ves_setup *su;
   int n;
-  double *X;  /* 2n reference positions */
-  double *yd; /* 2n a deformed state */
+  double *X;          /* 2n reference positions */
+  double *yd;         /* 2n a deformed state */
   double eav_seed[3]; /* E*, A, V of the same problem on the node set of another seed */
 } problem;
 
@@ -104,16 +104,16 @@ static void eav(ves_model *m, const double *y, double v[3]) {
 }
 
 static void print_info(const char *what, const ves_remesh_info *in) {
-  printf("# %s: nodes %d -> %d, points %d -> %d, curve %d knots, %.4f long\n"
-         "#   E* %.8f -> %.8f (dE* %+.3e), dA/A %+.3e, dV/V %+.3e before the correction\n"
-         "#   correction: %d iterations, max |delta|/h %.3e, |delta| %.3e; residuals A %.1e V %.1e\n"
-         "#   E* after %.8f; interface displacement max %.3e mean %.3e; %.2f s (interface %.2f, "
-         "nodes %.2f, tables %.2f, projection %.2f, correction %.2f)\n",
-         what, in->n_old, in->n_new, in->nq_old, in->nq_new, in->curve_points, in->curve_length,
-         in->E_old, in->E_proj, in->dE, in->dA, in->dV, in->corr_iter, in->corr_max, in->corr_norm,
-         in->res_A, in->res_V, in->E, in->disp_max, in->disp_mean, in->seconds,
-         in->seconds_interface, in->seconds_nodes, in->seconds_tables, in->seconds_project,
-         in->seconds_correct);
+  printf(
+      "# %s: nodes %d -> %d, points %d -> %d, curve %d knots, %.4f long\n"
+      "#   E* %.8f -> %.8f (dE* %+.3e), dA/A %+.3e, dV/V %+.3e before the correction\n"
+      "#   correction: %d iterations, max |delta|/h %.3e, |delta| %.3e; residuals A %.1e V %.1e\n"
+      "#   E* after %.8f; interface displacement max %.3e mean %.3e; %.2f s (interface %.2f, "
+      "nodes %.2f, tables %.2f, projection %.2f, correction %.2f)\n",
+      what, in->n_old, in->n_new, in->nq_old, in->nq_new, in->curve_points, in->curve_length,
+      in->E_old, in->E_proj, in->dE, in->dA, in->dV, in->corr_iter, in->corr_max, in->corr_norm,
+      in->res_A, in->res_V, in->E, in->disp_max, in->disp_mean, in->seconds, in->seconds_interface,
+      in->seconds_nodes, in->seconds_tables, in->seconds_project, in->seconds_correct);
 }
 
 static ves_remesh *remesh(ves_model *m, const double *y, int hold_area, int hold_volume,
@@ -141,7 +141,8 @@ static void test_interface(void **state) {
   assert_true(np > 20);
   assert_true(pts[0] == 0.0 && pts[2 * np - 2] == 0.0 && pts[1] > pts[2 * np - 1]);
   double dmax = 0;
-  for (int i = 0; i < np; i++) dmax = fmax(dmax, fabs(ves_shape_distance(P->su->shape, pts + 2 * i)));
+  for (int i = 0; i < np; i++)
+    dmax = fmax(dmax, fabs(ves_shape_distance(P->su->shape, pts + 2 * i)));
   printf("# interface: %d points, max distance from the exact curve %.3e (eps %.2f)\n", np, dmax,
          P->cfg.epsilon);
   free(pts);
@@ -242,8 +243,8 @@ static void test_restore(void **state) {
   double *g1 = malloc(8 * (size_t)n * sizeof *g1);
   assert_non_null(g1);
   double e1[3], e2[3];
-  assert_int_equal(ves_model_eval(ves_remesh_model(r), ves_remesh_y(r), 7, e1, e1 + 1, e1 + 2,
-                                  g1, g1 + 2 * n, NULL),
+  assert_int_equal(ves_model_eval(ves_remesh_model(r), ves_remesh_y(r), 7, e1, e1 + 1, e1 + 2, g1,
+                                  g1 + 2 * n, NULL),
                    VES_OK);
   assert_int_equal(ves_model_eval(ves_remesh_model(q), ves_remesh_y(r), 7, e2, e2 + 1, e2 + 2,
                                   g1 + 4 * n, g1 + 6 * n, NULL),
@@ -354,6 +355,7 @@ static void test_errors(void **state) {
 }
 
 int main(void) {
+  // clang-format off
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_interface),
       cmocka_unit_test(test_initial),
@@ -362,5 +364,6 @@ int main(void) {
       cmocka_unit_test(test_sim),
       cmocka_unit_test(test_errors),
   };
+  // clang-format on
   return cmocka_run_group_tests(tests, group_setup, group_teardown);
 }

@@ -270,9 +270,9 @@ static void test_curve_points(void **state) {
   E = ves_shape_sharp_energy(s, 0.0);
   printf("# curve from points: A/4pi-1 = %.1e v = %.9f E* = %.7f (spheroid 7.8817755)\n",
          A / (4 * M_PI) - 1, V / (4 * M_PI / 3), E);
-  assert_true(fabs(A / (4 * M_PI) - 1) < 1e-12);   /* normalized */
+  assert_true(fabs(A / (4 * M_PI) - 1) < 1e-12);      /* normalized */
   assert_true(fabs(V / (4 * M_PI / 3) - 0.9) < 1e-7); /* O(ds^4) ~ 6e-8 */
-  assert_true(fabs(E - 7.8817755) < 1e-4);          /* curvature: O(ds^2) ~ 3e-4 x small const */
+  assert_true(fabs(E - 7.8817755) < 1e-4);            /* curvature: O(ds^2) ~ 3e-4 x small const */
   /* distances agree with the analytic spheroid's */
   ves_shape_params q;
   ves_shape_params_default(&q);
@@ -321,6 +321,7 @@ static void test_errors(void **state) {
 
 int main(void) {
   setvbuf(stdout, NULL, _IOLBF, 0); /* keep output in order with cmocka's stderr */
+  // clang-format off
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_spheroid_axes), cmocka_unit_test(test_distance_exact),
       cmocka_unit_test(test_mode_perturbation), cmocka_unit_test(test_discocyte),
@@ -328,5 +329,6 @@ int main(void) {
       cmocka_unit_test(test_band_nodes), cmocka_unit_test(test_curve_points),
       cmocka_unit_test(test_errors),
   };
+  // clang-format on
   return cmocka_run_group_tests_name("shape", tests, NULL, NULL);
 }

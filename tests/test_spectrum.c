@@ -363,10 +363,12 @@ static void test_analysis(void **state) {
 
 int main(void) {
   setvbuf(stdout, NULL, _IOLBF, 0); /* keep output in order with cmocka's stderr */
+  // clang-format off
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_euler_stiffness),
       cmocka_unit_test(test_flow_spectrum),
       cmocka_unit_test(test_analysis),
   };
+  // clang-format on
   return cmocka_run_group_tests_name("spectrum", tests, NULL, NULL);
 }

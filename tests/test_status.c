@@ -83,10 +83,12 @@ static void test_trace_bounded(void **state) {
 }
 
 int main(void) {
+  // clang-format off
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_check_and_call),
       cmocka_unit_test(test_plain_return),
       cmocka_unit_test(test_trace_bounded),
   };
+  // clang-format on
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

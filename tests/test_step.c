@@ -41,14 +41,14 @@ static double *xmalloc(size_t n) {
  * r = 1 + 0.1 P2(cos t) (a prolate-ish shape with curvature differences of
  * ~30%), eps = 0.12 in a 1.9 x 1.9 box, L2-projected phi0. */
 typedef struct {
-  ves_setup *su;   /* setup (owns the model) */
-  ves_model *m;    /* borrowed from su */
-  ves_step *s;     /* the step problem */
-  int n, nv;       /* real nodes, free dofs */
-  double *yn;      /* 2n the state y^n = reference positions */
-  double A0, V0;   /* A, V at y^n */
-  double E0;       /* E at y^n */
-  double hmin;     /* smallest nodal spacing */
+  ves_setup *su; /* setup (owns the model) */
+  ves_model *m;  /* borrowed from su */
+  ves_step *s;   /* the step problem */
+  int n, nv;     /* real nodes, free dofs */
+  double *yn;    /* 2n the state y^n = reference positions */
+  double A0, V0; /* A, V at y^n */
+  double E0;     /* E at y^n */
+  double hmin;   /* smallest nodal spacing */
 } problem;
 
 static problem *P;
@@ -156,7 +156,8 @@ static void test_at_x0(void **state) {
    * after the scatter): an entry sums ~1e2..1e3 such terms of either sign,
    * each off by an ulp, so 1e-12 of the largest entry bounds it */
   double gmax = 0, gdif = 0;
-  for (int j = 0; j < nv; j++) gmax = fmax(gmax, fabs(gE[j])), gdif = fmax(gdif, fabs(g[j] - gE[j]));
+  for (int j = 0; j < nv; j++)
+    gmax = fmax(gmax, fabs(gE[j])), gdif = fmax(gdif, fabs(g[j] - gE[j]));
   printf("# at x0: |grad f - dt grad E|_inf = %.2e of |dt grad E|_inf\n", gdif / gmax);
   assert_true(gdif <= 1e-12 * gmax);
   free(x), free(g), free(gE), free(y);
@@ -231,8 +232,8 @@ static void test_gradient_jacobian_fd(void **state) {
     for (int q = 0; q < 3; q++)
       err[q] = fmax(err[q], fabs(fd[q] - an[q]) / fmax(fabs(an[q]), 1e-2 * gmax[q]));
   }
-  printf("# FD (%d dofs, step %.1e): grad f %.2e, grad A %.2e, grad V %.2e (max rel error)\n",
-         NSEL, delta, err[0], err[1], err[2]);
+  printf("# FD (%d dofs, step %.1e): grad f %.2e, grad A %.2e, grad V %.2e (max rel error)\n", NSEL,
+         delta, err[0], err[1], err[2]);
   for (int q = 0; q < 3; q++) assert_true(err[q] <= 1e-6);
   free(x), free(g), free(J), free(gE);
 }
@@ -383,8 +384,8 @@ static void test_newton_step(void **state) {
            dts[k], sa.iterations, sa.f_evals, sa.g_evals, sa.h_evals, sa.seconds, sb.iterations,
            sb.f_evals, sb.g_evals, sb.h_evals, sb.seconds, umax, P->E0, E, A / P->A0 - 1,
            V / P->V0 - 1, la[0], la[1], rd);
-    assert_true(umax > 1e-4);          /* visible motion (measured 2.0e-4) */
-    assert_true(E < P->E0);            /* energy decrease */
+    assert_true(umax > 1e-4); /* visible motion (measured 2.0e-4) */
+    assert_true(E < P->E0);   /* energy decrease */
     assert_true(fabs(A / P->A0 - 1) <= 1e-10);
     assert_true(fabs(V / P->V0 - 1) <= 1e-10);
     assert_true(sa.violation <= 1e-10 && sb.violation <= 1e-10);
@@ -447,8 +448,7 @@ static void test_euler_limit(void **state) {
     assert_true(se.violation <= 1e-2 * dts[k] * dts[k]);
   }
   for (int k = 0; k < 3; k++) assert_true(diff[k] < 3e3 * dts[k]);
-  for (int k = 0; k < 2; k++)
-    assert_true(diff[k + 1] < diff[k] / 7 && diff[k + 1] > diff[k] / 13);
+  for (int k = 0; k < 2; k++) assert_true(diff[k + 1] < diff[k] / 7 && diff[k + 1] > diff[k] / 13);
   free(x0), free(xe), free(xn);
 }
 
@@ -547,11 +547,13 @@ static void test_errors(void **state) {
 
 int main(void) {
   setvbuf(stdout, NULL, _IOLBF, 0);
+  // clang-format off
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_at_x0),       cmocka_unit_test(test_gradient_jacobian_fd),
       cmocka_unit_test(test_hessian_fd),  cmocka_unit_test(test_cache),
       cmocka_unit_test(test_newton_step), cmocka_unit_test(test_euler_limit),
       cmocka_unit_test(test_errors),
   };
+  // clang-format on
   return cmocka_run_group_tests(tests, group_setup, group_teardown);
 }

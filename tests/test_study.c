@@ -126,9 +126,19 @@ static void test_parse_axis(void **state) {
   assert_int_equal(ves_study_parse_axis("log(10, 0.1, 3)", ax, err, sizeof err), VES_OK);
   assert_string_equal(ax->values[0], "10"); /* descending ranges keep their order */
   assert_string_equal(ax->values[2], "0.1");
-  const char *bad[] = {"",          "  ",          "a,,b",          "a,",       "1, 1",
-                       "log(0,1,3)", "log(1,10,1)", "log(1,10)",     "log(1,10,2.5)",
-                       "log(1,1,3)", "lin(0,1,3",   "log(1,10,3) x", "log(1,10,300)"};
+  const char *bad[] = {"",
+                       "  ",
+                       "a,,b",
+                       "a,",
+                       "1, 1",
+                       "log(0,1,3)",
+                       "log(1,10,1)",
+                       "log(1,10)",
+                       "log(1,10,2.5)",
+                       "log(1,1,3)",
+                       "lin(0,1,3",
+                       "log(1,10,3) x",
+                       "log(1,10,300)"};
   for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
     err[0] = 0;
     assert_int_equal(ves_study_parse_axis(bad[i], ax, err, sizeof err), VES_ERR_CONFIG);
@@ -181,11 +191,11 @@ static void test_grid(void **state) {
   assert_string_equal(argv[5], "--quiet");
   assert_string_equal(argv[6], "--max-steps");
   assert_string_equal(argv[7], "1");
-  const char *sets[] = {"geometry.epsilon=0.2", "geometry.box_r=2",     "geometry.box_z=2",
-                        "geometry.band=2",      "geometry.h_band=0.7",  "geometry.h_far=0.3",
-                        "shape.mode=2",         "shape.delta=0.15",     "solver.max_iter=100",
-                        "solver.backend=ipopt", "time.dt_initial=0.1",  "time.adaptive=0",
-                        "time.dt_min=0.1",      "time.dt_max=0.1",      "time.t_end=0.1"};
+  const char *sets[] = {"geometry.epsilon=0.2", "geometry.box_r=2",    "geometry.box_z=2",
+                        "geometry.band=2",      "geometry.h_band=0.7", "geometry.h_far=0.3",
+                        "shape.mode=2",         "shape.delta=0.15",    "solver.max_iter=100",
+                        "solver.backend=ipopt", "time.dt_initial=0.1", "time.adaptive=0",
+                        "time.dt_min=0.1",      "time.dt_max=0.1",     "time.t_end=0.1"};
   const int ns = sizeof sets / sizeof sets[0];
   assert_int_equal(argc, 8 + 2 * ns);
   for (int i = 0; i < ns; i++) {
@@ -511,8 +521,14 @@ static void test_run_fake(void **state) {
   volatile sig_atomic_t stop = 0;
   fake_ctx c = {0};
   c.stop = &stop;
-  ves_study_run_opts o = {.program = prog, .dir = dir, .jobs = 2, .only = -1, .grace = 0.5,
-                          .stop = &stop, .progress = fake_progress, .ctx = &c};
+  ves_study_run_opts o = {.program = prog,
+                          .dir = dir,
+                          .jobs = 2,
+                          .only = -1,
+                          .grace = 0.5,
+                          .stop = &stop,
+                          .progress = fake_progress,
+                          .ctx = &c};
   double t0 = ves_wall_seconds();
   assert_int_equal(ves_study_run(s, &o, err, sizeof err), VES_OK);
   double sec = ves_wall_seconds() - t0;
@@ -573,8 +589,14 @@ static void test_run_stop(void **state) {
   assert_int_equal(load_text("stop.ini", text, 1000, &s, err, sizeof err), VES_OK);
   volatile sig_atomic_t stop = 0;
   fake_ctx c = {.stop_after = 2, .stop = &stop};
-  ves_study_run_opts o = {.program = prog, .dir = dir, .jobs = 1, .only = -1, .grace = 0.5,
-                          .stop = &stop, .progress = fake_progress, .ctx = &c};
+  ves_study_run_opts o = {.program = prog,
+                          .dir = dir,
+                          .jobs = 1,
+                          .only = -1,
+                          .grace = 0.5,
+                          .stop = &stop,
+                          .progress = fake_progress,
+                          .ctx = &c};
   assert_int_equal(ves_study_run(s, &o, err, sizeof err), VES_STEP_REJECTED);
   assert_int_equal(c.ended, 2);
   int done = 0;
@@ -625,8 +647,9 @@ static void run_prog(result *r, char *const *argv, const char *env) {
 static void stable_columns(const char *path, char *out, size_t len) {
   char csv[16384], f[40][256];
   assert_true(slurp(path, csv, sizeof csv) > 0);
-  const char *keep[] = {"cell", "solver.backend", "time.dt_initial", "status", "reason", "steps",
-                        "iterations", "g_evals", "h_evals", "energy_initial", "energy_final"};
+  const char *keep[] = {"cell",    "solver.backend", "time.dt_initial", "status",
+                        "reason",  "steps",          "iterations",      "g_evals",
+                        "h_evals", "energy_initial", "energy_final"};
   enum { NK = sizeof keep / sizeof keep[0] };
   int col[NK];
   size_t at = 0;
@@ -847,6 +870,7 @@ int main(int argc, char **argv) {
     fprintf(stderr, "test_study: %s: not found (build it first)\n", vesica);
     return 1;
   }
+  // clang-format off
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_parse_axis),    cmocka_unit_test(test_grid),
       cmocka_unit_test(test_bad_studies),   cmocka_unit_test(test_result_resume),
@@ -854,5 +878,6 @@ int main(int argc, char **argv) {
       cmocka_unit_test(test_run_fake),      cmocka_unit_test(test_run_stop),
       cmocka_unit_test(test_program),       cmocka_unit_test(test_program_kill),
   };
+  // clang-format on
   return cmocka_run_group_tests_name("study", tests, setup_all, teardown_all);
 }

@@ -20,13 +20,13 @@ typedef struct ves_ldl ves_ldl;
 
 /* Diagnostics of the last MUMPS call (create, factor or solve). */
 typedef struct {
-  int infog1;          /* MUMPS INFOG(1): 0 ok, < 0 error, > 0 warning */
-  int infog2;          /* MUMPS INFOG(2): detail of INFOG(1) (see the MUMPS guide) */
-  int neg_pivots;      /* INFOG(12) of the last factorization: negative pivots, i.e.
-                          negative eigenvalues of A (the inertia the KKT path checks) */
+  int infog1;            /* MUMPS INFOG(1): 0 ok, < 0 error, > 0 warning */
+  int infog2;            /* MUMPS INFOG(2): detail of INFOG(1) (see the MUMPS guide) */
+  int neg_pivots;        /* INFOG(12) of the last factorization: negative pivots, i.e.
+                            negative eigenvalues of A (the inertia the KKT path checks) */
   double factor_entries; /* entries in the factors (INFOG(29)), 0 before a factorization */
-  int icntl14;         /* ICNTL(14) in use: workspace relaxation, percent */
-  int retries;         /* workspace retries (INFOG(1) = -8/-9) in the last factorization */
+  int icntl14;           /* ICNTL(14) in use: workspace relaxation, percent */
+  int retries;           /* workspace retries (INFOG(1) = -8/-9) in the last factorization */
 } ves_ldl_info;
 
 /* Analyse the pattern (MUMPS JOB = 1). irow[nnz], jcol[nnz]: 0-based lower
@@ -37,8 +37,7 @@ typedef struct {
  * the diagonal), VES_ERR_ALLOC, VES_ERR_SINGULAR (structurally singular),
  * VES_ERR_SOLVER (another MUMPS error; no object is returned, so its codes
  * are not available: for valid input this does not happen). */
-ves_status ves_ldl_create(int n, int nnz, const int *irow, const int *jcol, int spd,
-                          ves_ldl **out);
+ves_status ves_ldl_create(int n, int nnz, const int *irow, const int *jcol, int spd, ves_ldl **out);
 
 /* Numeric factorization (JOB = 2) reusing the analysis; val[nnz] in the order
  * of the triplets given to create (copied). Retries with twice the workspace

@@ -115,9 +115,9 @@ ves_status ves_model_dissipation(ves_model *m, const double *y, double *blk);
  * ves_model_dissipation to rounding. */
 ves_status ves_model_dissipation_ref(ves_model *m, const double *y, double *qn);
 size_t ves_model_dissipation_ref_size(const ves_model *m); /* doubles in qn: 5 nq */
-ves_status ves_model_eval_step(ves_model *m, const double *y, int which, const double *qn, double cE,
-                               double *E, double *A, double *V, double *Dv, double *gF, double *gA,
-                               double *gV);
+ves_status ves_model_eval_step(ves_model *m, const double *y, int which, const double *qn,
+                               double cE, double *E, double *A, double *V, double *Dv, double *gF,
+                               double *gA, double *gV);
 ves_status ves_model_hessian_step(ves_model *m, const double *y, const double *qn, double cE,
                                   double cA, double cV, double cK, double *blk);
 

@@ -38,7 +38,7 @@ ves_status ves_pattern_create(const ves_quad *q, const ves_quad *q2, int n,
  * VES_ERR_SINGULAR (M singular: a node that no point sees, or a numerically
  * dependent basis), VES_ERR_SOLVER. Allocates and frees its workspace (a
  * once-per-configuration operation). */
-ves_status ves_project_l2(const ves_quad *q, int n, const double *f, double *c,
-                                 double rtol, int maxref, int *refinements, double *relres);
+ves_status ves_project_l2(const ves_quad *q, int n, const double *f, double *c, double rtol,
+                          int maxref, int *refinements, double *relres);
 
 #endif

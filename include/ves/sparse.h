@@ -16,15 +16,15 @@
 
 /* Node-level lower block pattern and its free-dof triplet map. */
 typedef struct {
-  int n;          /* real nodes */
-  int *ptr;       /* n + 1 row offsets */
-  int *col;       /* ptr[n] column nodes, ascending in each row, col <= row */
-  int nfree;      /* free degrees of freedom */
-  int *dof;       /* 2n: free index of (node a, component i) at 2a + i, or -1 */
-  int nnz;        /* triplets over free dofs, lower triangle (row >= col) */
-  int *irow;      /* nnz triplet rows (free indices) */
-  int *jcol;      /* nnz triplet columns */
-  long *src;      /* nnz positions in the block values (4 ptr[n] doubles) */
+  int n;     /* real nodes */
+  int *ptr;  /* n + 1 row offsets */
+  int *col;  /* ptr[n] column nodes, ascending in each row, col <= row */
+  int nfree; /* free degrees of freedom */
+  int *dof;  /* 2n: free index of (node a, component i) at 2a + i, or -1 */
+  int nnz;   /* triplets over free dofs, lower triangle (row >= col) */
+  int *irow; /* nnz triplet rows (free indices) */
+  int *jcol; /* nnz triplet columns */
+  long *src; /* nnz positions in the block values (4 ptr[n] doubles) */
 } ves_pattern;
 
 void ves_pattern_destroy(ves_pattern **p);

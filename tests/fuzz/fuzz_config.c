@@ -62,8 +62,8 @@ static void check_accepted(const ves_config *c) {
   char *text = NULL;
   if (ves_config_to_text(c, &text) != VES_OK) die("to_text failed", "");
   ves_config back;
-  ves_status st = ves_config_load_text(text, c->source[0] ? c->source : "x.ini", &back, err,
-                                       sizeof err);
+  ves_status st =
+      ves_config_load_text(text, c->source[0] ? c->source : "x.ini", &back, err, sizeof err);
   if (st != VES_OK) {
     fprintf(stderr, "%s\n", text);
     die("its text does not read back", err);
@@ -98,8 +98,10 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
   ves_config c;
   char err[1024] = "";
   ves_status st = ves_config_load(path, 0, NULL, &c, err, sizeof err);
-  if (st == VES_OK) check_accepted(&c);
-  else check_refused(st, err, path);
+  if (st == VES_OK)
+    check_accepted(&c);
+  else
+    check_refused(st, err, path);
 
   /* --set: lines holding '.' before '=' (at most 8), on the defaults */
   char *copy = malloc(size + 1);
@@ -118,8 +120,10 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
   if (nset) {
     err[0] = 0;
     st = ves_config_load(NULL, nset, set, &c, err, sizeof err);
-    if (st == VES_OK) check_accepted(&c);
-    else if (st >= 0 || !err[0]) die("refused --set", err);
+    if (st == VES_OK)
+      check_accepted(&c);
+    else if (st >= 0 || !err[0])
+      die("refused --set", err);
   }
   free(copy);
   return 0;

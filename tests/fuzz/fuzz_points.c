@@ -49,7 +49,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
   snprintf(msg, sizeof msg, "%d points", n);
   if (n < 4 || !p) die("accepted too few points", msg);
   for (int i = 0; i < n; i++)
-    if (!isfinite(p[2 * i]) || !isfinite(p[2 * i + 1]) || p[2 * i] < 0) die("accepted a point", msg);
+    if (!isfinite(p[2 * i]) || !isfinite(p[2 * i + 1]) || p[2 * i] < 0)
+      die("accepted a point", msg);
   if (p[0] != 0 || p[2 * n - 2] != 0) die("accepted ends off the axis", msg);
   if (!(p[1] > p[2 * n - 1])) die("accepted south to north", msg);
   ves_shape_params sp;
