@@ -8,7 +8,7 @@
 #
 #   sh bench/scale.sh                                  eps 0.04 0.02 0.01 x threads 1 2
 #   EPS_LIST=0.04 THREADS_LIST="1 2" sh bench/scale.sh  (eps 0.04: ~1 min a row)
-#   make bench BENCH_ONLY=scale
+#   make bench BENCH_ONLY=scale   (also the log-log plot: bench/scale_plot.sh)
 #
 # Environment: BENCH_SCALE (build/bench/bench_scale), PROBLEM
 # (problems/oblate.ini), EPS_LIST, THREADS_LIST, NSTEPS (3). A failed row is
