@@ -218,11 +218,11 @@ void ves_config_default(ves_config *cfg) {
 static ves_status range_msg(char *err, size_t errlen, const char *src, const key_spec *k,
                             const char *val, const char *why) {
   if (k->type == KEY_STRING)
-    ves_error_say(err, errlen, "%s: [%s] %s = '%s': %s (allowed: %s)", src, k->section, k->key, val, why,
-        k->choice);
+    ves_error_say(err, errlen, "%s: [%s] %s = '%s': %s (allowed: %s)", src, k->section, k->key, val,
+                  why, k->choice);
   else
-    ves_error_say(err, errlen, "%s: [%s] %s = '%s': %s (allowed: %g to %g)", src, k->section, k->key, val,
-        why, k->min, k->max);
+    ves_error_say(err, errlen, "%s: [%s] %s = '%s': %s (allowed: %g to %g)", src, k->section,
+                  k->key, val, why, k->min, k->max);
   return VES_ERR_CONFIG;
 }
 
@@ -278,15 +278,15 @@ static ves_status parse_ini(const char *text, size_t len, const char *name, ves_
     if (n == 0 || t[0] == ';' || t[0] == '#') continue;
     if (t[0] == '[') { /* a section header */
       if (t[n - 1] != ']') {
-        ves_error_say(err, errlen, "%s: line %d: '%.*s': a section header needs a closing ']'", name, line,
-            (int)(n > 60 ? 60 : n), t);
+        ves_error_say(err, errlen, "%s: line %d: '%.*s': a section header needs a closing ']'",
+                      name, line, (int)(n > 60 ? 60 : n), t);
         return VES_ERR_CONFIG;
       }
       size_t m = n - 2;
       const char *sn = ini_trim(t + 1, &m);
       if (!ini_name(sec, sizeof sec, sn, m)) {
         ves_error_say(err, errlen, "%s: line %d: '%.*s': not a section name", name, line,
-            (int)(n > 60 ? 60 : n), t);
+                      (int)(n > 60 ? 60 : n), t);
         return VES_ERR_CONFIG;
       }
       int k = known_section(sec);
@@ -295,8 +295,8 @@ static ves_status parse_ini(const char *text, size_t len, const char *name, ves_
         return VES_ERR_CONFIG;
       }
       if (sec_line[k - 1]) {
-        ves_error_say(err, errlen, "%s: line %d: [%s]: duplicate section (first at line %d)", name, line, sec,
-            sec_line[k - 1]);
+        ves_error_say(err, errlen, "%s: line %d: [%s]: duplicate section (first at line %d)", name,
+                      line, sec, sec_line[k - 1]);
         return VES_ERR_CONFIG;
       }
       sec_line[k - 1] = line;
@@ -305,15 +305,15 @@ static ves_status parse_ini(const char *text, size_t len, const char *name, ves_
     const char *eq = memchr(t, '=', n);
     if (!eq) {
       ves_error_say(err, errlen, "%s: line %d: '%.*s%s': expected key = value", name, line,
-          (int)(n > 60 ? 60 : n), t, n > 60 ? "..." : "");
+                    (int)(n > 60 ? 60 : n), t, n > 60 ? "..." : "");
       return VES_ERR_CONFIG;
     }
     size_t kn = (size_t)(eq - t), vn = n - kn - 1;
     const char *kt = ini_trim(t, &kn), *v = ini_trim(eq + 1, &vn);
     char key[64], val[VES_CONFIG_STR];
     if (!ini_name(key, sizeof key, kt, kn)) {
-      ves_error_say(err, errlen, "%s: line %d: '%.*s': not a key name", name, line, (int)(n > 60 ? 60 : n),
-          t);
+      ves_error_say(err, errlen, "%s: line %d: '%.*s': not a key name", name, line,
+                    (int)(n > 60 ? 60 : n), t);
       return VES_ERR_CONFIG;
     }
     if (!sec[0]) {
@@ -336,14 +336,14 @@ static ves_status parse_ini(const char *text, size_t len, const char *name, ves_
     }
     const size_t ki = (size_t)(k - KEYS);
     if (key_line[ki]) {
-      ves_error_say(err, errlen, "%s: line %d: [%s] %s: duplicate key (first at line %d)", name, line, sec,
-          key, key_line[ki]);
+      ves_error_say(err, errlen, "%s: line %d: [%s] %s: duplicate key (first at line %d)", name,
+                    line, sec, key, key_line[ki]);
       return VES_ERR_CONFIG;
     }
     key_line[ki] = line;
     if (vn >= sizeof val) {
-      ves_error_say(err, errlen, "%s: line %d: [%s] %s: value longer than %d characters", name, line, sec,
-          key, (int)sizeof val - 1);
+      ves_error_say(err, errlen, "%s: line %d: [%s] %s: value longer than %d characters", name,
+                    line, sec, key, (int)sizeof val - 1);
       return VES_ERR_CONFIG;
     }
     memcpy(val, v, vn);
@@ -371,13 +371,13 @@ static ves_status load_ini(const char *path, const char *name, ves_config *cfg, 
   memset(&sb, 0, sizeof sb);
   if (fstat(fileno(f), &sb) != 0 || !S_ISREG(sb.st_mode)) {
     ves_error_say(err, errlen, "%s: %s", name,
-        S_ISDIR(sb.st_mode) ? "is a folder, not a problem file" : "not a regular file");
+                  S_ISDIR(sb.st_mode) ? "is a folder, not a problem file" : "not a regular file");
     fclose(f);
     return VES_ERR_IO;
   }
   if (sb.st_size > INI_MAX_BYTES) {
     ves_error_say(err, errlen, "%s: %lld bytes: too large for a problem file (at most %d)", name,
-        (long long)sb.st_size, INI_MAX_BYTES);
+                  (long long)sb.st_size, INI_MAX_BYTES);
     fclose(f);
     return VES_ERR_CONFIG;
   }
@@ -387,7 +387,8 @@ static ves_status load_ini(const char *path, const char *name, ves_config *cfg, 
   fclose(f);
   if (bad) {
     free(text);
-    ves_error_say(err, errlen, "%s: cannot read: %s", name, text ? strerror(errno) : "out of memory");
+    ves_error_say(err, errlen, "%s: cannot read: %s", name,
+                  text ? strerror(errno) : "out of memory");
     return text ? VES_ERR_IO : VES_ERR_ALLOC;
   }
   text[len] = 0;
@@ -459,13 +460,15 @@ ves_status ves_config_validate(const ves_config *cfg, char *err, size_t errlen) 
     return VES_ERR_CONFIG;
   }
   if (cfg->dt_initial > cfg->dt_max || cfg->dt_min > cfg->dt_initial) {
-    ves_error_say(err, errlen, "%s: [time] dt_initial = %g: must lie in [dt_min, dt_max] = [%g, %g]", src,
-        cfg->dt_initial, cfg->dt_min, cfg->dt_max);
+    ves_error_say(err, errlen,
+                  "%s: [time] dt_initial = %g: must lie in [dt_min, dt_max] = [%g, %g]", src,
+                  cfg->dt_initial, cfg->dt_min, cfg->dt_max);
     return VES_ERR_CONFIG;
   }
   if (cfg->epsilon * 10 > fmin(cfg->box_r, cfg->box_z)) {
-    ves_error_say(err, errlen, "%s: [geometry] epsilon = %g: too large for the box (needs 10 eps <= %g)", src,
-        cfg->epsilon, fmin(cfg->box_r, cfg->box_z));
+    ves_error_say(err, errlen,
+                  "%s: [geometry] epsilon = %g: too large for the box (needs 10 eps <= %g)", src,
+                  cfg->epsilon, fmin(cfg->box_r, cfg->box_z));
     return VES_ERR_CONFIG;
   }
   /* spheres: the radius is known here; every shape is checked exactly
@@ -474,42 +477,44 @@ ves_status ves_config_validate(const ves_config *cfg, char *err, size_t errlen) 
   if (!strcasecmp(cfg->shape_type, "sphere") &&
       size + (cfg->band + 1) * cfg->epsilon >= fmin(cfg->box_r, cfg->box_z)) {
     ves_error_say(err, errlen,
-        "%s: [geometry] box_r/box_z = %g/%g: the sphere (radius %g) and its band of "
-        "(band + 1) eps = %g do not fit in the box",
-        src, cfg->box_r, cfg->box_z, size, (cfg->band + 1) * cfg->epsilon);
+                  "%s: [geometry] box_r/box_z = %g/%g: the sphere (radius %g) and its band of "
+                  "(band + 1) eps = %g do not fit in the box",
+                  src, cfg->box_r, cfg->box_z, size, (cfg->band + 1) * cfg->epsilon);
     return VES_ERR_CONFIG;
   }
   if (cfg->h_far < cfg->h_band * cfg->epsilon) {
-    ves_error_say(err, errlen, "%s: [geometry] h_far = %g: smaller than the band spacing %g", src, cfg->h_far,
-        cfg->h_band * cfg->epsilon);
+    ves_error_say(err, errlen, "%s: [geometry] h_far = %g: smaller than the band spacing %g", src,
+                  cfg->h_far, cfg->h_band * cfg->epsilon);
     return VES_ERR_CONFIG;
   }
   /* protocols that would silently do nothing */
   if (cfg->volume_rate != 0 && !cfg->volume) {
     ves_error_say(err, errlen,
-        "%s: [protocol] volume_rate = %g: a volume ramp needs [constraints] volume = 1", src,
-        cfg->volume_rate);
+                  "%s: [protocol] volume_rate = %g: a volume ramp needs [constraints] volume = 1",
+                  src, cfg->volume_rate);
     return VES_ERR_CONFIG;
   }
   if ((cfg->volume_rate < 0 && cfg->volume_final >= 1) ||
       (cfg->volume_rate > 0 && cfg->volume_final <= 1)) {
-    ves_error_say(err, errlen, "%s: [protocol] volume_final = %g: must be %s 1 for volume_rate = %g", src,
-        cfg->volume_final, cfg->volume_rate < 0 ? "below" : "above", cfg->volume_rate);
+    ves_error_say(err, errlen,
+                  "%s: [protocol] volume_final = %g: must be %s 1 for volume_rate = %g", src,
+                  cfg->volume_final, cfg->volume_rate < 0 ? "below" : "above", cfg->volume_rate);
     return VES_ERR_CONFIG;
   }
   if (cfg->c0_time < 0 && cfg->c0_after != 0) {
-    ves_error_say(err, errlen, "%s: [protocol] c0_after = %g: has no effect without c0_time >= 0", src,
-        cfg->c0_after);
+    ves_error_say(err, errlen, "%s: [protocol] c0_after = %g: has no effect without c0_time >= 0",
+                  src, cfg->c0_after);
     return VES_ERR_CONFIG;
   }
   if (cfg->c0_until >= 0 && !(cfg->c0_time >= 0 && cfg->c0_until > cfg->c0_time)) {
-    ves_error_say(err, errlen, "%s: [protocol] c0_until = %g: needs c0_time >= 0 before it (c0_time = %g)",
-        src, cfg->c0_until, cfg->c0_time);
+    ves_error_say(err, errlen,
+                  "%s: [protocol] c0_until = %g: needs c0_time >= 0 before it (c0_time = %g)", src,
+                  cfg->c0_until, cfg->c0_time);
     return VES_ERR_CONFIG;
   }
   if (cfg->c0_ramp_start < 0 && (cfg->c0_ramp_end != -1 || cfg->c0_ramp_to != 0)) {
     ves_error_say(err, errlen, "%s: [protocol] %s: has no effect without c0_ramp_start >= 0", src,
-        cfg->c0_ramp_end != -1 ? "c0_ramp_end" : "c0_ramp_to");
+                  cfg->c0_ramp_end != -1 ? "c0_ramp_end" : "c0_ramp_to");
     return VES_ERR_CONFIG;
   }
   if (cfg->c0_ramp_start >= 0) {
@@ -520,33 +525,36 @@ ves_status ves_config_validate(const ves_config *cfg, char *err, size_t errlen) 
                       : cfg->c0_ramp_start >= cfg->t_end ? "not before [time] t_end"
                                                          : NULL;
     if (why) {
-      ves_error_say(err, errlen, "%s: [protocol] c0_ramp_start = %g: %s", src, cfg->c0_ramp_start, why);
+      ves_error_say(err, errlen, "%s: [protocol] c0_ramp_start = %g: %s", src, cfg->c0_ramp_start,
+                    why);
       return VES_ERR_CONFIG;
     }
   }
   if (cfg->reconnect_cond_max > 0 && cfg->reconnect_cond_max <= 1) {
-    ves_error_say(err, errlen, "%s: [reconnect] cond_max = %g: must be 0 (off) or above 1 (cond F >= 1)", src,
-        cfg->reconnect_cond_max);
+    ves_error_say(err, errlen,
+                  "%s: [reconnect] cond_max = %g: must be 0 (off) or above 1 (cond F >= 1)", src,
+                  cfg->reconnect_cond_max);
     return VES_ERR_CONFIG;
   }
   if (cfg->reconnect_det_min >= 1) {
     ves_error_say(err, errlen, "%s: [reconnect] det_min = %g: must be below 1 (0: off)", src,
-        cfg->reconnect_det_min);
+                  cfg->reconnect_det_min);
     return VES_ERR_CONFIG;
   }
   if (cfg->remesh_cond_max > 0 && cfg->remesh_cond_max <= 1) {
-    ves_error_say(err, errlen, "%s: [remesh] cond_max = %g: must be 0 (off) or above 1 (cond F >= 1)", src,
-        cfg->remesh_cond_max);
+    ves_error_say(err, errlen,
+                  "%s: [remesh] cond_max = %g: must be 0 (off) or above 1 (cond F >= 1)", src,
+                  cfg->remesh_cond_max);
     return VES_ERR_CONFIG;
   }
   if (cfg->remesh_det_min >= 1) {
     ves_error_say(err, errlen, "%s: [remesh] det_min = %g: must be below 1 (0: off)", src,
-        cfg->remesh_det_min);
+                  cfg->remesh_det_min);
     return VES_ERR_CONFIG;
   }
   if (cfg->c0_time > cfg->t_end) {
-    ves_error_say(err, errlen, "%s: [protocol] c0_time = %g: after [time] t_end = %g", src, cfg->c0_time,
-        cfg->t_end);
+    ves_error_say(err, errlen, "%s: [protocol] c0_time = %g: after [time] t_end = %g", src,
+                  cfg->c0_time, cfg->t_end);
     return VES_ERR_CONFIG;
   }
   return VES_OK;
@@ -660,7 +668,8 @@ static int segments_meet(const double *a, const double *b, const double *c, cons
 static ves_status check_curve(const char *path, int n, const double *p, const int *lines, char *err,
                               size_t errlen) {
   if (p[1] <= p[2 * n - 1]) {
-    ves_error_say(err, errlen,
+    ves_error_say(
+        err, errlen,
         "%s: the points run from Z = %g (line %d) to Z = %g (line %d): a curve goes from the "
         "north pole (the larger Z) to the south pole; reverse the file's lines",
         path, p[1], lines[0], p[2 * n - 1], lines[n - 1]);
@@ -668,21 +677,24 @@ static ves_status check_curve(const char *path, int n, const double *p, const in
   }
   for (int i = 1; i < n; i++) {
     if (i < n - 1 && p[2 * i] == 0.0) {
-      ves_error_say(err, errlen,
+      ves_error_say(
+          err, errlen,
           "%s: line %d: R = 0 inside the curve: it meets the axis only at its first and last "
           "points",
           path, lines[i]);
       return VES_ERR_CONFIG;
     }
     if (p[2 * i] == p[2 * i - 2] && p[2 * i + 1] == p[2 * i - 1]) {
-      ves_error_say(err, errlen, "%s: line %d: repeats the point of line %d", path, lines[i], lines[i - 1]);
+      ves_error_say(err, errlen, "%s: line %d: repeats the point of line %d", path, lines[i],
+                    lines[i - 1]);
       return VES_ERR_CONFIG;
     }
   }
   for (int i = 0; i + 1 < n; i++) /* segment i: points i, i + 1 */
     for (int j = i + 2; j + 1 < n; j++)
       if (segments_meet(p + 2 * i, p + 2 * i + 2, p + 2 * j, p + 2 * j + 2)) {
-        ves_error_say(err, errlen,
+        ves_error_say(
+            err, errlen,
             "%s: the curve crosses itself: the segment of lines %d-%d meets that of lines %d-%d",
             path, lines[i], lines[i + 1], lines[j], lines[j + 1]);
         return VES_ERR_CONFIG;
@@ -702,8 +714,8 @@ ves_status ves_config_read_points(const ves_config *cfg, int *n, double **pts, c
     snprintf(path, sizeof path, "%s", cfg->points);
   FILE *f = fopen(path, "r");
   if (!f) {
-    ves_error_say(err, errlen, "%s: [shape] points = %s: cannot open %s: %s", cfg->source, cfg->points, path,
-        strerror(errno));
+    ves_error_say(err, errlen, "%s: [shape] points = %s: cannot open %s: %s", cfg->source,
+                  cfg->points, path, strerror(errno));
     return VES_ERR_IO;
   }
   int cap = 0, cnt = 0, line = 0, *lines = NULL; /* lines[i]: the file line of point i */
@@ -713,7 +725,8 @@ ves_status ves_config_read_points(const ves_config *cfg, int *n, double **pts, c
   while (fgets(buf, sizeof buf, f)) {
     line++;
     if (!strchr(buf, '\n') && !feof(f)) {
-      ves_error_say(err, errlen, "%s: line %d: longer than %d characters", path, line, (int)sizeof buf - 2);
+      ves_error_say(err, errlen, "%s: line %d: longer than %d characters", path, line,
+                    (int)sizeof buf - 2);
       st = VES_ERR_CONFIG;
       break;
     }
@@ -743,8 +756,8 @@ ves_status ves_config_read_points(const ves_config *cfg, int *n, double **pts, c
   }
   fclose(f);
   if (st == VES_OK && (cnt < 4 || p[0] != 0.0 || p[2 * cnt - 2] != 0.0)) {
-    ves_error_say(err, errlen, "%s: %d points: need at least 4, the first and the last with R = 0", path,
-        cnt);
+    ves_error_say(err, errlen, "%s: %d points: need at least 4, the first and the last with R = 0",
+                  path, cnt);
     st = VES_ERR_CONFIG;
   }
   if (st == VES_OK) st = check_curve(path, cnt, p, lines, err, errlen);

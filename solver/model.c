@@ -158,9 +158,9 @@ ves_status ves_model_eval(ves_model *m, const double *y, int which, double *E, d
   return model_eval_points(m, y, which, NULL, 1.0, E, A, V, NULL, gE, gA, gV);
 }
 
-ves_status ves_model_eval_step(ves_model *m, const double *y, int which, const double *qn, double cE,
-                               double *E, double *A, double *V, double *Dv, double *gF, double *gA,
-                               double *gV) {
+ves_status ves_model_eval_step(ves_model *m, const double *y, int which, const double *qn,
+                               double cE, double *E, double *A, double *V, double *Dv, double *gF,
+                               double *gA, double *gV) {
   VES_CHECK(qn && (which & VES_F_E) && isfinite(cE), VES_ERR_ARG);
   const step_ref sr = {qn, 1.0};
   return model_eval_points(m, y, which, &sr, cE, E, A, V, Dv, gF, gA, gV);

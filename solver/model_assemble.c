@@ -358,7 +358,8 @@ static ves_status triangle_blocks(const ves_model *m, model_ws *w, asm_kind kind
         double D[VES_NQD * VES_NQD];
         VES_CALL(step_ref_dissip(m, sr, al, D));
         for (int i = 0; i < VES_NQD; i++)
-          for (int j = 0; j < VES_NQD; j++) Hp[i * VES_NQ + j] += 2 * M_PI * sr->cK * D[i * VES_NQD + j];
+          for (int j = 0; j < VES_NQD; j++)
+            Hp[i * VES_NQ + j] += 2 * M_PI * sr->cK * D[i * VES_NQD + j];
       }
       c = m->q->w[al];
     } else {
@@ -385,7 +386,7 @@ static ves_status triangle_blocks(const ves_model *m, model_ws *w, asm_kind kind
 /* blk = sum over the triangles of their block matrices (kind, fac as in
  * triangle_blocks), the slabs shared out over the threads. */
 ves_status model_assemble(ves_model *m, asm_kind kind, const double fac[3], const step_ref *sr,
-                           const double *y, double *blk) {
+                          const double *y, double *blk) {
   const ves_pattern *pat = m->pat;
   ves_status st[64];
   memset(blk, 0, 4 * (size_t)pat->ptr[pat->n] * sizeof *blk);
@@ -459,8 +460,8 @@ static ves_status triangle_eval(ves_model *m, model_ws *w, int which, const step
 
 /* ves_model_eval and ves_model_eval_step. */
 ves_status model_eval_points(ves_model *m, const double *y, int which, const step_ref *sr,
-                              double cE, double *E, double *A, double *V, double *Dv, double *gE,
-                              double *gA, double *gV) {
+                             double cE, double *E, double *A, double *V, double *Dv, double *gE,
+                             double *gA, double *gV) {
   VES_CHECK(m && y, VES_ERR_ARG);
   int n = m->nodes->n;
   double fac[3];
@@ -530,4 +531,3 @@ ves_status model_each_point(ves_model *m, const double *y, point_fn *fn, void *c
     if (st[k] != VES_OK) return st[k];
   return VES_OK;
 }
-

@@ -102,7 +102,6 @@ static inline void model_functional_factors(const ves_model *m, double cE, doubl
   fac[2] = 2 * M_PI * cV;
 }
 
-
 /* The function model_each_point calls at every point al with its
  * kinematics q (VES_NQ) at y; ctx is the caller's. */
 typedef ves_status point_fn(const ves_model *m, int al, const double q[VES_NQ], void *ctx);
