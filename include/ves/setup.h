@@ -10,6 +10,7 @@
 #include "ves/model.h"
 #include "ves/quad.h"
 #include "ves/shape.h"
+#include "ves/sizing.h"
 
 /* How the nodal coefficients of phi0 are obtained. */
 typedef enum {

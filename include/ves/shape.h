@@ -1,6 +1,6 @@
 /* vesica — initial vesicle shapes: axisymmetric generating curves with an exact
  * signed distance d(R, Z) (> 0 inside), their sharp area and volume, the
- * phase-field phi0 = tanh(d / (sqrt2 eps)), and the node sizing field. */
+ * phase-field phi0 = tanh(d / (sqrt2 eps)) (the node sizing field: sizing.h). */
 #ifndef VES_SHAPE_H
 #define VES_SHAPE_H
 
@@ -77,28 +77,5 @@ double ves_shape_phi0(const ves_shape *s, double eps, const double X[2]);
  * radius). */
 ves_status ves_shape_band_nodes(const ves_shape *s, double h, double halfwidth, int *n, double **x,
                                 int **flag);
-
-/* Node sizing: h = h_band for |d| < band*eps, then growing linearly with
- * `slope` to h_far. d is tabulated on a grid (spacing <= h_band) and
- * interpolated bilinearly, so an evaluation is O(1). */
-typedef struct {
-  double eps;     /* interface width eps (units R0) */
-  double h_band;  /* spacing in the band (default 0.5 eps) */
-  double band;    /* half-width of the band in units of eps (default 4) */
-  double slope;   /* growth rate of h away from the band (default 0.15, < 0.2) */
-  double h_far;   /* largest spacing (default 0.2) */
-  double reserve; /* ves_sizing_reserved is true where |d| < reserve (0: never) */
-} ves_sizing_params;
-
-typedef struct ves_sizing ves_sizing;
-
-ves_status ves_sizing_create(const ves_shape *s, const ves_sizing_params *par, double LR, double LZ,
-                             ves_sizing **out);
-void ves_sizing_destroy(ves_sizing **z);
-/* ves_sizing_fn-compatible: ctx is a ves_sizing *. */
-double ves_sizing_eval(const double X[2], void *ctx);
-/* ves_region_fn-compatible: 1 where |d(X)| < reserve (the band layers' own
- * region, kept free of strip and CVT nodes), else 0. ctx is a ves_sizing *. */
-int ves_sizing_reserved(const double X[2], void *ctx);
 
 #endif
