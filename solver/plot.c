@@ -229,7 +229,7 @@ ves_status ves_plot_interface(ves_io *io, ves_level_set *ls, unsigned char *ok) 
       cur = j;
     }
     ok[k] = st == VES_OK && ves_io_read_snapshot_n(io, k, nk, NULL, x, phi, NULL) == VES_OK &&
-            ves_quad_level_set(nk, tk, tri, x, phi, ls + k) == VES_OK;
+            ves_level_set_eval(nk, tk, tri, x, phi, ls + k) == VES_OK;
   }
   free(x), free(phi), free(tri);
   return st;

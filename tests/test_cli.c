@@ -575,8 +575,8 @@ static void test_spectrum(void **state) {
     assert_int_equal(r.code, 2);
     assert_non_null(strstr(r.err, bad[i][2]));
   }
-  /* info: the sharp interface the nodes show (quad.c ves_quad_level_set,
-   * tested exactly in test_quad). At t = 0 its area and volume are the
+  /* info: the sharp interface the nodes show (level_set.c ves_level_set_eval,
+   * tested exactly in test_level_set). At t = 0 its area and volume are the
    * shape's sharp ones (vesica check) up to the piecewise-linear
    * interpolation of phi at h = 0.14 (measured 0.2% and 0.4%, asserted 1%: the phase
    * field's own A and V differ from them by 2.5% and 13% at eps 0.2), and 4

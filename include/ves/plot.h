@@ -19,6 +19,7 @@
 #include <stdio.h>
 
 #include "ves/io.h"
+#include "ves/level_set.h"
 #include "ves/quad.h"
 #include "ves/status.h"
 
@@ -43,7 +44,7 @@ typedef struct {
 } ves_plot_params;
 
 /* The sharp interface the nodes show at every snapshot k < S of the file:
- * ls[k] = ves_quad_level_set of phi at the nodes on the reference triangles
+ * ls[k] = ves_level_set_eval of phi at the nodes on the reference triangles
  * placed at the material positions x (format_version >= 2), ok[k] = 1; ok[k]
  * = 0 where the snapshot has no x and phi (format 1, or a snapshot written
  * with NaN). ls[S] and ok[S] are the caller's (S = ves_io_snapshots). The
