@@ -12,6 +12,7 @@
 #include <string.h>
 
 #include "backend_kkt_impl.h"
+#include "step_impl.h"
 
 /* The pieces of a step problem set at y^n that the analysis reads. */
 typedef struct {

@@ -13,6 +13,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "step_impl.h"
+
 struct ves_step {
   ves_model *m;           /* borrowed */
   const ves_pattern *pat; /* the model's pattern (borrowed) */

@@ -77,8 +77,9 @@ const double *ves_step_K(ves_step *s);
 /* dt E(y) alone and its gradient (the Euler backend's force). */
 ves_status ves_step_eval_energy_grad(ves_step *s, const double *x, double *E, double *gE);
 
-/* The model, y^n and parameters of the current step. */
-ves_model *ves_step_model(ves_step *s);
+/* The parameters of the current step (NULL before ves_step_set). The
+ * model the step problem is built on is not public: the backends see the
+ * step problem only (step_impl.h gives it to the analysis above). */
 const ves_step_params *ves_step_get_params(const ves_step *s);
 
 /* The targets of the held constraints, area first: tgt[k] = A0, then
