@@ -14,7 +14,11 @@
  * point has both in its (ghost-folded) neighbour list. q2 (may be NULL): a
  * second point set with tables against the same n nodes whose couplings are
  * added (the union; the model's drift damping uses the points at the nodes).
- * fixed[2n] flags the fixed dofs (borrowed). *out taken by the caller. */
+ * fixed[2n] flags the fixed dofs (borrowed). *out taken by the caller.
+ * Named for its type: the constructor of sparse.h's ves_pattern, the pair
+ * of ves_pattern_destroy there (GSL's _alloc/_free by type); it stands here
+ * because it reads a quadrature, which sparse (a layer below quad) cannot
+ * see. */
 ves_status ves_pattern_create(const ves_quad *q, const ves_quad *q2, int n,
                               const unsigned char *fixed, ves_pattern **out);
 
