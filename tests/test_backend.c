@@ -9,7 +9,8 @@
  * the start), a huge dt (whatever comes back, a VES_OK meets the
  * constraints; euler's explicit step leaves the domain: VES_ERR_DOMAIN),
  * NULL arguments and bad options (VES_ERR_ARG), a step problem never set
- * (newton, euler: VES_ERR_ARG). Prints iterations, evaluations and seconds
+ * or of another size (newton, euler: VES_ERR_ARG), a singular KKT matrix
+ * (no viscosity: newton, euler VES_ERR_SOLVER). Prints iterations, evaluations and seconds
  * for each backend. */
 #include <setjmp.h>
 #include <stdarg.h>
@@ -422,9 +423,27 @@ static void test_huge_dt(void **state) {
 
 /* Usage errors: NULL arguments and bad options are VES_ERR_ARG (euler
  * honours no tolerance and takes any); newton and euler refuse a step
- * problem that was never set. */
+ * problem that was never set, and one of another size than the problem they
+ * were created for (a model on the same nodes with one more node held on
+ * the wall: two free dofs fewer). */
 static void test_bad_arguments(void **state) {
   (void)state;
+  ves_nodes held = *FX.setup->nodes; /* shallow: only flag is replaced */
+  held.flag = malloc((size_t)held.n * sizeof *held.flag);
+  assert_non_null(held.flag);
+  memcpy(held.flag, FX.setup->nodes->flag, (size_t)held.n * sizeof *held.flag);
+  int a = 0;
+  while (a < held.n && (held.flag[a] & (VES_NODE_WALL | VES_NODE_AXIS))) a++;
+  assert_true(a < held.n);
+  held.flag[a] |= VES_NODE_WALL;
+  ves_model_params mp;
+  ves_model_get_params(FX.setup->model, &mp);
+  ves_model *m2 = NULL;
+  ves_step *other = NULL;
+  assert_int_equal(ves_model_create(&held, FX.setup->quad, FX.setup->phi0c, &mp, &m2), VES_OK);
+  assert_int_equal(ves_step_create(m2, &other), VES_OK);
+  assert_int_equal(ves_step_set(other, FX.yn, &FX.par), VES_OK);
+  assert_int_equal(ves_step_nvar(other), FX.nvar - 2);
   const char *names[] = {"ipopt", "nlopt", "newton", "euler"};
   for (int k = 0; k < 4; k++) {
     const ves_backend_type *b = ves_backend_find(names[k]);
@@ -460,7 +479,11 @@ static void test_bad_arguments(void **state) {
     ves_backend_stats stats;
     assert_int_equal(b->solve(sp, FX.step, x, NULL, &stats), VES_ERR_ARG); /* ncon = 2 */
     assert_int_equal(b->solve(NULL, FX.step, x, lambda, &stats), VES_ERR_ARG);
-    if (nk) assert_int_equal(b->solve(sp, FX.step, x, lambda, NULL), VES_ERR_ARG);
+    if (nk) {
+      assert_int_equal(b->solve(sp, FX.step, x, lambda, NULL), VES_ERR_ARG);
+      assert_int_equal(b->solve(sp, other, x, lambda, &stats), VES_ERR_ARG);
+      assert_non_null(strstr(ves_error_text(VES_ERR_ARG), "nv == ves_step_nvar(s)"));
+    }
     b->destroy(&sp);
     assert_null(sp);
     b->destroy(&sp); /* NULL is accepted */
@@ -476,6 +499,53 @@ static void test_bad_arguments(void **state) {
     }
     free(x);
   }
+  ves_step_destroy(&other);
+  ves_model_destroy(&m2);
+  free(held.flag);
+}
+
+/* A singular KKT matrix: the same step on a model without viscosity
+ * (mu = lambda = 0, drift damping off: K(y^n) = 0). Forward Euler's
+ * [K J; J^T 0] is then singular and it refuses the step (VES_ERR_SOLVER,
+ * after its one factorization; x untouched). Newton's Hessian dt Hess E
+ * + sigma Hess c is singular too, on the far-field dofs where E is flat and
+ * K was the only term, and its inertia correction, a multiple of K, adds
+ * nothing: MUMPS reports the matrix numerically singular (INFOG(1) = -10)
+ * and newton returns VES_ERR_SOLVER at its first factorization. */
+static void test_singular_kkt(void **state) {
+  (void)state;
+  ves_model_params mp;
+  ves_model_get_params(FX.setup->model, &mp);
+  mp.mu = 0, mp.lambda = 0, mp.drift = 0;
+  ves_model *m = NULL;
+  assert_int_equal(ves_model_create(FX.setup->nodes, FX.setup->quad, FX.setup->phi0c, &mp, &m),
+                   VES_OK);
+  ves_step *s = NULL;
+  assert_int_equal(ves_step_create(m, &s), VES_OK);
+  assert_int_equal(ves_step_set(s, FX.yn, &FX.par), VES_OK);
+  assert_int_equal(ves_step_nvar(s), FX.nvar);
+  double *x = malloc((size_t)FX.nvar * sizeof(double));
+  assert_non_null(x);
+  const char *names[] = {"euler", "newton"};
+  for (int k = 0; k < 2; k++) {
+    const ves_backend_type *b = ves_backend_find(names[k]);
+    ves_backend_options opt;
+    ves_backend_options_default(&opt);
+    opt.max_iter = 8;
+    void *sp = NULL;
+    assert_int_equal(b->create(&opt, s, &sp), VES_OK);
+    memcpy(x, FX.x0, (size_t)FX.nvar * sizeof(double));
+    double lambda[2] = {0.0, 0.0};
+    ves_backend_stats stats = {0};
+    ves_status st = b->solve(sp, s, x, lambda, &stats);
+    print_stats(names[k], st, &stats);
+    assert_int_equal(st, VES_ERR_SOLVER);
+    if (k == 0) assert_true(max_abs_diff(x, FX.x0, FX.nvar) == 0);
+    b->destroy(&sp);
+  }
+  free(x);
+  ves_step_destroy(&s);
+  ves_model_destroy(&m);
 }
 
 int main(void) {
@@ -486,6 +556,7 @@ int main(void) {
       cmocka_unit_test(test_nlopt_matches_ipopt),
       cmocka_unit_test(test_conformance),     cmocka_unit_test(test_domain_start),
       cmocka_unit_test(test_huge_dt),         cmocka_unit_test(test_bad_arguments),
+      cmocka_unit_test(test_singular_kkt),
   };
   // clang-format on
   return cmocka_run_group_tests(tests, group_setup, group_teardown);
