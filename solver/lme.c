@@ -257,18 +257,12 @@ static void lme_node_eval(const lme_moments *mo, double p, const double d[2], do
   n->g[1] = mo->rb[1] - n->M[1];
 }
 
-/* p_a, grad p_a = p_a g_a and Hess p_a = p_a [g_a g_a^T + grad g_a] at X. */
-ves_status ves_lme_eval(const ves_lme_params *par, const double X[2], int m, const double *xa,
-                        const double *beta, double lambda[2], int nder, double *tab, double *work,
-                        ves_lme_info *info) {
-  VES_CHECK(par && X && xa && beta && lambda && tab && work, VES_ERR_ARG);
-  VES_CHECK(m >= 3 && nder >= 0 && nder <= 2, VES_ERR_ARG);
-  VES_CHECK(par->gamma > 0 && par->newton_tol > 0 && par->max_iter >= 1, VES_ERR_ARG);
-  VES_CHECK(isfinite(X[0]) && isfinite(X[1]), VES_ERR_ARG);
-  if (!(isfinite(lambda[0]) && isfinite(lambda[1])))
-    lambda[0] = lambda[1] = 0.0; /* a useless guess is replaced by 0 */
-  double *q = work, *p = work + m, *d = work + 2 * m;
-
+/* The offsets d_a = X - X_a and q_a = -beta_a |d_a|^2 (d[2m], q[m]), with
+ * *dmax = max |d_a| and *bmax = max beta_a; VES_ERR_ARG for a non-finite
+ * offset or beta_a <= 0, neighbours that all coincide with X, or collinear
+ * ones (no 2D hull: the uniform covariance of the X_a singular). */
+static ves_status lme_offsets(const double X[2], int m, const double *xa, const double *beta,
+                              double *q, double *d, double *dmax_out, double *bmax_out) {
   /* d_a = X - X_a, q_a = -beta_a |d_a|^2; moments of the X_a. */
   double bmax = 0.0, dmax = 0.0, m0 = 0, m1 = 0;
   for (int a = 0; a < m; a++) {
@@ -296,51 +290,16 @@ ves_status ves_lme_eval(const ves_lme_params *par, const double X[2], int m, con
   }
   VES_CHECK(sym2_rcond(u00, u01, u11) > 1e3 * DBL_EPSILON,
             VES_ERR_ARG); /* collinear neighbours: no 2D hull */
+  *dmax_out = dmax, *bmax_out = bmax;
+  return VES_OK;
+}
 
-  double hloc = sqrt(par->gamma / bmax); /* h_loc = min_a sqrt(gamma/beta_a) */
-  double r[2];
-  xreal Jx[3];
-  int iters = 0;
-  const int warm = lambda[0] != 0.0 || lambda[1] != 0.0;
-  ves_status st = lme_newton(par, m, q, d, dmax, par->newton_tol * hloc, lambda, p, r, Jx, &iters);
-  if (st == VES_ERR_NOCONV && warm) {
-    /* a guess from another point can start far out (|lambda| dmax above
-     * LME_LAMBDA_MAX at once: measured at a node set made by a reset,
-     * where the previous point was unrelated): again from lambda = 0 */
-    int more = 0;
-    lambda[0] = lambda[1] = 0.0;
-    st = lme_newton(par, m, q, d, dmax, par->newton_tol * hloc, lambda, p, r, Jx, &more);
-    iters += more;
-  }
-  if (info) {
-    info->iterations = iters;
-    info->residual = hypot(r[0], r[1]);
-  }
-  if (st != VES_OK) return st;
-  double rc = sym2_rcond((double)Jx[0], (double)Jx[1], (double)Jx[2]);
-  VES_CHECK(rc >= LME_RCOND_MIN, VES_ERR_ARG); /* X (numerically) on the hull */
-
-  /* The derivative algebra below uses, in extended precision, the weights
-   * P_a = p_a / sum_b p_b and the centred offsets e_a = d_a - sum_b P_b d_b,
-   * so that sum P = 1, sum P e = 0 and J = sum P e (x) e hold to ~1e-19
-   * relative. The formulas assume exactly these identities; near the hull
-   * (distance delta) their terms are O(1/(delta h)) and cancel to O(1/h^2),
-   * so the Newton residual r (<= newton_tol h) or a normalization error of
-   * 1e-16 would otherwise be amplified by h/delta to 1e-10 and worse. The
-   * shift of d by r changes the derivatives only at the level to which
-   * lambda is known anyway (|J^{-1} r|). */
-  xreal sp = 0, c0 = 0, c1 = 0;
-  for (int a = 0; a < m; a++) {
-    sp += p[a];                   /* sum p (1 up to rounding) */
-    c0 += p[a] * (xreal)d[2 * a]; /* sum p d = r */
-    c1 += p[a] * (xreal)d[2 * a + 1];
-  }
-  xreal ip = 1 / sp;
-  c0 *= ip;
-  c1 *= ip;
-  for (int a = 0; a < m; a++) tab[a] = (double)(p[a] * ip); /* row 0: p_a */
-  if (nder == 0) return VES_OK;
-
+/* Rows 1-2 (nder >= 1: grad p_a = p_a g_a) and 3-5 (nder = 2: Hess p_a =
+ * p_a [g_a g_a^T + grad g_a]) of tab from the unnormalized weights p (sum
+ * 1/ip) and the centre c = sum P d of the normalized ones (extended
+ * precision, see ves_lme_eval). */
+static void lme_derivatives(int m, const double *p, const double *d, const double *beta, xreal ip,
+                            xreal c0, xreal c1, int nder, double *tab) {
   lme_moments mo = {.ip = ip, .c = {c0, c1}};
   xreal j00 = 0, j01 = 0, j11 = 0, jb00 = 0, jb01 = 0, jb11 = 0, sb = 0;
   for (int a = 0; a < m; a++) {
@@ -390,7 +349,7 @@ ves_status ves_lme_eval(const ves_lme_params *par, const double X[2], int m, con
     TR2 += pm2 * n->e[0];
     TZ2 += pm2 * n->e[1];
   }
-  if (nder < 2) return VES_OK;
+  if (nder < 2) return;
 
   const xreal rb0 = mo.rb[0], rb1 = mo.rb[1], rb0x2 = 2 * rb0, rb1x2 = 2 * rb1;
   const xreal rr00 = rb0 * rb0, rr01 = rb0 * rb1, rr11 = rb1 * rb1; /* r_b r_b^T */
@@ -408,5 +367,66 @@ ves_status ves_lme_eval(const ves_lme_params *par, const double X[2], int m, con
     tab[4 * m + a] = (double)(n->P * (g[0] * g[1] + h01)); /* d2p/dRdZ */
     tab[5 * m + a] = (double)(n->P * (g[1] * g[1] + h11)); /* d2p/dZ2 */
   }
+}
+
+/* p_a, grad p_a = p_a g_a and Hess p_a = p_a [g_a g_a^T + grad g_a] at X. */
+ves_status ves_lme_eval(const ves_lme_params *par, const double X[2], int m, const double *xa,
+                        const double *beta, double lambda[2], int nder, double *tab, double *work,
+                        ves_lme_info *info) {
+  VES_CHECK(par && X && xa && beta && lambda && tab && work, VES_ERR_ARG);
+  VES_CHECK(m >= 3 && nder >= 0 && nder <= 2, VES_ERR_ARG);
+  VES_CHECK(par->gamma > 0 && par->newton_tol > 0 && par->max_iter >= 1, VES_ERR_ARG);
+  VES_CHECK(isfinite(X[0]) && isfinite(X[1]), VES_ERR_ARG);
+  if (!(isfinite(lambda[0]) && isfinite(lambda[1])))
+    lambda[0] = lambda[1] = 0.0; /* a useless guess is replaced by 0 */
+  double *q = work, *p = work + m, *d = work + 2 * m;
+  double dmax = 0, bmax = 0;
+  VES_CALL(lme_offsets(X, m, xa, beta, q, d, &dmax, &bmax));
+
+  double hloc = sqrt(par->gamma / bmax); /* h_loc = min_a sqrt(gamma/beta_a) */
+  double r[2];
+  xreal Jx[3];
+  int iters = 0;
+  const int warm = lambda[0] != 0.0 || lambda[1] != 0.0;
+  ves_status st = lme_newton(par, m, q, d, dmax, par->newton_tol * hloc, lambda, p, r, Jx, &iters);
+  if (st == VES_ERR_NOCONV && warm) {
+    /* a guess from another point can start far out (|lambda| dmax above
+     * LME_LAMBDA_MAX at once: measured at a node set made by a reset,
+     * where the previous point was unrelated): again from lambda = 0 */
+    int more = 0;
+    lambda[0] = lambda[1] = 0.0;
+    st = lme_newton(par, m, q, d, dmax, par->newton_tol * hloc, lambda, p, r, Jx, &more);
+    iters += more;
+  }
+  if (info) {
+    info->iterations = iters;
+    info->residual = hypot(r[0], r[1]);
+  }
+  if (st != VES_OK) return st;
+  double rc = sym2_rcond((double)Jx[0], (double)Jx[1], (double)Jx[2]);
+  VES_CHECK(rc >= LME_RCOND_MIN, VES_ERR_ARG); /* X (numerically) on the hull */
+
+  /* The derivative algebra below uses, in extended precision, the weights
+   * P_a = p_a / sum_b p_b and the centred offsets e_a = d_a - sum_b P_b d_b,
+   * so that sum P = 1, sum P e = 0 and J = sum P e (x) e hold to ~1e-19
+   * relative. The formulas assume exactly these identities; near the hull
+   * (distance delta) their terms are O(1/(delta h)) and cancel to O(1/h^2),
+   * so the Newton residual r (<= newton_tol h) or a normalization error of
+   * 1e-16 would otherwise be amplified by h/delta to 1e-10 and worse. The
+   * shift of d by r changes the derivatives only at the level to which
+   * lambda is known anyway (|J^{-1} r|). */
+  xreal sp = 0, c0 = 0, c1 = 0;
+  for (int a = 0; a < m; a++) {
+    sp += p[a];                   /* sum p (1 up to rounding) */
+    c0 += p[a] * (xreal)d[2 * a]; /* sum p d = r */
+    c1 += p[a] * (xreal)d[2 * a + 1];
+  }
+  xreal ip = 1 / sp;
+  c0 *= ip;
+  c1 *= ip;
+  for (int a = 0; a < m; a++) tab[a] = (double)(p[a] * ip); /* row 0: p_a */
+  if (nder == 0) return VES_OK;
+
+  lme_derivatives(m, p, d, beta, ip, c0, c1, nder, tab);
   return VES_OK;
 }
