@@ -346,52 +346,18 @@ static void tables_search(const ves_quad *q, const ves_geom_search *search, int 
   }
 }
 
-/* For each point: neighbours a (real and ghost) with |X - X_a| <= r_a, then
- * the LME table at X over exactly those neighbours. Both passes run on the
- * OpenMP threads: pass 1 (one search query per triangle, tables_search) in
- * contiguous blocks of triangles whose lists are then concatenated in point
- * order, pass 2 (the LME evaluations) over triangles, a triangle's points in
- * order with the warm start of lambda passed along them and lambda = 0 at its
- * first point. Every table therefore depends on its own triangle only, and
- * the tables are bit for bit the same for any number of threads. */
-ves_status ves_quad_tables(ves_quad *q, const ves_nodes *nodes, const ves_lme_params *lme,
-                           ves_quad_info *info) {
-  VES_CHECK(q && nodes && lme, VES_ERR_ARG);
-  double t0 = ves_wall_seconds();
-  tables_free(q);
-  const int n = nodes->n, ne = nodes->n + nodes->ng, nt = ves_omp_threads();
-  ves_status s = VES_OK;
-  ves_geom_search *search = NULL;
-  double *xe = malloc(2 * (size_t)ne * sizeof *xe);
-  double *rad = malloc((size_t)ne * sizeof *rad);
-  double *beta_e = malloc((size_t)ne * sizeof *beta_e);
-  tables_ws *ws = calloc((size_t)nt, sizeof *ws);
-  q->ptr = malloc(((size_t)q->nq + 1) * sizeof *q->ptr);
-  if (!xe || !rad || !beta_e || !ws || !q->ptr) {
-    s = VES_ERR_ALLOC;
-    goto done;
-  }
-  ves_nodes_extended(nodes, xe);
-  for (int a = 0; a < ne; a++) {
-    double h = nodes->h[a < n ? a : nodes->ghost_of[a - n]];
-    rad[a] = ves_lme_radius(lme, h);
-    beta_e[a] = lme->gamma / (h * h);
-  }
-  s = ves_geom_search_create(ne, xe, rad, &search);
-  if (s != VES_OK) goto done;
-
-  /* Pass 1: the neighbour lists (extended indices) of thread k's block of
-   * groups in ws[k].nb, counts in ptr[p + 1]; then concatenated into nbr. A
-   * group is a triangle's points (their lists come from one query), or a
-   * single point for a point set without triangles. */
-  const int gsize = q->ntri ? VES_QUAD_NPT : 1, ngroup = (q->nq + gsize - 1) / gsize;
+/* Pass 1 of ves_quad_tables: every point's neighbour list (extended
+ * indices, ascending) into q->ptr and q->nbr, and room for q->mirror and
+ * q->tab; *m_max_out the longest list. ws[nt]: the threads' workspaces (the
+ * caller frees them). */
+static ves_status tables_lists(ves_quad *q, const ves_geom_search *search, int gsize, int ngroup,
+                               int nt, tables_ws *ws, int *m_max_out) {
+  /* the lists of thread k's block of groups in ws[k].nb, counts in
+   * ptr[p + 1]; then concatenated into nbr */
   for (int k = 0; k < nt; k++) {
     ws[k].cap = 256;
     ws[k].idx = malloc((size_t)ws[k].cap * sizeof *ws[k].idx);
-    if (!ws[k].idx) {
-      s = VES_ERR_ALLOC;
-      goto done;
-    }
+    if (!ws[k].idx) return VES_ERR_ALLOC;
   }
 #pragma omp parallel num_threads(nt)
   {
@@ -400,22 +366,20 @@ ves_status ves_quad_tables(ves_quad *q, const ves_nodes *nodes, const ves_lme_pa
     ws[k].g1 = (int)((long)ngroup * (k + 1) / T);
     tables_search(q, search, gsize, ws + k, q->ptr + 1);
   }
+  ves_status s = VES_OK;
   int m_max = 0;
   for (int k = 0; k < nt; k++) {
     if (ws[k].s != VES_OK && s == VES_OK) s = ws[k].s; /* the first block's failure */
     if (ws[k].m_max > m_max) m_max = ws[k].m_max;
   }
-  if (s != VES_OK) goto done;
+  if (s != VES_OK) return s;
   q->ptr[0] = 0;
   for (int p = 0; p < q->nq; p++) q->ptr[p + 1] += q->ptr[p];
   size_t nnz = (size_t)q->ptr[q->nq];
   q->nbr = malloc((nnz ? nnz : 1) * sizeof *q->nbr);
   q->mirror = malloc(nnz ? nnz : 1);
   q->tab = malloc(6 * (nnz ? nnz : 1) * sizeof *q->tab);
-  if (!q->nbr || !q->mirror || !q->tab) {
-    s = VES_ERR_ALLOC;
-    goto done;
-  }
+  if (!q->nbr || !q->mirror || !q->tab) return VES_ERR_ALLOC;
   for (int k = 0; k < nt; k++) {
     const int p0 = gsize * ws[k].g0 < q->nq ? gsize * ws[k].g0 : q->nq;
     const int p1 = gsize * ws[k].g1 < q->nq ? gsize * ws[k].g1 : q->nq;
@@ -424,8 +388,19 @@ ves_status ves_quad_tables(ves_quad *q, const ves_nodes *nodes, const ves_lme_pa
     free(ws[k].nb);
     ws[k].nb = NULL;
   }
+  *m_max_out = m_max;
+  return VES_OK;
+}
 
-  /* Pass 2: fold ghost indices and evaluate the basis, one group of points
+/* Pass 2 of ves_quad_tables: the ghost indices folded (q->nbr, q->mirror)
+ * and the LME tables (q->tab) at every point, from the extended node
+ * positions xe and their beta_e; the sum and the largest count of the
+ * Newton iterations. */
+static ves_status tables_eval(ves_quad *q, const ves_nodes *nodes, const ves_lme_params *lme,
+                              const double *xe, const double *beta_e, int gsize, int ngroup,
+                              int m_max, int nt, long *iter_sum_out, int *iter_max_out) {
+  const int n = nodes->n;
+  /* One group of points
    * (a triangle's, or a single point for a point set without triangles: it
    * is not ordered in space) per task. An error is reported for the lowest
    * failing point: groups above the lowest failure seen so far are skipped,
@@ -487,7 +462,57 @@ ves_status ves_quad_tables(ves_quad *q, const ves_nodes *nodes, const ves_lme_pa
     free(beta);
     free(work);
   }
-  if ((s = bad_s) != VES_OK) goto done;
+  *iter_sum_out = iter_sum, *iter_max_out = iter_max;
+  return bad_s;
+}
+
+/* For each point: neighbours a (real and ghost) with |X - X_a| <= r_a, then
+ * the LME table at X over exactly those neighbours. Both passes run on the
+ * OpenMP threads: pass 1 (one search query per triangle, tables_search) in
+ * contiguous blocks of triangles whose lists are then concatenated in point
+ * order, pass 2 (the LME evaluations) over triangles, a triangle's points in
+ * order with the warm start of lambda passed along them and lambda = 0 at its
+ * first point. Every table therefore depends on its own triangle only, and
+ * the tables are bit for bit the same for any number of threads. */
+ves_status ves_quad_tables(ves_quad *q, const ves_nodes *nodes, const ves_lme_params *lme,
+                           ves_quad_info *info) {
+  VES_CHECK(q && nodes && lme, VES_ERR_ARG);
+  double t0 = ves_wall_seconds();
+  tables_free(q);
+  const int n = nodes->n, ne = nodes->n + nodes->ng, nt = ves_omp_threads();
+  ves_status s = VES_OK;
+  ves_geom_search *search = NULL;
+  double *xe = malloc(2 * (size_t)ne * sizeof *xe);
+  double *rad = malloc((size_t)ne * sizeof *rad);
+  double *beta_e = malloc((size_t)ne * sizeof *beta_e);
+  tables_ws *ws = calloc((size_t)nt, sizeof *ws);
+  q->ptr = malloc(((size_t)q->nq + 1) * sizeof *q->ptr);
+  if (!xe || !rad || !beta_e || !ws || !q->ptr) {
+    s = VES_ERR_ALLOC;
+    goto done;
+  }
+  ves_nodes_extended(nodes, xe);
+  for (int a = 0; a < ne; a++) {
+    double h = nodes->h[a < n ? a : nodes->ghost_of[a - n]];
+    rad[a] = ves_lme_radius(lme, h);
+    beta_e[a] = lme->gamma / (h * h);
+  }
+  s = ves_geom_search_create(ne, xe, rad, &search);
+  if (s != VES_OK) goto done;
+
+  /* Pass 1: the neighbour lists (tables_lists). A group is a triangle's
+   * points (their lists come from one query), or a single point for a point
+   * set without triangles. */
+  const int gsize = q->ntri ? VES_QUAD_NPT : 1, ngroup = (q->nq + gsize - 1) / gsize;
+  int m_max = 0;
+  if ((s = tables_lists(q, search, gsize, ngroup, nt, ws, &m_max)) != VES_OK) goto done;
+  const size_t nnz = (size_t)q->ptr[q->nq];
+
+  /* Pass 2: the tables (tables_eval). */
+  long iter_sum = 0;
+  int iter_max = 0;
+  s = tables_eval(q, nodes, lme, xe, beta_e, gsize, ngroup, m_max, nt, &iter_sum, &iter_max);
+  if (s != VES_OK) goto done;
   q->lme = *lme;
   if (info) {
     info->m_mean = q->nq ? (double)nnz / q->nq : 0.0;
