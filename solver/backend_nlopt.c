@@ -453,6 +453,95 @@ static ves_status nlb_finish(nlb_state *st, ves_step *s, const double *x, int m,
   return VES_OK;
 }
 
+/* The start of nlb_phase at x: the gradient g and the constraints' Jacobian
+ * J in the variables of the factor (nlb_precondition), and with an exact
+ * factor and constraints the multipliers lam_qp of the quadratic model's
+ * step (*have_qp). */
+static ves_status nlb_start(nlb_state *st, ves_step *s, const double *x, const double *lambda,
+                            double lam_qp[2], int *have_qp) {
+  nlb_ctx *c = &st->ctx;
+  const int n = st->n, m = c->m;
+  /* Its gradient and the preconditioner; with an exact factor and
+   * constraints, the multipliers of the quadratic model's step, and when they
+   * differ from the ones the Hessian was built with by more than
+   * NLB_LAMBDA_RTOL, once more with the Hessian at those. */
+  double lam_m[2] = {m > 0 ? lambda[0] : 0.0, m > 1 ? lambda[1] : 0.0};
+  double c0[2] = {0.0, 0.0};
+  *have_qp = 0;
+  ves_status rc = m > 0 ? ves_step_eval_c(s, x, c0) : VES_OK;
+  for (int pass = 0; pass < 2 && rc == VES_OK; pass++) {
+    rc = ves_step_eval_grad(s, x, st->g);
+    if (rc == VES_OK && m > 0) rc = ves_step_eval_jac(s, x, st->J);
+    if (rc == VES_OK) rc = nlb_precondition(st, s, x, m > 0 ? lam_m : NULL, m, st->J);
+    if (rc != VES_OK) break;
+    c->g_evals++, c->h_evals++;
+    nlb_lsolve(st->L, st->Ld, st->g); /* the gradient in u at root = 1 */
+    for (int i = 0; i < m; i++) nlb_lsolve(st->L, st->Ld, st->J + (size_t)i * n);
+    *have_qp = m > 0 && st->Ld != NULL; /* an estimate, also from a shifted factor */
+    if (!*have_qp) break;
+    nlb_multipliers(n, m, st->J, st->g, c0, lam_qp);
+    double dl = 0.0, lm = 0.0;
+    for (int i = 0; i < m; i++)
+      dl = fmax(dl, fabs(lam_qp[i] - lam_m[i])), lm = fmax(lm, fabs(lam_qp[i]));
+    if (dl <= NLB_LAMBDA_RTOL * lm) break;
+    lam_m[0] = lam_qp[0], lam_m[1] = lam_qp[1];
+  }
+  return rc;
+}
+
+/* The scales of nlb_phase from the start's gradient and Jacobian: the root
+ * of u (c->root, c->f_scale), the constraint scales c->tgt with their
+ * tolerances ctol[] (relative ctol_rel on c_i), the multipliers to start
+ * AUGLAG from (c->lam0); x is kept as st->xs. */
+static void nlb_scales(nlb_state *st, const double *x, const double *lambda, const double *tgt,
+                       double tol, double ctol_rel, const double lam_qp[2], int have_qp,
+                       double ctol[2]) {
+  nlb_ctx *c = &st->ctx;
+  const int n = st->n, m = c->m;
+  memcpy(st->xs, x, (size_t)n * sizeof(double));
+  double gmax = 0.0;
+  for (int i = 0; i < n; i++) gmax = fmax(gmax, fabs(st->g[i]));
+  c->root = gmax > 0.0 ? tol * gmax / LBFGS_GTOL : 1.0;
+  c->f_scale = c->root * c->root;
+  /* Constraint scales: |grad_u r_i| = NLB_CSCALE at the start, so AUGLAG's
+   * penalty rho |r|^2 / 2 (rho starts at 10) is NLB_CSCALE^2 rho times F's
+   * unit Hessian in those directions; the tolerance of r_i is ctol
+   * target_i / sigma_i (relative ctol on c_i). */
+  ctol[0] = ctol[1] = ctol_rel;
+  for (int i = 0; i < m; i++) {
+    double *Ji = st->J + (size_t)i * n, nrm = 0.0;
+    for (int j = 0; j < n; j++) nrm += Ji[j] * Ji[j];
+    c->tgt[i] = nrm > 0.0 ? c->root * sqrt(nrm) / NLB_CSCALE : tgt[i];
+    ctol[i] = ctol_rel * tgt[i] / c->tgt[i];
+#ifdef NLB_LAMBDA_IN /* measurement: the multipliers handed in */
+    c->lam0[i] = lambda[i];
+#else
+    c->lam0[i] = have_qp ? lam_qp[i] : lambda[i];
+#endif
+  }
+}
+
+/* NLopt's verdict as a status: the stops at a point (tolerances, a
+ * stalled line search) VES_OK, the evaluation or time limit VES_MAXITER. */
+static ves_status nlb_status(nlopt_result r) {
+  switch (r) {
+  case NLOPT_SUCCESS:
+  case NLOPT_STOPVAL_REACHED:
+  case NLOPT_FTOL_REACHED:
+  case NLOPT_XTOL_REACHED:
+  case NLOPT_FAILURE: /* LBFGS's line search stalled on roundoff: judged by nlb_finish */
+  case NLOPT_ROUNDOFF_LIMITED:
+    return VES_OK;
+  case NLOPT_MAXEVAL_REACHED:
+  case NLOPT_MAXTIME_REACHED:
+    return VES_MAXITER;
+  case NLOPT_OUT_OF_MEMORY:
+    return VES_ERR_ALLOC;
+  default: /* invalid arguments, a forced stop without a reason */
+    return VES_ERR_SOLVER;
+  }
+}
+
 /* One AUGLAG solve from x (in/out) to relative tolerances tol (gradient in
  * the metric of the factor) and ctol (constraints), in the variables of the
  * factor of the Hessian at x with multipliers lambda (in; out: least-squares
@@ -465,31 +554,9 @@ static ves_status nlb_phase(nlb_state *st, ves_step *s, double *x, double *lambd
   *r = NLOPT_FAILURE;
   *viol = HUGE_VAL;
   c->domain_run = 0;
-  /* Start: its gradient and the preconditioner; with an exact factor and
-   * constraints, the multipliers of the quadratic model's step, and when they
-   * differ from the ones the Hessian was built with by more than
-   * NLB_LAMBDA_RTOL, once more with the Hessian at those. */
-  double lam_m[2] = {m > 0 ? lambda[0] : 0.0, m > 1 ? lambda[1] : 0.0};
-  double lam_qp[2] = {0.0, 0.0}, c0[2] = {0.0, 0.0};
+  double lam_qp[2] = {0.0, 0.0};
   int have_qp = 0;
-  ves_status rc = m > 0 ? ves_step_eval_c(s, x, c0) : VES_OK;
-  for (int pass = 0; pass < 2 && rc == VES_OK; pass++) {
-    rc = ves_step_eval_grad(s, x, st->g);
-    if (rc == VES_OK && m > 0) rc = ves_step_eval_jac(s, x, st->J);
-    if (rc == VES_OK) rc = nlb_precondition(st, s, x, m > 0 ? lam_m : NULL, m, st->J);
-    if (rc != VES_OK) break;
-    c->g_evals++, c->h_evals++;
-    nlb_lsolve(st->L, st->Ld, st->g); /* the gradient in u at root = 1 */
-    for (int i = 0; i < m; i++) nlb_lsolve(st->L, st->Ld, st->J + (size_t)i * n);
-    have_qp = m > 0 && st->Ld != NULL; /* an estimate, also from a shifted factor */
-    if (!have_qp) break;
-    nlb_multipliers(n, m, st->J, st->g, c0, lam_qp);
-    double dl = 0.0, lm = 0.0;
-    for (int i = 0; i < m; i++)
-      dl = fmax(dl, fabs(lam_qp[i] - lam_m[i])), lm = fmax(lm, fabs(lam_qp[i]));
-    if (dl <= NLB_LAMBDA_RTOL * lm) break;
-    lam_m[0] = lam_qp[0], lam_m[1] = lam_qp[1];
-  }
+  ves_status rc = nlb_start(st, s, x, lambda, lam_qp, &have_qp);
   if (rc != VES_OK) return rc;
 #ifdef NLB_TRACE
   fprintf(stderr,
@@ -497,27 +564,8 @@ static ves_status nlb_phase(nlb_state *st, ves_step *s, double *x, double *lambd
           tol, m > 0 ? lambda[0] : 0.0, m > 1 ? lambda[1] : 0.0, lam_qp[0], lam_qp[1], have_qp,
           st->pass, st->shift);
 #endif
-  memcpy(st->xs, x, (size_t)n * sizeof(double));
-  double gmax = 0.0;
-  for (int i = 0; i < n; i++) gmax = fmax(gmax, fabs(st->g[i]));
-  c->root = gmax > 0.0 ? tol * gmax / LBFGS_GTOL : 1.0;
-  c->f_scale = c->root * c->root;
-  /* Constraint scales: |grad_u r_i| = NLB_CSCALE at the start, so AUGLAG's
-   * penalty rho |r|^2 / 2 (rho starts at 10) is NLB_CSCALE^2 rho times F's
-   * unit Hessian in those directions; the tolerance of r_i is ctol
-   * target_i / sigma_i (relative ctol on c_i). */
-  double ctol[2] = {ctol_rel, ctol_rel};
-  for (int i = 0; i < m; i++) {
-    double *Ji = st->J + (size_t)i * n, nrm = 0.0;
-    for (int j = 0; j < n; j++) nrm += Ji[j] * Ji[j];
-    c->tgt[i] = nrm > 0.0 ? c->root * sqrt(nrm) / NLB_CSCALE : tgt[i];
-    ctol[i] = ctol_rel * tgt[i] / c->tgt[i];
-#ifdef NLB_LAMBDA_IN /* measurement: the multipliers handed in */
-    c->lam0[i] = lambda[i];
-#else
-    c->lam0[i] = have_qp ? lam_qp[i] : lambda[i];
-#endif
-  }
+  double ctol[2];
+  nlb_scales(st, x, lambda, tgt, tol, ctol_rel, lam_qp, have_qp, ctol);
   memset(st->u, 0, (size_t)n * sizeof(double)); /* u = 0 is x_start */
 
   nlopt_opt opt = nlopt_create(NLOPT_AUGLAG, (unsigned)n);
@@ -554,26 +602,7 @@ static ves_status nlb_phase(nlb_state *st, ves_step *s, double *x, double *lambd
     out = c->reason;
     goto done;
   }
-  switch (*r) {
-  case NLOPT_SUCCESS:
-  case NLOPT_STOPVAL_REACHED:
-  case NLOPT_FTOL_REACHED:
-  case NLOPT_XTOL_REACHED:
-  case NLOPT_FAILURE: /* LBFGS's line search stalled on roundoff: judged below */
-  case NLOPT_ROUNDOFF_LIMITED:
-    out = VES_OK;
-    break;
-  case NLOPT_MAXEVAL_REACHED:
-  case NLOPT_MAXTIME_REACHED:
-    out = VES_MAXITER;
-    break;
-  case NLOPT_OUT_OF_MEMORY:
-    out = VES_ERR_ALLOC;
-    break;
-  default: /* invalid arguments, a forced stop without a reason */
-    out = VES_ERR_SOLVER;
-    break;
-  }
+  out = nlb_status(*r);
 done:
   if (out == VES_OK || out == VES_MAXITER) {
     /* AUGLAG's verdict is not enough: check feasibility here, and return
