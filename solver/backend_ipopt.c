@@ -216,6 +216,32 @@ static ves_status ipopt_create(const ves_backend_options *opt, ves_step *s, void
   return VES_OK;
 }
 
+/* Ipopt's verdict as a status: a solve is VES_OK only with the violation we
+ * measured (viol) within ctol; the stops without a solution VES_ERR_NOCONV,
+ * a broken problem or option VES_ERR_SOLVER. */
+static ves_status ipopt_status(enum ApplicationReturnStatus ars, double viol, double ctol) {
+  switch (ars) {
+  case Solve_Succeeded:
+  case Solved_To_Acceptable_Level:
+    return viol <= ctol ? VES_OK : VES_ERR_NOCONV;
+  case Maximum_Iterations_Exceeded:
+    return VES_MAXITER;
+  case Infeasible_Problem_Detected:
+  case Search_Direction_Becomes_Too_Small:
+  case Diverging_Iterates:
+  case User_Requested_Stop:
+  case Feasible_Point_Found:
+  case Restoration_Failed:
+  case Error_In_Step_Computation:
+  case Maximum_CpuTime_Exceeded:
+  case Invalid_Number_Detected:
+    return VES_ERR_NOCONV;
+  default: /* Not_Enough_Degrees_Of_Freedom, Invalid_Problem_Definition,
+            * Invalid_Option, exceptions, memory, internal errors */
+    return VES_ERR_SOLVER;
+  }
+}
+
 static ves_status ipopt_solve(void *state, ves_step *s, double *x, double *lambda,
                               ves_backend_stats *stats) {
   VES_CHECK(state && s && x, VES_ERR_ARG);
@@ -270,31 +296,7 @@ static ves_status ipopt_solve(void *state, ves_step *s, double *x, double *lambd
     for (int i = 0; i < m; i++) viol = fmax(viol, fabs(st->g[i]) / tgt[i]);
   }
 
-  ves_status out;
-  switch (ars) {
-  case Solve_Succeeded:
-  case Solved_To_Acceptable_Level:
-    out = viol <= st->opt.ctol ? VES_OK : VES_ERR_NOCONV;
-    break;
-  case Maximum_Iterations_Exceeded:
-    out = VES_MAXITER;
-    break;
-  case Infeasible_Problem_Detected:
-  case Search_Direction_Becomes_Too_Small:
-  case Diverging_Iterates:
-  case User_Requested_Stop:
-  case Feasible_Point_Found:
-  case Restoration_Failed:
-  case Error_In_Step_Computation:
-  case Maximum_CpuTime_Exceeded:
-  case Invalid_Number_Detected:
-    out = VES_ERR_NOCONV;
-    break;
-  default: /* Not_Enough_Degrees_Of_Freedom, Invalid_Problem_Definition,
-            * Invalid_Option, exceptions, memory, internal errors */
-    out = VES_ERR_SOLVER;
-    break;
-  }
+  ves_status out = ipopt_status(ars, viol, st->opt.ctol);
   /* A failure rooted in our callbacks is reported as such: an error raised
    * there, or a start outside the domain. */
   if (out < 0 && c->error != VES_OK)
