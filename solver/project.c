@@ -116,7 +116,10 @@ static int fold_group(const ves_quad *q, int n, int gs, int m_max, int g, fold_w
  * k takes a contiguous block of groups; pass 1 sizes the unions, pass 2 folds
  * again and stores them, counting its nodes in cnt[k n + a]; the counts give
  * every thread its slots per node after those of the blocks before it, so the
- * transpose (pass 3) comes out in group order for any number of threads. */
+ * transpose (pass 3) comes out in group order for any number of threads.
+ * Long, on purpose: the three passes are one parallel region whose threads
+ * keep their block of groups and their counts across the barriers; in
+ * helpers each pass would take that whole shared state as arguments. */
 static ves_status folded_create(const ves_quad *q, int n, int with_values, folded *fo) {
   memset(fo, 0, sizeof *fo);
   const int nt = ves_omp_threads();
@@ -451,6 +454,56 @@ static double residual(int n, const int *ptr, const int *col, const double *val,
   return bnorm > 0 ? sqrt(rn) / bnorm : sqrt(rn);
 }
 
+/* M and b = P^T W f of ves_project_l2 (val on the pattern ptr/col, with the
+ * rows irow; 1 when a workspace could not be allocated), row by row on the
+ * OpenMP threads. Row a: each point alpha that sees a, in ascending order, adds w P_alpha,a
+ * P_alpha,b to (a, b) for the nodes b <= a it sees and w P_alpha,a f_alpha to b_a. By groups: the
+ * head of U_g up to a is gathered from the row, each point k of g that sees a adds w P_k,a V_g(k,
+ * .) to it (a zero of V_g adds nothing), and it is scattered back. Every entry is thus summed in
+ * point order, the same sums for any number of threads. */
+static int normal_equations(const ves_quad *q, const folded *fo, int n, const double *f,
+                            const int *ptr, const int *col, int *irow, double *val, double *b) {
+  int fail = 0;
+#pragma omp parallel num_threads(ves_omp_threads())
+  {
+    int *pos = malloc((size_t)n * sizeof *pos); /* column -> slot in row a */
+    double *acc = malloc((size_t)(fo->umax ? fo->umax : 1) * sizeof *acc); /* a head of a row */
+    if (!pos || !acc) {
+#pragma omp atomic write
+      fail = 1;
+    }
+#pragma omp for schedule(dynamic, 16)
+    for (int a = 0; a < n; a++) {
+      if (!pos || !acc) continue;
+      for (int t = ptr[a]; t < ptr[a + 1]; t++) pos[col[t]] = t, irow[t] = a;
+      double ba = 0.0;
+      for (int u = fo->npt[a]; u < fo->npt[a + 1]; u++) {
+        const int g = fo->tgrp[u], e0 = fo->uptr[g], len = fo->uptr[g + 1] - e0,
+                  ka = fo->tpos[u] - e0;
+        const int *U = fo->unod + e0;
+        const unsigned char *msk = fo->umask + e0, ma = msk[ka];
+        const double *V = fo->uval + (size_t)fo->gs * e0;
+        for (int i = 0; i <= ka; i++) /* (a, U_i) is in the row if a point sees both */
+          acc[i] = msk[i] & ma ? val[pos[U[i]]] : 0.0;
+        for (int k = 0; k < fo->gs; k++) {
+          if (!(ma >> k & 1)) continue; /* point k does not see a */
+          const int al = fo->gs * g + k;
+          const double *Vk = V + (size_t)k * len, wPa = q->w[al] * Vk[ka];
+#pragma omp simd
+          for (int i = 0; i <= ka; i++) acc[i] += wPa * Vk[i];
+          ba += q->w[al] * Vk[ka] * f[al];
+        }
+        for (int i = 0; i <= ka; i++)
+          if (msk[i] & ma) val[pos[U[i]]] = acc[i];
+      }
+      b[a] = ba;
+    }
+    free(pos);
+    free(acc);
+  }
+  return fail;
+}
+
 ves_status ves_project_l2(const ves_quad *q, int n, const double *f, double *c, double rtol,
                           int maxref, int *refinements, double *relres) {
   VES_CHECK(q && q->tab && f && c && n > 0 && rtol >= 0 && maxref >= 0, VES_ERR_ARG);
@@ -475,50 +528,8 @@ ves_status ves_project_l2(const ves_quad *q, int n, const double *f, double *c, 
   cbest = malloc((size_t)n * sizeof *cbest);
   if (!irow || !val || !b || !r || !cbest) goto done;
 
-  /* M and b = P^T W f, row by row on the OpenMP threads. Row a: each point
-   * alpha that sees a, in ascending order, adds w P_alpha,a P_alpha,b to
-   * (a, b) for the nodes b <= a it sees and w P_alpha,a f_alpha to b_a. By
-   * groups: the head of U_g up to a is gathered from the row, each point k of
-   * g that sees a adds w P_k,a V_g(k, .) to it (a zero of V_g adds nothing),
-   * and it is scattered back. Every entry is thus summed in point order, the
-   * same sums for any number of threads. */
-  int fail = 0;
-#pragma omp parallel num_threads(ves_omp_threads())
-  {
-    int *pos = malloc((size_t)n * sizeof *pos); /* column -> slot in row a */
-    double *acc = malloc((size_t)(fo.umax ? fo.umax : 1) * sizeof *acc); /* a head of a row */
-    if (!pos || !acc) {
-#pragma omp atomic write
-      fail = 1;
-    }
-#pragma omp for schedule(dynamic, 16)
-    for (int a = 0; a < n; a++) {
-      if (!pos || !acc) continue;
-      for (int t = ptr[a]; t < ptr[a + 1]; t++) pos[col[t]] = t, irow[t] = a;
-      double ba = 0.0;
-      for (int u = fo.npt[a]; u < fo.npt[a + 1]; u++) {
-        const int g = fo.tgrp[u], e0 = fo.uptr[g], len = fo.uptr[g + 1] - e0, ka = fo.tpos[u] - e0;
-        const int *U = fo.unod + e0;
-        const unsigned char *msk = fo.umask + e0, ma = msk[ka];
-        const double *V = fo.uval + (size_t)fo.gs * e0;
-        for (int i = 0; i <= ka; i++) /* (a, U_i) is in the row if a point sees both */
-          acc[i] = msk[i] & ma ? val[pos[U[i]]] : 0.0;
-        for (int k = 0; k < fo.gs; k++) {
-          if (!(ma >> k & 1)) continue; /* point k does not see a */
-          const int al = fo.gs * g + k;
-          const double *Vk = V + (size_t)k * len, wPa = q->w[al] * Vk[ka];
-#pragma omp simd
-          for (int i = 0; i <= ka; i++) acc[i] += wPa * Vk[i];
-          ba += q->w[al] * Vk[ka] * f[al];
-        }
-        for (int i = 0; i <= ka; i++)
-          if (msk[i] & ma) val[pos[U[i]]] = acc[i];
-      }
-      b[a] = ba;
-    }
-    free(pos);
-    free(acc);
-  }
+  /* M and b = P^T W f (normal_equations) */
+  int fail = normal_equations(q, &fo, n, f, ptr, col, irow, val, b);
   if (fail) goto done;
   folded_free(&fo); /* no longer needed: free it before the factorization */
   double bnorm = 0.0;
