@@ -282,6 +282,56 @@ static void fig_constraints(FILE *f, const ves_plot_params *p, const ves_io_info
              "unset multiplot\n");
 }
 
+/* Run gnuplot on the script; its own messages are read back, not printed:
+ * on a failure, err quotes its last message line. */
+static ves_status run_gnuplot(const char *script, char *err, size_t errlen) {
+  char cmd[PATH_MAX + 32], msg[512] = "";
+  snprintf(cmd, sizeof cmd, "gnuplot %s 2>&1", script);
+  FILE *g = popen(cmd, "r");
+  if (!g) {
+    ves_error_say(err, errlen, "cannot run gnuplot: %s", strerror(errno));
+    return VES_ERR_IO;
+  }
+  char line[512];
+  while (fgets(line, sizeof line, g)) /* keep the last message line: gnuplot's reason */
+    if (strspn(line, " \t\n^") < strlen(line)) snprintf(msg, sizeof msg, "%s", line);
+  int rc = pclose(g), code = rc != -1 && WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
+  if (code != 0) {
+    msg[strcspn(msg, "\n")] = 0;
+    if (msg[0])
+      ves_error_say(err, errlen, "gnuplot failed (exit status %d): %s", code, msg);
+    else
+      ves_error_say(err, errlen, "gnuplot failed (exit status %d)", code);
+    return VES_ERR_IO;
+  }
+  return VES_OK;
+}
+
+/* Every figure of the run checked complete (the .part files gnuplot
+ * wrote), then all renamed into place: a failed plot leaves the earlier
+ * figures as they were. */
+static ves_status figures_commit(const ves_plot_params *p, char *err, size_t errlen) {
+  ves_status st = VES_OK;
+  for (int k = 0; k < VES_PLOT_NFIG && st == VES_OK; k++) {
+    char part[PATH_MAX], why[128];
+    fig_path(part, sizeof part, p, k, 1);
+    if (png_complete(part, why, sizeof why)) {
+      ves_error_say(err, errlen, "figure %s: %s", part, why);
+      st = VES_ERR_IO;
+    }
+  }
+  for (int k = 0; k < VES_PLOT_NFIG && st == VES_OK; k++) {
+    char part[PATH_MAX], final[PATH_MAX];
+    fig_path(part, sizeof part, p, k, 1);
+    fig_path(final, sizeof final, p, k, 0);
+    if (rename(part, final) != 0) {
+      ves_error_say(err, errlen, "cannot rename %s to %s: %s", part, final, strerror(errno));
+      st = VES_ERR_IO;
+    }
+  }
+  return st;
+}
+
 ves_status ves_plot_write(ves_io *io, const ves_plot_params *p, char *err, size_t errlen) {
   VES_CHECK(io && p && p->outdir && p->stem && p->ntimes >= 0 && p->ntimes <= VES_PLOT_MAXTIMES,
             VES_ERR_ARG);
@@ -333,48 +383,8 @@ ves_status ves_plot_write(ves_io *io, const ves_plot_params *p, char *err, size_
     st = VES_ERR_IO;
     goto done;
   }
-  /* gnuplot's own messages are read back, not printed */
-  char cmd[PATH_MAX + 32], msg[512] = "";
-  snprintf(cmd, sizeof cmd, "gnuplot %s 2>&1", script);
-  FILE *g = popen(cmd, "r");
-  if (!g) {
-    ves_error_say(err, errlen, "cannot run gnuplot: %s", strerror(errno));
-    st = VES_ERR_IO;
-    goto done;
-  }
-  char line[512];
-  while (fgets(line, sizeof line, g)) /* keep the last message line: gnuplot's reason */
-    if (strspn(line, " \t\n^") < strlen(line)) snprintf(msg, sizeof msg, "%s", line);
-  int rc = pclose(g), code = rc != -1 && WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
-  if (code != 0) {
-    msg[strcspn(msg, "\n")] = 0;
-    if (msg[0])
-      ves_error_say(err, errlen, "gnuplot failed (exit status %d): %s", code, msg);
-    else
-      ves_error_say(err, errlen, "gnuplot failed (exit status %d)", code);
-    st = VES_ERR_IO;
-    goto done;
-  }
-  /* every figure complete, then all renamed into place: a failed plot
-   * leaves the earlier figures as they were */
-  st = VES_OK;
-  for (int k = 0; k < VES_PLOT_NFIG && st == VES_OK; k++) {
-    char part[PATH_MAX], why[128];
-    fig_path(part, sizeof part, p, k, 1);
-    if (png_complete(part, why, sizeof why)) {
-      ves_error_say(err, errlen, "figure %s: %s", part, why);
-      st = VES_ERR_IO;
-    }
-  }
-  for (int k = 0; k < VES_PLOT_NFIG && st == VES_OK; k++) {
-    char part[PATH_MAX], final[PATH_MAX];
-    fig_path(part, sizeof part, p, k, 1);
-    fig_path(final, sizeof final, p, k, 0);
-    if (rename(part, final) != 0) {
-      ves_error_say(err, errlen, "cannot rename %s to %s: %s", part, final, strerror(errno));
-      st = VES_ERR_IO;
-    }
-  }
+  if ((st = run_gnuplot(script, err, errlen)) != VES_OK) goto done;
+  st = figures_commit(p, err, errlen);
 done:
   for (int k = 0; k < VES_PLOT_NFIG; k++) { /* no partial figure stays behind */
     char part[PATH_MAX];
