@@ -282,9 +282,7 @@ static void fig_constraints(FILE *f, const ves_plot_params *p, const ves_io_info
              "unset multiplot\n");
 }
 
-/* Run gnuplot on the script; its own messages are read back, not printed:
- * on a failure, err quotes its last message line. */
-static ves_status run_gnuplot(const char *script, char *err, size_t errlen) {
+ves_status ves_plot_run_gnuplot(const char *script, char *err, size_t errlen) {
   char cmd[PATH_MAX + 32], msg[512] = "";
   snprintf(cmd, sizeof cmd, "gnuplot %s 2>&1", script);
   FILE *g = popen(cmd, "r");
@@ -383,7 +381,7 @@ ves_status ves_plot_write(ves_io *io, const ves_plot_params *p, char *err, size_
     st = VES_ERR_IO;
     goto done;
   }
-  if ((st = run_gnuplot(script, err, errlen)) != VES_OK) goto done;
+  if ((st = ves_plot_run_gnuplot(script, err, errlen)) != VES_OK) goto done;
   st = figures_commit(p, err, errlen);
 done:
   for (int k = 0; k < VES_PLOT_NFIG; k++) { /* no partial figure stays behind */

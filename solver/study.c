@@ -13,7 +13,6 @@
 #include <string.h>
 #include <strings.h>
 #include <sys/stat.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include "ves/config.h"
@@ -879,33 +878,12 @@ ves_status ves_study_collect(const ves_study *s, const char *dir, ves_study_tabl
 
 /* ---- figures ---------------------------------------------------------------- */
 
-ves_status ves_study_plot(const ves_study *s, const char *dir, char *err, size_t errlen) {
-  VES_CHECK(s && dir, VES_ERR_ARG);
-  int ad = -1;
-  for (int a = 0; a < s->naxes; a++)
-    if (!strcmp(s->axis[a].key, "time.dt_initial")) ad = a;
-  if (ad < 0) {
-    ves_error_say(err, errlen, "no time.dt_initial axis: no figures");
-    return VES_STEP_REJECTED;
-  }
-  const long G = s->ncells / s->axis[ad].nvalues; /* groups: the other axes' values */
-  char script[PATH_MAX];
-  const char *tdir = getenv("TMPDIR");
-  snprintf(script, sizeof script, "%s/vesica_study_XXXXXX", tdir && *tdir ? tdir : "/tmp");
-  int fd = mkstemp(script);
-  FILE *f = fd >= 0 ? fdopen(fd, "w") : NULL;
-  if (!f) {
-    if (fd >= 0) close(fd), unlink(script);
-    ves_error_say(err, errlen, "cannot create a temporary file %s: %s", script, strerror(errno));
-    return VES_ERR_IO;
-  }
-  double *front = malloc((size_t)G * sizeof *front);
-  char(*label)[256] = malloc((size_t)G * sizeof *label);
-  if (!front || !label) {
-    fclose(f), unlink(script), free(front), free(label);
-    return VES_ERR_ALLOC;
-  }
-  /* $d: group, dt, converged (1/0), seconds per step; one block per group in $c */
+/* The study figures' data block $d into f: a row a cell (group, dt,
+ * converged 1/0, seconds per step), the groups being the values of the
+ * axes other than ad (the dt axis); front[g] the largest converged dt of
+ * group g (NaN: none), label[g] its axes' values. */
+static void frontier_data(FILE *f, const ves_study *s, const char *dir, int ad, long G,
+                          double *front, char (*label)[256]) {
   fprintf(f, "$d << EOD\n");
   for (long g = 0; g < G; g++) front[g] = NAN, label[g][0] = 0;
   for (long k = 0; k < s->ncells; k++) {
@@ -933,6 +911,35 @@ ves_status ves_study_plot(const ves_study *s, const char *dir, char *err, size_t
     if (conv && !(front[g] >= dt)) front[g] = dt;
     fprintf(f, "%ld %.9g %d %.6g\n", g, dt, conv, conv && r.steps ? r.loop / (double)r.steps : NAN);
   }
+}
+
+ves_status ves_study_plot(const ves_study *s, const char *dir, char *err, size_t errlen) {
+  VES_CHECK(s && dir, VES_ERR_ARG);
+  int ad = -1;
+  for (int a = 0; a < s->naxes; a++)
+    if (!strcmp(s->axis[a].key, "time.dt_initial")) ad = a;
+  if (ad < 0) {
+    ves_error_say(err, errlen, "no time.dt_initial axis: no figures");
+    return VES_STEP_REJECTED;
+  }
+  const long G = s->ncells / s->axis[ad].nvalues; /* groups: the other axes' values */
+  char script[PATH_MAX];
+  const char *tdir = getenv("TMPDIR");
+  snprintf(script, sizeof script, "%s/vesica_study_XXXXXX", tdir && *tdir ? tdir : "/tmp");
+  int fd = mkstemp(script);
+  FILE *f = fd >= 0 ? fdopen(fd, "w") : NULL;
+  if (!f) {
+    if (fd >= 0) close(fd), unlink(script);
+    ves_error_say(err, errlen, "cannot create a temporary file %s: %s", script, strerror(errno));
+    return VES_ERR_IO;
+  }
+  double *front = malloc((size_t)G * sizeof *front);
+  char(*label)[256] = malloc((size_t)G * sizeof *label);
+  if (!front || !label) {
+    fclose(f), unlink(script), free(front), free(label);
+    return VES_ERR_ALLOC;
+  }
+  frontier_data(f, s, dir, ad, G, front, label);
   fprintf(f, "NaN NaN NaN NaN\nEOD\n$front << EOD\n");
   for (long g = 0; g < G; g++) fprintf(f, "%ld %.9g\n", g, front[g]);
   fprintf(f, "EOD\n");
@@ -974,25 +981,9 @@ ves_status ves_study_plot(const ves_study *s, const char *dir, char *err, size_t
     ves_error_say(err, errlen, "cannot write the gnuplot script %s", script);
     return VES_ERR_IO;
   }
-  char cmd[PATH_MAX + 32], msg[512] = "", line[512];
-  snprintf(cmd, sizeof cmd, "gnuplot %s 2>&1", script);
-  FILE *g = popen(cmd, "r");
-  if (!g) {
-    unlink(script);
-    ves_error_say(err, errlen, "cannot run gnuplot: %s", strerror(errno));
-    return VES_ERR_IO;
-  }
-  while (fgets(line, sizeof line, g)) /* keep gnuplot's last message: its reason */
-    if (strspn(line, " \t\n^") < strlen(line)) snprintf(msg, sizeof msg, "%s", line);
-  int rc = pclose(g), code = rc != -1 && WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
+  ves_status st = ves_plot_run_gnuplot(script, err, errlen);
   unlink(script);
-  if (code != 0) {
-    msg[strcspn(msg, "\n")] = 0;
-    ves_error_say(err, errlen, "gnuplot failed (exit status %d)%s%s", code, msg[0] ? ": " : "",
-                  msg);
-    return VES_ERR_IO;
-  }
-  return VES_OK;
+  return st;
 }
 
 /* ---- Slurm ------------------------------------------------------------------- */

@@ -34,6 +34,10 @@ extern const char *const ves_plot_figures[VES_PLOT_NFIG];
  * enhanced text escaped into out[n] ("run_1" would print a subscript). */
 void ves_plot_gp_quote(FILE *f, const char *s);
 void ves_plot_gp_escape(char *out, size_t n, const char *s);
+/* Run gnuplot on a script file (plot.c, study.c); its own messages are
+ * read back, not printed: on a failure (VES_ERR_IO) err quotes its last
+ * message line and the exit status. */
+ves_status ves_plot_run_gnuplot(const char *script, char *err, size_t errlen);
 
 typedef struct {
   const char *outdir;              /* existing folder for the PNGs (borrowed) */
