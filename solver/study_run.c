@@ -31,10 +31,6 @@ typedef struct {
   int timed_out;  /* the limit ended it */
 } slot;
 
-static void say(char *err, size_t errlen, const char *fmt, const char *a, const char *b) {
-  if (err && errlen) snprintf(err, errlen, fmt, a, b);
-}
-
 static int make_dir(const char *path) {
   struct stat sb;
   if (mkdir(path, 0777) == 0 || (errno == EEXIST && stat(path, &sb) == 0 && S_ISDIR(sb.st_mode)))
@@ -56,19 +52,19 @@ static int start_cell(const ves_study *s, const ves_study_run_opts *o, long k, i
   char **argv = NULL;
   char msg[1024] = "";
   if (ves_study_cell_argv(s, k, o->program, o->dir, &argc, &argv, msg, sizeof msg) != VES_OK) {
-    say(err, errlen, "%s%s", "cell command: ", msg);
+    ves_error_say(err, errlen, "%s%s", "cell command: ", msg);
     return -1;
   }
   int fd = open(log, O_WRONLY | O_CREAT | O_TRUNC, 0644);
   if (fd < 0) {
-    say(err, errlen, "%s: cannot write: %s", log, strerror(errno));
+    ves_error_say(err, errlen, "%s: cannot write: %s", log, strerror(errno));
     free(argv);
     return -1;
   }
   fflush(NULL);
   pid_t pid = fork();
   if (pid < 0) {
-    say(err, errlen, "%s: cannot fork: %s", log, strerror(errno));
+    ves_error_say(err, errlen, "%s: cannot fork: %s", log, strerror(errno));
     close(fd), free(argv);
     return -1;
   }
@@ -90,6 +86,34 @@ static int start_cell(const ves_study *s, const ves_study_run_opts *o, long k, i
   return 0;
 }
 
+/* The result of cell k of slot c, ended at now (wait4's w, status and ru):
+ * classified from its exit and its log, with its wall and CPU time and
+ * peak memory, written to the cell's .result file (VES_ERR_IO, the message
+ * in err, when that fails). */
+static ves_status finish_cell(const ves_study *s, const ves_study_run_opts *o, const slot *c,
+                              long k, pid_t w, int status, const struct rusage *ru, double now,
+                              ves_study_result *r, char *err, size_t errlen) {
+  memset(r, 0, sizeof *r);
+  char log[PATH_MAX], path[PATH_MAX];
+  ves_study_cell_path(s, k, o->dir, ".log", log, sizeof log);
+  const int sig = w > 0 && WIFSIGNALED(status) ? WTERMSIG(status) : 0;
+  const int code = w > 0 && WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  ves_study_classify(code, sig, c->timed_out, s->time_limit, log, r);
+  r->wall_seconds = now - c->start;
+  if (w > 0) {
+    r->cpu_seconds = (double)ru->ru_utime.tv_sec + 1e-6 * (double)ru->ru_utime.tv_usec +
+                     (double)ru->ru_stime.tv_sec + 1e-6 * (double)ru->ru_stime.tv_usec;
+    r->peak_mb = (double)ru->ru_maxrss / 1024.0; /* kilobytes on Linux */
+  }
+  ves_study_cell_signature(s, k, r->signature, sizeof r->signature);
+  ves_study_cell_path(s, k, o->dir, ".result", path, sizeof path);
+  if (ves_study_result_write(path, r) != VES_OK) {
+    ves_error_say(err, errlen, "%s: cannot write: %s", path, strerror(errno));
+    return VES_ERR_IO;
+  }
+  return VES_OK;
+}
+
 ves_status ves_study_run(const ves_study *s, const ves_study_run_opts *o, char *err,
                          size_t errlen) {
   VES_CHECK(s && o && o->program && o->dir && o->jobs >= 1, VES_ERR_ARG);
@@ -97,7 +121,8 @@ ves_status ves_study_run(const ves_study *s, const ves_study_run_opts *o, char *
   char cells[PATH_MAX];
   snprintf(cells, sizeof cells, "%s/cells", o->dir);
   if (make_dir(o->dir) || make_dir(cells)) {
-    say(err, errlen, "%s: cannot create: %s", errno == EEXIST ? o->dir : cells, strerror(errno));
+    ves_error_say(err, errlen, "%s: cannot create: %s", errno == EEXIST ? o->dir : cells,
+                  strerror(errno));
     return VES_ERR_IO;
   }
   const long first = o->only >= 0 ? o->only : 0, last = o->only >= 0 ? o->only : s->ncells - 1;
@@ -160,24 +185,10 @@ ves_status ves_study_run(const ves_study *s, const ves_study_run_opts *o, char *
       c->pid = 0;
       if (stopping && !c->timed_out) continue; /* stopped by us: not done */
       ves_study_result r;
-      memset(&r, 0, sizeof r);
-      char log[PATH_MAX], path[PATH_MAX];
-      ves_study_cell_path(s, k, o->dir, ".log", log, sizeof log);
-      const int sig = w > 0 && WIFSIGNALED(status) ? WTERMSIG(status) : 0;
-      const int code = w > 0 && WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-      ves_study_classify(code, sig, c->timed_out, s->time_limit, log, &r);
-      r.wall_seconds = now - c->start;
-      if (w > 0) {
-        r.cpu_seconds = (double)ru.ru_utime.tv_sec + 1e-6 * (double)ru.ru_utime.tv_usec +
-                        (double)ru.ru_stime.tv_sec + 1e-6 * (double)ru.ru_stime.tv_usec;
-        r.peak_mb = (double)ru.ru_maxrss / 1024.0; /* kilobytes on Linux */
-      }
-      ves_study_cell_signature(s, k, r.signature, sizeof r.signature);
-      ves_study_cell_path(s, k, o->dir, ".result", path, sizeof path);
-      if (ves_study_result_write(path, &r) != VES_OK && st == VES_OK) {
-        say(err, errlen, "%s: cannot write: %s", path, strerror(errno));
+      if (finish_cell(s, o, c, k, w, status, &ru, now, &r, st == VES_OK ? err : NULL, errlen) !=
+              VES_OK &&
+          st == VES_OK)
         st = VES_ERR_IO;
-      }
       spent += r.wall_seconds;
       p.done++;
       p.failed += strcmp(r.outcome, "converged") != 0;
