@@ -118,17 +118,12 @@ static long partner(const seg_end *ends, long nends, long i) {
   return -1;
 }
 
-/* The zero line of phi on the triangles moved to xm, chained. */
-static ves_status chain(int n, int ntri, const int *tri, const double *xm, const double *phi,
-                        int *npts, double **pts, int *pieces) {
-  ves_status st = VES_ERR_ALLOC;
+/* The zero segments of phi on the triangles moved to xm: segment s's ends
+ * (r, z) at sp[4 s ..], each keyed by its edge (the lower node first, so
+ * both triangles of an edge agree) in ends[2 s + j]. Returns their count. */
+static int zero_segments(int n, int ntri, const int *tri, const double *xm, const double *phi,
+                         double *sp, seg_end *ends) {
   int nseg = 0;
-  double *sp = malloc(4 * (size_t)ntri * sizeof *sp); /* segment ends (r, z) x 2 */
-  seg_end *ends = malloc(2 * (size_t)ntri * sizeof *ends);
-  long *where = NULL; /* position in ends of segment s's end j: where[2 s + j] */
-  unsigned char *seen = NULL;
-  double *out = NULL;
-  if (!sp || !ends) goto done;
   for (int t = 0; t < ntri; t++) {
     const int *v = tri + 3 * t;
     int k = 0;
@@ -147,6 +142,47 @@ static ves_status chain(int n, int ntri, const int *tri, const double *xm, const
     }
     if (k == 2) nseg++;
   }
+  return nseg;
+}
+
+/* The pieces of the zero line besides the chained one: the connected sets
+ * of the segments not seen yet (marked seen here), flooded through shared
+ * edges. */
+static int other_pieces(int nseg, const seg_end *ends, long nends, const long *where,
+                        unsigned char *seen) {
+  int others = 0;
+  for (int s = 0; s < nseg; s++) {
+    if (seen[s]) continue;
+    others++;
+    /* flood the piece through shared edges */
+    int cur = s;
+    seen[cur] = 1;
+    for (int j = 0; j < 2; j++) {
+      long e = where[2 * cur + j];
+      for (;;) {
+        long nx = partner(ends, nends, e);
+        if (nx < 0 || seen[ends[nx].seg]) break;
+        int s2 = ends[nx].seg;
+        seen[s2] = 1;
+        e = where[2 * s2 + 1 - ends[nx].end];
+      }
+    }
+  }
+  return others;
+}
+
+/* The zero line of phi on the triangles moved to xm, chained. */
+static ves_status chain(int n, int ntri, const int *tri, const double *xm, const double *phi,
+                        int *npts, double **pts, int *pieces) {
+  ves_status st = VES_ERR_ALLOC;
+  int nseg = 0;
+  double *sp = malloc(4 * (size_t)ntri * sizeof *sp); /* segment ends (r, z) x 2 */
+  seg_end *ends = malloc(2 * (size_t)ntri * sizeof *ends);
+  long *where = NULL; /* position in ends of segment s's end j: where[2 s + j] */
+  unsigned char *seen = NULL;
+  double *out = NULL;
+  if (!sp || !ends) goto done;
+  nseg = zero_segments(n, ntri, tri, xm, phi, sp, ends);
   const long nends = 2 * (long)nseg;
   qsort(ends, (size_t)nends, sizeof *ends, cmp_end);
   where = malloc((size_t)(nends ? nends : 1) * sizeof *where);
@@ -182,25 +218,7 @@ static ves_status chain(int n, int ntri, const int *tri, const double *xm, const
     }
     i = nx;
   }
-  /* other pieces: connected sets of unseen segments */
-  int others = 0;
-  for (int s = 0; s < nseg; s++) {
-    if (seen[s]) continue;
-    others++;
-    /* flood the piece through shared edges */
-    int cur = s;
-    seen[cur] = 1;
-    for (int j = 0; j < 2; j++) {
-      long e = where[2 * cur + j];
-      for (;;) {
-        long nx = partner(ends, nends, e);
-        if (nx < 0 || seen[ends[nx].seg]) break;
-        int s2 = ends[nx].seg;
-        seen[s2] = 1;
-        e = where[2 * s2 + 1 - ends[nx].end];
-      }
-    }
-  }
+  const int others = other_pieces(nseg, ends, nends, where, seen);
   for (int k = 0; k < np; k++) out[2 * k] = fmax(0.0, out[2 * k]);
   if (out[1] <= out[2 * np - 1]) goto done; /* not north to south */
   *npts = np, *pts = out, out = NULL;
