@@ -114,6 +114,9 @@ static ves_status finish_cell(const ves_study *s, const ves_study_run_opts *o, c
   return VES_OK;
 }
 
+/* The cells as processes, o->jobs at a time (study.h). A little over 80
+ * lines, on purpose: one polling loop (stop, start, watch the limits, reap)
+ * whose state (the slots, the progress, stopping) all four parts share. */
 ves_status ves_study_run(const ves_study *s, const ves_study_run_opts *o, char *err,
                          size_t errlen) {
   VES_CHECK(s && o && o->program && o->dir && o->jobs >= 1, VES_ERR_ARG);
