@@ -182,13 +182,8 @@ paper: deps
 # Every C/C++ file of the repository, formatted by .clang-format: format
 # rewrites them, format-check only reports (exit 1 and the lines that differ;
 # .ci/run runs it). The cmocka test tables stay packed (clang-format off).
-# FORMAT_OWNED: files under concurrent work, left out of both until their
-# owner formats them (and empties this list).
-FORMAT_OWNED = solver/backend_newton.c solver/integrate.c include/ves/integrate.h \
-               bench/bench_scale.c
-FORMAT_FILES = $(filter-out $(FORMAT_OWNED), \
-                 $(wildcard include/ves/*.h solver/*.c solver/*.h solver/*.cpp tests/*.c \
-                   tests/*.h tests/fuzz/*.c bench/*.c bench/*.h))
+FORMAT_FILES = $(wildcard include/ves/*.h solver/*.c solver/*.h solver/*.cpp tests/*.c \
+                 tests/*.h tests/fuzz/*.c bench/*.c bench/*.h)
 format:
 	clang-format -i --style=file $(FORMAT_FILES)
 format-check:

@@ -3,11 +3,10 @@
  * quadrature points, mean LME neighbours), the setup's wall time and its
  * parts, one model evaluation (E, A, V and their gradients), one Hessian, one
  * K assembly, the step's matrix (stepH: K(y^n) + dt Hess E + ... in one
- * assembly, what a Newton step builds), the MUMPS analysis and one numeric factorization of the Newton
- * KKT matrix, the mean wall time of the first NSTEPS accepted steps of the
- * newton backend with the problem's own time-stepping parameters (as
- * `vesica run` builds them), and at the end the process CPU time and peak
- * resident memory. The single evaluations are the median of 3.
+ * assembly, what a Newton step builds), the MUMPS analysis and one numeric factorization of the
+ * Newton KKT matrix, the mean wall time of the first NSTEPS accepted steps of the newton backend
+ * with the problem's own time-stepping parameters (as `vesica run` builds them), and at the end the
+ * process CPU time and peak resident memory. The single evaluations are the median of 3.
  *
  * Usage: bench_scale PROBLEM.ini EPS [NSTEPS]   (NSTEPS default 3)
  * Prints one tab-separated row on stdout; with BENCH_HEADER=1 a header line
@@ -64,11 +63,11 @@ static int fail(const char *what, ves_status st) {
 /* What one row holds (seconds unless said). */
 typedef struct {
   int nodes, points;
-  double m_mean;                                   /* mean LME neighbours per point */
-  double setup, nodes_s, tables_s, project_s;      /* ves_setup_create and its parts */
+  double m_mean;                                          /* mean LME neighbours per point */
+  double setup, nodes_s, tables_s, project_s;             /* ves_setup_create and its parts */
   double eval, hess, diss, stepH, analysis, factor, step; /* single operations; step: mean */
-  double iters, hessians;                          /* per accepted step, retries included */
-  int retries;                                     /* halvings over the NSTEPS steps */
+  double iters, hessians;                                 /* per accepted step, retries included */
+  int retries;                                            /* halvings over the NSTEPS steps */
 } row;
 
 /* Everything after the setup: the model, the KKT factorization and the steps. */
@@ -295,14 +294,16 @@ int main(int argc, char **argv) {
                        1e-6 * ru.ru_stime.tv_usec;
   const double peak_mb = ru.ru_maxrss / 1024.0; /* ru_maxrss in kB on Linux */
   if (header)
-    printf("# eps\tthreads\tblas_threads\tnodes\tpoints\tneighbours_mean\tsetup_s\tnodes_s\t"
-           "tables_s\tproject_s\tmodel_s\teval_s\thess_s\tK_s\tstepH_s\tanalysis_s\tfactor_s\tstep_s\t"
-           "iters_per_step\thess_per_step\tretries\tcpu_s\tpeak_MB\tblas_core\n");
-  printf("%g\t%d\t%s\t%d\t%d\t%.1f\t%.3f\t%.3f\t%.3f\t%.3f\t%.3f\t%.4f\t%.4f\t%.4f\t%.4f\t%.3f\t%.3f\t"
-         "%.3f\t%.2f\t%.2f\t%d\t%.2f\t%.1f\t%s\n",
-         eps, nthr, blas ? blas : "unset", r.nodes, r.points, r.m_mean, r.setup, r.nodes_s,
-         r.tables_s, r.project_s, r.setup - r.nodes_s - r.tables_s - r.project_s, r.eval, r.hess,
-         r.diss, r.stepH, r.analysis, r.factor, r.step, r.iters, r.hessians, r.retries, cpu_s, peak_mb,
-         core ? core : "unknown");
+    printf(
+        "# eps\tthreads\tblas_threads\tnodes\tpoints\tneighbours_mean\tsetup_s\tnodes_s\t"
+        "tables_s\tproject_s\tmodel_s\teval_s\thess_s\tK_s\tstepH_s\tanalysis_s\tfactor_s\tstep_s\t"
+        "iters_per_step\thess_per_step\tretries\tcpu_s\tpeak_MB\tblas_core\n");
+  printf(
+      "%g\t%d\t%s\t%d\t%d\t%.1f\t%.3f\t%.3f\t%.3f\t%.3f\t%.3f\t%.4f\t%.4f\t%.4f\t%.4f\t%.3f\t%.3f\t"
+      "%.3f\t%.2f\t%.2f\t%d\t%.2f\t%.1f\t%s\n",
+      eps, nthr, blas ? blas : "unset", r.nodes, r.points, r.m_mean, r.setup, r.nodes_s, r.tables_s,
+      r.project_s, r.setup - r.nodes_s - r.tables_s - r.project_s, r.eval, r.hess, r.diss, r.stepH,
+      r.analysis, r.factor, r.step, r.iters, r.hessians, r.retries, cpu_s, peak_mb,
+      core ? core : "unknown");
   return 0;
 }

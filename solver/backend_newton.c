@@ -74,18 +74,18 @@
 #include "ves/backend.h"
 #include "clock_impl.h"
 
-#define NEWTON_ARMIJO 1e-4     /* sufficient decrease of the merit function */
-#define NEWTON_MAX_LS 40       /* backtracking halvings */
-#define NEWTON_DELTA0 1e-3     /* first inertia correction, units of K */
-#define NEWTON_DELTA_MAX 1e6   /* give up beyond this correction */
-#define NEWTON_NEG_JUMP 8      /* more extra negative pivots than this: the next delta x100 */
-#define NEWTON_STALL 0.5       /* frozen: refresh when |res| fell by less than this ... */
-#define NEWTON_STALL_WINDOW 3  /* ... over this many iterations (fewer since the build) */
-#define NEWTON_TAIL 1e3        /* the tail: |res| within this factor of the tolerance */
-#define NEWTON_FNOISE 1e2      /* merit values closer than this many eps_mach |phi| are equal */
-#define NEWTON_REUSE_DT 1.25   /* freeze 2: reuse while dt / dt_m is within [1/this, this] */
-#define NEWTON_AA_DEPTH 5      /* Anderson acceleration of the chord: steps remembered */
-#define NEWTON_AA_GROW 10.0    /* an accelerated step longer than this many chord steps is refused */
+#define NEWTON_ARMIJO 1e-4    /* sufficient decrease of the merit function */
+#define NEWTON_MAX_LS 40      /* backtracking halvings */
+#define NEWTON_DELTA0 1e-3    /* first inertia correction, units of K */
+#define NEWTON_DELTA_MAX 1e6  /* give up beyond this correction */
+#define NEWTON_NEG_JUMP 8     /* more extra negative pivots than this: the next delta x100 */
+#define NEWTON_STALL 0.5      /* frozen: refresh when |res| fell by less than this ... */
+#define NEWTON_STALL_WINDOW 3 /* ... over this many iterations (fewer since the build) */
+#define NEWTON_TAIL 1e3       /* the tail: |res| within this factor of the tolerance */
+#define NEWTON_FNOISE 1e2     /* merit values closer than this many eps_mach |phi| are equal */
+#define NEWTON_REUSE_DT 1.25  /* freeze 2: reuse while dt / dt_m is within [1/this, this] */
+#define NEWTON_AA_DEPTH 5     /* Anderson acceleration of the chord: steps remembered */
+#define NEWTON_AA_GROW 10.0   /* an accelerated step longer than this many chord steps is refused */
 
 typedef struct {
   ves_backend_options opt; /* copied */
@@ -105,13 +105,13 @@ typedef struct {
   double delta_last;       /* the last inertia correction (0: none since the matrix was fresh) */
   double delta_build;      /* the correction of the last build (0: none was needed) */
   /* Anderson acceleration of the chord iteration (columns of nvar + KKT_NROWS) */
-  double *aa_du;           /* NEWTON_AA_DEPTH differences of the iterates u = (x, lam) */
-  double *aa_dg;           /* NEWTON_AA_DEPTH differences of their chord steps */
-  double *aa_q;            /* NEWTON_AA_DEPTH orthonormalized aa_dg (x part), workspace */
-  double *aa_u, *aa_g;     /* the previous iterate and its chord step */
-  double *aa_p;            /* the accelerated step */
-  int aa_n;                /* columns held (0: none; the newest at (aa_n - 1)) */
-  int aa_prev;             /* aa_u, aa_g hold the previous iterate of the same matrix */
+  double *aa_du;       /* NEWTON_AA_DEPTH differences of the iterates u = (x, lam) */
+  double *aa_dg;       /* NEWTON_AA_DEPTH differences of their chord steps */
+  double *aa_q;        /* NEWTON_AA_DEPTH orthonormalized aa_dg (x part), workspace */
+  double *aa_u, *aa_g; /* the previous iterate and its chord step */
+  double *aa_p;        /* the accelerated step */
+  int aa_n;            /* columns held (0: none; the newest at (aa_n - 1)) */
+  int aa_prev;         /* aa_u, aa_g hold the previous iterate of the same matrix */
 } newton_state;
 
 static void newton_destroy(void **state) {
@@ -153,8 +153,8 @@ static ves_status newton_create(const ves_backend_options *opt, ves_step *s, voi
   w->aa_g = malloc(na * sizeof *w->aa_g);
   w->aa_p = malloc(na * sizeof *w->aa_p);
   *state = w;
-  if (!w->H || !w->g || !w->J || !w->r || !w->sol || !w->soc || !w->xt || !w->aa_du ||
-      !w->aa_dg || !w->aa_q || !w->aa_u || !w->aa_g || !w->aa_p) {
+  if (!w->H || !w->g || !w->J || !w->r || !w->sol || !w->soc || !w->xt || !w->aa_du || !w->aa_dg ||
+      !w->aa_q || !w->aa_u || !w->aa_g || !w->aa_p) {
     newton_destroy(state);
     return VES_ERR_ALLOC;
   }
@@ -169,8 +169,8 @@ static double norm_inf(int n, const double *v) {
 
 /* Assemble H at (x, lam), fill and factorize the KKT matrix with the inertia
  * correction: exactly KKT_NROWS negative pivots. */
-static ves_status assemble_factor(newton_state *w, ves_step *s, const double *x,
-                                  const double *lam, int ncon, ves_backend_stats *stt) {
+static ves_status assemble_factor(newton_state *w, ves_step *s, const double *x, const double *lam,
+                                  int ncon, ves_backend_stats *stt) {
   VES_CALL(ves_step_eval_hess(s, x, 1.0, lam, w->H));
   stt->h_evals++;
   /* rounding floor of the residual: eps_mach (|H| |x|)_inf, w->xt as scratch */
@@ -220,8 +220,7 @@ static ves_status eval_fc(ves_step *s, const double *x, double *f, double *c,
 }
 
 /* Gradients at x: g and J (one model pass, values from the cache). */
-static ves_status eval_gJ(newton_state *w, ves_step *s, const double *x,
-                          ves_backend_stats *stt) {
+static ves_status eval_gJ(newton_state *w, ves_step *s, const double *x, ves_backend_stats *stt) {
   stt->g_evals++;
   VES_CALL(ves_step_eval_grad(s, x, w->g));
   return ves_step_eval_jac(s, x, w->J);
@@ -246,7 +245,7 @@ static double l1(int n, const double *c) {
  * w->aa_p and returns 1, or 0 when no history is held (p = g then). */
 static int anderson(newton_state *w, const double *x, const double *lam, const double *g) {
   const int nv = w->nvar, na = nv + KKT_NROWS;
-  if (w->aa_prev) { /* a new column: the differences to the previous iterate */
+  if (w->aa_prev) {                   /* a new column: the differences to the previous iterate */
     if (w->aa_n == NEWTON_AA_DEPTH) { /* drop the oldest */
       memmove(w->aa_du, w->aa_du + na, (size_t)(NEWTON_AA_DEPTH - 1) * na * sizeof *w->aa_du);
       memmove(w->aa_dg, w->aa_dg + na, (size_t)(NEWTON_AA_DEPTH - 1) * na * sizeof *w->aa_dg);
@@ -326,9 +325,9 @@ static int anderson(newton_state *w, const double *x, const double *lam, const d
  * (dx, dlam) is judged by the KKT residual instead: taken when it falls by
  * NEWTON_STALL. *ok = 1: x, lam, f, c and w->g, w->J are at the new point;
  * 0: unchanged (w->g, w->J re-evaluated at x). */
-static ves_status tail_step(newton_state *w, ves_step *s, double *x, double *lam,
-                            const double *dx, const double *dlam, int ncon, double res,
-                            double *f, double *c, int *ok, ves_backend_stats *stt) {
+static ves_status tail_step(newton_state *w, ves_step *s, double *x, double *lam, const double *dx,
+                            const double *dlam, int ncon, double res, double *f, double *c, int *ok,
+                            ves_backend_stats *stt) {
   const int nv = w->nvar;
   double ft, ct[KKT_NROWS] = {0, 0};
   *ok = 0;
@@ -381,7 +380,7 @@ static ves_status newton_solve(void *state, ves_step *s, double *x, double *lamb
   ves_status st = eval_fc(s, x, &f, c, stt);
   if (st == VES_OK) st = eval_gJ(w, s, x, stt);
   const double gscale = norm_inf(nv, w->g);
-  int fresh = !reuse;       /* build the matrix at the next iteration */
+  int fresh = !reuse;                  /* build the matrix at the next iteration */
   double res_win[NEWTON_STALL_WINDOW]; /* residuals since the matrix was built, newest last */
   int nwin = 0;
   ves_status result = VES_ERR_NOCONV;
@@ -458,7 +457,7 @@ static ves_status newton_solve(void *state, ves_step *s, double *x, double *lamb
         D += mu * (c[i] > 0 ? jd : c[i] < 0 ? -jd : fabs(jd));
       }
     }
-    if (D >= 0 && !built_now) { /* a stale matrix gave no descent: rebuild */
+    if (D >= 0 && !built_now) {                      /* a stale matrix gave no descent: rebuild */
       if (res <= NEWTON_TAIL * w->opt.tol * scale) { /* unless the tail converges */
         int ok = 0;
         if ((st = tail_step(w, s, x, lam, dx, dlam, ncon, res, &f, c, &ok, stt)) != VES_OK) break;
@@ -517,12 +516,11 @@ static ves_status newton_solve(void *state, ves_step *s, double *x, double *lamb
     }
     if (st != VES_OK) break;
     if (!accepted) {
-      if (!built_now) { /* a stale matrix: rebuild and retry */
+      if (!built_now) {                                /* a stale matrix: rebuild and retry */
         if (res <= NEWTON_TAIL * w->opt.tol * scale) { /* unless the tail converges */
           int ok = 0;
           if ((st = eval_gJ(w, s, x, stt)) != VES_OK) break; /* the trials moved the cache */
-          if ((st = tail_step(w, s, x, lam, dx, dlam, ncon, res, &f, c, &ok, stt)) != VES_OK)
-            break;
+          if ((st = tail_step(w, s, x, lam, dx, dlam, ncon, res, &f, c, &ok, stt)) != VES_OK) break;
           if (ok) {
             stt->iterations++;
             continue;
@@ -542,7 +540,8 @@ static ves_status newton_solve(void *state, ves_step *s, double *x, double *lamb
     stt->iterations++;
     st = eval_gJ(w, s, x, stt);
   }
-  if (st != VES_OK) result = st == VES_ERR_SINGULAR ? VES_ERR_SOLVER : st; /* no usable KKT matrix */
+  if (st != VES_OK)
+    result = st == VES_ERR_SINGULAR ? VES_ERR_SOLVER : st; /* no usable KKT matrix */
   if (result != VES_OK) w->have_factor = 0; /* a failed attempt's matrix is not carried over */
   for (int i = 0; i < ncon; i++) lambda[i] = lam[i];
   stt->solver_status = (int)result;
@@ -550,5 +549,5 @@ static ves_status newton_solve(void *state, ves_step *s, double *x, double *lamb
   return result;
 }
 
-const ves_backend_type ves_backend_newton = {"newton", newton_create, newton_solve,
-                                             newton_destroy, 0};
+const ves_backend_type ves_backend_newton = {"newton", newton_create, newton_solve, newton_destroy,
+                                             0};

@@ -47,46 +47,46 @@
 #include "ves/project.h"
 
 struct ves_sim {
-  ves_model *model;                 /* in use: the creation model (borrowed) or ref's */
-  ves_reconnect *ref;               /* the last reset's reference (owned; NULL before one) */
-  ves_reconnect_params rp;          /* when to reset (from ip) */
-  long since;                       /* accepted steps since the last reset (or t = 0) */
-  int reconnections;                /* resets so far */
-  const ves_backend_type *backend;  /* borrowed (static table entry) */
-  ves_backend_options bopt;         /* copied */
-  ves_integrate_params ip;          /* copied */
-  ves_step *step;                   /* the step problem */
-  void *bstate;                     /* the backend's state */
-  int n, nvar;                      /* nodes, free dofs */
-  double *y;                        /* 2n current positions */
-  double *ynew;                     /* 2n trial positions */
-  double *x;                        /* nvar trial free dofs */
-  double t, dt;                     /* time, next step */
-  long nstep;                       /* accepted steps */
-  double E, A, V;                   /* at y */
-  double E0, A0, V0;                /* at t = 0 */
-  double lambda[2];                 /* multipliers of the last accepted step */
-  double c0;                        /* C0 in force */
-  double c0_base;                   /* the model's C0 before and after the protocol */
-  ves_quad *at_nodes;               /* points at the reference's nodes, with tables (lazy;
-                                       dropped at a reset) */
-  double *node_phi;                 /* n: phi of the material at those nodes */
-  int node_phi_ok;                  /* node_phi holds the current reference's values */
-  long reset_step;                  /* the step of the last reset (0: none) */
-  ves_remesh *mesh;                 /* the last remeshing's reference (owned; NULL if none
-                                       or a reset came after it) */
-  const ves_config *rcfg;           /* remeshing: the discretization keys (borrowed; NULL:
-                                       off, ves_sim_set_remesh) */
-  ves_remesh_policy rmp;            /* when to remesh */
-  long rsince;                      /* accepted steps since the last remeshing (or t = 0) */
-  long remesh_step;                 /* the step of the last remeshing (0: none) */
-  int remeshings;                   /* remeshings so far */
-  double dt_rejected;               /* smallest recently rejected dt (0: none) */
-  long since_rejected;              /* accepted steps since then */
-  int fresh_next;                   /* the next step starts afresh (ves_step_params.fresh) */
-  double *yprev;                    /* 2n: y before the last accepted step (predictor) */
-  double dt_prev;                   /* that step's dt */
-  int have_prev;                    /* yprev is on the current reference */
+  ves_model *model;                /* in use: the creation model (borrowed) or ref's */
+  ves_reconnect *ref;              /* the last reset's reference (owned; NULL before one) */
+  ves_reconnect_params rp;         /* when to reset (from ip) */
+  long since;                      /* accepted steps since the last reset (or t = 0) */
+  int reconnections;               /* resets so far */
+  const ves_backend_type *backend; /* borrowed (static table entry) */
+  ves_backend_options bopt;        /* copied */
+  ves_integrate_params ip;         /* copied */
+  ves_step *step;                  /* the step problem */
+  void *bstate;                    /* the backend's state */
+  int n, nvar;                     /* nodes, free dofs */
+  double *y;                       /* 2n current positions */
+  double *ynew;                    /* 2n trial positions */
+  double *x;                       /* nvar trial free dofs */
+  double t, dt;                    /* time, next step */
+  long nstep;                      /* accepted steps */
+  double E, A, V;                  /* at y */
+  double E0, A0, V0;               /* at t = 0 */
+  double lambda[2];                /* multipliers of the last accepted step */
+  double c0;                       /* C0 in force */
+  double c0_base;                  /* the model's C0 before and after the protocol */
+  ves_quad *at_nodes;              /* points at the reference's nodes, with tables (lazy;
+                                      dropped at a reset) */
+  double *node_phi;                /* n: phi of the material at those nodes */
+  int node_phi_ok;                 /* node_phi holds the current reference's values */
+  long reset_step;                 /* the step of the last reset (0: none) */
+  ves_remesh *mesh;                /* the last remeshing's reference (owned; NULL if none
+                                      or a reset came after it) */
+  const ves_config *rcfg;          /* remeshing: the discretization keys (borrowed; NULL:
+                                      off, ves_sim_set_remesh) */
+  ves_remesh_policy rmp;           /* when to remesh */
+  long rsince;                     /* accepted steps since the last remeshing (or t = 0) */
+  long remesh_step;                /* the step of the last remeshing (0: none) */
+  int remeshings;                  /* remeshings so far */
+  double dt_rejected;              /* smallest recently rejected dt (0: none) */
+  long since_rejected;             /* accepted steps since then */
+  int fresh_next;                  /* the next step starts afresh (ves_step_params.fresh) */
+  double *yprev;                   /* 2n: y before the last accepted step (predictor) */
+  double dt_prev;                  /* that step's dt */
+  int have_prev;                   /* yprev is on the current reference */
 };
 
 void ves_integrate_params_default(ves_integrate_params *p) {
@@ -156,8 +156,8 @@ ves_status ves_sim_create(ves_model *model, const ves_backend_type *backend,
                 ip->reconnect_nodes == VES_RESET_NODES_MOTION,
             VES_ERR_ARG);
   VES_CHECK(ip->c0_until < 0 || (ip->c0_time >= 0 && ip->c0_until > ip->c0_time), VES_ERR_ARG);
-  VES_CHECK(ip->c0_ramp_start < 0 ||
-                (ip->c0_time < 0 && ip->c0_ramp_end > ip->c0_ramp_start && isfinite(ip->c0_ramp_to)),
+  VES_CHECK(ip->c0_ramp_start < 0 || (ip->c0_time < 0 && ip->c0_ramp_end > ip->c0_ramp_start &&
+                                      isfinite(ip->c0_ramp_to)),
             VES_ERR_ARG);
   ves_status st = VES_ERR_ALLOC;
   ves_sim *s = calloc(1, sizeof *s);
@@ -186,8 +186,11 @@ ves_status ves_sim_create(ves_model *model, const ves_backend_type *backend,
   s->E0 = s->E, s->A0 = s->A, s->V0 = s->V;
   s->dt = ip->dt_initial;
   /* the backend's state needs a set step problem: set it once at t = 0 */
-  ves_step_params sp = {.dt = s->dt, .hold_area = ip->hold_area, .A0 = s->A0,
-                        .hold_volume = ip->hold_volume, .V_target = s->V0};
+  ves_step_params sp = {.dt = s->dt,
+                        .hold_area = ip->hold_area,
+                        .A0 = s->A0,
+                        .hold_volume = ip->hold_volume,
+                        .V_target = s->V0};
   if ((st = ves_step_set(s->step, s->y, &sp)) != VES_OK) goto fail;
   if ((st = backend->create(&s->bopt, s->step, &s->bstate)) != VES_OK) goto fail;
   s->fresh_next = 1;
@@ -248,8 +251,7 @@ static ves_status reconnect(ves_sim *s, const ves_step_params *sp) {
    * the new one, ves_sim_node_material) */
   if (s->ip.reconnect_nodes == VES_RESET_NODES_MOTION && !s->node_phi_ok) (void)node_phi_fit(s);
   ves_reconnect *nr = NULL;
-  ves_status st =
-      ves_reconnect_create(s->model, s->y, (ves_reset_nodes)s->ip.reconnect_nodes, &nr);
+  ves_status st = ves_reconnect_create(s->model, s->y, (ves_reset_nodes)s->ip.reconnect_nodes, &nr);
   if (st == VES_OK) st = switch_reference(s, nr, sp);
   if (st != VES_OK) return st;
   s->since = 0;
@@ -267,8 +269,11 @@ ves_status ves_sim_adopt_reference(ves_sim *s, ves_reconnect *ref, int reconnect
     ves_reconnect_destroy(&ref); /* taken, as on every failure */
     return VES_ERR_ARG;
   }
-  ves_step_params sp = {.dt = s->dt, .hold_area = s->ip.hold_area, .A0 = s->A0,
-                        .hold_volume = s->ip.hold_volume, .V_target = volume_target(s, s->t)};
+  ves_step_params sp = {.dt = s->dt,
+                        .hold_area = s->ip.hold_area,
+                        .A0 = s->A0,
+                        .hold_volume = s->ip.hold_volume,
+                        .V_target = volume_target(s, s->t)};
   VES_CALL(switch_reference(s, ref, &sp));
   s->reconnections = reconnections, s->reset_step = reset_step;
   s->since = s->nstep >= reset_step ? s->nstep - reset_step : 0;
@@ -312,8 +317,10 @@ static ves_status remesh(ves_sim *s, ves_remesh_info *info) {
   ves_status st = ves_remesh_create(s->rcfg, s->model, s->y, &rp, &nm, err, sizeof err);
   if (st > 0) st = VES_OK; /* the correction short of ctol: its residuals are reported */
   if (st == VES_OK) ves_remesh_get_info(nm, info);
-  if (st == VES_OK) st = switch_remesh(s, nm, rp.V_target);
-  else ves_remesh_destroy(&nm);
+  if (st == VES_OK)
+    st = switch_remesh(s, nm, rp.V_target);
+  else
+    ves_remesh_destroy(&nm);
   if (st != VES_OK) return st;
   s->rsince = 0, s->remesh_step = s->nstep;
   s->remeshings++;
@@ -340,8 +347,11 @@ static ves_status switch_remesh(ves_sim *s, ves_remesh *nm, double V_target) {
   }
   if (st == VES_OK) {
     memcpy(y, ves_remesh_y(nm), 2 * (size_t)n * sizeof *y);
-    ves_step_params sp = {.dt = s->dt, .hold_area = s->ip.hold_area, .A0 = s->A0,
-                          .hold_volume = s->ip.hold_volume, .V_target = V_target};
+    ves_step_params sp = {.dt = s->dt,
+                          .hold_area = s->ip.hold_area,
+                          .A0 = s->A0,
+                          .hold_volume = s->ip.hold_volume,
+                          .V_target = V_target};
     st = ves_step_set(step, y, &sp); /* the backend needs a set problem */
   }
   if (st == VES_OK) st = s->backend->create(&s->bopt, step, &bstate);
@@ -398,7 +408,8 @@ static void remesh_if_due(ves_sim *s, ves_step_report *rep) {
     double c = 1, d = 1;
     rep->remesh_status = ves_reconnect_distortion(s->model, s->y, &c, &d);
     if (rep->remesh_status != VES_OK) return;
-    due = (s->rmp.cond_max > 0 && c > s->rmp.cond_max) || (s->rmp.det_min > 0 && d < s->rmp.det_min);
+    due =
+        (s->rmp.cond_max > 0 && c > s->rmp.cond_max) || (s->rmp.det_min > 0 && d < s->rmp.det_min);
   }
   if (!due && s->rmp.on_failed_reset && rep->reconnect_status < 0) due = 1;
   if (!due) return;
@@ -473,8 +484,11 @@ ves_status ves_sim_step(ves_sim *s, ves_step_report *rep) {
     const double c0n = ramp ? c0_ramp(s, s->t + dt) : s->c0;
     if (c0n != s->c0) fixed_targets = 0; /* the ramp moves the landscape during the step */
     if ((st = ves_model_set_c0(s->model, c0n)) != VES_OK) return st;
-    ves_step_params sp = {.dt = dt, .hold_area = s->ip.hold_area, .A0 = s->A0,
-                          .hold_volume = s->ip.hold_volume, .V_target = Vt,
+    ves_step_params sp = {.dt = dt,
+                          .hold_area = s->ip.hold_area,
+                          .A0 = s->A0,
+                          .hold_volume = s->ip.hold_volume,
+                          .V_target = Vt,
                           .fresh = s->fresh_next || retries > 0};
     double lam[2] = {s->lambda[0], s->lambda[1]}, E, A, V;
     memset(&rep->stats, 0, sizeof rep->stats); /* this attempt's */
@@ -492,8 +506,7 @@ ves_status ves_sim_step(ves_sim *s, ves_step_report *rep) {
     }
     /* energy stability: a VTI minimizer cannot raise E when y^n was feasible;
      * an explicit Euler step that raises it is unstable */
-    if (st == VES_OK && s->ip.check_energy && fixed_targets &&
-        E > s->E + 1e-10 * fabs(s->E))
+    if (st == VES_OK && s->ip.check_energy && fixed_targets && E > s->E + 1e-10 * fabs(s->E))
       st = VES_STEP_REJECTED;
     if (st == VES_OK) {
       double dE = fabs(E - s->E);
@@ -528,8 +541,8 @@ ves_status ves_sim_step(ves_sim *s, ves_step_report *rep) {
       if (s->rp.every > 0 || s->rp.cond_max > 0 || s->rp.det_min > 0) {
         int due = 0;
         s->since++;
-        rep->reconnect_status = ves_reconnect_due(&s->rp, s->model, s->y, s->since, &due,
-                                                  &rep->cond, &rep->det_min);
+        rep->reconnect_status =
+            ves_reconnect_due(&s->rp, s->model, s->y, s->since, &due, &rep->cond, &rep->det_min);
         if (rep->reconnect_status == VES_OK && due) {
           ves_reconnect_info info;
           rep->reconnect_status = reconnect(s, &sp);
@@ -600,8 +613,9 @@ void ves_sim_get_state(const ves_sim *s, ves_sim_state *st, double *y) {
 ves_status ves_sim_set_state(ves_sim *s, const ves_sim_state *st, const double *y,
                              const double *y_prev) {
   VES_CHECK(s && st && y, VES_ERR_ARG);
-  const double v[] = {st->t,  st->dt, st->E,         st->A,         st->V,  st->E0,      st->A0,
-                      st->V0, st->lambda[0], st->lambda[1], st->c0, st->dt_rejected, st->dt_prev};
+  const double v[] = {st->t,  st->dt,          st->E,      st->A,         st->V,
+                      st->E0, st->A0,          st->V0,     st->lambda[0], st->lambda[1],
+                      st->c0, st->dt_rejected, st->dt_prev};
   for (size_t i = 0; i < sizeof v / sizeof v[0]; i++) VES_CHECK(isfinite(v[i]), VES_ERR_ARG);
   VES_CHECK(st->t >= 0, VES_ERR_ARG);
   VES_CHECK(st->dt > 0, VES_ERR_ARG);

@@ -15,37 +15,37 @@
 
 /* Time stepping and protocol parameters (times in t* = t k / (mu R0^3)). */
 typedef struct {
-  double t_end;        /* final time */
-  double dt_initial;   /* first step */
-  double dt_max;       /* largest step */
-  double dt_min;       /* floor for halving a rejected step; below it the run stops */
-  int adaptive;        /* 1: dt from the energy decrement, 0: constant dt */
-  double dE_target;    /* adaptive: target |E*(n+1) - E*(n)| per step (units k) */
-  double growth_max;   /* adaptive: largest factor between consecutive steps (> 1) */
-  int iter_target;     /* adaptive: above this many backend iterations dt is not grown */
-  int predictor;       /* 1: a step starts from the linear extrapolation of the last two
-                          states (and multipliers scaled by dt); 0: from y^n. y^{n-1} is
-                          part of the restart state (ves_sim_y_prev, ves_sim_set_prev),
-                          so a restart continues bit for bit either way */
-  int retry_memory;    /* adaptive: after a rejected attempt at dt_r, this many accepted
-                          steps keep dt <= retry_cap dt_r (0: only the next step is held) */
-  double retry_cap;    /* adaptive: that cap's factor, in (0, 1] */
-  int hold_area;       /* 1: A(y) = A0 at every step */
-  int hold_volume;     /* 1: V(y) = V_target(t) at every step */
-  double volume_rate;  /* protocol: dV/dt / V0 (1/t*; < 0 deflates; 0 = none) */
-  double volume_final; /* protocol: V / V0 at which the ramp stops and V is held */
-  double c0_time;      /* protocol: time of a step change of C0 (< 0: none) */
-  double c0_after;     /* protocol: C0 R0 from c0_time on */
-  double c0_until;     /* protocol: time C0 returns to the model's C0 (< 0: never; else
-                          > c0_time): a pulse that can push a shape past a barrier */
+  double t_end;         /* final time */
+  double dt_initial;    /* first step */
+  double dt_max;        /* largest step */
+  double dt_min;        /* floor for halving a rejected step; below it the run stops */
+  int adaptive;         /* 1: dt from the energy decrement, 0: constant dt */
+  double dE_target;     /* adaptive: target |E*(n+1) - E*(n)| per step (units k) */
+  double growth_max;    /* adaptive: largest factor between consecutive steps (> 1) */
+  int iter_target;      /* adaptive: above this many backend iterations dt is not grown */
+  int predictor;        /* 1: a step starts from the linear extrapolation of the last two
+                           states (and multipliers scaled by dt); 0: from y^n. y^{n-1} is
+                           part of the restart state (ves_sim_y_prev, ves_sim_set_prev),
+                           so a restart continues bit for bit either way */
+  int retry_memory;     /* adaptive: after a rejected attempt at dt_r, this many accepted
+                           steps keep dt <= retry_cap dt_r (0: only the next step is held) */
+  double retry_cap;     /* adaptive: that cap's factor, in (0, 1] */
+  int hold_area;        /* 1: A(y) = A0 at every step */
+  int hold_volume;      /* 1: V(y) = V_target(t) at every step */
+  double volume_rate;   /* protocol: dV/dt / V0 (1/t*; < 0 deflates; 0 = none) */
+  double volume_final;  /* protocol: V / V0 at which the ramp stops and V is held */
+  double c0_time;       /* protocol: time of a step change of C0 (< 0: none) */
+  double c0_after;      /* protocol: C0 R0 from c0_time on */
+  double c0_until;      /* protocol: time C0 returns to the model's C0 (< 0: never; else
+                           > c0_time): a pulse that can push a shape past a barrier */
   double c0_ramp_start; /* protocol: a C0 ramp from the model's C0 at this time (< 0: none;
                            excludes c0_time) ... */
   double c0_ramp_end;   /* ... rising linearly to c0_ramp_to at this time (> c0_ramp_start),
                            then held; each step takes C0 at its end time, t + dt (as V_target),
                            and steps are cut to land on both times */
   double c0_ramp_to;    /* protocol: C0 R0 at the ramp's end */
-  int check_energy;    /* 1: reject a step whose energy rises while the targets are fixed
-                          (any backend: for Euler a rise is its instability) */
+  int check_energy;     /* 1: reject a step whose energy rises while the targets are fixed
+                           (any backend: for Euler a rise is its instability) */
   /* reference-configuration reset after an accepted step when any enabled
    * criterion holds (ves_reconnect_due; all three 0: never, the default) */
   int reconnect_every;       /* accepted steps between resets (>= 0; 0: off) */
@@ -83,9 +83,9 @@ typedef struct {
   ves_status reconnect_status; /* VES_OK, or why a due reset failed (the step stands and
                                   the old reference stays in use; tried again next step) */
   /* remeshing after the step (ves_sim_set_remesh; all zero when none) */
-  int remeshed;                /* 1: the state was remeshed (node count may change) */
-  ves_remesh_info remesh;      /* remeshed: what it changed (remesh.h) */
-  ves_status remesh_status;    /* VES_OK, or why a due remeshing failed (the step stands) */
+  int remeshed;             /* 1: the state was remeshed (node count may change) */
+  ves_remesh_info remesh;   /* remeshed: what it changed (remesh.h) */
+  ves_status remesh_status; /* VES_OK, or why a due remeshing failed (the step stands) */
 } ves_step_report;
 
 typedef struct ves_sim ves_sim;
@@ -117,15 +117,15 @@ ves_status ves_sim_step(ves_sim *s, ves_step_report *rep);
  * parameters, a simulation set to it continues the identical trajectory,
  * bit for bit (what a restart needs). E, A, V in model units (E* = E / k). */
 typedef struct {
-  double t;          /* time reached (t*) */
-  double dt;         /* the next step's dt (t*) */
-  long nstep;        /* accepted steps so far */
-  double E, A, V;    /* energy, area and volume at y */
-  double E0, A0, V0; /* at t = 0 (A0 is the area target, V0 scales the volume ramp) */
-  double lambda[2];  /* multipliers of the last accepted step (the next warm start) */
-  double c0;         /* C0 R0 in force */
-  double dt_rejected; /* the smallest dt rejected within the last retry_memory accepted
-                         steps (0: none) */
+  double t;            /* time reached (t*) */
+  double dt;           /* the next step's dt (t*) */
+  long nstep;          /* accepted steps so far */
+  double E, A, V;      /* energy, area and volume at y */
+  double E0, A0, V0;   /* at t = 0 (A0 is the area target, V0 scales the volume ramp) */
+  double lambda[2];    /* multipliers of the last accepted step (the next warm start) */
+  double c0;           /* C0 R0 in force */
+  double dt_rejected;  /* the smallest dt rejected within the last retry_memory accepted
+                          steps (0: none) */
   long since_rejected; /* accepted steps since that rejection */
   double dt_prev;      /* dt of the last accepted step when y^{n-1} is held for the
                           predictor (ves_sim_y_prev), else 0: at the start, after a reset,
