@@ -354,6 +354,85 @@ static ves_status tail_step(newton_state *w, ves_step *s, double *x, double *lam
   return eval_gJ(w, s, x, stt); /* back to x */
 }
 
+/* r = g + J^T lam into w->r; returns |r|_inf and *scale = max(gscale,
+ * |J^T lam|_inf) (1 when both vanish): the convergence test's size. */
+static double residual(newton_state *w, const double *lam, int ncon, double gscale, double *scale) {
+  const int nv = w->nvar;
+  memcpy(w->r, w->g, (size_t)nv * sizeof *w->r);
+  double jl = 0;
+  for (int i = 0; i < ncon; i++)
+    for (int j = 0; j < nv; j++) w->r[j] += lam[i] * w->J[(size_t)i * nv + j];
+  if (ncon) {
+    for (int j = 0; j < nv; j++) jl = fmax(jl, fabs(w->r[j] - w->g[j]));
+  }
+  *scale = fmax(gscale, jl);
+  if (*scale == 0) *scale = 1;
+  return norm_inf(nv, w->r);
+}
+
+/* Directional derivative of the l1 merit function f + mu sum |c_i| along
+ * dx, with the current g and J (exact even when the matrix is frozen). */
+static double merit_slope(const newton_state *w, const double *dx, const double *c, double mu,
+                          int ncon) {
+  const int nv = w->nvar;
+  double D = 0;
+  for (int j = 0; j < nv; j++) D += w->g[j] * dx[j];
+  for (int i = 0; i < ncon; i++) {
+    double jd = 0;
+    for (int j = 0; j < nv; j++) jd += w->J[(size_t)i * nv + j] * dx[j];
+    D += mu * (c[i] > 0 ? jd : c[i] < 0 ? -jd : fabs(jd));
+  }
+  return D;
+}
+
+/* Backtracking on the merit function phi from x along dx (phi0 = phi(x),
+ * Dm = min(slope, 0), fnoise its rounding allowance); VES_ERR_DOMAIN at a
+ * trial point = too long: halve. At the full step a second-order correction
+ * [H J^T; J 0][p; q] = [0; -c(x + dx)] is tried when it is rejected
+ * (Maratos effect). *accepted: the trial w->xt (value *ft, constraints ct)
+ * passed, at step length *a or, *used_soc, as x + dx + p. Returns VES_OK or
+ * the first error that is not a domain error. */
+static ves_status line_search(newton_state *w, ves_step *s, const double *x, const double *dx,
+                              int ncon, double mu, double phi0, double Dm, double fnoise,
+                              double *ft, double *ct, double *a, int *accepted, int *used_soc,
+                              ves_backend_stats *stt) {
+  const int nv = w->nvar;
+  *a = 1, *accepted = 0, *used_soc = 0;
+  for (int ls = 0; ls < NEWTON_MAX_LS; ls++, *a *= 0.5) {
+    for (int j = 0; j < nv; j++) w->xt[j] = x[j] + *a * dx[j];
+    /* the full step is usually taken: its gradients in the same model pass */
+    ves_step_eager_gradients(s, ls == 0);
+    ves_status e = eval_fc(s, w->xt, ft, ct, stt);
+    ves_step_eager_gradients(s, 0);
+    if (e == VES_ERR_DOMAIN) continue;
+    VES_CALL(e);
+    if (*ft + mu * l1(ncon, ct) <= phi0 + NEWTON_ARMIJO * *a * Dm + fnoise) {
+      *accepted = 1;
+      return VES_OK;
+    }
+    if (ls == 0 && ncon > 0) {
+      memset(w->soc, 0, (size_t)(nv + KKT_NROWS) * sizeof *w->soc);
+      for (int i = 0; i < ncon; i++) w->soc[nv + i] = -ct[i];
+      VES_CALL(kkt_solve(&w->kkt, w->soc));
+      for (int j = 0; j < nv; j++) w->xt[j] = x[j] + dx[j] + w->soc[j];
+      e = eval_fc(s, w->xt, ft, ct, stt);
+      if (e != VES_ERR_DOMAIN) VES_CALL(e);
+      if (e == VES_OK && *ft + mu * l1(ncon, ct) <= phi0 + NEWTON_ARMIJO * Dm + fnoise) {
+        *accepted = *used_soc = 1;
+        return VES_OK;
+      }
+    }
+  }
+  return VES_OK;
+}
+
+/* Newton's iteration on the step's KKT conditions (the header's method).
+ * Still ~150 lines: one loop whose iterations share the iterate, the
+ * multipliers, the merit parameter, the stall window and the freshness of
+ * the matrix, and leave it from six places (converged, limit, rebuild,
+ * tail step, no descent, error); the parts with a meaning of their own
+ * (assemble_factor, anderson, residual, merit_slope, line_search,
+ * tail_step) are functions. */
 static ves_status newton_solve(void *state, ves_step *s, double *x, double *lambda,
                                ves_backend_stats *stt) {
   VES_CHECK(state && s && x && stt, VES_ERR_ARG);
@@ -386,15 +465,7 @@ static ves_status newton_solve(void *state, ves_step *s, double *x, double *lamb
   ves_status result = VES_ERR_NOCONV;
   while (st == VES_OK) {
     /* residual r = g + J^T lam and the convergence test */
-    memcpy(w->r, w->g, (size_t)nv * sizeof *w->r);
-    double jl = 0;
-    for (int i = 0; i < ncon; i++)
-      for (int j = 0; j < nv; j++) w->r[j] += lam[i] * w->J[(size_t)i * nv + j];
-    if (ncon) {
-      for (int j = 0; j < nv; j++) jl = fmax(jl, fabs(w->r[j] - w->g[j]));
-    }
-    double scale = fmax(gscale, jl), res = norm_inf(nv, w->r), viol = 0;
-    if (scale == 0) scale = 1;
+    double scale, res = residual(w, lam, ncon, gscale, &scale), viol = 0;
     /* the residual is not resolved below the rounding of x itself: x is
      * stored to eps_mach |x| absolute, and H magnifies that to
      * eps_mach (|H| |x|)_inf (measured plateau: 0.3 of this bound) */
@@ -438,24 +509,12 @@ static ves_status newton_solve(void *state, ves_step *s, double *x, double *lamb
     double lmax = 0;
     for (int i = 0; i < ncon; i++) lmax = fmax(lmax, fabs(lam[i] + dlam[i]));
     mu = fmax(mu, 2 * lmax);
-    double D = 0;
-    for (int j = 0; j < nv; j++) D += w->g[j] * dx[j];
-    for (int i = 0; i < ncon; i++) {
-      double jd = 0;
-      for (int j = 0; j < nv; j++) jd += w->J[(size_t)i * nv + j] * dx[j];
-      D += mu * (c[i] > 0 ? jd : c[i] < 0 ? -jd : fabs(jd));
-    }
+    double D = merit_slope(w, dx, c, mu, ncon);
     if (D >= 0 && accel) { /* the accelerated step is no descent: the plain chord step */
       w->aa_n = 0;
       memcpy(w->aa_p, w->sol, (size_t)(nv + KKT_NROWS) * sizeof *w->aa_p);
       accel = 0;
-      D = 0;
-      for (int j = 0; j < nv; j++) D += w->g[j] * dx[j];
-      for (int i = 0; i < ncon; i++) {
-        double jd = 0;
-        for (int j = 0; j < nv; j++) jd += w->J[(size_t)i * nv + j] * dx[j];
-        D += mu * (c[i] > 0 ? jd : c[i] < 0 ? -jd : fabs(jd));
-      }
+      D = merit_slope(w, dx, c, mu, ncon);
     }
     if (D >= 0 && !built_now) {                      /* a stale matrix gave no descent: rebuild */
       if (res <= NEWTON_TAIL * w->opt.tol * scale) { /* unless the tail converges */
@@ -476,44 +535,10 @@ static ves_status newton_solve(void *state, ves_step *s, double *x, double *lamb
      * strict test rejects every step of a converging iteration (measured:
      * problems/mode2.ini at dt* = 0.04, 28 iterations and two halvings). */
     const double fnoise = NEWTON_FNOISE * DBL_EPSILON * fabs(phi0);
-    /* backtracking on phi; DOMAIN = too long */
     double a = 1;
     int accepted = 0, used_soc = 0;
-    for (int ls = 0; ls < NEWTON_MAX_LS && !accepted; ls++, a *= 0.5) {
-      for (int j = 0; j < nv; j++) w->xt[j] = x[j] + a * dx[j];
-      /* the full step is usually taken: its gradients in the same model pass */
-      ves_step_eager_gradients(s, ls == 0);
-      ves_status e = eval_fc(s, w->xt, &ft, ct, stt);
-      ves_step_eager_gradients(s, 0);
-      if (e == VES_ERR_DOMAIN) continue;
-      if (e != VES_OK) {
-        st = e;
-        break;
-      }
-      if (ft + mu * l1(ncon, ct) <= phi0 + NEWTON_ARMIJO * a * Dm + fnoise) {
-        accepted = 1;
-        break;
-      }
-      if (ls == 0 && ncon > 0) {
-        /* second-order correction: [H J^T; J 0][p; q] = [0; -c(x + dx)] */
-        memset(w->soc, 0, (size_t)(nv + KKT_NROWS) * sizeof *w->soc);
-        for (int i = 0; i < ncon; i++) w->soc[nv + i] = -ct[i];
-        if ((e = kkt_solve(&w->kkt, w->soc)) != VES_OK) {
-          st = e;
-          break;
-        }
-        for (int j = 0; j < nv; j++) w->xt[j] = x[j] + dx[j] + w->soc[j];
-        e = eval_fc(s, w->xt, &ft, ct, stt);
-        if (e != VES_OK && e != VES_ERR_DOMAIN) {
-          st = e;
-          break;
-        }
-        if (e == VES_OK && ft + mu * l1(ncon, ct) <= phi0 + NEWTON_ARMIJO * Dm + fnoise) {
-          accepted = used_soc = 1;
-          break;
-        }
-      }
-    }
+    st = line_search(w, s, x, dx, ncon, mu, phi0, Dm, fnoise, &ft, ct, &a, &accepted, &used_soc,
+                     stt);
     if (st != VES_OK) break;
     if (!accepted) {
       if (!built_now) {                                /* a stale matrix: rebuild and retry */

@@ -451,31 +451,130 @@ static void predict(ves_sim *s, double dt, double lam[2]) {
   lam[0] *= r, lam[1] *= r;
 }
 
+/* The protocol's C0 step change when its time is reached: a new energy
+ * landscape, so dt starts again from dt_initial and nothing of the old one
+ * (rejections, the predictor's last velocity) is carried over. */
+static ves_status c0_event(ves_sim *s, double tiny) {
+  double c0 = s->ip.c0_ramp_start >= 0 ? s->c0 : s->c0_base; /* a ramp: in the steps */
+  if (s->ip.c0_time >= 0 && s->t >= s->ip.c0_time - tiny &&
+      !(s->ip.c0_until >= 0 && s->t >= s->ip.c0_until - tiny))
+    c0 = s->ip.c0_after;
+  if (c0 == s->c0) return VES_OK;
+  s->c0 = c0;
+  s->dt = fmin(s->dt, s->ip.dt_initial);
+  s->dt_rejected = 0, s->since_rejected = 0; /* rejections on the old landscape */
+  s->fresh_next = 1;
+  s->have_prev = 0; /* the last step's velocity belongs to the old landscape */
+  VES_CALL(ves_model_set_c0(s->model, s->c0));
+  return ves_model_eval(s->model, s->y, VES_F_E, &s->E, NULL, NULL, NULL, NULL, NULL);
+}
+
+/* The next attempt's dt: the controller's, cut to land on t_end and on the
+ * protocol's events (the C0 switch times and the ramp's ends). */
+static double event_dt(const ves_sim *s, double tiny) {
+  double dt = fmin(s->dt, s->ip.t_end - s->t);
+  if (s->ip.c0_time > s->t + tiny) dt = fmin(dt, s->ip.c0_time - s->t);
+  if (s->ip.c0_until > s->t + tiny) dt = fmin(dt, s->ip.c0_until - s->t);
+  if (s->ip.c0_ramp_start >= 0 && s->ip.c0_ramp_start > s->t + tiny)
+    dt = fmin(dt, s->ip.c0_ramp_start - s->t);
+  if (s->ip.c0_ramp_start >= 0 && s->ip.c0_ramp_end > s->t + tiny)
+    dt = fmin(dt, s->ip.c0_ramp_end - s->t);
+  return dt;
+}
+
+/* The step controller after an accepted step of size dt that changed E by
+ * dE in `iterations` backend iterations after `retries` halvings: sets s->dt. */
+static void next_dt(ves_sim *s, double dt, double dE, int iterations, int retries) {
+  double next = s->dt;
+  if (s->ip.adaptive) {
+    double f = dE > 0 ? s->ip.dE_target * ves_model_get_k(s->model) / dE : s->ip.growth_max;
+    f = fmin(fmax(f, 0.5), s->ip.growth_max);
+    if (iterations > s->ip.iter_target) f = fmin(f, 1.0);
+    next = dt * f;
+    if (retries) next = fmin(next, dt); /* just halved: do not jump back at once */
+    if (s->dt_rejected > 0 && s->since_rejected >= s->ip.retry_memory)
+      s->dt_rejected = 0; /* forgotten: the landscape may have changed */
+    if (s->dt_rejected > 0) next = fmin(next, s->ip.retry_cap * s->dt_rejected);
+  }
+  if (s->dt_rejected > 0) s->since_rejected++;
+  s->dt = fmin(fmax(next, s->ip.dt_min), s->ip.dt_max);
+}
+
+/* After an accepted step: a reset of the reference when one is due, then a
+ * remeshing when one is due; the step stands whatever happens here (the
+ * outcomes are in rep). sp: the step's parameters (a reset rebuilds the
+ * step problem with them). */
+static void after_step(ves_sim *s, const ves_step_params *sp, ves_step_report *rep) {
+  if (s->rp.every > 0 || s->rp.cond_max > 0 || s->rp.det_min > 0) {
+    int due = 0;
+    s->since++;
+    rep->reconnect_status =
+        ves_reconnect_due(&s->rp, s->model, s->y, s->since, &due, &rep->cond, &rep->det_min);
+    if (rep->reconnect_status == VES_OK && due) {
+      ves_reconnect_info info;
+      rep->reconnect_status = reconnect(s, sp);
+      if (rep->reconnect_status == VES_OK) {
+        ves_reconnect_get_info(s->ref, &info);
+        rep->reconnected = 1;
+        rep->cond = info.cond_max, rep->det_min = info.det_min;
+        rep->E_reset = s->E / ves_model_get_k(s->model);
+        rep->mirrored = info.mirrored;
+        rep->shift = info.shift_max;
+      }
+    }
+  }
+  if (s->rcfg) remesh_if_due(s, rep);
+}
+
+/* Take the attempt's result (positions s->ynew, E, A, V, multipliers lam,
+ * the C0 and volume target it was solved at) as the new state. */
+static void accept(ves_sim *s, double dt, double E, double A, double V, const double lam[2],
+                   double c0n, double Vt, int retries, ves_step_report *rep) {
+  const double dE = fabs(E - s->E);
+  memcpy(s->yprev, s->y, 2 * (size_t)s->n * sizeof *s->y);
+  s->dt_prev = dt, s->have_prev = 1;
+  memcpy(s->y, s->ynew, 2 * (size_t)s->n * sizeof *s->y);
+  s->fresh_next = 0;
+  s->t += dt;
+  s->nstep++;
+  s->E = E, s->A = A, s->V = V;
+  s->c0 = c0n;
+  s->lambda[0] = lam[0], s->lambda[1] = lam[1];
+  rep->step = s->nstep, rep->t = s->t, rep->dt = dt;
+  rep->E = E / ves_model_get_k(s->model), rep->A = A, rep->V = V;
+  rep->lambda[0] = lam[0], rep->lambda[1] = lam[1];
+  rep->c0 = s->c0, rep->V_target = Vt, rep->retries = retries, rep->solve_status = VES_OK;
+  next_dt(s, dt, dE, rep->stats.iterations, retries);
+}
+
+/* Book a rejected attempt at dt (status st) into rep and the controller's
+ * memory of rejections. */
+static void reject(ves_sim *s, double dt, ves_status st, int retries, ves_step_report *rep) {
+  rep->solve_status = st;
+  rep->dt = dt;
+  if (retries == 0) rep->reject_dt = dt;
+  if (s->dt_rejected == 0 || dt < s->dt_rejected) s->dt_rejected = dt;
+  s->since_rejected = 0;
+  rep->reject_status = st;
+  rep->rejected.iterations += rep->stats.iterations, rep->rejected.f_evals += rep->stats.f_evals;
+  rep->rejected.g_evals += rep->stats.g_evals, rep->rejected.h_evals += rep->stats.h_evals;
+  rep->rejected.seconds += rep->stats.seconds, rep->rejected.violation = rep->stats.violation;
+  rep->rejected.solver_status = rep->stats.solver_status;
+}
+
+/* One accepted step: attempts at dt, dt/2, ... until one is accepted. Still
+ * ~75 lines: one attempt is set up, solved, checked and accepted or
+ * rejected in sequence over shared locals (dt, C0 and volume target of the
+ * attempt, its multipliers); the parts with a meaning of their own are the
+ * functions above. */
 ves_status ves_sim_step(ves_sim *s, ves_step_report *rep) {
   VES_CHECK(s && rep, VES_ERR_ARG);
   memset(rep, 0, sizeof *rep);
   const double tiny = 1e-12 * (1.0 + fabs(s->t));
   if (s->t >= s->ip.t_end - tiny) return VES_DONE;
-  /* protocol: C0 switches when its time is reached (steps end on the events) */
-  double c0 = s->ip.c0_ramp_start >= 0 ? s->c0 : s->c0_base; /* a ramp: in the steps below */
-  if (s->ip.c0_time >= 0 && s->t >= s->ip.c0_time - tiny &&
-      !(s->ip.c0_until >= 0 && s->t >= s->ip.c0_until - tiny))
-    c0 = s->ip.c0_after;
-  if (c0 != s->c0) { /* a new energy landscape: dt starts again from dt_initial */
-    s->c0 = c0;
-    s->dt = fmin(s->dt, s->ip.dt_initial);
-    s->dt_rejected = 0, s->since_rejected = 0; /* rejections on the old landscape */
-    s->fresh_next = 1;
-    s->have_prev = 0; /* the last step's velocity belongs to the old landscape */
-    VES_CALL(ves_model_set_c0(s->model, s->c0));
-    VES_CALL(ves_model_eval(s->model, s->y, VES_F_E, &s->E, NULL, NULL, NULL, NULL, NULL));
-  }
-  double dt = fmin(s->dt, s->ip.t_end - s->t);
-  if (s->ip.c0_time > s->t + tiny) dt = fmin(dt, s->ip.c0_time - s->t); /* land on the event */
-  if (s->ip.c0_until > s->t + tiny) dt = fmin(dt, s->ip.c0_until - s->t);
+  VES_CALL(c0_event(s, tiny)); /* protocol: C0 switches when its time is reached */
+  double dt = event_dt(s, tiny);
   const int ramp = s->ip.c0_ramp_start >= 0; /* C0(t + dt) at each attempt */
-  if (ramp && s->ip.c0_ramp_start > s->t + tiny) dt = fmin(dt, s->ip.c0_ramp_start - s->t);
-  if (ramp && s->ip.c0_ramp_end > s->t + tiny) dt = fmin(dt, s->ip.c0_ramp_end - s->t);
   ves_status st = VES_ERR_NOCONV;
   int retries = 0;
   for (;;) {
@@ -509,66 +608,11 @@ ves_status ves_sim_step(ves_sim *s, ves_step_report *rep) {
     if (st == VES_OK && s->ip.check_energy && fixed_targets && E > s->E + 1e-10 * fabs(s->E))
       st = VES_STEP_REJECTED;
     if (st == VES_OK) {
-      double dE = fabs(E - s->E);
-      memcpy(s->yprev, s->y, 2 * (size_t)s->n * sizeof *s->y);
-      s->dt_prev = dt, s->have_prev = 1;
-      memcpy(s->y, s->ynew, 2 * (size_t)s->n * sizeof *s->y);
-      s->fresh_next = 0;
-      s->t += dt;
-      s->nstep++;
-      s->E = E, s->A = A, s->V = V;
-      s->c0 = c0n;
-      s->lambda[0] = lam[0], s->lambda[1] = lam[1];
-      rep->step = s->nstep, rep->t = s->t, rep->dt = dt;
-      rep->E = E / ves_model_get_k(s->model), rep->A = A, rep->V = V;
-      rep->lambda[0] = lam[0], rep->lambda[1] = lam[1];
-      rep->c0 = s->c0, rep->V_target = Vt, rep->retries = retries, rep->solve_status = st;
-      /* next dt */
-      double next = s->dt;
-      if (s->ip.adaptive) {
-        double f = dE > 0 ? s->ip.dE_target * ves_model_get_k(s->model) / dE : s->ip.growth_max;
-        f = fmin(fmax(f, 0.5), s->ip.growth_max);
-        if (rep->stats.iterations > s->ip.iter_target) f = fmin(f, 1.0);
-        next = dt * f;
-        if (retries) next = fmin(next, dt); /* just halved: do not jump back at once */
-        if (s->dt_rejected > 0 && s->since_rejected >= s->ip.retry_memory)
-          s->dt_rejected = 0; /* forgotten: the landscape may have changed */
-        if (s->dt_rejected > 0) next = fmin(next, s->ip.retry_cap * s->dt_rejected);
-      }
-      if (s->dt_rejected > 0) s->since_rejected++;
-      s->dt = fmin(fmax(next, s->ip.dt_min), s->ip.dt_max);
-      /* reconnection: the step stands whatever happens here */
-      if (s->rp.every > 0 || s->rp.cond_max > 0 || s->rp.det_min > 0) {
-        int due = 0;
-        s->since++;
-        rep->reconnect_status =
-            ves_reconnect_due(&s->rp, s->model, s->y, s->since, &due, &rep->cond, &rep->det_min);
-        if (rep->reconnect_status == VES_OK && due) {
-          ves_reconnect_info info;
-          rep->reconnect_status = reconnect(s, &sp);
-          if (rep->reconnect_status == VES_OK) {
-            ves_reconnect_get_info(s->ref, &info);
-            rep->reconnected = 1;
-            rep->cond = info.cond_max, rep->det_min = info.det_min;
-            rep->E_reset = s->E / ves_model_get_k(s->model);
-            rep->mirrored = info.mirrored;
-            rep->shift = info.shift_max;
-          }
-        }
-      }
-      if (s->rcfg) remesh_if_due(s, rep);
+      accept(s, dt, E, A, V, lam, c0n, Vt, retries, rep);
+      after_step(s, &sp, rep);
       return VES_OK;
     }
-    rep->solve_status = st;
-    rep->dt = dt;
-    if (retries == 0) rep->reject_dt = dt;
-    if (s->dt_rejected == 0 || dt < s->dt_rejected) s->dt_rejected = dt;
-    s->since_rejected = 0;
-    rep->reject_status = st;
-    rep->rejected.iterations += rep->stats.iterations, rep->rejected.f_evals += rep->stats.f_evals;
-    rep->rejected.g_evals += rep->stats.g_evals, rep->rejected.h_evals += rep->stats.h_evals;
-    rep->rejected.seconds += rep->stats.seconds, rep->rejected.violation = rep->stats.violation;
-    rep->rejected.solver_status = rep->stats.solver_status;
+    reject(s, dt, st, retries, rep);
     if (c0n != s->c0) (void)ves_model_set_c0(s->model, s->c0); /* the state's C0 again */
     if (st < 0 && st != VES_ERR_DOMAIN && st != VES_ERR_NOCONV && st != VES_ERR_SOLVER &&
         st != VES_ERR_SINGULAR)
