@@ -187,6 +187,7 @@ FORMAT_FILES = $(wildcard include/ves/*.h solver/*.c solver/*.h solver/*.cpp tes
 format:
 	clang-format -i --style=file $(FORMAT_FILES)
 format-check:
+	@command -v clang-format >/dev/null || { echo "format-check: clang-format not found (apt-get install clang-format)"; exit 1; }
 	@clang-format --dry-run -Werror --style=file $(FORMAT_FILES) 2>&1 | \
 	  awk '/error:/ {n++; split($$0, p, ":"); f[p[1]]++} {print} \
 	       END {if (n) {printf "format-check: %d place(s) in %d file(s) differ from .clang-format " \
