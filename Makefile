@@ -24,10 +24,11 @@ SANFLAGS =
 endif
 
 # python3-meshio and python3-h5py: test_cli reads the output with them
-# (tests/xdmf_check.py), readers that share no code with vesica
+# (tests/xdmf_check.py), readers that share no code with vesica;
+# clang-format: make format-check (the first step of .ci/run)
 DEPS_PKGS = coinor-libipopt-dev libnlopt-dev libmumps-seq-dev libcgal-dev \
             libhdf5-dev libcmocka-dev liblapacke-dev libopenblas-dev \
-            gnuplot-nox pkg-config libiniparser-dev python3-meshio python3-h5py
+            gnuplot-nox pkg-config libiniparser-dev python3-meshio python3-h5py clang-format
 
 PKG_CFLAGS := $(shell pkg-config --cflags ipopt hdf5 2>/dev/null)
 PKG_LIBS   := $(shell pkg-config --libs ipopt hdf5 2>/dev/null)
@@ -186,7 +187,7 @@ FORMAT_FILES = $(wildcard include/ves/*.h solver/*.c solver/*.h solver/*.cpp tes
                  tests/*.h tests/fuzz/*.c bench/*.c bench/*.h)
 format:
 	clang-format -i --style=file $(FORMAT_FILES)
-format-check:
+format-check: deps
 	@command -v clang-format >/dev/null || { echo "format-check: clang-format not found (apt-get install clang-format)"; exit 1; }
 	@clang-format --dry-run -Werror --style=file $(FORMAT_FILES) 2>&1 | \
 	  awk '/error:/ {n++; split($$0, p, ":"); f[p[1]]++} {print} \
