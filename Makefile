@@ -157,7 +157,8 @@ bench: deps
 	  sh bench/reconnect_table.sh;; esac
 	@case scale in *"$(BENCH_ONLY)"*) \
 	  echo "== bench/scale.sh"; BENCH_SCALE=$(BUILD)/bench/bench_scale sh bench/scale.sh \
-	    | tee $(BUILD)/scale.tsv && sh bench/scale_plot.sh $(BUILD)/scale.tsv $(BUILD)/scale_step.png;; esac
+	    > $(BUILD)/scale.tsv; rc=$$?; cat $(BUILD)/scale.tsv; \
+	  sh bench/scale_plot.sh $(BUILD)/scale.tsv $(BUILD)/scale_step.png && exit $$rc;; esac
 
 # The default run: the oblate relaxation of problems/oblate.ini (paper
 # Figs. 3-4, ~1.5 min on 2 cores) to results/oblate.h5 (+ .xdmf) and its
