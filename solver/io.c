@@ -52,7 +52,7 @@ typedef struct {
 static const series_spec SERIES[] = {
     {"t", COL_DOUBLE, ROW(t), "t*", "time at the end of the step, t* = t k/(mu R0^3)", 2, V_, "t", "%.9g"},
     {"dt", COL_DOUBLE, ROW(dt), "t*", "accepted time step", 3, V_, "dt", "%.6g"},
-    {"E", COL_DOUBLE, ROW(E), "k", "bending energy in model units (E* = E/k with [material] k)", 4, V_, "E", "%.12g"},
+    {"E", COL_DOUBLE, ROW(E), "k", "energy the steps minimize, in model units (E* = E/k with [material] k): bending energy plus the stabilization E_s ([geometry] stabilization; 0 after a reset)", 4, V_, "E", "%.12g"},
     {"A", COL_DOUBLE, ROW(A), "R0^2", "area of the phase-field vesicle", 5, TSV_OF_A0, "A/A0-1", "%.3e"},
     {"V", COL_DOUBLE, ROW(V), "R0^3", "enclosed volume of the phase-field vesicle", 6, TSV_OF_VT, "V/Vt-1", "%.3e"},
     {"V_target", COL_DOUBLE, ROW(V_target), "R0^3", "volume the step held (V0, or the protocol's ramp)", 0, TSV_NONE, NULL, NULL},

@@ -95,10 +95,13 @@ static ves_status model_build(const ves_nodes *nodes, const ves_quad *q, const d
         (s = ves_quad_tables(m->qn, nodes, &q->lme, NULL)) != VES_OK)
       goto fail;
   }
-  s = ves_pattern_create(q, m->qn, n, m->fixed, &m->pat);
+  /* the drift damping's S couples the nodes of a defect row pairwise, beyond
+   * the quadrature's couplings; the stabilization's rows are cut to them */
+  s = ves_pattern_create(q, par->drift > 0 ? m->qn : NULL, n, m->fixed, &m->pat);
   if (s != VES_OK) goto fail;
   if (par->drift > 0 && (s = model_drift_build(m)) != VES_OK) goto fail;
   if (par->stab > 0 && (s = model_stab_build(m)) != VES_OK) goto fail;
+  if (!(par->drift > 0)) ves_quad_destroy(&m->qn); /* the stabilization copied its rows */
   *out = m;
   return VES_OK;
 fail:
@@ -183,14 +186,20 @@ ves_status ves_model_dissipation_ref(ves_model *m, const double *y, double *qn) 
   return model_each_point(m, y, ref_point, qn);
 }
 
+/* blk += c Hess E_s (constant; its rr and zz entries, model_stab_build). */
+static void stab_add(const ves_model *m, double c, double *blk) {
+  const size_t nb = (size_t)m->pat->ptr[m->nodes->n];
+  for (size_t t = 0; t < nb; t++)
+    blk[4 * t] += c * m->sblk[2 * t], blk[4 * t + 3] += c * m->sblk[2 * t + 1];
+}
+
 ves_status ves_model_hessian(ves_model *m, const double *y, double cE, double cA, double cV,
                              double *blk) {
   VES_CHECK(m && y && blk, VES_ERR_ARG);
   double fac[3];
   model_functional_factors(m, cE, cA, cV, fac);
   VES_CALL(model_assemble(m, ASM_HESS, fac, NULL, y, blk));
-  if (m->sblk && cE != 0) /* + cE Hess E_s, constant */
-    for (size_t i = 0; i < 4 * (size_t)m->pat->ptr[m->nodes->n]; i++) blk[i] += cE * m->sblk[i];
+  if (m->sblk && cE != 0) stab_add(m, cE, blk);
   return VES_OK;
 }
 
@@ -201,8 +210,7 @@ ves_status ves_model_hessian_step(ves_model *m, const double *y, const double *q
   model_functional_factors(m, cE, cA, cV, fac);
   const step_ref sr = {qn, cK};
   VES_CALL(model_assemble(m, ASM_HESS, fac, &sr, y, blk));
-  if (m->sblk && cE != 0) /* + cE Hess E_s, constant */
-    for (size_t i = 0; i < 4 * (size_t)m->pat->ptr[m->nodes->n]; i++) blk[i] += cE * m->sblk[i];
+  if (m->sblk && cE != 0) stab_add(m, cE, blk);
   if (m->dblk && cK != 0) /* + cK S: the drift damping */
     for (size_t i = 0; i < 4 * (size_t)m->pat->ptr[m->nodes->n]; i++) blk[i] += cK * m->dblk[i];
   return VES_OK;

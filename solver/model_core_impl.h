@@ -71,14 +71,15 @@ struct ves_model {
   ves_quad *qn; /* n points at the nodes (ves_quad_create_at_nodes) */
   double *dblk; /* 4 ptr[n] block values of S in the pattern */
   /* Coefficient-mode stabilization of E (par.stab > 0, else NULL; model_stab_build):
-   * E_s = (1/2) sum_a c_a |y^a - y(X_a)|^2 from the defect rows
+   * E_s = (1/2) sum_a c_a |d_a|^2 from the defect rows, cut to the
+   * quadrature's pattern and refit to the fields they reproduced,
    * d_a = sum_j (sdr_j y_r, sdz_j y_z)(snb_j), j in [sptr[a], sptr[a+1]). */
   int *sptr;    /* n + 1 offsets (wall nodes: empty rows) */
   int *snb;     /* sptr[n] nodes of the rows */
   double *sdr;  /* sptr[n] weights of y_r (ghosts folded with -1) */
   double *sdz;  /* sptr[n] weights of y_z */
   double *sc;   /* n: c_a = stab k 2 pi M_a / h_a^2 (0 on the wall) */
-  double *sblk; /* 4 ptr[n] block values of Hess E_s (constant) */
+  double *sblk; /* 2 ptr[n]: the rr and zz entries of Hess E_s's blocks (constant) */
 };
 
 /* The step's dissipation at its start y^n (ves_model_dissipation_ref): the

@@ -11,15 +11,21 @@
  * zero on affine motions, O((h/L)^2) of K on smooth ones. Measured effect
  * in bench/RESULTS.md, "Drift damping".
  *
- * Coefficient-mode stabilization (ves_model_params.stab, off by default):
- * the same defect in E instead of K, E_s = (1/2) sum_a c_a |y^a - y(X_a)|^2
- * (model_stab_build, model_stab_eval), zero on affine maps (so at the reference), O(h^2)
- * on smooth motions, and of the size of the coefficients on the grid-scale
- * patterns along which the discrete E has negative curvature: it turns the
- * relaxed sphere from a saddle into a minimum (bench/RESULTS.md, issue 22). */
+ * Coefficient-mode stabilization (ves_model_params.stab; the problem file's
+ * [geometry] stabilization, 1e-2 by default): the same defect in E instead
+ * of K, E_s = (1/2) sum_a c_a |y^a - y(X_a)|^2 (model_stab_build,
+ * model_stab_eval), zero on affine maps (so at the reference), O(h^2) on
+ * smooth motions, and of the size of the coefficients on the grid-scale
+ * patterns along which the discrete E has negative curvature: it removes
+ * them (the relaxed sphere at eps 0.1 becomes a minimum; at eps 0.04 a smooth
+ * tangential mode of -4e-3 per t* is left, which no kappa reaches), and the
+ * oblate at eps 0.01 relaxes to the sharp equilibrium's E* within 1.2e-5
+ * instead of falling through it (bench/RESULTS.md, issue 22). E_s is
+ * measured from the reference: a reset or a remeshing drops it to 0. */
 #include "model_core_impl.h"
 
 #include <assert.h>
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -101,20 +107,126 @@ done:
   return s;
 }
 
+/* A row's scratch: its entries sorted by weight and the pattern positions
+ * of their pairs (model_stab_build). */
+typedef struct {
+  int b;
+  double r, z;
+} row_entry;
+
+typedef struct {
+  long *where; /* n: position of (row, col) in the scattered pattern row, or -1 */
+  long *pos;   /* cap^2: pos[i cap + k] = position of the pair (i, k), or -1 */
+  row_entry *e;
+  int cap;
+} row_scratch;
+
+static int by_weight(const void *x, const void *y) {
+  const row_entry *p = x, *q = y;
+  const double a = fabs(p->z), b = fabs(q->z);
+  return a > b ? -1 : a < b ? 1 : (p->b > q->b) - (p->b < q->b); /* falling; ties by node */
+}
+
+/* Cut a defect row to the quadrature's couplings: its entries by falling
+ * weight, each kept when it is coupled to every one kept before (the
+ * pattern of the points, which a node's row exceeds only at the edge of its
+ * support: weights ~1e-6..1e-4 of the row's). The pattern positions of the
+ * kept pairs are left in w->pos (row i, column k, both < the returned
+ * count). */
+static int cut_row(const ves_pattern *pat, row_scratch *w, int cnt, int *nb, double *dr,
+                   double *dz) {
+  for (int i = 0; i < cnt; i++) w->e[i] = (row_entry){nb[i], dr[i], dz[i]};
+  qsort(w->e, (size_t)cnt, sizeof *w->e, by_weight);
+  const int cap = w->cap;
+  for (int i = 0; i < cnt; i++) { /* the pairs (i, k), k <= i, from row max(b_i, b_k) */
+    const int bi = w->e[i].b;
+    for (int t = pat->ptr[bi]; t < pat->ptr[bi + 1]; t++) w->where[pat->col[t]] = t;
+    for (int k = 0; k < cnt; k++)
+      if (w->e[k].b <= bi)
+        w->pos[(size_t)i * cap + k] = w->pos[(size_t)k * cap + i] = w->where[w->e[k].b];
+    for (int t = pat->ptr[bi]; t < pat->ptr[bi + 1]; t++) w->where[pat->col[t]] = -1;
+  }
+  int kept = 0, *keep = nb; /* the kept entries' old indices, then the row */
+  for (int i = 0; i < cnt; i++) {
+    int ok = 1;
+    for (int k = 0; k < kept && ok; k++) ok = w->pos[(size_t)i * cap + keep[k]] >= 0;
+    if (ok) keep[kept++] = i;
+  }
+  for (int i = 0; i < kept; i++) /* compact the positions: row i of the kept */
+    for (int k = 0; k < kept; k++)
+      w->pos[(size_t)i * cap + k] = w->pos[(size_t)keep[i] * cap + keep[k]];
+  for (int i = kept - 1; i >= 0; i--) { /* keep[i] >= i: back to front is safe */
+    const row_entry en = w->e[keep[i]];
+    nb[i] = en.b, dr[i] = en.r, dz[i] = en.z;
+  }
+  return kept;
+}
+
+/* sblk += c (dr dr^T, dz dz^T) at the positions of a cut row (rr, zz: two
+ * values a block; r and z decouple). */
+static void row_blocks(const row_scratch *w, int cnt, const int *nb, const double *dr,
+                       const double *dz, double c, double *blk) {
+  for (int i = 0; i < cnt; i++)
+    for (int k = 0; k < cnt; k++) {
+      if (nb[k] > nb[i]) continue;
+      const long t = w->pos[(size_t)i * w->cap + k];
+      blk[2 * t] += c * dr[i] * dr[k];
+      blk[2 * t + 1] += c * dz[i] * dz[k];
+    }
+}
+
+/* Restore what the cut took from a row: the uncut rows vanish on the fields
+ * the folded LME tables reproduce (y_z = c + b z, y_r = b r: translations
+ * along the axis and the linear maps), the cut ones only up to the cut
+ * weights. The smallest change of the weights, each in proportion to its
+ * size (w_j += |w_j| (B^T mu)_j), that makes sum_j dz_j (1, Z_j - Z_a) = 0
+ * and sum_j dr_j R_j = 0 (dr carries the ghosts' sign) again, so E_s is zero
+ * at the reference and unchanged by translations to rounding. */
+static void refit_row(const double *X, int a, int cnt, const int *nb, double *dr, double *dz) {
+  double m00 = 0, m01 = 0, m11 = 0, e0 = 0, e1 = 0, mr = 0, er = 0;
+  for (int j = 0; j < cnt; j++) {
+    const double wz = fabs(dz[j]), wr = fabs(dr[j]), Z = X[2 * nb[j] + 1] - X[2 * a + 1];
+    const double R = X[2 * nb[j]];
+    m00 += wz, m01 += wz * Z, m11 += wz * Z * Z, e0 += dz[j], e1 += dz[j] * Z;
+    mr += wr * R * R, er += dr[j] * R;
+  }
+  const double det = m00 * m11 - m01 * m01; /* > 0: the row spans several heights */
+  const double mu0 = det > 0 ? (-e0 * m11 + e1 * m01) / det : -e0 / m00;
+  const double mu1 = det > 0 ? (e0 * m01 - e1 * m00) / det : 0;
+  const double nur = mr > 0 ? -er / mr : 0; /* mr = 0: a node on the axis alone */
+  for (int j = 0; j < cnt; j++) {
+    const double Z = X[2 * nb[j] + 1] - X[2 * a + 1];
+    dz[j] += fabs(dz[j]) * (mu0 + mu1 * Z);
+    dr[j] += fabs(dr[j]) * nur * X[2 * nb[j]];
+  }
+}
+
 /* The stabilization of E (model.h, ves_model_params.stab): the defect rows
- * of the nodes off the wall, c_a = stab k 2 pi M_a / h_a^2, and the constant
+ * of the nodes off the wall, cut to the quadrature's pattern (so E_s adds
+ * no fill to the step matrix: the uncut rows grew the KKT factorization by
+ * 21% at eps 0.01) and refit (refit_row), c_a = stab k 2 pi M_a / h_a^2, and the constant
  * Hessian sum_a c_a d_a d_a^T (per component) in the pattern. */
 ves_status model_stab_build(ves_model *m) {
   const ves_quad *qn = m->qn;
   const int n = m->nodes->n;
   const size_t cap = (size_t)qn->ptr[n] + n + 1; /* a row: its list, and a itself */
+  int rmax = 1;
+  for (int a = 0; a < n; a++)
+    if (qn->ptr[a + 1] - qn->ptr[a] + 1 > rmax) rmax = qn->ptr[a + 1] - qn->ptr[a] + 1;
+  row_scratch w = {.where = malloc((size_t)n * sizeof *w.where),
+                   .pos = malloc((size_t)rmax * rmax * sizeof *w.pos),
+                   .e = malloc((size_t)rmax * sizeof *w.e),
+                   .cap = rmax};
   m->sptr = malloc(((size_t)n + 1) * sizeof *m->sptr);
   m->snb = malloc(cap * sizeof *m->snb);
   m->sdr = malloc(cap * sizeof *m->sdr);
   m->sdz = malloc(cap * sizeof *m->sdz);
   m->sc = calloc((size_t)n, sizeof *m->sc);
-  m->sblk = calloc(4 * (size_t)m->pat->ptr[n] + 1, sizeof *m->sblk);
-  if (!m->sptr || !m->snb || !m->sdr || !m->sdz || !m->sc || !m->sblk) return VES_ERR_ALLOC;
+  m->sblk = calloc(2 * (size_t)m->pat->ptr[n] + 1, sizeof *m->sblk);
+  ves_status st = VES_ERR_ALLOC;
+  if (!w.where || !w.pos || !w.e || !m->sptr || !m->snb || !m->sdr || !m->sdz || !m->sc || !m->sblk)
+    goto done;
+  for (int a = 0; a < n; a++) w.where[a] = -1;
   node_measure(m->q, n, m->sc);
   m->sptr[0] = 0;
   for (int a = 0; a < n; a++) {
@@ -123,13 +235,19 @@ ves_status model_stab_build(ves_model *m) {
       m->sc[a] = 0, m->sptr[a + 1] = k0;
       continue;
     }
-    const int cnt = defect_row(qn, a, m->snb + k0, m->sdr + k0, m->sdz + k0);
+    int *nb = m->snb + k0;
+    double *dr = m->sdr + k0, *dz = m->sdz + k0;
+    const int cnt = cut_row(m->pat, &w, defect_row(qn, a, nb, dr, dz), nb, dr, dz);
+    refit_row(m->yref, a, cnt, nb, dr, dz);
     const double h = m->nodes->h[a];
     m->sc[a] = m->par.stab * m->par.k * 2 * M_PI * m->sc[a] / (h * h);
-    defect_blocks(m->pat, cnt, m->snb + k0, m->sdr + k0, m->sdz + k0, m->sc[a], m->sblk);
+    row_blocks(&w, cnt, nb, dr, dz, m->sc[a], m->sblk);
     m->sptr[a + 1] = k0 + cnt;
   }
-  return VES_OK;
+  st = VES_OK;
+done:
+  free(w.where), free(w.pos), free(w.e);
+  return st;
 }
 
 /* E_s = (1/2) sum_a c_a |d_a|^2 and (g != NULL) g += grad E_s. */

@@ -377,6 +377,45 @@ static void relax_params(ves_integrate_params *ip, int every, double cond_max, d
   ip->reconnect_every = every, ip->reconnect_cond_max = cond_max, ip->reconnect_det_min = det_min;
 }
 
+/* The default stabilization ([geometry] stabilization = 1e-2, issue 22)
+ * across a reset: E_s is measured from the reference, so the reset keeps
+ * the paper's E and drops E_s. Two steps without resets give y on the
+ * setup's reference; the run with a reset after step 2 takes the same two
+ * steps (the reset follows the accepted step), and its E_reset equals the
+ * paper's E at y (a model without the term, same nodes and tables) to the
+ * reset's 1e-12 (test_reconnect_every), while its E exceeds it by E_s > 0. */
+static void test_reconnect_stabilized(void **state) {
+  (void)state;
+  ves_setup *s = bump_setup_stab("shape.delta=0.15", "geometry.stabilization=1e-2");
+  ves_integrate_params ip;
+  relax_params(&ip, 0, 0, 0);
+  ves_sim *a = make_sim(s, "newton", &ip);
+  ves_step_report ra, rb;
+  for (int n = 0; n < 2; n++) assert_int_equal(ves_sim_step(a, &ra), VES_OK);
+  ves_model_params par;
+  ves_model_get_params(s->model, &par);
+  assert_true(par.stab == 1e-2);
+  par.stab = 0;
+  ves_model *m0 = NULL;
+  assert_int_equal(ves_model_create(s->nodes, s->quad, s->phi0c, &par, &m0), VES_OK);
+  double Ep, Es;
+  assert_int_equal(ves_model_eval(m0, ves_sim_y(a), 1, &Ep, NULL, NULL, NULL, NULL, NULL), VES_OK);
+  assert_int_equal(ves_model_eval(s->model, ves_sim_y(a), 1, &Es, NULL, NULL, NULL, NULL, NULL),
+                   VES_OK);
+  relax_params(&ip, 2, 0, 0);
+  ves_sim *b = make_sim(s, "newton", &ip);
+  for (int n = 0; n < 2; n++) assert_int_equal(ves_sim_step(b, &rb), VES_OK);
+  printf("# stabilized reset: E* %.12f (E_s %.3e) -> E_reset %.12f; paper's E at y %.12f\n", rb.E,
+         Es - Ep, rb.E_reset, Ep);
+  assert_int_equal(rb.reconnected, 1);
+  assert_true(rb.E == ra.E && Es == ra.E);         /* the same two steps, bit for bit */
+  assert_true(Es - Ep > 0);                        /* a deformed state: E_s > 0 */
+  assert_true(fabs(rb.E_reset / Ep - 1) <= 1e-12); /* see above */
+  ves_model_destroy(&m0);
+  ves_sim_destroy(&a), ves_sim_destroy(&b);
+  ves_setup_destroy(&s);
+}
+
 /* Periodic resets (every 2 steps, 6 steps): constraints and energy stability
  * hold across them, the reset itself preserves E, and the counter counts. */
 static void test_reconnect_every(void **state) {
@@ -579,6 +618,7 @@ int main(void) {
       cmocka_unit_test(test_protocols),
       cmocka_unit_test(test_c0_ramp),             cmocka_unit_test(test_c0_switch_restarts_dt),
       cmocka_unit_test(test_failure_keeps_state), cmocka_unit_test(test_reconnect_every),
+      cmocka_unit_test(test_reconnect_stabilized),
       cmocka_unit_test(test_reconnect_threshold), cmocka_unit_test(test_reconnect_failure),
   };
   // clang-format on

@@ -59,6 +59,8 @@ static problem *problem_create(double eps, double box_r, double box_z, const cha
   snprintf(P->cfg.shape_type, sizeof P->cfg.shape_type, "%s", shape);
   snprintf(P->cfg.orientation, sizeof P->cfg.orientation, "oblate");
   P->cfg.reduced_volume = 0.9;
+  P->cfg.stabilization = 0; /* the paper's E: the identities below (locality, invariance)
+                               are its own; test_stabilization builds the term */
   char err[256] = "";
   ves_status st = ves_setup_create(&P->cfg, VES_PHI0_SAMPLED, &P->s, err, sizeof err);
   if (st != VES_OK) fprintf(stderr, "setup: %s\n", err);
@@ -1083,11 +1085,15 @@ static void test_drift_damping(void **state) {
 /* The coefficient-mode stabilization (ves_model_params.stab): E_kappa - E_0
  * = E_s = (1/2) sum_a c_a |y^a - y(X_a)|^2, c_a = kappa k 2 pi M_a / h_a^2,
  * against the definition computed here (y(X_a) by ves_quad_motion on a point
- * set at the nodes, M_a from the tables); the gradient and the Hessian
+ * set at the nodes, M_a from the tables), which the model's rows, cut to the
+ * quadrature's couplings, approximate; the step pattern unchanged (no fill);
+ * the gradient and the Hessian
  * against differences of E_s (a quadratic: the central differences are exact
  * up to rounding); zero at the reference (an affine map); A and V untouched.
  * Tolerances: E_s is a difference of two energies of size ~6 (rounding
- * ~1e-15 of that, far below the ~1e-3 compared); the directional checks
+ * ~1e-15 of that, far below the ~1e-3 compared); the cut drops a row's
+ * entries at the edge of the node's support, LME weights <~1e-4 of the row's,
+ * and moved E_s by 4.4e-7 relative here: 1e-5 allows 20x; the directional checks
  * compare sums of ~1e4 products, 1e-8 relative is a rounding bound. */
 static void test_stabilization(void **state) {
   (void)state;
@@ -1130,9 +1136,10 @@ static void test_stabilization(void **state) {
   }
   printf("# stabilization kappa %g: E_s = %.9e (definition %.9e; E %.9f), at the reference %.3e\n",
          kappa, Es - E0, ref, E0, ref0);
-  assert_true(ref > 1e-6); /* a deformed state: a test that can fail */
-  assert_true(fabs((Es - E0) - ref) <= 1e-9 * (1 + ref)); /* see above */
-  double Er0, Ers;                                        /* at the reference: no term */
+  assert_true(ref > 1e-6);                          /* a deformed state: a test that can fail */
+  assert_true(fabs((Es - E0) - ref) <= 1e-5 * ref); /* see above */
+  assert_int_equal(ps->ptr[n], P->pat->ptr[n]);     /* no fill: the pattern of the points */
+  double Er0, Ers;                                  /* at the reference: no term */
   assert_int_equal(ves_model_eval(P->s->model, P->X, 1, &Er0, NULL, NULL, NULL, NULL, NULL),
                    VES_OK);
   assert_int_equal(ves_model_eval(m, P->X, 1, &Ers, NULL, NULL, NULL, NULL, NULL), VES_OK);
