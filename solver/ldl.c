@@ -12,6 +12,7 @@
 
 #define ICNTL(i) icntl[(i)-1] /* MUMPS documents its controls 1-based */
 #define INFOG(i) infog[(i)-1]
+#define INFO(i) info[(i)-1]
 #define JOB_INIT (-1)
 #define JOB_END (-2)
 #define JOB_ANALYSE 1
@@ -28,6 +29,12 @@ struct ves_ldl {
   int live;          /* 1 once JOB = -1 succeeded (JOB = -2 needed) */
   int factored;      /* 1 after a successful factorization */
   ves_ldl_info info; /* diagnostics of the last call */
+  double *wk;        /* the factorization's workspace (MUMPS WK_USER), kept across
+                        factorizations: MUMPS would free and allocate its own at
+                        every one, and the kernel zero the fresh pages (measured
+                        below); the factors live in it until the next one */
+  size_t lwk;        /* its entries */
+  double est;        /* the analysis's estimate of it (INFO(8), in entries) */
 };
 
 /* Run one MUMPS job and record INFOG(1), INFOG(2). */
@@ -59,8 +66,26 @@ void ves_ldl_destroy(ves_ldl **f) {
   free((*f)->irn);
   free((*f)->jcn);
   free((*f)->a);
+  free((*f)->wk);
   free(*f);
   *f = NULL;
+}
+
+/* The workspace for the next factorization: INFO(8) of the analysis (its
+ * in-core estimate, f->est) with ICNTL(14) percent of room, as MUMPS
+ * sizes its own; LWK_USER in entries, or in millions (< 0) beyond an int. */
+static ves_status workspace(ves_ldl *f) {
+  double want = f->est * (1 + f->id.ICNTL(14) / 100.0) + 1;
+  if (want > 2e9) want = 1e6 * ceil(want / 1e6); /* LWK_USER counted in millions */
+  if ((size_t)want <= f->lwk && f->wk) return VES_OK;
+  free(f->wk);
+  f->lwk = 0;
+  f->wk = malloc((size_t)want * sizeof *f->wk);
+  if (!f->wk) return VES_ERR_ALLOC;
+  f->lwk = (size_t)want;
+  f->id.wk_user = f->wk;
+  f->id.lwk_user = want > 2e9 ? -(int)(want / 1e6) : (int)want;
+  return VES_OK;
 }
 
 ves_status ves_ldl_create(int n, int nnz, const int *irow, const int *jcol, int spd,
@@ -114,6 +139,7 @@ ves_status ves_ldl_create(int n, int nnz, const int *irow, const int *jcol, int 
   f->id.a = f->a;
   mumps_run(f, JOB_ANALYSE);
   if ((s = mumps_status(f->info.infog1)) != VES_OK) goto fail;
+  f->est = f->id.INFO(8) >= 0 ? (double)f->id.INFO(8) : -1e6 * f->id.INFO(8); /* < 0: millions */
   *out = f;
   return VES_OK;
 fail:
@@ -128,6 +154,7 @@ ves_status ves_ldl_factor(ves_ldl *f, const double *val) {
   f->factored = 0;
   f->info.retries = 0;
   for (;;) {
+    VES_CALL(workspace(f));
     mumps_run(f, JOB_FACTOR);
     int e = f->info.infog1;
     if ((e != -8 && e != -9) || f->info.retries == VES_LDL_MAX_RETRIES) break;
