@@ -42,12 +42,14 @@ static double estimate_nodes(const ves_config *c) {
 }
 
 /* Rates measured at the paper's scale (19,391 nodes, bench/RESULTS.md, the
- * scale table, one thread): setup 23 s, peak memory of the run 3.0 GB, a
- * Newton step 22 s growing as n^1.23. */
+ * scale table of session 14, one thread, OpenBLAS's own kernels): setup 11 s
+ * (+2 s for the stabilization's rows, session 15), peak memory of the run
+ * 2.9 GB (+0.1 GB), a Newton step with its matrix 8.3 s growing as n^1.22
+ * (a slower machine or AVX2 kernels: up to 1.7x). */
 #define EST_NODES 19391.0
-#define EST_SETUP_S 23.0
+#define EST_SETUP_S 13.0
 #define EST_PEAK_GB 3.0
-#define EST_STEP_S 22.0
+#define EST_STEP_S 8.0
 #define EST_LARGE 10000 /* nodes from which the estimate is printed */
 
 /* Before a setup: a line with the estimated size and cost when the problem
@@ -69,7 +71,7 @@ int cli_setup_estimate(const char *cmd, const ves_config *c, int quiet) {
             "vesica %s: setting up about %.0f nodes (an estimate): ~%.0f s of setup on one thread, "
             "~%.1f GB peak memory in a run, ~%.0f s a Newton step (scaled from %.0f nodes: "
             "bench/RESULTS.md)\n",
-            cmd, n, EST_SETUP_S * x, gb, EST_STEP_S * pow(x, 1.23), EST_NODES);
+            cmd, n, EST_SETUP_S * x, gb, EST_STEP_S * pow(x, 1.22), EST_NODES);
   return 0;
 }
 
