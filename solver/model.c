@@ -95,13 +95,12 @@ static ves_status model_build(const ves_nodes *nodes, const ves_quad *q, const d
         (s = ves_quad_tables(m->qn, nodes, &q->lme, NULL)) != VES_OK)
       goto fail;
   }
-  /* the drift damping's S couples the nodes of a defect row pairwise, beyond
-   * the quadrature's couplings; the stabilization's rows are cut to them */
-  s = ves_pattern_create(q, par->drift > 0 ? m->qn : NULL, n, m->fixed, &m->pat);
+  /* the pattern of the points: the defect rows are cut to it (model_drift.c) */
+  s = ves_pattern_create(q, NULL, n, m->fixed, &m->pat);
   if (s != VES_OK) goto fail;
   if (par->drift > 0 && (s = model_drift_build(m)) != VES_OK) goto fail;
   if (par->stab > 0 && (s = model_stab_build(m)) != VES_OK) goto fail;
-  if (!(par->drift > 0)) ves_quad_destroy(&m->qn); /* the stabilization copied its rows */
+  ves_quad_destroy(&m->qn); /* the rows are copied: the tables are done with */
   *out = m;
   return VES_OK;
 fail:

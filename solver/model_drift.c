@@ -58,55 +58,6 @@ static int defect_row(const ves_quad *qn, int a, int *nb, double *dr, double *dz
   return cnt;
 }
 
-/* blk += c (dr dr^T (rr), dz dz^T (zz)) on the pattern. */
-static void defect_blocks(const ves_pattern *pat, int cnt, const int *nb, const double *dr,
-                          const double *dz, double c, double *blk) {
-  for (int i = 0; i < cnt; i++)
-    for (int k = 0; k < cnt; k++) {
-      if (nb[k] > nb[i]) continue;
-      long t = ves_pattern_find(pat, nb[i], nb[k]);
-      assert(t >= 0); /* the pattern holds the couplings of the points at the nodes */
-      blk[4 * t] += c * dr[i] * dr[k];
-      blk[4 * t + 3] += c * dz[i] * dz[k];
-    }
-}
-
-/* The drift-damping matrix S (model.h, ves_model_params.drift):
- *   u^T S u = sum_a c_a |u^a - u(X_a)|^2,  c_a = drift mu 2 pi M_a / h_a^2,
- *   M_a = sum_alpha w_alpha R_alpha P_a(X_alpha)  (P_a: p_a plus its ghost's),
- * with u(X_a) = sum_b N_ab u^b from the tables at the nodes (a ghost entry
- * carries -u_r, +u_z). Per component i, S_i = sum_a c_a d_ia d_ia^T with
- * d_ia = e_a - N_i(a, .): r and z decouple, so only the rr and zz entries of
- * the blocks are set. M_a is node a's share of the r-weighted reference
- * measure (the lumped mass of the basis; > 0 on the axis too). Wall nodes
- * (fixed, no drift) have no term: their points at the nodes lie 1e-3 h_a
- * inside the hull, where an affine motion differs from its nodal value. */
-ves_status model_drift_build(ves_model *m) {
-  const ves_quad *q = m->q, *qn = m->qn;
-  const int n = m->nodes->n;
-  const ves_pattern *pat = m->pat;
-  double *M = calloc((size_t)n, sizeof *M);
-  int *nb = malloc(((size_t)qn->ptr[n] + 1) * sizeof *nb);
-  double *dr = malloc(((size_t)qn->ptr[n] + 1) * sizeof *dr);
-  double *dz = malloc(((size_t)qn->ptr[n] + 1) * sizeof *dz);
-  m->dblk = calloc(4 * (size_t)pat->ptr[n] + 1, sizeof *m->dblk);
-  ves_status s = VES_ERR_ALLOC;
-  if (!M || !nb || !dr || !dz || !m->dblk) goto done;
-  node_measure(q, n, M);
-  for (int a = 0; a < n; a++) {
-    if (m->nodes->flag[a] & VES_NODE_WALL) /* fixed, u = 0 there; and its point sits */
-      continue;                            /* off the hull, so no exact reproduction */
-    const int cnt = defect_row(qn, a, nb, dr, dz);
-    const double h = m->nodes->h[a];
-    const double c = m->par.drift * m->par.mu * 2 * M_PI * M[a] / (h * h);
-    defect_blocks(pat, cnt, nb, dr, dz, c, m->dblk);
-  }
-  s = VES_OK;
-done:
-  free(M), free(nb), free(dr), free(dz);
-  return s;
-}
-
 /* A row's scratch: its entries sorted by weight and the pattern positions
  * of their pairs (model_stab_build). */
 typedef struct {
@@ -162,19 +113,6 @@ static int cut_row(const ves_pattern *pat, row_scratch *w, int cnt, int *nb, dou
   return kept;
 }
 
-/* sblk += c (dr dr^T, dz dz^T) at the positions of a cut row (rr, zz: two
- * values a block; r and z decouple). */
-static void row_blocks(const row_scratch *w, int cnt, const int *nb, const double *dr,
-                       const double *dz, double c, double *blk) {
-  for (int i = 0; i < cnt; i++)
-    for (int k = 0; k < cnt; k++) {
-      if (nb[k] > nb[i]) continue;
-      const long t = w->pos[(size_t)i * w->cap + k];
-      blk[2 * t] += c * dr[i] * dr[k];
-      blk[2 * t + 1] += c * dz[i] * dz[k];
-    }
-}
-
 /* Restore what the cut took from a row: the uncut rows vanish on the fields
  * the folded LME tables reproduce (y_z = c + b z, y_r = b r: translations
  * along the axis and the linear maps), the cut ones only up to the cut
@@ -201,6 +139,85 @@ static void refit_row(const double *X, int a, int cnt, const int *nb, double *dr
   }
 }
 
+/* blk += c (dr dr^T, dz dz^T) at the positions of a cut row: the rr entry
+ * of block t at blk[stride t], the zz entry at blk[stride t + zz] (r and z
+ * decouple: S's 4-value blocks, or Hess E_s's rr and zz alone). */
+static void row_blocks(const row_scratch *w, int cnt, const int *nb, const double *dr,
+                       const double *dz, double c, int stride, int zz, double *blk) {
+  for (int i = 0; i < cnt; i++)
+    for (int k = 0; k < cnt; k++) {
+      if (nb[k] > nb[i]) continue;
+      const long t = w->pos[(size_t)i * w->cap + k];
+      blk[stride * t] += c * dr[i] * dr[k];
+      blk[stride * t + zz] += c * dz[i] * dz[k];
+    }
+}
+
+/* The scratch for the rows of the points at the nodes qn (n nodes). */
+static ves_status row_scratch_open(const ves_quad *qn, int n, row_scratch *w) {
+  int rmax = 1;
+  for (int a = 0; a < n; a++)
+    if (qn->ptr[a + 1] - qn->ptr[a] + 1 > rmax) rmax = qn->ptr[a + 1] - qn->ptr[a] + 1;
+  *w = (row_scratch){.where = malloc((size_t)n * sizeof *w->where),
+                     .pos = malloc((size_t)rmax * rmax * sizeof *w->pos),
+                     .e = malloc((size_t)rmax * sizeof *w->e),
+                     .cap = rmax};
+  if (!w->where || !w->pos || !w->e) return VES_ERR_ALLOC;
+  for (int a = 0; a < n; a++) w->where[a] = -1;
+  return VES_OK;
+}
+
+static void row_scratch_close(row_scratch *w) { free(w->where), free(w->pos), free(w->e); }
+
+/* Node a's defect row, cut to the pattern and refit, into nb, dr, dz (the
+ * positions of its pairs in w); returns its count. */
+static int node_row(const ves_model *m, row_scratch *w, int a, int *nb, double *dr, double *dz) {
+  const int cnt = cut_row(m->pat, w, defect_row(m->qn, a, nb, dr, dz), nb, dr, dz);
+  refit_row(m->yref, a, cnt, nb, dr, dz);
+  return cnt;
+}
+
+/* The drift-damping matrix S (model.h, ves_model_params.drift):
+ *   u^T S u = sum_a c_a |u^a - u(X_a)|^2,  c_a = drift mu 2 pi M_a / h_a^2,
+ *   M_a = sum_alpha w_alpha R_alpha P_a(X_alpha)  (P_a: p_a plus its ghost's),
+ * with u(X_a) = sum_b N_ab u^b from the tables at the nodes (a ghost entry
+ * carries -u_r, +u_z). Per component i, S_i = sum_a c_a d_ia d_ia^T with
+ * d_ia = e_a - N_i(a, .): r and z decouple, so only the rr and zz entries of
+ * the blocks are set. The rows are cut to the quadrature's couplings and
+ * refit, as the stabilization's (node_row): before, they coupled every pair
+ * of a node's neighbours, and the prolate at eps 0.01 peaked at 8.0 GB.
+ * M_a is node a's share of the r-weighted reference
+ * measure (the lumped mass of the basis; > 0 on the axis too). Wall nodes
+ * (fixed, no drift) have no term: their points at the nodes lie 1e-3 h_a
+ * inside the hull, where an affine motion differs from its nodal value. */
+ves_status model_drift_build(ves_model *m) {
+  const ves_quad *qn = m->qn;
+  const int n = m->nodes->n;
+  const size_t cap = (size_t)qn->ptr[n] + 1;
+  double *M = calloc((size_t)n, sizeof *M);
+  int *nb = malloc(cap * sizeof *nb);
+  double *dr = malloc(cap * sizeof *dr);
+  double *dz = malloc(cap * sizeof *dz);
+  m->dblk = calloc(4 * (size_t)m->pat->ptr[n] + 1, sizeof *m->dblk);
+  row_scratch w;
+  ves_status s = row_scratch_open(qn, n, &w);
+  if (s == VES_OK && (!M || !nb || !dr || !dz || !m->dblk)) s = VES_ERR_ALLOC;
+  if (s != VES_OK) goto done;
+  node_measure(m->q, n, M);
+  for (int a = 0; a < n; a++) {
+    if (m->nodes->flag[a] & VES_NODE_WALL) /* fixed, u = 0 there; and its point sits */
+      continue;                            /* off the hull, so no exact reproduction */
+    const int cnt = node_row(m, &w, a, nb, dr, dz);
+    const double h = m->nodes->h[a];
+    const double c = m->par.drift * m->par.mu * 2 * M_PI * M[a] / (h * h);
+    row_blocks(&w, cnt, nb, dr, dz, c, 4, 3, m->dblk);
+  }
+done:
+  row_scratch_close(&w);
+  free(M), free(nb), free(dr), free(dz);
+  return s;
+}
+
 /* The stabilization of E (model.h, ves_model_params.stab): the defect rows
  * of the nodes off the wall, cut to the quadrature's pattern (so E_s adds
  * no fill to the step matrix: the uncut rows grew the KKT factorization by
@@ -210,23 +227,17 @@ ves_status model_stab_build(ves_model *m) {
   const ves_quad *qn = m->qn;
   const int n = m->nodes->n;
   const size_t cap = (size_t)qn->ptr[n] + n + 1; /* a row: its list, and a itself */
-  int rmax = 1;
-  for (int a = 0; a < n; a++)
-    if (qn->ptr[a + 1] - qn->ptr[a] + 1 > rmax) rmax = qn->ptr[a + 1] - qn->ptr[a] + 1;
-  row_scratch w = {.where = malloc((size_t)n * sizeof *w.where),
-                   .pos = malloc((size_t)rmax * rmax * sizeof *w.pos),
-                   .e = malloc((size_t)rmax * sizeof *w.e),
-                   .cap = rmax};
+  row_scratch w;
+  ves_status st = row_scratch_open(qn, n, &w);
   m->sptr = malloc(((size_t)n + 1) * sizeof *m->sptr);
   m->snb = malloc(cap * sizeof *m->snb);
   m->sdr = malloc(cap * sizeof *m->sdr);
   m->sdz = malloc(cap * sizeof *m->sdz);
   m->sc = calloc((size_t)n, sizeof *m->sc);
   m->sblk = calloc(2 * (size_t)m->pat->ptr[n] + 1, sizeof *m->sblk);
-  ves_status st = VES_ERR_ALLOC;
-  if (!w.where || !w.pos || !w.e || !m->sptr || !m->snb || !m->sdr || !m->sdz || !m->sc || !m->sblk)
-    goto done;
-  for (int a = 0; a < n; a++) w.where[a] = -1;
+  if (st == VES_OK && (!m->sptr || !m->snb || !m->sdr || !m->sdz || !m->sc || !m->sblk))
+    st = VES_ERR_ALLOC;
+  if (st != VES_OK) goto done;
   node_measure(m->q, n, m->sc);
   m->sptr[0] = 0;
   for (int a = 0; a < n; a++) {
@@ -237,16 +248,14 @@ ves_status model_stab_build(ves_model *m) {
     }
     int *nb = m->snb + k0;
     double *dr = m->sdr + k0, *dz = m->sdz + k0;
-    const int cnt = cut_row(m->pat, &w, defect_row(qn, a, nb, dr, dz), nb, dr, dz);
-    refit_row(m->yref, a, cnt, nb, dr, dz);
+    const int cnt = node_row(m, &w, a, nb, dr, dz);
     const double h = m->nodes->h[a];
     m->sc[a] = m->par.stab * m->par.k * 2 * M_PI * m->sc[a] / (h * h);
-    row_blocks(&w, cnt, nb, dr, dz, m->sc[a], m->sblk);
+    row_blocks(&w, cnt, nb, dr, dz, m->sc[a], 2, 1, m->sblk);
     m->sptr[a + 1] = k0 + cnt;
   }
-  st = VES_OK;
 done:
-  free(w.where), free(w.pos), free(w.e);
+  row_scratch_close(&w);
   return st;
 }
 

@@ -976,10 +976,15 @@ static double blk_quadratic(const ves_pattern *pat, const double *blk, const dou
  * folding of ghosts with the sign of r, the pattern's union), on affine
  * motions (zero: LME reproduces them, so S leaves uniform strains and
  * translations alone), and on a smooth motion (small against K: O((h/L)^2)).
- * Tolerances: the S part is a difference of two sums of ~1e5 products of
- * either sign, so 1e-10 of |u^T K_0 u| + |u^T S u| is a rounding bound with a
- * wide margin; affine: the reference is ~1e-16 per node of
- * sum_b |p_b||u^b|, so 1e-10 of the random case's value. */
+ * The model's rows are cut to the quadrature's couplings and refit
+ * (model_drift.c): the pattern is the undamped one, and S differs from the
+ * definition by the cut weights (<~1e-4 of a row's; measured below).
+ * Tolerances: against the definition 1e-5 relative (the stabilization's
+ * measured 4.4e-7 from the cut, 20x); the S part is a difference of two sums
+ * of ~1e5 products of either sign, so 1e-10 of |u^T K_0 u| + |u^T S u| is a
+ * rounding bound with a wide margin for the affine motions, which the refit
+ * rows reproduce exactly as the definition's do (the reference is ~1e-16 per
+ * node of sum_b |p_b||u^b|, so 1e-10 of the random case's value). */
 static void test_drift_damping(void **state) {
   (void)state;
   problem *P = P1;
@@ -995,8 +1000,9 @@ static void test_drift_damping(void **state) {
   ves_model *m = NULL;
   assert_int_equal(ves_model_create(P->s->nodes, q, P->s->phi0c, &par, &m), VES_OK);
   const ves_pattern *pd = ves_model_pattern(m);
-  /* the pattern holds the undamped one, the same free dofs */
+  /* the pattern is the undamped one (no fill), the same free dofs */
   assert_int_equal(pd->nfree, P->pat->nfree);
+  assert_int_equal(pd->ptr[n], P->pat->ptr[n]);
   for (int a = 0; a < n; a++)
     for (int t = P->pat->ptr[a]; t < P->pat->ptr[a + 1]; t++)
       assert_true(ves_pattern_find(pd, a, P->pat->col[t]) >= 0);
@@ -1057,13 +1063,13 @@ static void test_drift_damping(void **state) {
            qd - q0, ref, q0, (qd - q0) / q0);
     if (kind == 0) {
       qs_random = ref;
-      assert_true(fabs((qd - q0) - ref) <= 1e-10 * (fabs(q0) + ref));
+      assert_true(fabs((qd - q0) - ref) <= 1e-5 * ref);
       assert_true(ref > 0);
     } else if (kind == 1) {
       assert_true(ref <= 1e-10 * qs_random);
       assert_true(fabs(qd - q0) <= 1e-10 * (fabs(q0) + qs_random));
     } else {
-      assert_true(fabs((qd - q0) - ref) <= 1e-10 * (fabs(q0) + ref));
+      assert_true(fabs((qd - q0) - ref) <= 1e-5 * ref);
       /* a smooth motion (wavelength ~2 R0 against h 0.06-0.2): the defect
        * is ~ (h^2 / (4 gamma)) Lap u, so S/K ~ alpha (h/L)^2 / (16 gamma^2),
        * ~1e-3 for L ~ 1/3; measured 1.7e-4 */
