@@ -31,8 +31,9 @@ struct ves_ldl {
   ves_ldl_info info; /* diagnostics of the last call */
   double *wk;        /* the factorization's workspace (MUMPS WK_USER), kept across
                         factorizations: MUMPS would free and allocate its own at
-                        every one, and the kernel zero the fresh pages (measured
-                        below); the factors live in it until the next one */
+                        every one, and the kernel zero the fresh pages (a third of
+                        the factorization at eps 0.01: bench/RESULTS.md, "MUMPS's
+                        workspace kept"); the factors live in it until the next one */
   size_t lwk;        /* its entries */
   double est;        /* the analysis's estimate of it (INFO(8), in entries) */
 };

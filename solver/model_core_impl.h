@@ -65,10 +65,11 @@ struct ves_model {
   model_ws *ws;   /* nthr workspaces */
   double *ev;     /* 4 nq: per-point w e of E, A, V and the step's dissipation
                      (summed in point order) */
-  /* Drift damping (par.drift > 0, else NULL): the points at the nodes with
-   * their tables, and the block values of the constant matrix S added to K
-   * (model_drift_build). */
-  ves_quad *qn; /* n points at the nodes (ves_quad_create_at_nodes) */
+  /* Drift damping (par.drift > 0, else NULL): the block values of the
+   * constant matrix S added to K (model_drift_build); qn, the points at the
+   * nodes with their tables, lives only while the model is built (the rows
+   * of S and E_s are made from it). */
+  ves_quad *qn; /* n points at the nodes (ves_quad_create_at_nodes); NULL after the build */
   double *dblk; /* 4 ptr[n] block values of S in the pattern */
   /* Coefficient-mode stabilization of E (par.stab > 0, else NULL; model_stab_build):
    * E_s = (1/2) sum_a c_a |d_a|^2 from the defect rows, cut to the
