@@ -185,11 +185,14 @@ ves_status ves_model_dissipation_ref(ves_model *m, const double *y, double *qn) 
   return model_each_point(m, y, ref_point, qn);
 }
 
-/* blk += c Hess E_s (constant; its rr and zz entries, model_stab_build). */
-static void stab_add(const ves_model *m, double c, double *blk) {
+/* blk += c M for a constant matrix of the defect rows (model_drift.c: S, or
+ * Hess E_s), whose blocks have only rr and zz entries: block t's at src[stride
+ * t] and src[stride t + stride - 1] (S keeps 4 values a block, the layout
+ * ves_model_drift_blocks hands out; Hess E_s only the 2). */
+static void add_rz(const ves_model *m, double c, const double *src, int stride, double *blk) {
   const size_t nb = (size_t)m->pat->ptr[m->nodes->n];
   for (size_t t = 0; t < nb; t++)
-    blk[4 * t] += c * m->sblk[2 * t], blk[4 * t + 3] += c * m->sblk[2 * t + 1];
+    blk[4 * t] += c * src[stride * t], blk[4 * t + 3] += c * src[stride * t + stride - 1];
 }
 
 ves_status ves_model_hessian(ves_model *m, const double *y, double cE, double cA, double cV,
@@ -198,7 +201,7 @@ ves_status ves_model_hessian(ves_model *m, const double *y, double cE, double cA
   double fac[3];
   model_functional_factors(m, cE, cA, cV, fac);
   VES_CALL(model_assemble(m, ASM_HESS, fac, NULL, y, blk));
-  if (m->sblk && cE != 0) stab_add(m, cE, blk);
+  if (m->sblk && cE != 0) add_rz(m, cE, m->sblk, 2, blk); /* + cE Hess E_s */
   return VES_OK;
 }
 
@@ -209,9 +212,8 @@ ves_status ves_model_hessian_step(ves_model *m, const double *y, const double *q
   model_functional_factors(m, cE, cA, cV, fac);
   const step_ref sr = {qn, cK};
   VES_CALL(model_assemble(m, ASM_HESS, fac, &sr, y, blk));
-  if (m->sblk && cE != 0) stab_add(m, cE, blk);
-  if (m->dblk && cK != 0) /* + cK S: the drift damping */
-    for (size_t i = 0; i < 4 * (size_t)m->pat->ptr[m->nodes->n]; i++) blk[i] += cK * m->dblk[i];
+  if (m->sblk && cE != 0) add_rz(m, cE, m->sblk, 2, blk); /* + cE Hess E_s */
+  if (m->dblk && cK != 0) add_rz(m, cK, m->dblk, 4, blk); /* + cK S: the drift damping */
   return VES_OK;
 }
 
@@ -221,8 +223,7 @@ ves_status ves_model_dissipation(ves_model *m, const double *y, double *blk) {
   VES_CHECK(m && y && blk, VES_ERR_ARG);
   const double fac[3] = {0, 0, 0};
   VES_CALL(model_assemble(m, ASM_DISS, fac, NULL, y, blk));
-  if (m->dblk) /* K + S: the drift damping */
-    for (size_t i = 0; i < 4 * (size_t)m->pat->ptr[m->nodes->n]; i++) blk[i] += m->dblk[i];
+  if (m->dblk) add_rz(m, 1.0, m->dblk, 4, blk); /* K + S: the drift damping */
   return VES_OK;
 }
 
