@@ -117,32 +117,45 @@ test-slurm: deps
 
 # Fuzzing (not part of make test): libFuzzer through clang (installed here if
 # missing, as root), with AddressSanitizer + UBSan, on the problem-file parser
-# and --set overrides (tests/fuzz/fuzz_config.c) and the points-file reader
-# with the curve shape built from it (tests/fuzz/fuzz_points.c), for
-# FUZZ_SECONDS each (default 120) from the seed FUZZ_SEED. Corpus: the seeds
-# tests/fuzz/seeds/, problems/*.ini and data/cup.txt, grown in
-# $(BUILD)/fuzz/corpus_*; a crash or a broken contract stops it (exit 1) and
-# leaves the input as $(BUILD)/fuzz/crash-*.
+# and --set overrides (tests/fuzz/fuzz_config.c), the points-file reader
+# with the curve shape built from it (tests/fuzz/fuzz_points.c) and the
+# HDF5 output reader of info, plot and run --restart, salvage included
+# (tests/fuzz/fuzz_h5.c; our code instrumented, libhdf5 not), for
+# FUZZ_SECONDS each (default 120) from the seed FUZZ_SEED (FUZZ_ONLY=h5 etc.
+# runs one). Corpus: the seeds tests/fuzz/seeds/, problems/*.ini and
+# data/cup.txt; for the HDF5 reader, files of two small runs of the freshly
+# built vesica (tests/fuzz/h5_seeds.sh: ~190 and ~500 KB, too large to
+# commit) and copies cut short; grown in $(BUILD)/fuzz/corpus_*; a crash or a
+# broken contract stops it (exit 1) and leaves the input as
+# $(BUILD)/fuzz/crash-*.
 FUZZ_SECONDS ?= 120
 FUZZ_SEED    ?= 1
+FUZZ_ONLY    ?=
 FUZZ_CFLAGS   = -std=c11 -D_XOPEN_SOURCE=700 -O1 -g -fno-omit-frame-pointer -Iinclude -Isolver \
                 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all
+FUZZ_RUN      = cd $(BUILD)/fuzz && UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
+                ./fuzz_$(1) -seed=$(FUZZ_SEED) -max_total_time=$(FUZZ_SECONDS) -max_len=$(2) \
+                -print_final_stats=1 corpus_$(1)
 .PHONY: fuzz
-fuzz:
+fuzz: deps
 	@[ "$$(dpkg-query -W -f='$${Status}\n' clang libclang-rt-14-dev 2>/dev/null | grep -c '^install ok installed$$')" = 2 ] || \
 	{ if [ "$$(id -u)" = 0 ]; then apt-get update -qq && DEBIAN_FRONTEND=noninteractive \
 	  apt-get install -y -qq --no-install-recommends clang libclang-rt-14-dev; \
 	  else echo "run as root: apt-get install -y --no-install-recommends clang libclang-rt-14-dev"; exit 1; fi; }
-	@mkdir -p $(BUILD)/fuzz/corpus_config $(BUILD)/fuzz/corpus_points
+	@mkdir -p $(BUILD)/fuzz/corpus_config $(BUILD)/fuzz/corpus_points $(BUILD)/fuzz/corpus_h5
 	clang $(FUZZ_CFLAGS) -o $(BUILD)/fuzz/fuzz_config tests/fuzz/fuzz_config.c solver/status.c -lm
 	clang $(FUZZ_CFLAGS) -o $(BUILD)/fuzz/fuzz_points tests/fuzz/fuzz_points.c solver/config.c \
 	  solver/shape.c solver/status.c -lm
+	clang $(FUZZ_CFLAGS) $$(pkg-config --cflags hdf5) -o $(BUILD)/fuzz/fuzz_h5 tests/fuzz/fuzz_h5.c \
+	  solver/io.c solver/plot.c solver/level_set.c solver/config.c solver/status.c \
+	  $$(pkg-config --libs hdf5) -lm
 	@cp problems/*.ini tests/fuzz/seeds/*.ini tests/fuzz/seeds/set_*.txt $(BUILD)/fuzz/corpus_config/
 	@cp data/cup.txt tests/fuzz/seeds/*.txt $(BUILD)/fuzz/corpus_points/
-	cd $(BUILD)/fuzz && UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 ./fuzz_config \
-	  -seed=$(FUZZ_SEED) -max_total_time=$(FUZZ_SECONDS) -max_len=8192 -print_final_stats=1 corpus_config
-	cd $(BUILD)/fuzz && UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 ./fuzz_points \
-	  -seed=$(FUZZ_SEED) -max_total_time=$(FUZZ_SECONDS) -max_len=8192 -print_final_stats=1 corpus_points
+	@case h5 in *"$(FUZZ_ONLY)"*) $(MAKE) --no-print-directory $(BUILD)/vesica && \
+	  sh tests/fuzz/h5_seeds.sh $(BUILD)/vesica $(BUILD)/fuzz/corpus_h5;; esac
+	@case config in *"$(FUZZ_ONLY)"*) $(call FUZZ_RUN,config,8192);; esac
+	@case points in *"$(FUZZ_ONLY)"*) $(call FUZZ_RUN,points,8192);; esac
+	@case h5 in *"$(FUZZ_ONLY)"*) $(call FUZZ_RUN,h5,600000);; esac
 
 bench: deps
 	@$(MAKE) --no-print-directory $(BUILD)/libvesica.a $(BUILD)/vesica $(BENCHES)
