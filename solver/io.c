@@ -14,6 +14,7 @@
 #include <sys/resource.h>
 #include <sys/stat.h>
 #include <sys/statvfs.h>
+#include <unistd.h>
 
 #define IO_CHUNK 512 /* rows per chunk of a series (4 KiB of doubles) */
 
@@ -237,10 +238,31 @@ static ves_status describe_at(hid_t loc, const char *path, const char *units,
   return st;
 }
 
+/* Whether the type of a dataset (is_attr = 0) or attribute (1) is one of
+ * the numeric types this module writes (IEEE f64, signed 32- and 64-bit,
+ * unsigned 64-bit integers, little-endian), between which HDF5 converts
+ * safely. Data of any other type is refused unread: a damaged type message
+ * (a float with a 51-bit mantissa, say) sends HDF5's conversion code far
+ * past its buffers (HDF5 1.10.8, H5T__conv_f_f; found by
+ * tests/fuzz/fuzz_h5.c). */
+static int numeric_type_ok(hid_t obj, int is_attr) {
+  hid_t t = is_attr ? H5Aget_type(obj) : H5Dget_type(obj);
+  const hid_t ours[] = {H5T_IEEE_F64LE, H5T_STD_I32LE, H5T_STD_I64LE, H5T_STD_U64LE};
+  int ok = 0;
+  for (size_t i = 0; t >= 0 && i < sizeof ours / sizeof ours[0] && !ok; i++)
+    ok = H5Tequal(t, ours[i]) > 0;
+  if (t >= 0) H5Tclose(t);
+  return ok;
+}
+
 static ves_status attr_read(hid_t obj, const char *name, hid_t mtype, void *v) {
   if (H5Aexists(obj, name) <= 0) return VES_ERR_CONFIG;
   hid_t a = H5Aopen(obj, name, H5P_DEFAULT);
   if (a < 0) return VES_ERR_IO;
+  if (!numeric_type_ok(a, 1)) {
+    H5Aclose(a);
+    return VES_ERR_CONFIG;
+  }
   herr_t e = H5Aread(a, mtype, v);
   H5Aclose(a);
   return e < 0 ? VES_ERR_IO : VES_OK;
@@ -303,7 +325,7 @@ static ves_status dset_read(hid_t loc, const char *name, hid_t mtype, hsize_t co
   if (d < 0) return VES_ERR_IO;
   ves_status st = VES_ERR_IO;
   hid_t sp = H5Dget_space(d);
-  if (sp >= 0 && (hsize_t)H5Sget_simple_extent_npoints(sp) == count &&
+  if (sp >= 0 && (hsize_t)H5Sget_simple_extent_npoints(sp) == count && numeric_type_ok(d, 0) &&
       H5Dread(d, mtype, H5S_ALL, H5S_ALL, H5P_DEFAULT, data) >= 0)
     st = VES_OK;
   if (sp >= 0) H5Sclose(sp);
@@ -831,7 +853,7 @@ static ves_status read_header(ves_io *io) {
     char name[64];
     snprintf(name, sizeof name, "series/%s", SERIES[i].name);
     io->series[i] = H5Dopen2(f, name, H5P_DEFAULT);
-    if (io->series[i] < 0) return VES_ERR_CONFIG;
+    if (io->series[i] < 0 || !numeric_type_ok(io->series[i], 0)) return VES_ERR_CONFIG;
   }
   return read_snapshot_times(io);
 }
@@ -1571,7 +1593,7 @@ static uint64_t group_sum(hid_t g, const char *const *part, int np) {
     hid_t d = H5Dopen2(g, part[i], H5P_DEFAULT);
     hid_t sp = d < 0 ? -1 : H5Dget_space(d);
     const hssize_t np_ = sp < 0 ? -1 : H5Sget_simple_extent_npoints(sp);
-    int ok = np_ > 0 && (v = malloc((size_t)np_ * sizeof *v)) &&
+    int ok = np_ > 0 && numeric_type_ok(d, 0) && (v = malloc((size_t)np_ * sizeof *v)) &&
              H5Dread(d, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, v) >= 0;
     c = ok ? (hsize_t)np_ : 0;
     if (ok) h = fnv(h, v, (size_t)c * sizeof *v);
@@ -1753,24 +1775,97 @@ int ves_io_cut_short(const char *path, long long *size, long long *stored) {
   return 1;
 }
 
-/* H5Aiterate2 callback: copy attribute `name` of obj (fixed-size types, as
- * this module writes) to the object *data. */
+/* H5Aiterate2 callback: read attribute `name` of obj whole in its own type
+ * (fixed-size types, as this module writes) and, when data is not NULL,
+ * copy it to the object *data. */
 static herr_t copy_attr(hid_t obj, const char *name, const H5A_info_t *info, void *data) {
   (void)info;
-  hid_t dst = *(hid_t *)data, a = H5Aopen(obj, name, H5P_DEFAULT);
+  hid_t a = H5Aopen(obj, name, H5P_DEFAULT);
   hid_t t = a < 0 ? -1 : H5Aget_type(a), sp = a < 0 ? -1 : H5Aget_space(a);
   const hssize_t np = sp < 0 ? -1 : H5Sget_simple_extent_npoints(sp);
   const size_t sz = t < 0 || np < 0 ? 0 : H5Tget_size(t) * (size_t)np;
   char *buf = sz && !(t >= 0 && H5Tis_variable_str(t) > 0) ? malloc(sz) : NULL;
   herr_t e = buf && H5Aread(a, t, buf) >= 0 ? 0 : -1;
-  hid_t b = e < 0 ? -1 : H5Acreate2(dst, name, t, sp, H5P_DEFAULT, H5P_DEFAULT);
-  if (b < 0 || H5Awrite(b, t, buf) < 0) e = -1;
+  hid_t b = e < 0 || !data ? -1 : H5Acreate2(*(hid_t *)data, name, t, sp, H5P_DEFAULT, H5P_DEFAULT);
+  if (data && (b < 0 || H5Awrite(b, t, buf) < 0)) e = -1;
   if (b >= 0) H5Aclose(b);
   free(buf);
   if (sp >= 0) H5Sclose(sp);
   if (t >= 0) H5Tclose(t);
   if (a >= 0) H5Aclose(a);
   return e;
+}
+
+/* A whole dataset of doubles at loc/name (malloc'd into *out, its size in
+ * *count). */
+static ves_status dset_read_all(hid_t loc, const char *name, double **out, hsize_t *count) {
+  *out = NULL, *count = 0;
+  hid_t d = H5Dopen2(loc, name, H5P_DEFAULT);
+  hid_t sp = d < 0 ? -1 : H5Dget_space(d);
+  const hssize_t np = sp < 0 ? -1 : H5Sget_simple_extent_npoints(sp);
+  ves_status st = np <= 0 || !numeric_type_ok(d, 0) ? VES_ERR_IO : VES_OK;
+  if (st == VES_OK && !(*out = malloc((size_t)np * sizeof **out))) st = VES_ERR_ALLOC;
+  if (st == VES_OK && H5Dread(d, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, *out) < 0)
+    st = VES_ERR_IO;
+  if (st == VES_OK) *count = (hsize_t)np;
+  if (st != VES_OK) free(*out), *out = NULL;
+  if (sp >= 0) H5Sclose(sp);
+  if (d >= 0) H5Dclose(d);
+  return st;
+}
+
+/* Whether dataset d's stored size is its data's (elements times type
+ * size) when its layout is contiguous (every dataset H5Ocopy copies here). */
+static int contiguous_size_ok(hid_t d) {
+  hid_t dcpl = H5Dget_create_plist(d), t = H5Dget_type(d), sp = H5Dget_space(d);
+  const hssize_t np = sp < 0 ? -1 : H5Sget_simple_extent_npoints(sp);
+  const size_t ts = t < 0 ? 0 : H5Tget_size(t);
+  int ok = dcpl >= 0 && np >= 0 && ts > 0;
+  if (ok && H5Pget_layout(dcpl) == H5D_CONTIGUOUS) ok = H5Dget_storage_size(d) == (hsize_t)np * ts;
+  if (sp >= 0) H5Sclose(sp);
+  if (t >= 0) H5Tclose(t);
+  if (dcpl >= 0) H5Pclose(dcpl);
+  return ok;
+}
+
+/* Whether object `name` below loc reads whole through HDF5's checking
+ * readers: every attribute in its own type, a dataset's data (of our
+ * types, its stored size that of its data), a group's members (depth
+ * levels down) likewise. H5Ocopy copies raw metadata and trusts it: a
+ * contiguous dataset whose recorded storage size exceeds its data (one
+ * byte of its layout message changed), which H5Dopen2 and H5Dread accept,
+ * crashed it (SIGSEGV in H5T_close_real under H5O_copy_header_map, HDF5
+ * 1.10.8; found by tests/fuzz/fuzz_h5.c). */
+static int object_readable(hid_t loc, const char *name, int depth) {
+  hid_t o = H5Oopen(loc, name, H5P_DEFAULT);
+  if (o < 0) return 0;
+  const H5I_type_t type = H5Iget_type(o);
+  int ok = H5Aiterate2(o, H5_INDEX_NAME, H5_ITER_INC, NULL, copy_attr, NULL) >= 0;
+  if (ok && type == H5I_DATASET) {
+    double *v = NULL;
+    hsize_t count = 0;
+    ok = contiguous_size_ok(o) && dset_read_all(loc, name, &v, &count) == VES_OK;
+    free(v);
+  } else if (ok && type == H5I_GROUP) {
+    H5G_info_t gi;
+    ok = depth > 0 && H5Gget_info(o, &gi) >= 0;
+    for (hsize_t i = 0; ok && i < gi.nlinks; i++) {
+      char member[64];
+      const ssize_t len = H5Lget_name_by_idx(o, ".", H5_INDEX_NAME, H5_ITER_INC, i, member,
+                                             sizeof member, H5P_DEFAULT);
+      ok = len > 0 && len < (ssize_t)sizeof member && object_readable(o, member, depth - 1);
+    }
+  } else {
+    ok = 0;
+  }
+  H5Oclose(o);
+  return ok;
+}
+
+/* Object `name` of src copied to dst once it reads whole (object_readable). */
+static ves_status copy_object(hid_t src, hid_t dst, const char *name) {
+  if (!object_readable(src, name, 1)) return VES_ERR_IO;
+  return H5Ocopy(src, name, dst, name, H5P_DEFAULT, H5P_DEFAULT) < 0 ? VES_ERR_IO : VES_OK;
 }
 
 /* Group `name` of src re-created in dst with the attributes of src's, and
@@ -1785,28 +1880,10 @@ static ves_status copy_counted(hid_t src, hid_t dst, const char *name, int count
   for (int k = 0; k < count && st == VES_OK; k++) {
     char m[32];
     snprintf(m, sizeof m, "%d", k);
-    if (H5Ocopy(s, m, d, m, H5P_DEFAULT, H5P_DEFAULT) < 0) st = VES_ERR_IO;
+    st = copy_object(s, d, m);
   }
   if (d >= 0) H5Gclose(d);
   if (s >= 0) H5Gclose(s);
-  return st;
-}
-
-/* A whole dataset of doubles at loc/name (malloc'd into *out, its size in
- * *count). */
-static ves_status dset_read_all(hid_t loc, const char *name, double **out, hsize_t *count) {
-  *out = NULL, *count = 0;
-  hid_t d = H5Dopen2(loc, name, H5P_DEFAULT);
-  hid_t sp = d < 0 ? -1 : H5Dget_space(d);
-  const hssize_t np = sp < 0 ? -1 : H5Sget_simple_extent_npoints(sp);
-  ves_status st = np <= 0 ? VES_ERR_IO : VES_OK;
-  if (st == VES_OK && !(*out = malloc((size_t)np * sizeof **out))) st = VES_ERR_ALLOC;
-  if (st == VES_OK && H5Dread(d, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, *out) < 0)
-    st = VES_ERR_IO;
-  if (st == VES_OK) *count = (hsize_t)np;
-  if (st != VES_OK) free(*out), *out = NULL;
-  if (sp >= 0) H5Sclose(sp);
-  if (d >= 0) H5Dclose(d);
   return st;
 }
 
@@ -1902,8 +1979,8 @@ static ves_status salvage_write(ves_io *src, const char *path, const char *out, 
   const char *step = "the header";
   ves_status st = VES_OK;
   if (H5Aiterate2(src->file, H5_INDEX_NAME, H5_ITER_INC, NULL, copy_attr, &d) < 0 ||
-      H5Ocopy(src->file, "parameters", d, "parameters", H5P_DEFAULT, H5P_DEFAULT) < 0 ||
-      H5Ocopy(src->file, "mesh", d, "mesh", H5P_DEFAULT, H5P_DEFAULT) < 0)
+      copy_object(src->file, d, "parameters") != VES_OK ||
+      copy_object(src->file, d, "mesh") != VES_OK)
     st = VES_ERR_IO;
   if (st == VES_OK) st = attr_status(d, src->info.status); /* written last: maybe lost */
   if (st == VES_OK) st = attr_double(d, "setup_seconds", src->info.setup_seconds);
@@ -1963,6 +2040,17 @@ ves_status ves_io_salvage(const char *path, const char *out, ves_io_salvaged *re
     return VES_ERR_ARG;
   }
   res->size = size, res->stored_size = stored;
+  /* the image is held in memory, twice at its peak (HDF5 copies it): a
+   * recorded end past a quarter of the machine's memory is refused, not
+   * allocated (a damaged superblock records any size up to 2^50) */
+  const double mem = (double)sysconf(_SC_PHYS_PAGES) * (double)sysconf(_SC_PAGESIZE);
+  if (mem > 0 && (double)stored > mem / 4) {
+    ves_error_say(err, errlen,
+                  "%s: its superblock records %lld bytes, more than a quarter of this machine's "
+                  "memory (%.1f GB), which the salvage holds it in (a damaged superblock?)",
+                  path, stored, mem / 1e9);
+    return VES_ERR_IO;
+  }
   /* the file read whole and padded with zeros to its recorded end: lost
    * blocks read back as zeros, which the checksums reject */
   unsigned char *img = calloc((size_t)stored, 1);

@@ -890,6 +890,151 @@ static void test_salvage(void **state) {
   assert_int_equal(access(out, F_OK), -1);
 }
 
+/* A superblock recording an end far beyond the file (a damaged superblock;
+ * found by tests/fuzz/fuzz_h5.c: the salvage allocated it) is refused before
+ * anything is allocated or written. */
+static void test_salvage_huge_end(void **state) {
+  (void)state;
+  fake f;
+  char path[128], out[160], err[512] = "";
+  ves_io *io = fake_file(&f, "huge.h5", path, sizeof path);
+  double y[8] = {0}, phi[4] = {0};
+  ves_io_snapinfo s0 = snap_of(0);
+  assert_int_equal(ves_io_snapshot(io, y, y, phi, &s0), VES_OK);
+  ves_io_close(&io);
+  free(f.problem);
+  FILE *h = fopen(path, "r+b");
+  unsigned char sb[64], end[8];
+  assert_true(h && fread(sb, 1, sizeof sb, h) == sizeof sb);
+  assert_true(sb[8] == 0 || sb[8] == 1); /* superblock version: its end of file at 40 or 44 */
+  const long long huge = 1LL << 45;      /* 32 TiB, below the 2^50 ves_io_cut_short accepts */
+  for (int i = 0; i < 8; i++) end[i] = (unsigned char)(huge >> (8 * i));
+  assert_true(fseek(h, sb[8] == 0 ? 40 : 44, SEEK_SET) == 0 && fwrite(end, 1, 8, h) == 8);
+  fclose(h);
+  long long size = 0, stored = 0;
+  assert_int_equal(ves_io_cut_short(path, &size, &stored), 1);
+  assert_true(stored == huge && size < stored);
+  snprintf(out, sizeof out, "%s.salvage", path);
+  ves_io_salvaged res;
+  assert_int_equal(ves_io_salvage(path, out, &res, err, sizeof err), VES_ERR_IO);
+  printf("# %s\n", err);
+  assert_non_null(strstr(err, path));
+  assert_non_null(strstr(err, "superblock records 35184372088832 bytes"));
+  assert_int_equal(access(out, F_OK), -1);
+}
+
+/* Data whose HDF5 type is not one this module writes is refused unread,
+ * without a crash: a damaged float type (bit offset 7 in a 64-bit double;
+ * found by tests/fuzz/fuzz_h5.c) sends HDF5 1.10.8's conversion
+ * (H5T__conv_f_f) far past its buffers: such a file opened, and `vesica
+ * run --restart` crashed (SIGSEGV) appending its first series row. Here
+ * every double of the file so damaged, then a snapshot's y replaced by a
+ * valid but foreign float type. */
+static void test_foreign_types(void **state) {
+  (void)state;
+  fake f;
+  char path[128], err[512] = "";
+  ves_io *io = fake_file(&f, "types.h5", path, sizeof path);
+  double y[8] = {0, 1, 2, 3, 4, 5, 6, 7}, phi[4] = {0};
+  ves_io_snapinfo s0 = snap_of(0);
+  assert_int_equal(ves_io_snapshot(io, y, y, phi, &s0), VES_OK);
+  ves_io_row r = row_of(0);
+  assert_int_equal(ves_io_append(io, &r), VES_OK);
+  ves_io_close(&io);
+  free(f.problem);
+  char copy[160];
+  snprintf(copy, sizeof copy, "%s.damaged", path);
+  /* the datatype message of an IEEE little-endian double (version 1, class
+   * 1; size 8; bit offset 0, precision 64; exponent at 52, 11 bits;
+   * mantissa at 0, 52 bits; bias 1023): its bit offset set to 7 */
+  static const unsigned char f64[20] = {0x11, 0x20, 0x3f, 0,  8, 0,    0,    0,    0, 0,
+                                        0x40, 0,    0x34, 11, 0, 0x34, 0xff, 0x03, 0, 0};
+  FILE *in = fopen(path, "rb");
+  struct stat sb;
+  assert_true(in && fstat(fileno(in), &sb) == 0);
+  unsigned char *b = malloc((size_t)sb.st_size);
+  assert_true(b && fread(b, 1, (size_t)sb.st_size, in) == (size_t)sb.st_size);
+  fclose(in);
+  int found = 0;
+  for (off_t i = 0; i + 20 <= sb.st_size; i++)
+    if (!memcmp(b + i, f64, sizeof f64)) b[i + 8] = 7, found++;
+  assert_true(found >= 10);
+  FILE *o = fopen(copy, "wb");
+  assert_true(o && fwrite(b, 1, (size_t)sb.st_size, o) == (size_t)sb.st_size);
+  fclose(o);
+  free(b);
+  for (int w = 0; w < 2; w++) {
+    assert_int_equal(ves_io_open(copy, w, &io, err, sizeof err), VES_ERR_CONFIG);
+    assert_non_null(strstr(err, "not a vesica output file"));
+    assert_null(io);
+  }
+  printf("# %d doubles' types damaged: %s\n", found, err);
+  /* a valid float type that is not ours (a 32-bit float) in a snapshot */
+  hid_t h = H5Fopen(path, H5F_ACC_RDWR, H5P_DEFAULT);
+  assert_true(h >= 0 && H5Ldelete(h, "snapshots/0/y", H5P_DEFAULT) >= 0);
+  hsize_t dims[2] = {4, 2};
+  hid_t sp = H5Screate_simple(2, dims, NULL);
+  hid_t d =
+      H5Dcreate2(h, "snapshots/0/y", H5T_IEEE_F32LE, sp, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+  assert_true(d >= 0 && H5Dwrite(d, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, y) >= 0);
+  H5Dclose(d), H5Sclose(sp), H5Fclose(h);
+  assert_int_equal(ves_io_open(path, 0, &io, err, sizeof err), VES_OK);
+  double y1[8];
+  assert_int_equal(ves_io_read_snapshot(io, 0, y1, NULL, NULL, NULL), VES_ERR_IO);
+  assert_int_equal(ves_io_read_snapshot(io, 0, NULL, y1, NULL, NULL), VES_OK); /* x is ours */
+  assert_memory_equal(y1, y, sizeof y);
+  ves_io_close(&io);
+}
+
+/* A salvage copies only what reads whole: a contiguous dataset whose
+ * layout records more stored bytes than its data holds (found by
+ * tests/fuzz/fuzz_h5.c) crashed HDF5's H5Ocopy (SIGSEGV); snapshot 0's y
+ * so damaged in a file cut short, the salvage refuses (nothing complete
+ * can be copied: every snapshot stands on snapshot 0) without a crash. */
+static void test_salvage_bad_layout(void **state) {
+  (void)state;
+  fake f;
+  char path[128], out[160], err[512] = "";
+  ves_io *io = fake_file(&f, "layout.h5", path, sizeof path);
+  double y[8] = {0, 1, 2, 3, 4, 5, 6, 7}, phi[4] = {0};
+  for (long i = 0; i < 2; i++) {
+    ves_io_snapinfo si = snap_of(i);
+    assert_int_equal(ves_io_snapshot(io, y, y, phi, &si), VES_OK);
+    ves_io_row r = row_of(i);
+    assert_int_equal(ves_io_append(io, &r), VES_OK);
+  }
+  ves_io_close(&io);
+  free(f.problem);
+  hid_t h = H5Fopen(path, H5F_ACC_RDONLY, H5P_DEFAULT),
+        d = H5Dopen2(h, "snapshots/0/y", H5P_DEFAULT);
+  const haddr_t at = H5Dget_offset(d);
+  H5Dclose(d), H5Fclose(h);
+  /* its layout message: version 3, contiguous, address, size 64 */
+  unsigned char msg[18] = {3, 1};
+  for (int i = 0; i < 8; i++) msg[2 + i] = (unsigned char)(at >> (8 * i));
+  msg[10] = 64;
+  struct stat sb;
+  FILE *fp = fopen(path, "rb");
+  assert_true(fp && fstat(fileno(fp), &sb) == 0);
+  unsigned char *b = malloc((size_t)sb.st_size);
+  assert_true(b && fread(b, 1, (size_t)sb.st_size, fp) == (size_t)sb.st_size);
+  fclose(fp);
+  int found = 0;
+  for (off_t i = 0; i + 18 <= sb.st_size; i++)
+    if (!memcmp(b + i, msg, sizeof msg)) b[i + 12] = 7, found++; /* size 64 + 7 << 16 */
+  assert_int_equal(found, 1);
+  fp = fopen(path, "wb");
+  assert_true(fp && fwrite(b, 1, (size_t)sb.st_size - 100, fp) == (size_t)sb.st_size - 100);
+  fclose(fp);
+  free(b);
+  snprintf(out, sizeof out, "%s.salvage", path);
+  ves_io_salvaged res;
+  assert_int_equal(ves_io_salvage(path, out, &res, err, sizeof err), VES_ERR_IO);
+  printf("# %s\n", err);
+  assert_non_null(strstr(err, "cannot be copied whole"));
+  assert_int_equal(access(out, F_OK), -1);
+}
+
 /* H5Ovisit callback: every group and dataset (the root included) has the
  * string attributes units and description; counts them in *data. */
 static herr_t described(hid_t obj, const char *name, const H5O_info_t *info, void *data) {
@@ -1011,6 +1156,8 @@ int main(int argc, char **argv) {
       cmocka_unit_test(test_refusals),        cmocka_unit_test(test_node_material),
       cmocka_unit_test(test_restart_chain),   cmocka_unit_test(test_write_failure),
       cmocka_unit_test(test_truncated),       cmocka_unit_test(test_salvage),
+      cmocka_unit_test(test_salvage_huge_end), cmocka_unit_test(test_foreign_types),
+      cmocka_unit_test(test_salvage_bad_layout),
       cmocka_unit_test(test_self_describing), cmocka_unit_test(test_tsv_row),
   };
   // clang-format on

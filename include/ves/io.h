@@ -383,8 +383,11 @@ typedef struct {
  * to it, the references and remeshings it stands on all read whole and
  * match the checksums written with them — and copies the header,
  * parameters, mesh, those rows, snapshots 0..K, references and remeshings;
- * the XDMF file of `path` is rewritten for them. VES_ERR_ARG: path is not cut short; VES_ERR_IO:
- * nothing complete survived, or out cannot be written (nothing left at out); message in err. */
+ * the XDMF file of `path` is rewritten for them. The file is read into
+ * memory padded to its recorded end (twice that at the peak). VES_ERR_ARG:
+ * path is not cut short; VES_ERR_IO: nothing complete survived, out cannot
+ * be written, or the recorded end exceeds a quarter of the machine's memory
+ * (nothing left at out); message in err. */
 ves_status ves_io_salvage(const char *path, const char *out, ves_io_salvaged *res, char *err,
                           size_t errlen);
 
