@@ -1035,6 +1035,48 @@ static void test_salvage_bad_layout(void **state) {
   assert_int_equal(access(out, F_OK), -1);
 }
 
+/* A salvage with a damaged attribute message in /parameters (a string
+ * type of size 0 and an unknown padding; found by tests/fuzz/fuzz_h5.c):
+ * iterating the attributes (H5Aiterate2) crashed in HDF5 1.10.8 (SIGSEGV
+ * in H5A__close); they are first decoded one by one (io.c attrs_decode),
+ * and the salvage refuses. */
+static void test_salvage_bad_attribute(void **state) {
+  (void)state;
+  fake f;
+  char path[128], out[160], err[512] = "";
+  ves_io *io = fake_file(&f, "attr.h5", path, sizeof path);
+  double y[8] = {0}, phi[4] = {0};
+  ves_io_snapinfo s0 = snap_of(0);
+  assert_int_equal(ves_io_snapshot(io, y, y, phi, &s0), VES_OK);
+  ves_io_close(&io);
+  free(f.problem);
+  struct stat sb;
+  FILE *fp = fopen(path, "rb");
+  assert_true(fp && fstat(fileno(fp), &sb) == 0);
+  unsigned char *b = malloc((size_t)sb.st_size);
+  assert_true(b && fread(b, 1, (size_t)sb.st_size, fp) == (size_t)sb.st_size);
+  fclose(fp);
+  /* the attribute geometry.quadrature: its name, then (8-byte aligned) its
+   * datatype message, a fixed string (class 3, version 1: 0x13) */
+  static const char name[] = "geometry.quadrature";
+  int found = 0;
+  for (off_t i = 0; i + 40 <= sb.st_size && !found; i++)
+    if (!memcmp(b + i, name, sizeof name))
+      for (off_t j = i + (off_t)sizeof name; j < i + 32 && !found; j++)
+        if (b[j] == 0x13) b[j + 1] = 8, b[j + 4] = 0, found = 1; /* padding 8, size 0 */
+  assert_true(found);
+  fp = fopen(path, "wb");
+  assert_true(fp && fwrite(b, 1, (size_t)sb.st_size - 100, fp) == (size_t)sb.st_size - 100);
+  fclose(fp);
+  free(b);
+  snprintf(out, sizeof out, "%s.salvage", path);
+  ves_io_salvaged res;
+  assert_int_equal(ves_io_salvage(path, out, &res, err, sizeof err), VES_ERR_IO);
+  printf("# %s\n", err);
+  assert_non_null(strstr(err, "cannot be copied whole"));
+  assert_int_equal(access(out, F_OK), -1);
+}
+
 /* H5Ovisit callback: every group and dataset (the root included) has the
  * string attributes units and description; counts them in *data. */
 static herr_t described(hid_t obj, const char *name, const H5O_info_t *info, void *data) {
@@ -1157,7 +1199,7 @@ int main(int argc, char **argv) {
       cmocka_unit_test(test_restart_chain),   cmocka_unit_test(test_write_failure),
       cmocka_unit_test(test_truncated),       cmocka_unit_test(test_salvage),
       cmocka_unit_test(test_salvage_huge_end), cmocka_unit_test(test_foreign_types),
-      cmocka_unit_test(test_salvage_bad_layout),
+      cmocka_unit_test(test_salvage_bad_layout), cmocka_unit_test(test_salvage_bad_attribute),
       cmocka_unit_test(test_self_describing), cmocka_unit_test(test_tsv_row),
   };
   // clang-format on
