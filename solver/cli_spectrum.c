@@ -197,7 +197,7 @@ static int analyse(run_ctx *r, const spectrum_args *o, const char *pre, long k,
     rc = 3;
   } else if (o->vpath && write_modes(r, sp, o->vpath) != 0) {
     fprintf(stderr, "vesica spectrum: --vectors %s: cannot write: %s\n", o->vpath, strerror(errno));
-    rc = 2;
+    rc = 3; /* an output that cannot be written (a full disk), as plot's (README: exit codes) */
   } else {
     print_spectrum(o->path, k, si, r, sp, o->above);
     printf("seconds = %.1f\n", ves_wall_seconds() - t0);
