@@ -890,79 +890,93 @@ static void test_salvage(void **state) {
   assert_int_equal(access(out, F_OK), -1);
 }
 
-/* A superblock recording an end far beyond the file (a damaged superblock;
- * found by tests/fuzz/fuzz_h5.c: the salvage allocated it) is refused before
- * anything is allocated or written. */
-static void test_salvage_huge_end(void **state) {
-  (void)state;
+/* ---- damaged files (found by tests/fuzz/fuzz_h5.c) ------------------------ */
+
+/* A fake file named name (path out) with nsnap snapshots (y = 0..7) and as
+ * many rows; its bytes (malloc'd) returned, their count in *size. */
+static unsigned char *fake_bytes(const char *name, char *path, size_t len, int nsnap, long *size) {
   fake f;
-  char path[128], out[160], err[512] = "";
-  ves_io *io = fake_file(&f, "huge.h5", path, sizeof path);
-  double y[8] = {0}, phi[4] = {0};
-  ves_io_snapinfo s0 = snap_of(0);
-  assert_int_equal(ves_io_snapshot(io, y, y, phi, &s0), VES_OK);
+  ves_io *io = fake_file(&f, name, path, len);
+  double y[8] = {0, 1, 2, 3, 4, 5, 6, 7}, phi[4] = {0};
+  for (long i = 0; i < nsnap; i++) {
+    ves_io_snapinfo si = snap_of(i);
+    assert_int_equal(ves_io_snapshot(io, y, y, phi, &si), VES_OK);
+    ves_io_row r = row_of(i);
+    assert_int_equal(ves_io_append(io, &r), VES_OK);
+  }
   ves_io_close(&io);
   free(f.problem);
-  FILE *h = fopen(path, "r+b");
-  unsigned char sb[64], end[8];
-  assert_true(h && fread(sb, 1, sizeof sb, h) == sizeof sb);
-  assert_true(sb[8] == 0 || sb[8] == 1); /* superblock version: its end of file at 40 or 44 */
-  const long long huge = 1LL << 45;      /* 32 TiB, below the 2^50 ves_io_cut_short accepts */
-  for (int i = 0; i < 8; i++) end[i] = (unsigned char)(huge >> (8 * i));
-  assert_true(fseek(h, sb[8] == 0 ? 40 : 44, SEEK_SET) == 0 && fwrite(end, 1, 8, h) == 8);
-  fclose(h);
-  long long size = 0, stored = 0;
-  assert_int_equal(ves_io_cut_short(path, &size, &stored), 1);
-  assert_true(stored == huge && size < stored);
+  struct stat sb;
+  FILE *fp = fopen(path, "rb");
+  assert_true(fp && fstat(fileno(fp), &sb) == 0);
+  unsigned char *b = malloc((size_t)sb.st_size);
+  assert_true(b && fread(b, 1, (size_t)sb.st_size, fp) == (size_t)sb.st_size);
+  fclose(fp);
+  *size = (long)sb.st_size;
+  return b;
+}
+
+/* The first size bytes of b as the file path; b freed. */
+static void put_bytes(const char *path, unsigned char *b, long size) {
+  FILE *fp = fopen(path, "wb");
+  assert_true(fp && fwrite(b, 1, (size_t)size, fp) == (size_t)size);
+  fclose(fp);
+  free(b);
+}
+
+/* The salvage of path refused (VES_ERR_IO) with `why` in its message, and
+ * nothing left at its output. */
+static void salvage_refused(const char *path, const char *why) {
+  char out[192], err[1024] = "";
   snprintf(out, sizeof out, "%s.salvage", path);
   ves_io_salvaged res;
   assert_int_equal(ves_io_salvage(path, out, &res, err, sizeof err), VES_ERR_IO);
   printf("# %s\n", err);
   assert_non_null(strstr(err, path));
-  assert_non_null(strstr(err, "superblock records 35184372088832 bytes"));
+  assert_non_null(strstr(err, why));
   assert_int_equal(access(out, F_OK), -1);
 }
 
+/* A superblock recording an end far beyond the file (the salvage allocated
+ * it) is refused before anything is allocated or written. */
+static void test_salvage_huge_end(void **state) {
+  (void)state;
+  char path[128];
+  long size;
+  unsigned char *b = fake_bytes("huge.h5", path, sizeof path, 1, &size);
+  assert_true(b[8] == 0 || b[8] == 1); /* superblock version: its end of file at 40 or 44 */
+  const long long huge = 1LL << 45;    /* 32 TiB, below the 2^50 ves_io_cut_short accepts */
+  for (int i = 0; i < 8; i++) b[(b[8] == 0 ? 40 : 44) + i] = (unsigned char)(huge >> (8 * i));
+  put_bytes(path, b, size);
+  long long got = 0, stored = 0;
+  assert_int_equal(ves_io_cut_short(path, &got, &stored), 1);
+  assert_true(stored == huge && got == size);
+  salvage_refused(path, "superblock records 35184372088832 bytes");
+}
+
 /* Data whose HDF5 type is not one this module writes is refused unread,
- * without a crash: a damaged float type (bit offset 7 in a 64-bit double;
- * found by tests/fuzz/fuzz_h5.c) sends HDF5 1.10.8's conversion
- * (H5T__conv_f_f) far past its buffers: such a file opened, and `vesica
- * run --restart` crashed (SIGSEGV) appending its first series row. Here
- * every double of the file so damaged, then a snapshot's y replaced by a
- * valid but foreign float type. */
+ * without a crash: a damaged float type (bit offset 7 in a 64-bit double)
+ * sends HDF5 1.10.8's conversion (H5T__conv_f_f) far past its buffers:
+ * such a file opened, and `vesica run --restart` crashed (SIGSEGV)
+ * appending its first series row. Here every double of the file so
+ * damaged, then a snapshot's y replaced by a valid but foreign float type. */
 static void test_foreign_types(void **state) {
   (void)state;
-  fake f;
-  char path[128], err[512] = "";
-  ves_io *io = fake_file(&f, "types.h5", path, sizeof path);
-  double y[8] = {0, 1, 2, 3, 4, 5, 6, 7}, phi[4] = {0};
-  ves_io_snapinfo s0 = snap_of(0);
-  assert_int_equal(ves_io_snapshot(io, y, y, phi, &s0), VES_OK);
-  ves_io_row r = row_of(0);
-  assert_int_equal(ves_io_append(io, &r), VES_OK);
-  ves_io_close(&io);
-  free(f.problem);
-  char copy[160];
-  snprintf(copy, sizeof copy, "%s.damaged", path);
+  char path[128], copy[160], err[512] = "";
+  long size;
+  unsigned char *b = fake_bytes("types.h5", path, sizeof path, 1, &size);
   /* the datatype message of an IEEE little-endian double (version 1, class
    * 1; size 8; bit offset 0, precision 64; exponent at 52, 11 bits;
    * mantissa at 0, 52 bits; bias 1023): its bit offset set to 7 */
   static const unsigned char f64[20] = {0x11, 0x20, 0x3f, 0,  8, 0,    0,    0,    0, 0,
                                         0x40, 0,    0x34, 11, 0, 0x34, 0xff, 0x03, 0, 0};
-  FILE *in = fopen(path, "rb");
-  struct stat sb;
-  assert_true(in && fstat(fileno(in), &sb) == 0);
-  unsigned char *b = malloc((size_t)sb.st_size);
-  assert_true(b && fread(b, 1, (size_t)sb.st_size, in) == (size_t)sb.st_size);
-  fclose(in);
   int found = 0;
-  for (off_t i = 0; i + 20 <= sb.st_size; i++)
+  for (long i = 0; i + 20 <= size; i++)
     if (!memcmp(b + i, f64, sizeof f64)) b[i + 8] = 7, found++;
   assert_true(found >= 10);
-  FILE *o = fopen(copy, "wb");
-  assert_true(o && fwrite(b, 1, (size_t)sb.st_size, o) == (size_t)sb.st_size);
-  fclose(o);
-  free(b);
+  snprintf(copy, sizeof copy, "%s.damaged", path);
+  put_bytes(copy, b, size);
+  ves_io *io = NULL;
   for (int w = 0; w < 2; w++) {
     assert_int_equal(ves_io_open(copy, w, &io, err, sizeof err), VES_ERR_CONFIG);
     assert_non_null(strstr(err, "not a vesica output file"));
@@ -970,6 +984,7 @@ static void test_foreign_types(void **state) {
   }
   printf("# %d doubles' types damaged: %s\n", found, err);
   /* a valid float type that is not ours (a 32-bit float) in a snapshot */
+  const double y[8] = {0, 1, 2, 3, 4, 5, 6, 7};
   hid_t h = H5Fopen(path, H5F_ACC_RDWR, H5P_DEFAULT);
   assert_true(h >= 0 && H5Ldelete(h, "snapshots/0/y", H5P_DEFAULT) >= 0);
   hsize_t dims[2] = {4, 2};
@@ -987,94 +1002,50 @@ static void test_foreign_types(void **state) {
 }
 
 /* A salvage copies only what reads whole: a contiguous dataset whose
- * layout records more stored bytes than its data holds (found by
- * tests/fuzz/fuzz_h5.c) crashed HDF5's H5Ocopy (SIGSEGV); snapshot 0's y
- * so damaged in a file cut short, the salvage refuses (nothing complete
- * can be copied: every snapshot stands on snapshot 0) without a crash. */
+ * layout records more stored bytes than its data holds crashed HDF5's
+ * H5Ocopy (SIGSEGV); snapshot 0's y so damaged in a file cut short, the
+ * salvage refuses (every snapshot stands on snapshot 0) without a crash. */
 static void test_salvage_bad_layout(void **state) {
   (void)state;
-  fake f;
-  char path[128], out[160], err[512] = "";
-  ves_io *io = fake_file(&f, "layout.h5", path, sizeof path);
-  double y[8] = {0, 1, 2, 3, 4, 5, 6, 7}, phi[4] = {0};
-  for (long i = 0; i < 2; i++) {
-    ves_io_snapinfo si = snap_of(i);
-    assert_int_equal(ves_io_snapshot(io, y, y, phi, &si), VES_OK);
-    ves_io_row r = row_of(i);
-    assert_int_equal(ves_io_append(io, &r), VES_OK);
-  }
-  ves_io_close(&io);
-  free(f.problem);
-  hid_t h = H5Fopen(path, H5F_ACC_RDONLY, H5P_DEFAULT),
-        d = H5Dopen2(h, "snapshots/0/y", H5P_DEFAULT);
+  char path[128];
+  long size;
+  unsigned char *b = fake_bytes("layout.h5", path, sizeof path, 2, &size);
+  hid_t h = H5Fopen(path, H5F_ACC_RDONLY, H5P_DEFAULT);
+  hid_t d = H5Dopen2(h, "snapshots/0/y", H5P_DEFAULT);
   const haddr_t at = H5Dget_offset(d);
   H5Dclose(d), H5Fclose(h);
   /* its layout message: version 3, contiguous, address, size 64 */
   unsigned char msg[18] = {3, 1};
   for (int i = 0; i < 8; i++) msg[2 + i] = (unsigned char)(at >> (8 * i));
   msg[10] = 64;
-  struct stat sb;
-  FILE *fp = fopen(path, "rb");
-  assert_true(fp && fstat(fileno(fp), &sb) == 0);
-  unsigned char *b = malloc((size_t)sb.st_size);
-  assert_true(b && fread(b, 1, (size_t)sb.st_size, fp) == (size_t)sb.st_size);
-  fclose(fp);
   int found = 0;
-  for (off_t i = 0; i + 18 <= sb.st_size; i++)
+  for (long i = 0; i + 18 <= size; i++)
     if (!memcmp(b + i, msg, sizeof msg)) b[i + 12] = 7, found++; /* size 64 + 7 << 16 */
   assert_int_equal(found, 1);
-  fp = fopen(path, "wb");
-  assert_true(fp && fwrite(b, 1, (size_t)sb.st_size - 100, fp) == (size_t)sb.st_size - 100);
-  fclose(fp);
-  free(b);
-  snprintf(out, sizeof out, "%s.salvage", path);
-  ves_io_salvaged res;
-  assert_int_equal(ves_io_salvage(path, out, &res, err, sizeof err), VES_ERR_IO);
-  printf("# %s\n", err);
-  assert_non_null(strstr(err, "cannot be copied whole"));
-  assert_int_equal(access(out, F_OK), -1);
+  put_bytes(path, b, size - 100);
+  salvage_refused(path, "cannot be copied whole");
 }
 
 /* A salvage with a damaged attribute message in /parameters (a string
- * type of size 0 and an unknown padding; found by tests/fuzz/fuzz_h5.c):
- * iterating the attributes (H5Aiterate2) crashed in HDF5 1.10.8 (SIGSEGV
- * in H5A__close); they are first decoded one by one (io.c attrs_decode),
- * and the salvage refuses. */
+ * type of size 0 and an unknown padding): iterating the attributes
+ * (H5Aiterate2) crashed in HDF5 1.10.8 (SIGSEGV in H5A__close); they are
+ * first decoded one by one (io.c attrs_decode), and the salvage refuses. */
 static void test_salvage_bad_attribute(void **state) {
   (void)state;
-  fake f;
-  char path[128], out[160], err[512] = "";
-  ves_io *io = fake_file(&f, "attr.h5", path, sizeof path);
-  double y[8] = {0}, phi[4] = {0};
-  ves_io_snapinfo s0 = snap_of(0);
-  assert_int_equal(ves_io_snapshot(io, y, y, phi, &s0), VES_OK);
-  ves_io_close(&io);
-  free(f.problem);
-  struct stat sb;
-  FILE *fp = fopen(path, "rb");
-  assert_true(fp && fstat(fileno(fp), &sb) == 0);
-  unsigned char *b = malloc((size_t)sb.st_size);
-  assert_true(b && fread(b, 1, (size_t)sb.st_size, fp) == (size_t)sb.st_size);
-  fclose(fp);
+  char path[128];
+  long size;
+  unsigned char *b = fake_bytes("attr.h5", path, sizeof path, 1, &size);
   /* the attribute geometry.quadrature: its name, then (8-byte aligned) its
    * datatype message, a fixed string (class 3, version 1: 0x13) */
   static const char name[] = "geometry.quadrature";
   int found = 0;
-  for (off_t i = 0; i + 40 <= sb.st_size && !found; i++)
+  for (long i = 0; i + 40 <= size && !found; i++)
     if (!memcmp(b + i, name, sizeof name))
-      for (off_t j = i + (off_t)sizeof name; j < i + 32 && !found; j++)
+      for (long j = i + (long)sizeof name; j < i + 32 && !found; j++)
         if (b[j] == 0x13) b[j + 1] = 8, b[j + 4] = 0, found = 1; /* padding 8, size 0 */
   assert_true(found);
-  fp = fopen(path, "wb");
-  assert_true(fp && fwrite(b, 1, (size_t)sb.st_size - 100, fp) == (size_t)sb.st_size - 100);
-  fclose(fp);
-  free(b);
-  snprintf(out, sizeof out, "%s.salvage", path);
-  ves_io_salvaged res;
-  assert_int_equal(ves_io_salvage(path, out, &res, err, sizeof err), VES_ERR_IO);
-  printf("# %s\n", err);
-  assert_non_null(strstr(err, "cannot be copied whole"));
-  assert_int_equal(access(out, F_OK), -1);
+  put_bytes(path, b, size - 100);
+  salvage_refused(path, "cannot be copied whole");
 }
 
 /* H5Ovisit callback: every group and dataset (the root included) has the
