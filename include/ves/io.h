@@ -173,7 +173,9 @@ ves_status ves_io_create(const char *path, const ves_io_header *h, ves_io **out,
 
 /* Open an existing output file, read-only or (writable) to continue it.
  * VES_ERR_IO: cannot open / not HDF5; VES_ERR_CONFIG: HDF5 but not a vesica
- * file of a known format_version, or a format 1 file opened writable
+ * file of a known format_version (its header attributes or series of a type
+ * this module does not write included: numbers are read only from IEEE f64
+ * and little-endian 32/64-bit integers), or a format 1 file opened writable
  * (message in err, naming the file). */
 ves_status ves_io_open(const char *path, int writable, ves_io **out, char *err, size_t errlen);
 
