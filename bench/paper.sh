@@ -56,12 +56,17 @@ run() {
 
 # The default scale of each result: the largest eps at which it is still
 # qualitatively right (bench/RESULTS.md): the relaxation at 0.08 (oblate.ini
-# with band 4), the Fig. 5 runs at 0.04 (their files), Fig. 7 at 0.08 with
-# band 4 (the files' band 5.5 does not fit the oblate's curvature at 0.08)
-# and an energy target of 1 per step instead of 0.25 (4x fewer steps while
-# E* rises by ~30; RESULTS "Fig. 7: deflation at three rates").
-band4="" fig7set=""
-[ -z "$PAPER_EPS" ] && band4="--set geometry.band=4" fig7set="$band4 --set time.dE_target=1"
+# with band 4), the Fig. 5 runs at 0.04 (their files), Fig. 7 at 0.08.
+# Fig. 7 at any eps: an energy target of 1 per step instead of the files' 0.25
+# (4x fewer steps while E* rises by 15-50), a snapshot every step (the shape
+# at the energy's maximum) and t_end 6 (at 1.5 the shapes agree but E* still
+# falls; RESULTS "Fig. 7: deflation at three rates"); at eps >= 0.08 band 4
+# (the files' 5.5 does not fit the oblate's curvature there).
+band4=""
+[ -z "$PAPER_EPS" ] && band4="--set geometry.band=4"
+fig7set="--set time.dE_target=1 --set output.snapshot_every=1 --set time.t_end=6"
+e7=${PAPER_EPS:-0.08}
+awk -v e="$e7" 'BEGIN { exit !(e >= 0.08) }' && fig7set="$fig7set --set geometry.band=4"
 run fig34 problems/oblate.ini 0.08
 run fig5left problems/stomatocyte_discocyte.ini 0.04
 run fig5right problems/prolate_c0.ini 0.04
@@ -69,6 +74,18 @@ for r in fast medium slow; do
   # shellcheck disable=SC2086
   run fig7_$r problems/deflate_$r.ini 0.08 $fig7set
 done
+# Fig. 7 in the paper's layout and its tables (bench/fig7.py: V/V0 and E*
+# against t*, the phi = 0 shapes at the energy's maximum and at the end, the
+# sharp equilibrium, vesica check of each shape)
+fig7md=""
+if want fig7 && ls "$OUT"/fig7_*.done > /dev/null 2>&1; then
+  if /usr/bin/python3 bench/fig7.py "$OUT" "$FIG" "$VESICA" > "$OUT/fig7.md.part"; then
+    mv "$OUT/fig7.md.part" "$OUT/fig7.md"
+  else
+    echo "paper: fig7: bench/fig7.py failed"; failed=1
+  fi
+fi
+[ -f "$OUT/fig7.md" ] && fig7md=$OUT/fig7.md
 if want table1; then
   t=$OUT/table1.txt
   if [ -f "$t.done" ]; then
@@ -117,22 +134,9 @@ row() { # name: the run's figures, or "not run"
   echo "|---|---|---|---|---|---|---|---|---|---|---|---|---|"
   for n in fig34 fig5left fig5right fig7_slow fig7_medium fig7_fast; do row $n; done
   echo
-  echo "Fig. 7, from the runs' series (\`--series\`; E* at the ramp's end: the last step at or"
-  echo "before it; incomplete after a restart):"
+  echo "Fig. 7 (bench/fig7.py; figure bench/figures/paper/fig7_epsE.png):"
   echo
-  echo "| run | ramp end t* | E* max (t*) | E* at the ramp's end | E* final (t*) |"
-  echo "|---|---|---|---|---|"
-  for r in slow medium fast; do
-    case $r in slow) te=0.5;; medium) te=0.1;; fast) te=0.02;; esac
-    tsv=$OUT/fig7_$r.tsv
-    if [ -f "$OUT/fig7_$r.done" ] && [ -f "$tsv" ]; then
-      awk -v te=$te -v r=$r '/^#/ { if ($2 == "restarted:") inc = " (incomplete)"; next }
-        { if ($4 > m) { m = $4; tm = $2 } if ($2 <= te + 1e-12) e = $4; l = $4; tl = $2 }
-        END { printf "| fig7_%s | %g | %.6f (%.4g)%s | %.6f | %.6f (%.4g) |\n", r, te, m, tm, inc, e, l, tl }' "$tsv"
-    else
-      echo "| fig7_$r | $te | not run | | |"
-    fi
-  done
+  if [ -n "$fig7md" ]; then grep -v '^figure: ' "$fig7md"; else echo "not run"; fi
   echo
   echo "| result | the paper states | ours (where measured) |"
   echo "|---|---|---|"
