@@ -298,7 +298,7 @@ def main():
     png = os.path.join(figdir, f"fig7_eps{eps:g}.png")
     col = {"fast": "#d62728", "medium": "#2ca02c", "slow": "#1f77b4"}
     lab = {"fast": "A", "medium": "B", "slow": "C"}
-    g = [f"set terminal pngcairo size 1400,800 font ',11'", f"set output '{png}'",
+    g = [f"set terminal pngcairo size 1500,860 font ',11'", f"set output '{png}'",
          f"set multiplot title 'Fig. 7 at eps {eps}: deflation to V/V0 = {V_FINAL} at three rates'", "set size 0.5,0.47; set origin 0,0.47", "set xlabel 't*'; set ylabel 'V/V0'",
          "set logscale x; set xrange [1e-4:*]; set key bottom left",
          "plot " + ", ".join(f"'{tmp}/{n}.series' u 1:2 w l lw 2 lc rgb '{col[n]}' t '{n} ({lab[n]})'"
@@ -307,9 +307,9 @@ def main():
          "plot " + ", ".join(f"'{tmp}/{n}.series' u 1:3 w lp pt 7 ps 0.4 lw 2 lc rgb '{col[n]}' t '{n}'"
                              for n in runs) + f", {eq['E']} w l dt 2 lc rgb 'black' t 'D sharp ({eq['E']:.3f})'"
          + (f", {cD[0]} w l dt 3 lc rgb 'black' t 'D as a phase field at eps {eps} ({cD[0]:.3f})'" if cD else ""),
-         "unset logscale x; set size 0.5,0.94; set origin 0.5,0; set xrange [0:1.5]; set yrange [-0.75:0.75]",
-         "set size ratio -1; set xlabel 'R'; set ylabel 'Z'; set key outside bottom",
-         f"set title 'phi = 0 at the energy maximum (A, B, C), at the end (dotted); D sharp at v {vD:.4f}'",
+         "unset logscale x; set size 0.5,0.94; set origin 0.5,0; set xrange [0:1.4]; set yrange [-0.6:0.6]",
+         "set size ratio -1; set xlabel 'R'; set ylabel 'Z'; set key below maxrows 4",
+         f'set title "phi = 0 at the energy maximum (A, B, C) and at the end (dotted);\\nD: the sharp discocyte at v {vD:.4f}"',
          "plot " + ", ".join(f"'{tmp}/{n}.ramp' w l lw 2 lc rgb '{col[n]}' t '{lab[n]}: {n}, E* max, t* {rampend[n][1]:.3g}', "
                              f"'{tmp}/{n}.final' w l dt 3 lw 2 lc rgb '{col[n]}' t '{n}, end'" for n in runs)
          + f", '{tmp}/D.curve' w l lw 1 lc rgb 'black' t 'D (sharp, z-centred)'",
