@@ -37,7 +37,12 @@ run() {
   shift 3
   want "$name" || return 0
   h5=$OUT/$name.h5
-  if [ -f "$OUT/$name.done" ]; then
+  have=$(sed -n 's/^geometry.epsilon = //p' "$OUT/$name.info" 2>/dev/null)
+  if [ -f "$OUT/$name.done" ] && [ -n "$have" ] &&
+    awk -v a="$have" -v b="$eps" 'BEGIN { exit !(a + 0 != b + 0) }'; then
+    echo "paper: $name: $OUT holds it at eps $have, not $eps (set PAPER_OUT to another folder)"
+    failed=1
+  elif [ -f "$OUT/$name.done" ]; then
     echo "paper: $name: done (remove $OUT/$name.done to rerun)"
   elif [ -f "$h5" ]; then
     echo "paper: $name: continuing $h5"
@@ -58,7 +63,7 @@ run() {
 # qualitatively right (bench/RESULTS.md): the relaxation at 0.08 (oblate.ini
 # with band 4), the Fig. 5 runs at 0.04 (their files), Fig. 7 at 0.08.
 # Fig. 7 at any eps: an energy target of 1 per step instead of the files' 0.25
-# (4x fewer steps while E* rises by 14-54) and a snapshot every step (the
+# (4x fewer steps while E* rises by 8-54) and a snapshot every step (the
 # shape at the energy's maximum; RESULTS "Fig. 7: deflation at three
 # rates"); at eps >= 0.08 band 4 (the files' 5.5 does not fit the oblate's
 # curvature there).
