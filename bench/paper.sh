@@ -37,7 +37,12 @@ run() {
   shift 3
   want "$name" || return 0
   h5=$OUT/$name.h5
-  if [ -f "$OUT/$name.done" ]; then
+  have=$(sed -n 's/^geometry.epsilon = //p' "$OUT/$name.info" 2>/dev/null)
+  if [ -f "$OUT/$name.done" ] && [ -n "$have" ] &&
+    awk -v a="$have" -v b="$eps" 'BEGIN { exit !(a + 0 != b + 0) }'; then
+    echo "paper: $name: $OUT holds it at eps $have, not $eps (set PAPER_OUT to another folder)"
+    failed=1
+  elif [ -f "$OUT/$name.done" ]; then
     echo "paper: $name: done (remove $OUT/$name.done to rerun)"
   elif [ -f "$h5" ]; then
     echo "paper: $name: continuing $h5"
@@ -56,12 +61,17 @@ run() {
 
 # The default scale of each result: the largest eps at which it is still
 # qualitatively right (bench/RESULTS.md): the relaxation at 0.08 (oblate.ini
-# with band 4), the Fig. 5 runs at 0.04 (their files), Fig. 7 at 0.08 with
-# band 4 (the files' band 5.5 does not fit the oblate's curvature at 0.08)
-# and an energy target of 1 per step instead of 0.25 (4x fewer steps while
-# E* rises by ~30; RESULTS "Fig. 7: deflation at three rates").
-band4="" fig7set=""
-[ -z "$PAPER_EPS" ] && band4="--set geometry.band=4" fig7set="$band4 --set time.dE_target=1"
+# with band 4), the Fig. 5 runs at 0.04 (their files), Fig. 7 at 0.08.
+# Fig. 7 at any eps: an energy target of 1 per step instead of the files' 0.25
+# (4x fewer steps while E* rises by 8-54) and a snapshot every step (the
+# shape at the energy's maximum; RESULTS "Fig. 7: deflation at three
+# rates"); at eps >= 0.08 band 4 (the files' 5.5 does not fit the oblate's
+# curvature there).
+band4=""
+[ -z "$PAPER_EPS" ] && band4="--set geometry.band=4"
+fig7set="--set time.dE_target=1 --set output.snapshot_every=1"
+e7=${PAPER_EPS:-0.08}
+awk -v e="$e7" 'BEGIN { exit !(e >= 0.08) }' && fig7set="$fig7set --set geometry.band=4"
 run fig34 problems/oblate.ini 0.08
 run fig5left problems/stomatocyte_discocyte.ini 0.04
 run fig5right problems/prolate_c0.ini 0.04
@@ -69,6 +79,18 @@ for r in fast medium slow; do
   # shellcheck disable=SC2086
   run fig7_$r problems/deflate_$r.ini 0.08 $fig7set
 done
+# Fig. 7 in the paper's layout and its tables (bench/fig7.py: V/V0 and E*
+# against t*, the phi = 0 shapes at the energy's maximum and at the end, the
+# sharp equilibrium, vesica check of each shape)
+fig7md=""
+if want fig7 && ls "$OUT"/fig7_*.done > /dev/null 2>&1; then
+  if /usr/bin/python3 bench/fig7.py "$OUT" "$FIG" "$VESICA" > "$OUT/fig7.md.part"; then
+    mv "$OUT/fig7.md.part" "$OUT/fig7.md"
+  else
+    echo "paper: fig7: bench/fig7.py failed"; failed=1
+  fi
+fi
+[ -f "$OUT/fig7.md" ] && fig7md=$OUT/fig7.md
 if want table1; then
   t=$OUT/table1.txt
   if [ -f "$t.done" ]; then
@@ -117,22 +139,9 @@ row() { # name: the run's figures, or "not run"
   echo "|---|---|---|---|---|---|---|---|---|---|---|---|---|"
   for n in fig34 fig5left fig5right fig7_slow fig7_medium fig7_fast; do row $n; done
   echo
-  echo "Fig. 7, from the runs' series (\`--series\`; E* at the ramp's end: the last step at or"
-  echo "before it; incomplete after a restart):"
+  echo "Fig. 7 (bench/fig7.py; figure bench/figures/paper/fig7_epsE.png):"
   echo
-  echo "| run | ramp end t* | E* max (t*) | E* at the ramp's end | E* final (t*) |"
-  echo "|---|---|---|---|---|"
-  for r in slow medium fast; do
-    case $r in slow) te=0.5;; medium) te=0.1;; fast) te=0.02;; esac
-    tsv=$OUT/fig7_$r.tsv
-    if [ -f "$OUT/fig7_$r.done" ] && [ -f "$tsv" ]; then
-      awk -v te=$te -v r=$r '/^#/ { if ($2 == "restarted:") inc = " (incomplete)"; next }
-        { if ($4 > m) { m = $4; tm = $2 } if ($2 <= te + 1e-12) e = $4; l = $4; tl = $2 }
-        END { printf "| fig7_%s | %g | %.6f (%.4g)%s | %.6f | %.6f (%.4g) |\n", r, te, m, tm, inc, e, l, tl }' "$tsv"
-    else
-      echo "| fig7_$r | $te | not run | | |"
-    fi
-  done
+  if [ -n "$fig7md" ]; then grep -v '^figure: ' "$fig7md"; else echo "not run"; fi
   echo
   echo "| result | the paper states | ours (where measured) |"
   echo "|---|---|---|"
@@ -141,7 +150,7 @@ row() { # name: the run's figures, or "not run"
   echo "| Fig. 5 left (stomatocyte -> discocyte) | a C0 pulse pushes the stomatocyte past the barrier into a discocyte | RESULTS \"The two Fig. 5 runs with drift damping\" (eps 0.04: a discocyte with damping and resets) |"
   echo "| Fig. 5 right (prolate, C0 R0 = 10) | two dissimilar spheres joined by a narrow neck | no end state at eps 0.04 (tethers grow to the walls); RESULTS \"The prolate vesicle after the C0 jump\" |"
   echo "| Fig. 6 (pearling: v 0.9 -> 0.55, C0 R0 -> 12, four remeshings, 12,650 nodes) | elongation and pearling | not done: no problem file yet (the C0 ramp and remeshing exist: problems/README.md) |"
-  echo "| Fig. 7 (deflation at three rates) | E* peaks at the end of deflation; the faster the rate, the further from equilibrium (shape and E*); all reach the same shape by t* ~ 1 | runs fig7_* above; RESULTS \"Fig. 7: deflation at three rates\" |"
+  echo "| Fig. 7 (deflation at three rates) | E* peaks at the end of deflation; the faster the rate, the further from equilibrium at that instant (shape and E*); all reach the same equilibrium shape D by t* ~ 1 | E* peaks at each ramp's end (within the step crossing it), fast / medium / slow 40.5 / 31.8 / 22.0 at eps 0.08, 61.8 / 31.5 / 16.4 at 0.04; the shapes at the maxima ordered as the paper's A, B, C (distance from the final shape 0.13 / 0.088 / 0.028 R0 at eps 0.08, 0.19 / 0.15 / 0.064 at 0.04); one final shape, a discocyte (the three within 3e-4 R0), 6e-3 R0 from the sharp discocyte at eps 0.04 (0.06 at 0.08); but not by t* ~ 1: E* still falls at t* 6 (0.1 per t* at eps 0.08, 0.03 at 0.04): most of the peak is the interface profile compressed with the fluid, which relaxes at a rate set by the penalty viscosity lambda (fast rate at eps 0.08, t* 1.5: E* 12.7 / 14.5 / 21.9 at lambda/mu 10 / 100 / 1000, the interface within 8e-3 R0; the paper does not give its lambda) (tables above; figures fig7_eps0.08.png, fig7_eps0.04.png; RESULTS \"Fig. 7: deflation at three rates\") |"
 } > "$MD.part" && mv "$MD.part" "$MD"
 echo "paper: wrote $MD"
 exit $failed
