@@ -40,7 +40,7 @@ CFLAGS  += -std=c11 -fopenmp -D_XOPEN_SOURCE=700 $(WARN) -Iinclude -Isolver $(PK
 # check disabled so valgrind can run it.
 CXXFLAGS_CGAL = -std=c++17 -O2 -g -frounding-math -DCGAL_DISABLE_ROUNDING_MATH_CHECK \
                 -Wall -Wextra -Werror -Iinclude $(SANFLAGS) -MMD -MP
-LDLIBS   = $(PKG_LIBS) -lnlopt -ldmumps_seq -liniparser -llapacke -lopenblas -lgmp -lstdc++ -lm
+LDLIBS   = $(PKG_LIBS) -lnlopt -ldmumps_seq -lsmumps_seq -liniparser -llapacke -lopenblas -lgmp -lstdc++ -lm
 LDFLAGS += $(SANFLAGS) -fopenmp
 
 LIB_C    = $(filter-out solver/cli%.c,$(wildcard solver/*.c))

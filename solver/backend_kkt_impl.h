@@ -39,8 +39,9 @@ static inline void kkt_destroy(kkt_system *k) {
 }
 
 /* Structure: H triplets first, then for each constraint row q = nvar + i the
- * entries (q, 0..nvar-1) and (q, q). Analysis (symmetric indefinite) once. */
-static inline ves_status kkt_create(const ves_step *s, kkt_system *k) {
+ * entries (q, 0..nvar-1) and (q, q). Analysis (symmetric indefinite) once;
+ * single: the factors in single precision, the solves refined (ldl.h). */
+static inline ves_status kkt_create(const ves_step *s, int single, kkt_system *k) {
   memset(k, 0, sizeof *k);
   const int nv = ves_step_nvar(s), nh = ves_step_hess_nnz(s);
   if (nv < 1 || nh < 1) return VES_ERR_ARG;
@@ -58,7 +59,7 @@ static inline ves_status kkt_create(const ves_step *s, kkt_system *k) {
     for (int j = 0; j < nv; j++) k->irow[t] = nv + i, k->jcol[t++] = j; /* row of J */
     k->irow[t] = nv + i, k->jcol[t++] = nv + i;                         /* D */
   }
-  ves_status st = ves_ldl_create(nv + KKT_NROWS, k->nnz, k->irow, k->jcol, 0, &k->ldl);
+  ves_status st = ves_ldl_create_prec(nv + KKT_NROWS, k->nnz, k->irow, k->jcol, 0, single, &k->ldl);
   if (st != VES_OK) kkt_destroy(k);
   return st;
 }

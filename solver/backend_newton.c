@@ -133,7 +133,7 @@ static ves_status newton_create(const ves_backend_options *opt, ves_step *s, voi
   if (!w) return VES_ERR_ALLOC;
   w->opt = *opt;
   w->nvar = ves_step_nvar(s);
-  ves_status st = kkt_create(s, &w->kkt);
+  ves_status st = kkt_create(s, opt->factor_single, &w->kkt);
   if (st != VES_OK) {
     free(w);
     return st;

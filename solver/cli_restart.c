@@ -13,8 +13,12 @@
 /* The keys a restart may change: how each step is solved, and where the run
  * ends; the rest defines the setup, the physics or the protocol the stored
  * steps followed. */
-static const char *const RESTART_KEYS[] = {"solver.tol", "solver.ctol", "solver.max_iter",
-                                           "solver.freeze_hessian", "time.t_end"};
+static const char *const RESTART_KEYS[] = {"solver.tol",
+                                           "solver.ctol",
+                                           "solver.max_iter",
+                                           "solver.freeze_hessian",
+                                           "solver.factor_precision",
+                                           "time.t_end"};
 
 /* A file cut short (a torn last write): its last complete snapshot, the
  * rows and references before it salvaged into a new FILE.h5 (io.h), the
@@ -97,7 +101,8 @@ int cli_run_restart(run_ctx *r, const char *file, int nset, const char *const *s
     if (k == nk) {
       fprintf(stderr,
               "vesica run: --restart %s: --set %s: a restart may change only solver.tol, "
-              "solver.ctol, solver.max_iter, solver.freeze_hessian and time.t_end (the other "
+              "solver.ctol, solver.max_iter, solver.freeze_hessian, solver.factor_precision "
+              "and time.t_end (the other "
               "keys define the setup and the steps already taken)\n",
               file, set[i]);
       return 2;

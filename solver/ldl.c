@@ -4,6 +4,7 @@
 #include "ves/ldl.h"
 
 #include <dmumps_c.h>
+#include <smumps_c.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -19,33 +20,43 @@
 #define JOB_FACTOR 2
 #define JOB_SOLVE 3
 #define USE_COMM_WORLD (-987654) /* the Fortran MPI_COMM_WORLD of the sequential fake MPI */
+#define LDL_REFINE_TOL 1e-6      /* single precision: |b - A x| / |b| a solve reaches */
+#define LDL_REFINE_MAX 4         /* corrections before falling back to double precision */
 
 struct ves_ldl {
-  DMUMPS_STRUC_C id; /* the MUMPS instance */
-  int n;             /* order */
-  int nnz;           /* triplets */
-  int *irn, *jcn;    /* nnz 1-based row and column indices (MUMPS keeps the pointers) */
-  double *a;         /* nnz values of the last factorization */
-  int live;          /* 1 once JOB = -1 succeeded (JOB = -2 needed) */
-  int factored;      /* 1 after a successful factorization */
-  ves_ldl_info info; /* diagnostics of the last call */
-  double *wk;        /* the factorization's workspace (MUMPS WK_USER), kept across
-                        factorizations: MUMPS would free and allocate its own at
-                        every one, and the kernel zero the fresh pages (a third of
-                        the factorization at eps 0.01: bench/RESULTS.md, "MUMPS's
-                        workspace kept"); the factors live in it until the next one */
-  size_t lwk;        /* its entries */
-  double est;        /* the analysis's estimate of it (INFO(8), in entries) */
+  int single;                      /* 1: the factors in single precision (SMUMPS), solves refined */
+  int spd;                         /* 1: Cholesky (SYM = 1), 0: LDL^T (SYM = 2) */
+  DMUMPS_STRUC_C did;              /* the MUMPS instance, double precision */
+  SMUMPS_STRUC_C sid;              /* the MUMPS instance, single precision */
+  MUMPS_INT *icntl, *infog, *info; /* the live instance's arrays */
+  int n;                           /* order */
+  int nnz;                         /* triplets */
+  int *irn, *jcn;     /* nnz 1-based row and column indices (MUMPS keeps the pointers) */
+  double *a;          /* nnz values of the last factorization */
+  float *as;          /* single: the values MUMPS factors */
+  float *xs;          /* single: n, the right-hand side MUMPS solves */
+  double *b, *r;      /* single: n each, the right-hand side and the residual */
+  int live;           /* 1 once JOB = -1 succeeded (JOB = -2 needed) */
+  int factored;       /* 1 after a successful factorization */
+  ves_ldl_info info_; /* diagnostics of the last call */
+  void *wk;           /* the factorization's workspace (MUMPS WK_USER), kept across
+                         factorizations: MUMPS would free and allocate its own at
+                         every one, and the kernel zero the fresh pages (a third of
+                         the factorization at eps 0.01: bench/RESULTS.md, "MUMPS's
+                         workspace kept"); the factors live in it until the next one */
+  size_t lwk;         /* its entries */
+  double est;         /* the analysis's estimate of it (INFO(8), in entries) */
 };
 
 /* Run one MUMPS job and record INFOG(1), INFOG(2). */
 static void mumps_run(ves_ldl *f, int job) {
-  f->id.job = job;
-  dmumps_c(&f->id);
-  f->info.infog1 = f->id.INFOG(1);
-  f->info.infog2 = f->id.INFOG(2);
+  if (f->single)
+    f->sid.job = job, smumps_c(&f->sid);
+  else
+    f->did.job = job, dmumps_c(&f->did);
+  f->info_.infog1 = f->INFOG(1);
+  f->info_.infog2 = f->INFOG(2);
 }
-
 /* Our status for a MUMPS INFOG(1) (>= 0: ok; warnings are not errors). */
 static ves_status mumps_status(int infog1) {
   if (infog1 >= 0) return VES_OK;
@@ -64,9 +75,8 @@ static ves_status mumps_status(int infog1) {
 void ves_ldl_destroy(ves_ldl **f) {
   if (!f || !*f) return;
   if ((*f)->live) mumps_run(*f, JOB_END);
-  free((*f)->irn);
-  free((*f)->jcn);
-  free((*f)->a);
+  free((*f)->irn), free((*f)->jcn), free((*f)->a);
+  free((*f)->as), free((*f)->xs), free((*f)->b), free((*f)->r);
   free((*f)->wk);
   free(*f);
   *f = NULL;
@@ -76,21 +86,87 @@ void ves_ldl_destroy(ves_ldl **f) {
  * in-core estimate, f->est) with ICNTL(14) percent of room, as MUMPS
  * sizes its own; LWK_USER in entries, or in millions (< 0) beyond an int. */
 static ves_status workspace(ves_ldl *f) {
-  double want = f->est * (1 + f->id.ICNTL(14) / 100.0) + 1;
+  double want = f->est * (1 + f->ICNTL(14) / 100.0) + 1;
   if (want > 2e9) want = 1e6 * ceil(want / 1e6); /* LWK_USER counted in millions */
   if ((size_t)want <= f->lwk && f->wk) return VES_OK;
   free(f->wk);
   f->lwk = 0;
-  f->wk = malloc((size_t)want * sizeof *f->wk);
+  f->wk = malloc((size_t)want * (f->single ? sizeof(float) : sizeof(double)));
   if (!f->wk) return VES_ERR_ALLOC;
   f->lwk = (size_t)want;
-  f->id.wk_user = f->wk;
-  f->id.lwk_user = want > 2e9 ? -(int)(want / 1e6) : (int)want;
+  const int lwk = want > 2e9 ? -(int)(want / 1e6) : (int)want;
+  if (f->single)
+    f->sid.wk_user = f->wk, f->sid.lwk_user = lwk;
+  else
+    f->did.wk_user = f->wk, f->did.lwk_user = lwk;
+  return VES_OK;
+}
+
+/* Set one field of the live MUMPS instance. */
+#define ID_SET(f, field, v)                                                                        \
+  do {                                                                                             \
+    if ((f)->single)                                                                               \
+      (f)->sid.field = (v);                                                                        \
+    else                                                                                           \
+      (f)->did.field = (v);                                                                        \
+  } while (0)
+
+/* Start the MUMPS instance of f's precision, set its controls and analyse
+ * the pattern (JOB = -1, then 1). */
+static ves_status mumps_setup(ves_ldl *f) {
+  if (f->single)
+    f->icntl = f->sid.icntl, f->infog = f->sid.infog, f->info = f->sid.info;
+  else
+    f->icntl = f->did.icntl, f->infog = f->did.infog, f->info = f->did.info;
+  ID_SET(f, sym, f->spd ? 1 : 2); /* 1: SPD (Cholesky), 2: general symmetric (LDL^T, 2x2 pivots) */
+  ID_SET(f, par, 1);              /* the host works */
+  ID_SET(f, comm_fortran, USE_COMM_WORLD);
+  mumps_run(f, JOB_INIT);
+  ves_status s = mumps_status(f->info_.infog1);
+  if (s != VES_OK) return s;
+  f->live = 1;
+  f->ICNTL(1) = -1; /* no error messages */
+  f->ICNTL(2) = -1; /* no diagnostics */
+  f->ICNTL(3) = -1; /* no global information */
+  f->ICNTL(4) = 0;  /* print level: nothing */
+  f->info_.icntl14 = f->ICNTL(14);
+  /* ordering: approximate minimum fill. On the projection matrix at eps =
+   * 0.01 (21k nodes, 2.9M entries) its analysis takes 0.15 s against 2.5 s for
+   * the default choice (SCOTCH), and the factors come out 8% smaller. */
+  f->ICNTL(7) = 2;
+  /* symmetric indefinite (the KKT matrices): no maximum weighted matching
+   * (ICNTL(6) = 0) and the plain ordering of the graph (ICNTL(12) = 1)
+   * instead of the compressed one built on the matching. On the Newton KKT
+   * matrix at eps = 0.02 (25k unknowns) the analysis takes 0.7 s against
+   * 3-4 s, the factorization ~15% less, the factors are the same size
+   * (bench/RESULTS.md, "MUMPS options"); the pivoting within the fronts,
+   * and so the inertia, are unaffected. */
+  if (!f->spd) {
+    f->ICNTL(6) = 0;
+    f->ICNTL(12) = 1;
+  }
+  ID_SET(f, n, f->n);
+  ID_SET(f, nnz, f->nnz);
+  ID_SET(f, nz, f->nnz); /* the deprecated 32-bit count, kept consistent */
+  ID_SET(f, irn, f->irn);
+  ID_SET(f, jcn, f->jcn);
+  if (f->single)
+    f->sid.a = f->as;
+  else
+    f->did.a = f->a;
+  mumps_run(f, JOB_ANALYSE);
+  if ((s = mumps_status(f->info_.infog1)) != VES_OK) return s;
+  f->est = f->INFO(8) >= 0 ? (double)f->INFO(8) : -1e6 * f->INFO(8); /* < 0: millions */
   return VES_OK;
 }
 
 ves_status ves_ldl_create(int n, int nnz, const int *irow, const int *jcol, int spd,
                           ves_ldl **out) {
+  return ves_ldl_create_prec(n, nnz, irow, jcol, spd, 0, out);
+}
+
+ves_status ves_ldl_create_prec(int n, int nnz, const int *irow, const int *jcol, int spd,
+                               int single, ves_ldl **out) {
   VES_CHECK(out, VES_ERR_ARG);
   *out = NULL;
   VES_CHECK(n > 0 && nnz > 0 && irow && jcol, VES_ERR_ARG);
@@ -99,48 +175,21 @@ ves_status ves_ldl_create(int n, int nnz, const int *irow, const int *jcol, int 
   ves_status s = VES_ERR_ALLOC;
   ves_ldl *f = calloc(1, sizeof *f);
   if (!f) return VES_ERR_ALLOC;
+  f->single = single != 0, f->spd = spd != 0;
   f->n = n, f->nnz = nnz;
   f->irn = malloc((size_t)nnz * sizeof *f->irn);
   f->jcn = malloc((size_t)nnz * sizeof *f->jcn);
   f->a = calloc((size_t)nnz, sizeof *f->a);
   if (!f->irn || !f->jcn || !f->a) goto fail;
-  for (int k = 0; k < nnz; k++) f->irn[k] = irow[k] + 1, f->jcn[k] = jcol[k] + 1; /* 1-based */
-
-  f->id.sym = spd ? 1 : 2; /* 1: SPD (Cholesky), 2: general symmetric (LDL^T, 2x2 pivots) */
-  f->id.par = 1;           /* the host works */
-  f->id.comm_fortran = USE_COMM_WORLD;
-  mumps_run(f, JOB_INIT);
-  if ((s = mumps_status(f->info.infog1)) != VES_OK) goto fail;
-  f->live = 1;
-  f->id.ICNTL(1) = -1; /* no error messages */
-  f->id.ICNTL(2) = -1; /* no diagnostics */
-  f->id.ICNTL(3) = -1; /* no global information */
-  f->id.ICNTL(4) = 0;  /* print level: nothing */
-  f->info.icntl14 = f->id.ICNTL(14);
-  /* ordering: approximate minimum fill. On the projection matrix at eps =
-   * 0.01 (21k nodes, 2.9M entries) its analysis takes 0.15 s against 2.5 s for
-   * the default choice (SCOTCH), and the factors come out 8% smaller. */
-  f->id.ICNTL(7) = 2;
-  /* symmetric indefinite (the KKT matrices): no maximum weighted matching
-   * (ICNTL(6) = 0) and the plain ordering of the graph (ICNTL(12) = 1)
-   * instead of the compressed one built on the matching. On the Newton KKT
-   * matrix at eps = 0.02 (25k unknowns) the analysis takes 0.7 s against
-   * 3-4 s, the factorization ~15% less, the factors are the same size
-   * (bench/RESULTS.md, "MUMPS options"); the pivoting within the fronts,
-   * and so the inertia, are unaffected. */
-  if (!spd) {
-    f->id.ICNTL(6) = 0;
-    f->id.ICNTL(12) = 1;
+  if (f->single) {
+    f->as = calloc((size_t)nnz, sizeof *f->as);
+    f->xs = malloc((size_t)n * sizeof *f->xs);
+    f->b = malloc((size_t)n * sizeof *f->b);
+    f->r = malloc((size_t)n * sizeof *f->r);
+    if (!f->as || !f->xs || !f->b || !f->r) goto fail;
   }
-  f->id.n = n;
-  f->id.nnz = nnz;
-  f->id.nz = nnz; /* the deprecated 32-bit count, kept consistent */
-  f->id.irn = f->irn;
-  f->id.jcn = f->jcn;
-  f->id.a = f->a;
-  mumps_run(f, JOB_ANALYSE);
-  if ((s = mumps_status(f->info.infog1)) != VES_OK) goto fail;
-  f->est = f->id.INFO(8) >= 0 ? (double)f->id.INFO(8) : -1e6 * f->id.INFO(8); /* < 0: millions */
+  for (int k = 0; k < nnz; k++) f->irn[k] = irow[k] + 1, f->jcn[k] = jcol[k] + 1; /* 1-based */
+  if ((s = mumps_setup(f)) != VES_OK) goto fail;
   *out = f;
   return VES_OK;
 fail:
@@ -148,50 +197,113 @@ fail:
   return s;
 }
 
-/* A = L D L^T for the values val (JOB = 2), more workspace on INFOG(1) = -8/-9. */
-ves_status ves_ldl_factor(ves_ldl *f, const double *val) {
-  VES_CHECK(f && val, VES_ERR_ARG);
-  memcpy(f->a, val, (size_t)f->nnz * sizeof *f->a);
+/* Factor the values in f->a (JOB = 2), more workspace on INFOG(1) = -8/-9. */
+static ves_status factor_values(ves_ldl *f) {
+  if (f->single)
+    for (int k = 0; k < f->nnz; k++) f->as[k] = (float)f->a[k];
   f->factored = 0;
-  f->info.retries = 0;
+  f->info_.retries = 0;
   for (;;) {
     VES_CALL(workspace(f));
     mumps_run(f, JOB_FACTOR);
-    int e = f->info.infog1;
-    if ((e != -8 && e != -9) || f->info.retries == VES_LDL_MAX_RETRIES) break;
-    f->id.ICNTL(14) = 2 * f->id.ICNTL(14) + 20; /* relaxation percent: 20 -> 60 -> 140 -> 300 */
-    f->info.icntl14 = f->id.ICNTL(14);
-    f->info.retries++;
+    int e = f->info_.infog1;
+    if ((e != -8 && e != -9) || f->info_.retries == VES_LDL_MAX_RETRIES) break;
+    f->ICNTL(14) = 2 * f->ICNTL(14) + 20; /* relaxation percent: 20 -> 60 -> 140 -> 300 */
+    f->info_.icntl14 = f->ICNTL(14);
+    f->info_.retries++;
   }
-  ves_status s = mumps_status(f->info.infog1);
-  f->info.neg_pivots = f->id.INFOG(12);
+  ves_status s = mumps_status(f->info_.infog1);
+  f->info_.neg_pivots = f->INFOG(12);
   /* SYM = 1 is an LDL^T without pivoting: an indefinite matrix factors
    * "successfully" with negative pivots. Not SPD counts as singular here. */
-  if (s == VES_OK && f->id.sym == 1 && f->info.neg_pivots > 0) s = VES_ERR_SINGULAR;
-  int e29 = f->id.INFOG(29); /* real entries in the factors; < 0: millions */
-  f->info.factor_entries = s == VES_OK ? (e29 >= 0 ? (double)e29 : -1e6 * e29) : 0.0;
+  if (s == VES_OK && f->spd && f->info_.neg_pivots > 0) s = VES_ERR_SINGULAR;
+  int e29 = f->INFOG(29); /* real entries in the factors; < 0: millions */
+  f->info_.factor_entries = s == VES_OK ? (e29 >= 0 ? (double)e29 : -1e6 * e29) : 0.0;
   f->factored = s == VES_OK;
   return s;
 }
 
-/* rhs <- A^-1 rhs (JOB = 3). */
+ves_status ves_ldl_factor(ves_ldl *f, const double *val) {
+  VES_CHECK(f && val, VES_ERR_ARG);
+  memcpy(f->a, val, (size_t)f->nnz * sizeof *f->a);
+  return factor_values(f);
+}
+
+/* One MUMPS solve (JOB = 3) of the live instance, in place on x[n]. */
+static ves_status mumps_solve(ves_ldl *f, double *x) {
+  ID_SET(f, nrhs, 1);
+  ID_SET(f, lrhs, f->n);
+  f->ICNTL(20) = 0; /* dense right-hand side */
+  f->ICNTL(21) = 0; /* solution centralized, overwriting rhs */
+  if (f->single) {
+    for (int i = 0; i < f->n; i++) f->xs[i] = (float)x[i];
+    f->sid.rhs = f->xs;
+  } else {
+    f->did.rhs = x;
+  }
+  mumps_run(f, JOB_SOLVE);
+  ID_SET(f, rhs, NULL); /* borrowed for this call only */
+  if (f->single)
+    for (int i = 0; i < f->n; i++) x[i] = f->xs[i];
+  ves_status s = mumps_status(f->info_.infog1);
+  return s == VES_ERR_SINGULAR ? VES_ERR_SOLVER : s;
+}
+
+/* f->r <- b - A x for the symmetric A of the lower triplets (double
+ * values); returns |r| / |b| (0 for b = 0). */
+static double residual(ves_ldl *f, const double *b, const double *x) {
+  double *r = f->r;
+  memcpy(r, b, (size_t)f->n * sizeof *r);
+  for (int k = 0; k < f->nnz; k++) {
+    const int i = f->irn[k] - 1, j = f->jcn[k] - 1;
+    r[i] -= f->a[k] * x[j];
+    if (i != j) r[j] -= f->a[k] * x[i];
+  }
+  double rn = 0, bn = 0;
+  for (int i = 0; i < f->n; i++) rn += r[i] * r[i], bn += b[i] * b[i];
+  return bn > 0 ? sqrt(rn / bn) : 0.0;
+}
+
+/* The single precision factors could not reach LDL_REFINE_TOL: the object
+ * becomes a double precision one (a new analysis and factorization of the
+ * same values) for good. */
+static ves_status to_double(ves_ldl *f) {
+  mumps_run(f, JOB_END);
+  f->live = 0, f->single = 0, f->factored = 0;
+  free(f->wk), f->wk = NULL, f->lwk = 0;
+  free(f->as), f->as = NULL;
+  f->info_.fallbacks++;
+  VES_CALL(mumps_setup(f));
+  return factor_values(f);
+}
+
+/* rhs <- A^-1 rhs. With single precision factors, refined with the double
+ * values until |b - A x| <= LDL_REFINE_TOL |b| (one correction takes the
+ * KKT systems from ~5e-5 to ~5e-8), at most LDL_REFINE_MAX corrections,
+ * else solved again in double precision. */
 ves_status ves_ldl_solve(ves_ldl *f, double *rhs) {
   VES_CHECK(f && rhs && f->factored, VES_ERR_ARG);
-  f->id.ICNTL(20) = 0; /* dense right-hand side */
-  f->id.ICNTL(21) = 0; /* solution centralized, overwriting rhs */
-  f->id.nrhs = 1;
-  f->id.lrhs = f->n;
-  f->id.rhs = rhs;
-  mumps_run(f, JOB_SOLVE);
-  f->id.rhs = NULL; /* borrowed for this call only */
-  ves_status s = mumps_status(f->info.infog1);
-  return s == VES_ERR_SINGULAR ? VES_ERR_SOLVER : s;
+  f->info_.refinements = 0;
+  if (!f->single) return mumps_solve(f, rhs);
+  memcpy(f->b, rhs, (size_t)f->n * sizeof *f->b);
+  VES_CALL(mumps_solve(f, rhs));
+  for (int it = 0;; it++) {
+    const double rel = residual(f, f->b, rhs);
+    if (rel <= LDL_REFINE_TOL) return VES_OK;
+    if (it == LDL_REFINE_MAX || !isfinite(rel)) break;
+    VES_CALL(mumps_solve(f, f->r));
+    for (int i = 0; i < f->n; i++) rhs[i] += f->r[i];
+    f->info_.refinements++;
+  }
+  memcpy(rhs, f->b, (size_t)f->n * sizeof *rhs);
+  VES_CALL(to_double(f));
+  return mumps_solve(f, rhs);
 }
 
 int ves_ldl_size(const ves_ldl *f) { return f ? f->n : 0; }
 
 void ves_ldl_get_info(const ves_ldl *f, ves_ldl_info *info) {
-  if (f && info) *info = f->info;
+  if (f && info) *info = f->info_;
 }
 
 /* ---- IC(0) ---- */

@@ -81,7 +81,7 @@ static ves_status flow_matrices(flow *f, const double *sigma, double *A, double 
  * plus KKT_NROWS (one per held row with J of full rank, one per unused
  * row's -1). */
 static ves_status kkt_of(const flow *f, const double *M, const double *J, kkt_system *k) {
-  VES_CALL(kkt_create(f->s, k));
+  VES_CALL(kkt_create(f->s, 0, k));
   kkt_fill(k, M, 0.0, NULL, J, f->nc);
   return kkt_factor(k);
 }

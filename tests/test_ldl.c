@@ -143,6 +143,88 @@ static void test_ldl_kkt(void **state) {
   ves_ldl_destroy(&f);
 }
 
+/* Single precision factors (ves_ldl_create_prec): the same KKT system as
+ * test_ldl_kkt, factored in single precision and refined in double. */
+static void test_ldl_single_kkt(void **state) {
+  (void)state;
+  enum { NK = 40, N = NK + 1 };
+  uint64_t seed = 11;
+  static double K[NK * NK], A[N * N], Ad[N * N];
+  double b[N], x[N], xl[N], d[N], r[N];
+  const double cond = make_spd(NK, K, &seed);
+  memset(A, 0, sizeof A);
+  for (int i = 0; i < NK; i++) {
+    for (int j = 0; j < NK; j++) A[i * N + j] = K[i * NK + j];
+    A[NK * N + i] = A[i * N + NK] = 1.0 + 0.1 * i;
+  }
+  /* scaled by D = diag(10^(2 i / N)): cond(A) ~ 1e4 cond, so that single
+   * precision alone (residual ~ cond u_single ~ 1e-3) needs the refinement */
+  for (int i = 0; i < N; i++)
+    for (int j = 0; j < N; j++) A[i * N + j] *= pow(10.0, 2.0 * (i + j) / N);
+  static int ir[N * N], jc[N * N];
+  static double v[N * N];
+  int nnz = dense_to_lower(N, A, ir, jc, v);
+  for (int i = 0; i < N; i++) b[i] = x[i] = xl[i] = cos(0.5 * i);
+  ves_ldl *f = NULL;
+  assert_int_equal(ves_ldl_create_prec(N, nnz, ir, jc, 0, 1, &f), VES_OK);
+  assert_int_equal(ves_ldl_factor(f, v), VES_OK);
+  assert_int_equal(ves_ldl_solve(f, x), VES_OK);
+  ves_ldl_info info;
+  ves_ldl_get_info(f, &info);
+  assert_int_equal(info.neg_pivots, 1);
+  assert_int_equal(info.fallbacks, 0);
+  assert_true(info.refinements >= 1 && info.refinements <= 4);
+  lapack_int ipiv[N];
+  memcpy(Ad, A, sizeof A);
+  assert_int_equal(LAPACKE_dsysv(LAPACK_ROW_MAJOR, 'L', N, 1, Ad, N, ipiv, xl, 1), 0);
+  for (int i = 0; i < N; i++) {
+    d[i] = x[i] - xl[i];
+    r[i] = -b[i];
+    for (int j = 0; j < N; j++) r[i] += A[i * N + j] * x[j];
+  }
+  double err = norm2(N, d) / norm2(N, xl), res = norm2(N, r) / norm2(N, b);
+  printf("# single kkt: %d corrections, |x - x_lapack|/|x| = %.2e, |Ax - b|/|b| = %.2e "
+         "(cond(K) <= %.0f)\n",
+         info.refinements, err, res, cond);
+  /* the refinement stops at |r| <= 1e-6 |b| (ldl.c); the forward error is
+   * then at most cond(A) |r|/|b| (cond(A) < 1e5 here: 1e4 from D, < 10 from
+   * K and the border) */
+  assert_true(res <= 1e-6);
+  assert_true(err <= 1e5 * res);
+  ves_ldl_destroy(&f);
+}
+
+/* A matrix single precision cannot represent: [1 c; c 1], c = 1 - 1e-7,
+ * eigenvalues 2 and 1e-7; rounded to float, c becomes 1 - 1.19e-7, the small
+ * eigenvalue 19% off, so each correction gains only a factor ~0.2 and four
+ * cannot reach 1e-6: the solve turns the object double precision. */
+static void test_ldl_single_fallback(void **state) {
+  (void)state;
+  const double c = 1.0 - 1e-7;
+  int ir[3] = {0, 1, 1}, jc[3] = {0, 0, 1};
+  double v[3] = {1.0, c, 1.0}, x[2] = {1.0, -1.0};
+  ves_ldl *f = NULL;
+  assert_int_equal(ves_ldl_create_prec(2, 3, ir, jc, 0, 1, &f), VES_OK);
+  assert_int_equal(ves_ldl_factor(f, v), VES_OK);
+  assert_int_equal(ves_ldl_solve(f, x), VES_OK);
+  ves_ldl_info info;
+  ves_ldl_get_info(f, &info);
+  assert_int_equal(info.fallbacks, 1);
+  /* exact: x = (1, -1) / (1 - c) = (1e7, -1e7); double precision's forward
+   * error ~ cond u = 2e7 * 1.1e-16 ~ 2e-9 relative, plus c's own rounding
+   * (1e-16 / 1e-7 = 1e-9): 1e-7 is far from both and from single's 19% */
+  const double xe = 1.0 / (1.0 - c);
+  assert_true(fabs(x[0] - xe) <= 1e-7 * xe && fabs(x[1] + xe) <= 1e-7 * xe);
+  /* a second factorization stays double precision */
+  assert_int_equal(ves_ldl_factor(f, v), VES_OK);
+  x[0] = 1.0, x[1] = -1.0;
+  assert_int_equal(ves_ldl_solve(f, x), VES_OK);
+  ves_ldl_get_info(f, &info);
+  assert_int_equal(info.refinements, 0);
+  assert_true(fabs(x[0] - xe) <= 1e-7 * xe);
+  ves_ldl_destroy(&f);
+}
+
 /* New values on the same pattern: the second factorization must not see the
  * first (A2 = 3 A1 + diag shift changes the solution non-trivially). */
 static void test_ldl_refactor(void **state) {
@@ -396,6 +478,7 @@ int main(void) {
   // clang-format off
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_ldl_spd_vs_lapack), cmocka_unit_test(test_ldl_kkt),
+      cmocka_unit_test(test_ldl_single_kkt), cmocka_unit_test(test_ldl_single_fallback),
       cmocka_unit_test(test_ldl_refactor),      cmocka_unit_test(test_ldl_singular),
       cmocka_unit_test(test_ldl_errors),        cmocka_unit_test(test_ic_full_pattern),
       cmocka_unit_test(test_ic_laplacian),      cmocka_unit_test(test_ic_shift),

@@ -23,6 +23,8 @@ typedef struct {
   int freeze_hessian; /* newton: 0 = a fresh Hessian every iteration; 1 = assembled
                          once per step, rebuilt when the chord stalls (paper);
                          2 = also kept across steps (backend_newton.c) */
+  int factor_single;  /* newton, euler: the KKT factorization in single precision, each
+                         solve refined in double (ldl.h; [solver] factor_precision) */
   int verbose;        /* 0 quiet; > 0 lets the solver print (ipopt print_level) */
 } ves_backend_options;
 

@@ -66,11 +66,12 @@ typedef struct {
   double c0_ramp_end;   /* ... to c0_ramp_to at this time, then held */
   double c0_ramp_to;    /* C0 R0 at the ramp's end */
   /* [solver] */
-  char backend[VES_CONFIG_STR]; /* ipopt | nlopt | newton | euler */
-  double tol, ctol;             /* optimality and constraint tolerances */
-  int max_iter;                 /* iterations per attempt of a step (then dt/2) */
-  int freeze_hessian;           /* newton: Hessian once per step */
-  double drift_damping;         /* alpha of the drift damping (model.h), 0: off */
+  char backend[VES_CONFIG_STR];          /* ipopt | nlopt | newton | euler */
+  double tol, ctol;                      /* optimality and constraint tolerances */
+  int max_iter;                          /* iterations per attempt of a step (then dt/2) */
+  int freeze_hessian;                    /* newton: Hessian once per step */
+  char factor_precision[VES_CONFIG_STR]; /* newton, euler: single | double */
+  double drift_damping;                  /* alpha of the drift damping (model.h), 0: off */
   /* [reconnect] reference-configuration resets (all 0: none) */
   int reconnect_every;       /* accepted steps between resets (0: off) */
   double reconnect_cond_max; /* reset when max cond_2 F exceeds this (0: off, else > 1) */
