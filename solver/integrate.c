@@ -204,11 +204,42 @@ fail:
 static ves_status node_phi_fit(ves_sim *s); /* phi at the reference's nodes (below) */
 static double volume_target(const ves_sim *s, double t);
 
+/* The step problem and the backend state (the step's matrices, the KKT
+ * values and the factorization's workspace: ~a third of a run's memory, the
+ * model and its tables the rest) are freed before a new reference or mesh
+ * is built beside the old model, so that the two sets never coexist (the
+ * prolate at eps 0.01 peaked at 8.0 GB in its first reset when they did,
+ * against 4.5 GB for the steps between); restore_solver makes them again on
+ * the old model when the new one fails. */
+static void release_solver(ves_sim *s) {
+  if (s->bstate) s->backend->destroy(&s->bstate);
+  ves_step_destroy(&s->step);
+}
+
+static ves_status restore_solver(ves_sim *s, const ves_step_params *sp) {
+  s->fresh_next = 1;
+  VES_CALL(ves_step_create(s->model, &s->step));
+  VES_CALL(ves_step_set(s->step, s->y, sp));
+  return s->backend->create(&s->bopt, s->step, &s->bstate);
+}
+
+/* The step parameters at the current time (for a step problem made between
+ * steps: the backend needs a set one). */
+static ves_step_params params_now(const ves_sim *s) {
+  ves_step_params sp = {.dt = s->dt,
+                        .hold_area = s->ip.hold_area,
+                        .A0 = s->A0,
+                        .hold_volume = s->ip.hold_volume,
+                        .V_target = volume_target(s, s->t)};
+  return sp;
+}
+
 /* Put the simulation on the reference nr (taken on success): a new step
- * problem and backend state on its model are made first, the old ones freed
- * only once all exist; y continues from the new reference nodes. E, A, V
- * re-evaluated on the new model. On failure nr and everything made are
- * freed and s is unchanged. */
+ * problem and backend state on its model are made (the old ones already
+ * released: release_solver); y continues from the new reference nodes. E, A,
+ * V re-evaluated on the new model. On failure nr and everything made are
+ * freed and s continues on its old reference, with a new step problem and
+ * backend state (restore_solver). */
 static ves_status switch_reference(ves_sim *s, ves_reconnect *nr, const ves_step_params *sp) {
   ves_step *step = NULL;
   void *bstate = NULL;
@@ -226,10 +257,10 @@ static ves_status switch_reference(ves_sim *s, ves_reconnect *nr, const ves_step
     if (bstate) s->backend->destroy(&bstate);
     ves_step_destroy(&step);
     ves_reconnect_destroy(&nr);
+    if (!s->step) VES_CALL(restore_solver(s, sp));
     return st;
   }
-  s->backend->destroy(&s->bstate); /* the old pattern's objects, then their model */
-  ves_step_destroy(&s->step);
+  release_solver(s); /* (released already) the old pattern's objects, then their model */
   ves_reconnect_destroy(&s->ref);
   ves_remesh_destroy(&s->mesh); /* nr borrows nothing from it */
   s->ref = nr, s->model = m, s->step = step, s->bstate = bstate;
@@ -251,8 +282,12 @@ static ves_status reconnect(ves_sim *s, const ves_step_params *sp) {
    * the new one, ves_sim_node_material) */
   if (s->ip.reconnect_nodes == VES_RESET_NODES_MOTION && !s->node_phi_ok) (void)node_phi_fit(s);
   ves_reconnect *nr = NULL;
+  release_solver(s);
   ves_status st = ves_reconnect_create(s->model, s->y, (ves_reset_nodes)s->ip.reconnect_nodes, &nr);
-  if (st == VES_OK) st = switch_reference(s, nr, sp);
+  if (st == VES_OK)
+    st = switch_reference(s, nr, sp);
+  else
+    VES_CALL(restore_solver(s, sp));
   if (st != VES_OK) return st;
   s->since = 0;
   s->reset_step = s->nstep;
@@ -269,11 +304,8 @@ ves_status ves_sim_adopt_reference(ves_sim *s, ves_reconnect *ref, int reconnect
     ves_reconnect_destroy(&ref); /* taken, as on every failure */
     return VES_ERR_ARG;
   }
-  ves_step_params sp = {.dt = s->dt,
-                        .hold_area = s->ip.hold_area,
-                        .A0 = s->A0,
-                        .hold_volume = s->ip.hold_volume,
-                        .V_target = volume_target(s, s->t)};
+  ves_step_params sp = params_now(s);
+  release_solver(s);
   VES_CALL(switch_reference(s, ref, &sp));
   s->reconnections = reconnections, s->reset_step = reset_step;
   s->since = s->nstep >= reset_step ? s->nstep - reset_step : 0;
@@ -314,13 +346,17 @@ static ves_status remesh(ves_sim *s, ves_remesh_info *info) {
   rp.hold_volume = s->ip.hold_volume, rp.V_target = volume_target(s, s->t);
   ves_remesh *nm = NULL;
   char err[256];
+  release_solver(s);
   ves_status st = ves_remesh_create(s->rcfg, s->model, s->y, &rp, &nm, err, sizeof err);
   if (st > 0) st = VES_OK; /* the correction short of ctol: its residuals are reported */
   if (st == VES_OK) ves_remesh_get_info(nm, info);
-  if (st == VES_OK)
+  if (st == VES_OK) {
     st = switch_remesh(s, nm, rp.V_target);
-  else
+  } else {
     ves_remesh_destroy(&nm);
+    ves_step_params sp = params_now(s);
+    VES_CALL(restore_solver(s, &sp));
+  }
   if (st != VES_OK) return st;
   s->rsince = 0, s->remesh_step = s->nstep;
   s->remeshings++;
@@ -363,10 +399,13 @@ static ves_status switch_remesh(ves_sim *s, ves_remesh *nm, double V_target) {
     ves_step_destroy(&step);
     ves_remesh_destroy(&nm);
     free(y), free(ynew), free(x), free(yprev);
+    if (!s->step) {
+      ves_step_params sp = params_now(s);
+      VES_CALL(restore_solver(s, &sp));
+    }
     return st;
   }
-  s->backend->destroy(&s->bstate); /* the old pattern's objects, then their model */
-  ves_step_destroy(&s->step);
+  release_solver(s); /* (released already) the old pattern's objects, then their model */
   ves_reconnect_destroy(&s->ref);
   ves_remesh_destroy(&s->mesh);
   s->mesh = nm, s->model = m, s->step = step, s->bstate = bstate;
@@ -389,6 +428,7 @@ ves_status ves_sim_adopt_remesh(ves_sim *s, ves_remesh *nm, int remeshings, long
     ves_remesh_destroy(&nm); /* taken, as on every failure */
     return VES_ERR_ARG;
   }
+  release_solver(s);
   VES_CALL(switch_remesh(s, nm, volume_target(s, s->t)));
   s->reset_step = s->remesh_step = remesh_step, s->remeshings = remeshings;
   s->reconnections = reconnections;
@@ -397,24 +437,20 @@ ves_status ves_sim_adopt_remesh(ves_sim *s, ves_remesh *nm, int remeshings, long
 
 const ves_remesh *ves_sim_remesh(const ves_sim *s) { return s ? s->mesh : NULL; }
 
-/* After an accepted step (and its reset, if any): remesh when due
- * (every rmp.every steps, the distortion past rmp's thresholds, or a reset
- * that was due and failed). The step stands whatever happens here. */
-static void remesh_if_due(ves_sim *s, ves_step_report *rep) {
-  int due = 0;
+/* After an accepted step: is a remeshing due by its own rules (every
+ * rmp.every steps, the distortion past rmp's thresholds)? Counts the step.
+ * 0 when not, or when the distortion cannot be measured (rep->remesh_status). */
+static int remesh_due(ves_sim *s, ves_step_report *rep) {
   s->rsince++;
-  if (s->rmp.every > 0 && s->rsince >= s->rmp.every) due = 1;
-  if (!due && (s->rmp.cond_max > 0 || s->rmp.det_min > 0)) {
+  if (s->rmp.every > 0 && s->rsince >= s->rmp.every) return 1;
+  if (s->rmp.cond_max > 0 || s->rmp.det_min > 0) {
     double c = 1, d = 1;
     rep->remesh_status = ves_reconnect_distortion(s->model, s->y, &c, &d);
-    if (rep->remesh_status != VES_OK) return;
-    due =
-        (s->rmp.cond_max > 0 && c > s->rmp.cond_max) || (s->rmp.det_min > 0 && d < s->rmp.det_min);
+    if (rep->remesh_status != VES_OK) return 0;
+    return (s->rmp.cond_max > 0 && c > s->rmp.cond_max) ||
+           (s->rmp.det_min > 0 && d < s->rmp.det_min);
   }
-  if (!due && s->rmp.on_failed_reset && rep->reconnect_status < 0) due = 1;
-  if (!due) return;
-  rep->remesh_status = remesh(s, &rep->remesh);
-  if (rep->remesh_status == VES_OK) rep->remeshed = 1;
+  return 0;
 }
 
 ves_status ves_sim_set_remesh(ves_sim *s, const ves_config *cfg, const ves_remesh_policy *pol) {
@@ -500,12 +536,16 @@ static void next_dt(ves_sim *s, double dt, double dE, int iterations, int retrie
   s->dt = fmin(fmax(next, s->ip.dt_min), s->ip.dt_max);
 }
 
-/* After an accepted step: a reset of the reference when one is due, then a
- * remeshing when one is due; the step stands whatever happens here (the
- * outcomes are in rep). sp: the step's parameters (a reset rebuilds the
- * step problem with them). */
+/* After an accepted step: a remeshing when one is due, else a reset of the
+ * reference when one is due, then a remeshing if that reset failed and
+ * rmp.on_failed_reset; the step stands whatever happens here (the outcomes
+ * are in rep). A remeshing makes a new reference, so it replaces a reset
+ * due on the same step (a step records at most one new reference: the
+ * file's references are numbered by reset). sp: the step's parameters (a
+ * reset rebuilds the step problem with them). */
 static void after_step(ves_sim *s, const ves_step_params *sp, ves_step_report *rep) {
-  if (s->rp.every > 0 || s->rp.cond_max > 0 || s->rp.det_min > 0) {
+  int remesh_now = s->rcfg && remesh_due(s, rep);
+  if (!remesh_now && (s->rp.every > 0 || s->rp.cond_max > 0 || s->rp.det_min > 0)) {
     int due = 0;
     s->since++;
     rep->reconnect_status =
@@ -522,8 +562,12 @@ static void after_step(ves_sim *s, const ves_step_params *sp, ves_step_report *r
         rep->shift = info.shift_max;
       }
     }
+    remesh_now = s->rcfg && s->rmp.on_failed_reset && rep->reconnect_status < 0;
   }
-  if (s->rcfg) remesh_if_due(s, rep);
+  if (remesh_now) {
+    rep->remesh_status = remesh(s, &rep->remesh);
+    if (rep->remesh_status == VES_OK) rep->remeshed = 1;
+  }
 }
 
 /* Take the attempt's result (positions s->ynew, E, A, V, multipliers lam,

@@ -736,6 +736,43 @@ static void test_restart_after_reset(void **state) {
   unlink(ini), unlink(part), unlink(full);
 }
 
+/* A reset and a remeshing due on the same step (resets every step,
+ * remeshings every 2): the remeshing replaces the reset (integrate.c,
+ * after_step), and a run stopped after step 3 and restarted continues bit
+ * for bit. Before, the remeshing discarded the reset's reference before the
+ * file recorded it, and vesica crashed (SIGSEGV) writing it. */
+static void test_reset_and_remesh_same_step(void **state) {
+  (void)state;
+  char ini[128], part[128], full[128];
+  tmp_path(ini, sizeof ini, "both.ini");
+  tmp_path(part, sizeof part, "both.h5");
+  tmp_path(full, sizeof full, "both_full.h5");
+  write_file(ini, "[time]\nt_end = 0.03\nadaptive = 0\n[output]\nsnapshot_every = 1\n"
+                  "[reconnect]\nevery = 1\n[remesh]\nevery = 2\n");
+  result r;
+  run(&r, "run", ini, TINY, "--out", full, "--quiet", NULL);
+  if (r.code) fail_msg("run: exit %d: %s", r.code, r.err);
+  run(&r, "run", ini, TINY, "--out", part, "--quiet", "--max-steps", "3", NULL);
+  if (r.code) fail_msg("run: exit %d: %s", r.code, r.err);
+  run(&r, "run", "--restart", part, "--quiet", NULL);
+  if (r.code) fail_msg("restart: exit %d: %s", r.code, r.err);
+  ves_io *a = open_ro(full), *b = open_ro(part);
+  const long R = ves_io_rows(a);
+  assert_int_equal(R, 6);
+  assert_int_equal(ves_io_rows(b), R);
+  same_series(a, b, R);
+  double *ra = series(a, "reconnections");
+  printf("# resets after each step:");
+  for (long k = 0; k < R; k++) printf(" %g", ra[k]);
+  printf("; remeshings %d\n", ves_io_remeshes(a));
+  /* resets after the odd steps, remeshings after the even ones */
+  for (long k = 0; k < R; k++) assert_true(ra[k] == (double)((k + 2) / 2));
+  assert_int_equal(ves_io_remeshes(a), 3);
+  assert_int_equal(ves_io_remeshes(b), 3);
+  free(ra);
+  ves_io_close(&a), ves_io_close(&b);
+}
+
 /* A run with full remeshings (io.h /remeshes) continues across them bit for
  * bit: resets every 2 steps and remeshings every 3 (reset after step 2,
  * remeshing after 3, reset after 5, remeshing after 6). Stopped after step 4
@@ -1718,6 +1755,7 @@ int main(int argc, char **argv) {
       cmocka_unit_test(test_restart_bitwise_freeze2),
       cmocka_unit_test(test_restart_after_reset),
       cmocka_unit_test(test_restart_after_remesh),
+      cmocka_unit_test(test_reset_and_remesh_same_step),
       cmocka_unit_test(test_restart_set),
       cmocka_unit_test(test_spectrum),
       cmocka_unit_test(test_progress_eta),
