@@ -205,12 +205,13 @@ static ves_status node_phi_fit(ves_sim *s); /* phi at the reference's nodes (bel
 static double volume_target(const ves_sim *s, double t);
 
 /* The step problem and the backend state (the step's matrices, the KKT
- * values and the factorization's workspace: ~a third of a run's memory, the
- * model and its tables the rest) are freed before a new reference or mesh
- * is built beside the old model, so that the two sets never coexist (the
- * prolate at eps 0.01 peaked at 8.0 GB in its first reset when they did,
- * against 4.5 GB for the steps between); restore_solver makes them again on
- * the old model when the new one fails. */
+ * values and the factorization's workspace) are freed before a new
+ * reference or mesh is built beside the old model, and restore_solver makes
+ * them again on the old model when the new one fails. On the eps 0.02
+ * prolate this took a reset's peak from 3.69 to 3.38 GB (bench/RESULTS.md,
+ * "A reset's memory"); the old model's tables, kept as the fallback, still
+ * coexist with the new ones (2.12 GB for the steps alone). A failed reset
+ * or remeshing thus continues with a fresh factorization. */
 static void release_solver(ves_sim *s) {
   if (s->bstate) s->backend->destroy(&s->bstate);
   ves_step_destroy(&s->step);
