@@ -384,11 +384,8 @@ static ves_status switch_remesh(ves_sim *s, ves_remesh *nm, double V_target) {
   }
   if (st == VES_OK) {
     memcpy(y, ves_remesh_y(nm), 2 * (size_t)n * sizeof *y);
-    ves_step_params sp = {.dt = s->dt,
-                          .hold_area = s->ip.hold_area,
-                          .A0 = s->A0,
-                          .hold_volume = s->ip.hold_volume,
-                          .V_target = V_target};
+    ves_step_params sp = params_now(s);
+    sp.V_target = V_target;
     st = ves_step_set(step, y, &sp); /* the backend needs a set problem */
   }
   if (st == VES_OK) st = s->backend->create(&s->bopt, step, &bstate);

@@ -100,22 +100,50 @@ static void test_ldl_spd_vs_lapack(void **state) {
   assert_null(f);
 }
 
+/* The bordered KKT-like matrix [K a; a^T 0] (N = NK + 1, row-major) of the
+ * SPD K[NK*NK], a_i = 1 + 0.1 i (the constraint gradient). */
+static void kkt_dense(int NK, const double *K, double *A) {
+  const int N = NK + 1;
+  memset(A, 0, (size_t)N * N * sizeof *A);
+  for (int i = 0; i < NK; i++) {
+    for (int j = 0; j < NK; j++) A[i * N + j] = K[i * NK + j];
+    A[NK * N + i] = A[i * N + NK] = 1.0 + 0.1 * i;
+  }
+}
+
+/* x against LAPACK's dsysv (Bunch-Kaufman) on the dense A x = b: *err =
+ * |x - x_lapack| / |x_lapack|, *res = |A x - b| / |b|. */
+static void against_dsysv(int N, const double *A, const double *b, const double *x, double *err,
+                          double *res) {
+  double *Ad = malloc((size_t)N * N * sizeof *Ad), *xl = malloc((size_t)N * sizeof *xl);
+  double *d = malloc((size_t)N * sizeof *d), *r = malloc((size_t)N * sizeof *r);
+  lapack_int *ipiv = malloc((size_t)N * sizeof *ipiv);
+  assert_true(Ad && xl && d && r && ipiv);
+  memcpy(Ad, A, (size_t)N * N * sizeof *Ad);
+  memcpy(xl, b, (size_t)N * sizeof *xl);
+  assert_int_equal(LAPACKE_dsysv(LAPACK_ROW_MAJOR, 'L', N, 1, Ad, N, ipiv, xl, 1), 0);
+  for (int i = 0; i < N; i++) {
+    d[i] = x[i] - xl[i];
+    r[i] = -b[i];
+    for (int j = 0; j < N; j++) r[i] += A[i * N + j] * x[j];
+  }
+  *err = norm2(N, d) / norm2(N, xl), *res = norm2(N, r) / norm2(N, b);
+  free(Ad), free(xl), free(d), free(r), free(ipiv);
+}
+
 /* KKT-like [K a; a^T 0], K SPD: inertia (N, 1, 0), so one negative pivot;
  * the solution against LAPACK's dsysv (Bunch-Kaufman). */
 static void test_ldl_kkt(void **state) {
   (void)state;
   enum { NK = 8, N = NK + 1 };
   uint64_t seed = 7;
-  double K[NK * NK], A[N * N] = {0}, b[N], x[N], xl[N];
+  double K[NK * NK], A[N * N], b[N], x[N];
   make_spd(NK, K, &seed);
-  for (int i = 0; i < NK; i++) {
-    for (int j = 0; j < NK; j++) A[i * N + j] = K[i * NK + j];
-    A[NK * N + i] = A[i * N + NK] = 1.0 + 0.1 * i; /* the constraint gradient a */
-  }
+  kkt_dense(NK, K, A);
   int ir[N * N], jc[N * N];
   double v[N * N];
   int nnz = dense_to_lower(N, A, ir, jc, v);
-  for (int i = 0; i < N; i++) b[i] = x[i] = xl[i] = cos(0.5 * i);
+  for (int i = 0; i < N; i++) b[i] = x[i] = cos(0.5 * i);
   ves_ldl *f = NULL;
   assert_int_equal(ves_ldl_create(N, nnz, ir, jc, 0, &f), VES_OK);
   assert_int_equal(ves_ldl_factor(f, v), VES_OK);
@@ -123,17 +151,8 @@ static void test_ldl_kkt(void **state) {
   ves_ldl_info info;
   ves_ldl_get_info(f, &info);
   assert_int_equal(info.neg_pivots, 1); /* Sylvester: one negative eigenvalue */
-  double Ad[N * N];
-  lapack_int ipiv[N];
-  memcpy(Ad, A, sizeof A);
-  assert_int_equal(LAPACKE_dsysv(LAPACK_ROW_MAJOR, 'L', N, 1, Ad, N, ipiv, xl, 1), 0);
-  double d[N], r[N];
-  for (int i = 0; i < N; i++) {
-    d[i] = x[i] - xl[i];
-    r[i] = -b[i];
-    for (int j = 0; j < N; j++) r[i] += A[i * N + j] * x[j];
-  }
-  double err = norm2(N, d) / norm2(N, xl), res = norm2(N, r) / norm2(N, b);
+  double err, res;
+  against_dsysv(N, A, b, x, &err, &res);
   printf("# kkt: |x - x_lapack|/|x| = %.2e, |Ax - b|/|b| = %.2e\n", err, res);
   /* O(1) entries, N = 9, and a KKT matrix of moderate conditioning (K's
    * Gershgorin bound is ~ 10, a has norm ~ 3): backward-stable residual ~ N u,
@@ -149,14 +168,10 @@ static void test_ldl_single_kkt(void **state) {
   (void)state;
   enum { NK = 40, N = NK + 1 };
   uint64_t seed = 11;
-  static double K[NK * NK], A[N * N], Ad[N * N];
-  double b[N], x[N], xl[N], d[N], r[N];
+  static double K[NK * NK], A[N * N];
+  double b[N], x[N];
   const double cond = make_spd(NK, K, &seed);
-  memset(A, 0, sizeof A);
-  for (int i = 0; i < NK; i++) {
-    for (int j = 0; j < NK; j++) A[i * N + j] = K[i * NK + j];
-    A[NK * N + i] = A[i * N + NK] = 1.0 + 0.1 * i;
-  }
+  kkt_dense(NK, K, A);
   /* scaled by D = diag(10^(2 i / N)): cond(A) ~ 1e4 cond, so that single
    * precision alone (residual ~ cond u_single ~ 1e-3) needs the refinement */
   for (int i = 0; i < N; i++)
@@ -164,7 +179,7 @@ static void test_ldl_single_kkt(void **state) {
   static int ir[N * N], jc[N * N];
   static double v[N * N];
   int nnz = dense_to_lower(N, A, ir, jc, v);
-  for (int i = 0; i < N; i++) b[i] = x[i] = xl[i] = cos(0.5 * i);
+  for (int i = 0; i < N; i++) b[i] = x[i] = cos(0.5 * i);
   ves_ldl *f = NULL;
   assert_int_equal(ves_ldl_create_prec(N, nnz, ir, jc, 0, 1, &f), VES_OK);
   assert_int_equal(ves_ldl_factor(f, v), VES_OK);
@@ -174,15 +189,8 @@ static void test_ldl_single_kkt(void **state) {
   assert_int_equal(info.neg_pivots, 1);
   assert_int_equal(info.fallbacks, 0);
   assert_true(info.refinements >= 1 && info.refinements <= 4);
-  lapack_int ipiv[N];
-  memcpy(Ad, A, sizeof A);
-  assert_int_equal(LAPACKE_dsysv(LAPACK_ROW_MAJOR, 'L', N, 1, Ad, N, ipiv, xl, 1), 0);
-  for (int i = 0; i < N; i++) {
-    d[i] = x[i] - xl[i];
-    r[i] = -b[i];
-    for (int j = 0; j < N; j++) r[i] += A[i * N + j] * x[j];
-  }
-  double err = norm2(N, d) / norm2(N, xl), res = norm2(N, r) / norm2(N, b);
+  double err, res;
+  against_dsysv(N, A, b, x, &err, &res);
   printf("# single kkt: %d corrections, |x - x_lapack|/|x| = %.2e, |Ax - b|/|b| = %.2e "
          "(cond(K) <= %.0f)\n",
          info.refinements, err, res, cond);
