@@ -95,7 +95,7 @@ deps:
 	fi
 
 test: deps
-	@$(MAKE) --no-print-directory $(BUILD)/libvesica.a $(BUILD)/vesica $(TESTS)
+	@$(MAKE) --no-print-directory $(BUILD)/libvesica.a $(BUILD)/vesica $(TESTS) $(BENCHES)
 	@OPENBLAS_NUM_THREADS=1 sh tests/run.sh $(TESTS)
 
 # the small cases under valgrind (memcheck, no SAN build): ~4 min

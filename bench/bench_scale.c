@@ -66,6 +66,8 @@ typedef struct {
   double m_mean;                                          /* mean LME neighbours per point */
   double setup, nodes_s, tables_s, project_s;             /* ves_setup_create and its parts */
   double eval, hess, diss, stepH, analysis, factor, step; /* single operations; step: mean */
+  double solve;                                           /* one KKT solve (with its refinement) */
+  long kkt_nnz;                                           /* triplets of the KKT matrix */
   double iters, hessians;                                 /* per accepted step, retries included */
   int retries;                                            /* halvings over the NSTEPS steps */
 } row;
@@ -161,8 +163,10 @@ static int measure(const ves_config *cfg, ves_setup *s, int nsteps, row *r) {
     rc = fail("ves_step_eval_jac", st);
     goto done;
   }
+  ves_problem_params pp; /* as vesica run maps the problem file (the backend: newton) */
+  ves_problem_params_from_config(cfg, &pp);
   double t0 = now();
-  st = kkt_create(step, &k); /* structure and the MUMPS analysis */
+  st = kkt_create(step, pp.bopt.factor_single, &k); /* structure and the MUMPS analysis */
   r->analysis = now() - t0;
   if (st != VES_OK) {
     rc = fail("kkt_create (MUMPS analysis)", st);
@@ -179,6 +183,18 @@ static int measure(const ves_config *cfg, ves_setup *s, int nsteps, row *r) {
     }
   }
   r->factor = median(t);
+  r->kkt_nnz = k.nnz;
+  for (int i = 0; i < NREP; i++) { /* a solve, x0 as the right-hand side */
+    for (int j = 0; j < nvar + KKT_NROWS; j++) g[j] = j < nvar ? x0[j] : 0.0;
+    t0 = now();
+    st = kkt_solve(&k, g);
+    t[i] = now() - t0;
+    if (st != VES_OK) {
+      rc = fail("kkt_solve", st);
+      goto done;
+    }
+  }
+  r->solve = median(t);
   /* the steps below build their own step problem and KKT system: free these
    * first, so that the peak memory is a run's, not a run's plus this copy */
   kkt_destroy(&k);
@@ -187,8 +203,6 @@ static int measure(const ves_config *cfg, ves_setup *s, int nsteps, row *r) {
   H = J = x0 = g = y = NULL;
 
   /* NSTEPS accepted steps of the newton backend from the reference state */
-  ves_problem_params pp; /* as vesica run maps the problem file (the backend: newton) */
-  ves_problem_params_from_config(cfg, &pp);
   if ((st = ves_sim_create(m, &ves_backend_newton, &pp.bopt, &pp.ip, &sim)) != VES_OK) {
     rc = fail("ves_sim_create (newton)", st);
     goto done;
@@ -297,13 +311,13 @@ int main(int argc, char **argv) {
     printf(
         "# eps\tthreads\tblas_threads\tnodes\tpoints\tneighbours_mean\tsetup_s\tnodes_s\t"
         "tables_s\tproject_s\tmodel_s\teval_s\thess_s\tK_s\tstepH_s\tanalysis_s\tfactor_s\tstep_s\t"
-        "iters_per_step\thess_per_step\tretries\tcpu_s\tpeak_MB\tblas_core\n");
+        "iters_per_step\thess_per_step\tretries\tcpu_s\tpeak_MB\tblas_core\tsolve_s\tkkt_nnz\n");
   printf(
       "%g\t%d\t%s\t%d\t%d\t%.1f\t%.3f\t%.3f\t%.3f\t%.3f\t%.3f\t%.4f\t%.4f\t%.4f\t%.4f\t%.3f\t%.3f\t"
-      "%.3f\t%.2f\t%.2f\t%d\t%.2f\t%.1f\t%s\n",
+      "%.3f\t%.2f\t%.2f\t%d\t%.2f\t%.1f\t%s\t%.3f\t%ld\n",
       eps, nthr, blas ? blas : "unset", r.nodes, r.points, r.m_mean, r.setup, r.nodes_s, r.tables_s,
       r.project_s, r.setup - r.nodes_s - r.tables_s - r.project_s, r.eval, r.hess, r.diss, r.stepH,
       r.analysis, r.factor, r.step, r.iters, r.hessians, r.retries, cpu_s, peak_mb,
-      core ? core : "unknown");
+      core ? core : "unknown", r.solve, r.kkt_nnz);
   return 0;
 }
