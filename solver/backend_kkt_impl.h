@@ -64,12 +64,10 @@ static inline ves_status kkt_create(const ves_step *s, int single, kkt_system *k
   return st;
 }
 
-/* Values: (1,1) = H + delta K (K may be NULL when delta = 0), J rows
- * J[ncon x nvar] row-major for the held constraints, D as above. */
-static inline void kkt_fill(kkt_system *k, const double *H, double delta, const double *K,
-                            const double *J, int ncon) {
+/* The constraint rows' values: J[ncon x nvar] row-major for the held
+ * constraints, D as above; the (1,1) block untouched. */
+static inline void kkt_fill_rows(kkt_system *k, const double *J, int ncon) {
   const int nv = k->nvar;
-  for (int t = 0; t < k->nh; t++) k->val[t] = H[t] + (delta != 0 ? delta * K[t] : 0.0);
   int t = k->nh;
   for (int i = 0; i < KKT_NROWS; i++) {
     if (i < ncon)
@@ -79,6 +77,14 @@ static inline void kkt_fill(kkt_system *k, const double *H, double delta, const 
     t += nv;
     k->val[t++] = i < ncon ? 0.0 : -1.0;
   }
+}
+
+/* Values: (1,1) = H + delta K (K may be NULL when delta = 0), the rows as
+ * kkt_fill_rows. */
+static inline void kkt_fill(kkt_system *k, const double *H, double delta, const double *K,
+                            const double *J, int ncon) {
+  for (int t = 0; t < k->nh; t++) k->val[t] = H[t] + (delta != 0 ? delta * K[t] : 0.0);
+  kkt_fill_rows(k, J, ncon);
 }
 
 /* Factorize; VES_OK with k->neg the negative pivots, or the ves_ldl error. */

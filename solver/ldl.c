@@ -21,7 +21,9 @@
 #define JOB_SOLVE 3
 #define USE_COMM_WORLD (-987654) /* the Fortran MPI_COMM_WORLD of the sequential fake MPI */
 #define LDL_REFINE_TOL 1e-6      /* single precision: |b - A x| / |b| a solve reaches */
-#define LDL_REFINE_MAX 4         /* corrections before falling back to double precision */
+#define LDL_GMRES_M 20           /* single precision: Krylov vectors of the refinement */
+#define LDL_GMRES_MAX 60         /* ... and its iterations before the double fallback */
+#define LDL_MATVEC_CHUNKS 4      /* the residual's products: fixed chunks of the triplets */
 
 struct ves_ldl {
   int single;                      /* 1: the factors in single precision (SMUMPS), solves refined */
@@ -32,10 +34,15 @@ struct ves_ldl {
   int n;                           /* order */
   int nnz;                         /* triplets */
   int *irn, *jcn;     /* nnz 1-based row and column indices (MUMPS keeps the pointers) */
-  double *a;          /* nnz values of the last factorization */
+  const double *a;    /* nnz values of the last factorization (the caller's: borrowed) */
   float *as;          /* single: the values MUMPS factors */
   float *xs;          /* single: n, the right-hand side MUMPS solves */
   double *b, *r;      /* single: n each, the right-hand side and the residual */
+  double *V, *Z;      /* single: the refinement's Krylov basis ((LDL_GMRES_M + 1) n) and
+                         its preconditioned vectors (LDL_GMRES_M n), allocated when
+                         first needed */
+  double *yc;         /* single: LDL_MATVEC_CHUNKS n, the products' partial sums */
+  int prefer_single;  /* 1: created single; a double fallback lasts one factorization */
   int live;           /* 1 once JOB = -1 succeeded (JOB = -2 needed) */
   int factored;       /* 1 after a successful factorization */
   ves_ldl_info info_; /* diagnostics of the last call */
@@ -75,8 +82,9 @@ static ves_status mumps_status(int infog1) {
 void ves_ldl_destroy(ves_ldl **f) {
   if (!f || !*f) return;
   if ((*f)->live) mumps_run(*f, JOB_END);
-  free((*f)->irn), free((*f)->jcn), free((*f)->a);
+  free((*f)->irn), free((*f)->jcn);
   free((*f)->as), free((*f)->xs), free((*f)->b), free((*f)->r);
+  free((*f)->V), free((*f)->Z), free((*f)->yc);
   free((*f)->wk);
   free(*f);
   *f = NULL;
@@ -150,11 +158,18 @@ static ves_status mumps_setup(ves_ldl *f) {
   ID_SET(f, nz, f->nnz); /* the deprecated 32-bit count, kept consistent */
   ID_SET(f, irn, f->irn);
   ID_SET(f, jcn, f->jcn);
+  /* values for the analysis: the last factorization's (a switch of
+   * precision), else zeros for the while (none is read without a matching
+   * or scaling at analysis, but MUMPS is given an array) */
+  double *zero = NULL;
   if (f->single)
     f->sid.a = f->as;
-  else
-    f->did.a = f->a;
+  else if (f->a)
+    f->did.a = (double *)f->a;
+  else if (!(f->did.a = zero = calloc((size_t)f->nnz, sizeof *zero)))
+    return VES_ERR_ALLOC;
   mumps_run(f, JOB_ANALYSE);
+  if (zero) f->did.a = NULL, free(zero);
   if ((s = mumps_status(f->info_.infog1)) != VES_OK) return s;
   f->est = f->INFO(8) >= 0 ? (double)f->INFO(8) : -1e6 * f->INFO(8); /* < 0: millions */
   return VES_OK;
@@ -175,18 +190,18 @@ ves_status ves_ldl_create_prec(int n, int nnz, const int *irow, const int *jcol,
   ves_status s = VES_ERR_ALLOC;
   ves_ldl *f = calloc(1, sizeof *f);
   if (!f) return VES_ERR_ALLOC;
-  f->single = single != 0, f->spd = spd != 0;
+  f->single = f->prefer_single = single != 0, f->spd = spd != 0;
   f->n = n, f->nnz = nnz;
   f->irn = malloc((size_t)nnz * sizeof *f->irn);
   f->jcn = malloc((size_t)nnz * sizeof *f->jcn);
-  f->a = calloc((size_t)nnz, sizeof *f->a);
-  if (!f->irn || !f->jcn || !f->a) goto fail;
+  if (!f->irn || !f->jcn) goto fail;
   if (f->single) {
     f->as = calloc((size_t)nnz, sizeof *f->as);
     f->xs = malloc((size_t)n * sizeof *f->xs);
     f->b = malloc((size_t)n * sizeof *f->b);
     f->r = malloc((size_t)n * sizeof *f->r);
-    if (!f->as || !f->xs || !f->b || !f->r) goto fail;
+    f->yc = malloc((size_t)LDL_MATVEC_CHUNKS * n * sizeof *f->yc);
+    if (!f->as || !f->xs || !f->b || !f->r || !f->yc) goto fail;
   }
   for (int k = 0; k < nnz; k++) f->irn[k] = irow[k] + 1, f->jcn[k] = jcol[k] + 1; /* 1-based */
   if ((s = mumps_setup(f)) != VES_OK) goto fail;
@@ -195,6 +210,16 @@ ves_status ves_ldl_create_prec(int n, int nnz, const int *irow, const int *jcol,
 fail:
   ves_ldl_destroy(&f);
   return s;
+}
+
+/* A new MUMPS instance of the other precision on the same pattern (JOB =
+ * -2 for the old one, then -1 and the analysis); the workspace is
+ * reallocated at the next factorization. */
+static ves_status switch_precision(ves_ldl *f, int single) {
+  mumps_run(f, JOB_END);
+  f->live = 0, f->single = single, f->factored = 0;
+  free(f->wk), f->wk = NULL, f->lwk = 0;
+  return mumps_setup(f);
 }
 
 /* Factor the values in f->a (JOB = 2), more workspace on INFOG(1) = -8/-9. */
@@ -225,7 +250,14 @@ static ves_status factor_values(ves_ldl *f) {
 
 ves_status ves_ldl_factor(ves_ldl *f, const double *val) {
   VES_CHECK(f && val, VES_ERR_ARG);
-  memcpy(f->a, val, (size_t)f->nnz * sizeof *f->a);
+  f->a = val;
+  if (!f->single) f->did.a = (double *)val; /* MUMPS reads, never writes, A */
+  if (f->prefer_single && !f->single) VES_CALL(switch_precision(f, 1)); /* after a fallback */
+  ves_status s = factor_values(f);
+  if (s == VES_OK || s == VES_ERR_ALLOC || !f->single) return s;
+  /* the values rounded to float are singular or overflow: double precision */
+  f->info_.fallbacks++;
+  VES_CALL(switch_precision(f, 0));
   return factor_values(f);
 }
 
@@ -249,53 +281,154 @@ static ves_status mumps_solve(ves_ldl *f, double *x) {
   return s == VES_ERR_SINGULAR ? VES_ERR_SOLVER : s;
 }
 
-/* f->r <- b - A x for the symmetric A of the lower triplets (double
- * values); returns |r| / |b| (0 for b = 0). */
-static double residual(ves_ldl *f, const double *b, const double *x) {
-  double *r = f->r;
-  memcpy(r, b, (size_t)f->n * sizeof *r);
-  for (int k = 0; k < f->nnz; k++) {
-    const int i = f->irn[k] - 1, j = f->jcn[k] - 1;
-    r[i] -= f->a[k] * x[j];
-    if (i != j) r[j] -= f->a[k] * x[i];
+/* y <- A x for the symmetric A of the lower triplets (double values): the
+ * triplets in LDL_MATVEC_CHUNKS fixed chunks, each summed into its own
+ * vector (the chunks shared out over the OpenMP threads), then the chunks
+ * added in order: the same result for any thread count. */
+static void matvec(ves_ldl *f, const double *x, double *y) {
+  const int n = f->n, nnz = f->nnz;
+  double *yc = f->yc;
+#pragma omp parallel for schedule(static)
+  for (int c = 0; c < LDL_MATVEC_CHUNKS; c++) {
+    double *u = yc + (size_t)c * n;
+    memset(u, 0, (size_t)n * sizeof *u);
+    const int k0 = (int)((long long)nnz * c / LDL_MATVEC_CHUNKS),
+              k1 = (int)((long long)nnz * (c + 1) / LDL_MATVEC_CHUNKS);
+    for (int k = k0; k < k1; k++) {
+      const int i = f->irn[k] - 1, j = f->jcn[k] - 1;
+      u[i] += f->a[k] * x[j];
+      if (i != j) u[j] += f->a[k] * x[i];
+    }
   }
-  double rn = 0, bn = 0;
-  for (int i = 0; i < f->n; i++) rn += r[i] * r[i], bn += b[i] * b[i];
-  return bn > 0 ? sqrt(rn / bn) : 0.0;
+  for (int i = 0; i < n; i++) {
+    double v = yc[i];
+    for (int c = 1; c < LDL_MATVEC_CHUNKS; c++) v += yc[(size_t)c * n + i];
+    y[i] = v;
+  }
 }
 
-/* The single precision factors could not reach LDL_REFINE_TOL: the object
- * becomes a double precision one (a new analysis and factorization of the
- * same values) for good. */
+static double dot(int n, const double *x, const double *y) {
+  double s = 0;
+  for (int i = 0; i < n; i++) s += x[i] * y[i];
+  return s;
+}
+
+/* The single precision factors M ~ A could not give |b - A x| <=
+ * LDL_REFINE_TOL |b|: this factorization is redone in double precision (a
+ * new analysis); the next one is single again (ves_ldl_factor). */
 static ves_status to_double(ves_ldl *f) {
-  mumps_run(f, JOB_END);
-  f->live = 0, f->single = 0, f->factored = 0;
-  free(f->wk), f->wk = NULL, f->lwk = 0;
-  free(f->as), f->as = NULL;
   f->info_.fallbacks++;
-  VES_CALL(mumps_setup(f));
+  VES_CALL(switch_precision(f, 0));
   return factor_values(f);
 }
 
-/* rhs <- A^-1 rhs. With single precision factors, refined with the double
- * values until |b - A x| <= LDL_REFINE_TOL |b| (one correction takes the
- * KKT systems from ~5e-5 to ~5e-8), at most LDL_REFINE_MAX corrections,
- * else solved again in double precision. */
+/* x += correction of A x = b, right-preconditioned by the single precision
+ * factors M (flexible GMRES: FGMRES(LDL_GMRES_M) keeping z_k = M^-1 v_k),
+ * until |b - A x| <= LDL_REFINE_TOL |b| or LDL_GMRES_MAX iterations. On
+ * entry f->r holds r0 = b - A x, |r0| = beta. The residual is the GMRES
+ * recurrence's, r = V_{k+1} Q^T (0, .., 0, g_k), of norm |g_k| (V
+ * orthonormal: classical Gram-Schmidt twice); it differs from b - A x by
+ * the rounding of A's products in double precision (~1e-16 |A| |x|), far
+ * below the tolerance. Returns VES_OK with *done = 1 when it was reached.
+ * Classical iterative refinement (x += M^-1 r) is the first iteration's
+ * direction; it contracts by |I - A M^-1| per correction, ~0.1 on the KKT
+ * matrices at large dt (eps 0.01, dt* 0.1-0.8: from 3e-2 it needed 5
+ * corrections, and the solver fell back to double precision for the rest of
+ * the run), where GMRES, minimizing over the Krylov space, needs a few. */
+static ves_status gmres(ves_ldl *f, double *x, double beta, double bn, int *done) {
+  const int n = f->n, m = LDL_GMRES_M;
+  double H[(LDL_GMRES_M + 1) * LDL_GMRES_M], cs[LDL_GMRES_M], sn[LDL_GMRES_M], g[LDL_GMRES_M + 1],
+      y[LDL_GMRES_M + 1];
+  *done = 0;
+  if (!f->V) {
+    f->V = malloc((size_t)(m + 1) * n * sizeof *f->V);
+    f->Z = malloc((size_t)m * n * sizeof *f->Z);
+    if (!f->V || !f->Z) return VES_ERR_ALLOC;
+  }
+  while (f->info_.refinements < LDL_GMRES_MAX) {
+    for (int i = 0; i < n; i++) f->V[i] = f->r[i] / beta;
+    g[0] = beta;
+    int k = 0, breakdown = 0;
+    while (k < m && f->info_.refinements < LDL_GMRES_MAX) {
+      double *z = f->Z + (size_t)k * n, *w = f->V + (size_t)(k + 1) * n;
+      memcpy(z, f->V + (size_t)k * n, (size_t)n * sizeof *z);
+      VES_CALL(mumps_solve(f, z));
+      matvec(f, z, w);
+      f->info_.refinements++;
+      for (int pass = 0; pass < 2; pass++) /* classical Gram-Schmidt, twice */
+        for (int i = 0; i <= k; i++) {
+          const double *v = f->V + (size_t)i * n, h = dot(n, w, v);
+          H[i * m + k] = pass ? H[i * m + k] + h : h;
+          for (int j = 0; j < n; j++) w[j] -= h * v[j];
+        }
+      const double hn = sqrt(dot(n, w, w));
+      breakdown = !(hn > 0); /* the Krylov space is invariant: the solution is in it */
+      if (!breakdown)
+        for (int j = 0; j < n; j++) w[j] /= hn;
+      for (int i = 0; i < k; i++) { /* the earlier rotations on column k */
+        const double a = H[i * m + k], c = H[(i + 1) * m + k];
+        H[i * m + k] = cs[i] * a + sn[i] * c, H[(i + 1) * m + k] = -sn[i] * a + cs[i] * c;
+      }
+      const double a = H[k * m + k], rho = hypot(a, hn);
+      cs[k] = rho > 0 ? a / rho : 1, sn[k] = rho > 0 ? hn / rho : 0;
+      H[k * m + k] = rho;
+      g[k + 1] = -sn[k] * g[k], g[k] *= cs[k];
+      k++;
+      if (fabs(g[k]) <= LDL_REFINE_TOL * bn || breakdown) break;
+    }
+    for (int i = k - 1; i >= 0; i--) { /* R y = g, upper triangular k x k */
+      double d = g[i];
+      for (int j = i + 1; j < k; j++) d -= H[i * m + j] * y[j];
+      y[i] = H[i * m + i] != 0 ? d / H[i * m + i] : 0;
+    }
+    for (int i = 0; i < k; i++) {
+      const double *z = f->Z + (size_t)i * n;
+      for (int j = 0; j < n; j++) x[j] += y[i] * z[j];
+    }
+    beta = fabs(g[k]);
+    if (!isfinite(beta)) return VES_OK;
+    if (beta <= LDL_REFINE_TOL * bn) {
+      *done = 1;
+      return VES_OK;
+    }
+    if (breakdown) return VES_OK; /* a breakdown short of the tolerance: rounding */
+    /* restart from r = V_{k+1} Q^T (0, .., 0, g_k) */
+    for (int i = 0; i < k; i++) y[i] = 0;
+    y[k] = g[k];
+    for (int i = k - 1; i >= 0; i--) { /* the rotations transposed, last first */
+      const double a = y[i], c = y[i + 1];
+      y[i] = cs[i] * a - sn[i] * c, y[i + 1] = sn[i] * a + cs[i] * c;
+    }
+    memset(f->r, 0, (size_t)n * sizeof *f->r);
+    for (int i = 0; i <= k; i++) {
+      const double *v = f->V + (size_t)i * n;
+      for (int j = 0; j < n; j++) f->r[j] += y[i] * v[j];
+    }
+  }
+  return VES_OK;
+}
+
+/* rhs <- A^-1 rhs. With single precision factors: x0 = M^-1 b, then, when
+ * |b - A x0| > LDL_REFINE_TOL |b| (~5e-5 on the KKT matrices), FGMRES
+ * preconditioned by M (gmres) to that tolerance, usually in one iteration;
+ * a solve that cannot get there redoes the factorization in double
+ * precision (to_double) and solves with it. */
 ves_status ves_ldl_solve(ves_ldl *f, double *rhs) {
   VES_CHECK(f && rhs && f->factored, VES_ERR_ARG);
   f->info_.refinements = 0;
   if (!f->single) return mumps_solve(f, rhs);
-  memcpy(f->b, rhs, (size_t)f->n * sizeof *f->b);
+  const int n = f->n;
+  memcpy(f->b, rhs, (size_t)n * sizeof *f->b);
   VES_CALL(mumps_solve(f, rhs));
-  for (int it = 0;; it++) {
-    const double rel = residual(f, f->b, rhs);
-    if (rel <= LDL_REFINE_TOL) return VES_OK;
-    if (it == LDL_REFINE_MAX || !isfinite(rel)) break;
-    VES_CALL(mumps_solve(f, f->r));
-    for (int i = 0; i < f->n; i++) rhs[i] += f->r[i];
-    f->info_.refinements++;
-  }
-  memcpy(rhs, f->b, (size_t)f->n * sizeof *rhs);
+  const double bn = sqrt(dot(n, f->b, f->b));
+  matvec(f, rhs, f->r);
+  for (int j = 0; j < n; j++) f->r[j] = f->b[j] - f->r[j];
+  const double rn = sqrt(dot(n, f->r, f->r));
+  if (rn <= LDL_REFINE_TOL * bn) return VES_OK; /* also b = 0 */
+  int done = 0;
+  if (isfinite(rn)) VES_CALL(gmres(f, rhs, rn, bn, &done));
+  if (done) return VES_OK;
+  memcpy(rhs, f->b, (size_t)n * sizeof *rhs);
   VES_CALL(to_double(f));
   return mumps_solve(f, rhs);
 }
@@ -303,7 +436,7 @@ ves_status ves_ldl_solve(ves_ldl *f, double *rhs) {
 int ves_ldl_size(const ves_ldl *f) { return f ? f->n : 0; }
 
 void ves_ldl_get_info(const ves_ldl *f, ves_ldl_info *info) {
-  if (f && info) *info = f->info_;
+  if (f && info) *info = f->info_, info->single = f->single;
 }
 
 /* ---- IC(0) ---- */

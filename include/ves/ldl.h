@@ -13,9 +13,10 @@
  * A = L D L^T of a symmetric n x n matrix given by its lower-triangle
  * triplets (0-based; duplicates are summed). The pattern is analysed once at
  * create; factor may be called again with new values on the same pattern. The
- * object is opaque: it owns a MUMPS instance and 1-based copies of the indices
- * and of the values. MUMPS prints nothing; ordering: approximate minimum fill
- * (ICNTL(7) = 2, measured faster than SCOTCH/AMD/QAMD/PORD on our matrices). */
+ * object is opaque: it owns a MUMPS instance and 1-based copies of the
+ * indices, and borrows the values of the last factorization (ves_ldl_factor).
+ * MUMPS prints nothing; ordering: approximate minimum fill (ICNTL(7) = 2,
+ * measured faster than SCOTCH/AMD/QAMD/PORD on our matrices). */
 typedef struct ves_ldl ves_ldl;
 
 /* Diagnostics of the last MUMPS call (create, factor or solve). */
@@ -27,9 +28,12 @@ typedef struct {
   double factor_entries; /* entries in the factors (INFOG(29)), 0 before a factorization */
   int icntl14;           /* ICNTL(14) in use: workspace relaxation, percent */
   int retries;           /* workspace retries (INFOG(1) = -8/-9) in the last factorization */
-  int refinements;       /* single precision: corrections of the last solve */
-  int fallbacks;         /* single precision: 1 once a solve could not be refined and the
-                            object turned double precision (for good) */
+  int single;            /* 1: the factorization in use is single precision */
+  int refinements;       /* single precision: refinement (FGMRES) iterations of the last
+                            solve, 0 when the single precision solve was enough */
+  int fallbacks;         /* single precision: factorizations redone in double precision so
+                            far (values that float cannot factor, or a solve that could not
+                            be refined); each lasts until the next ves_ldl_factor */
 } ves_ldl_info;
 
 /* Analyse the pattern (MUMPS JOB = 1). irow[nnz], jcol[nnz]: 0-based lower
@@ -44,17 +48,23 @@ ves_status ves_ldl_create(int n, int nnz, const int *irow, const int *jcol, int 
 
 /* As ves_ldl_create; single != 0 factors in single precision (SMUMPS: half
  * the factors' memory and bandwidth, ~1.7x faster on the KKT matrix at eps
- * 0.01) and refines each solve with the double precision values by
- * iterative refinement to |b - A x| <= 1e-6 |b| (one correction on the KKT
- * matrices: 5e-5 -> 5e-8); a solve that cannot be refined in 4 corrections
- * (A too ill-conditioned for single precision) turns the object into a
- * double precision one for good (info.fallbacks). The inertia is that of
- * the single precision factorization. */
+ * 0.01) and refines each solve with the double precision values to
+ * |b - A x| <= 1e-6 |b|: flexible GMRES preconditioned by the single
+ * precision factors (one iteration on most KKT matrices: 5e-5 -> 5e-8; a
+ * few where plain iterative refinement contracts by only ~0.1 per
+ * correction), at most 60 iterations. A factorization whose float values
+ * fail (singular, overflow), or whose solve cannot be refined, is redone in
+ * double precision (a new analysis; info.fallbacks), and the next
+ * ves_ldl_factor is single precision again. The inertia is that of the
+ * factorization in use. */
 ves_status ves_ldl_create_prec(int n, int nnz, const int *irow, const int *jcol, int spd,
                                int single, ves_ldl **out);
 
 /* Numeric factorization (JOB = 2) reusing the analysis; val[nnz] in the order
- * of the triplets given to create (copied). Retries with twice the workspace
+ * of the triplets given to create, borrowed, not copied: val must stay valid
+ * and unchanged until the next ves_ldl_factor or ves_ldl_destroy (the
+ * single precision solves' refinement and a double fallback read it; at
+ * eps 0.01 a copy was ~0.3 GB). Retries with twice the workspace
  * relaxation ICNTL(14) when MUMPS runs out of workspace (up to
  * VES_LDL_MAX_RETRIES times; the larger value is kept for later calls).
  * Returns VES_OK, VES_ERR_ARG, VES_ERR_SINGULAR (a zero pivot: INFOG(1) = -10
