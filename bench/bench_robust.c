@@ -106,7 +106,7 @@ int main(int argc, char **argv) {
       /* explicit Euler is not checked by the integrator: a step that raises
        * E* is its instability, not a solution */
       const int ok = st == VES_OK && rep.E <= E0;
-      printf("| %s | %.0e | %s | %d | %d | %d | %.2f | %.2f | %.6f |\n", b, dts[i],
+      printf("| %s | %.0e | %s | %d | %d | %d | %.2f | %.2f | %.9f |\n", b, dts[i],
              ok             ? "converged"
              : st == VES_OK ? "E* rose"
                             : ves_status_str(rep.solve_status),
