@@ -687,8 +687,11 @@ void ves_study_classify(int exit_code, int sig, int timed_out, double time_limit
   if (!strncmp(why, "vesica run: ", 12)) why += 12;
   const char *cause = strstr(why, "no acceptable step"); /* a failed run: its cause, not paths */
   char buf[512];
-  if (cause) {
-    snprintf(buf, sizeof buf, "%.*s", (int)strcspn(cause, ";"), cause);
+  if (cause) { /* up to the first ';' outside parentheses (the solver's reason may hold one) */
+    int len = 0, depth = 0;
+    for (; cause[len] && !(cause[len] == ';' && depth == 0); len++)
+      depth += cause[len] == '(' ? 1 : cause[len] == ')' && depth > 0 ? -1 : 0;
+    snprintf(buf, sizeof buf, "%.*s", len, cause);
     why = buf;
   }
   r->exit_code = sig ? -1 : exit_code;

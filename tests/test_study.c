@@ -355,6 +355,12 @@ static void test_classify(void **state) {
   assert_string_equal(r.reason,
                       "no acceptable step at t* = 0 down to dt* = 1 (iteration did not converge)");
   assert_int_equal(r.exit_code, 3);
+  /* a ';' inside the parenthesis is the solver's reason, kept whole */
+  write_file(log, "vesica run: /a/b.ini: no acceptable step at t* = 0 down to dt* = 1000 (det F "
+                  "<= 0 at a trial point; the step is too long); the last good state ...\n");
+  ves_study_classify(3, 0, 0, 10, log, &r);
+  assert_string_equal(r.reason, "no acceptable step at t* = 0 down to dt* = 1000 (det F <= 0 at a "
+                                "trial point; the step is too long)");
   write_file(log, "vesica run: /a/b.ini: [time] dt_initial = 10: must lie in [dt_min, dt_max]\n");
   ves_study_classify(2, 0, 0, 10, log, &r);
   assert_string_equal(r.outcome, "bad_input");
