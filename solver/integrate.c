@@ -504,9 +504,15 @@ static ves_status c0_event(ves_sim *s, double tiny) {
 }
 
 /* The next attempt's dt: the controller's, cut to land on t_end and on the
- * protocol's events (the C0 switch times and the ramp's ends). */
+ * protocol's events (the C0 switch times, the C0 ramp's ends and the end of
+ * the volume ramp, where V/V0 reaches volume_final: there the forced
+ * deflation stops, E* peaks, and a step across it would smear both). */
 static double event_dt(const ves_sim *s, double tiny) {
   double dt = fmin(s->dt, s->ip.t_end - s->t);
+  if (s->ip.volume_rate != 0) {
+    const double tv = (s->ip.volume_final - 1.0) / s->ip.volume_rate;
+    if (tv > s->t + tiny) dt = fmin(dt, tv - s->t);
+  }
   if (s->ip.c0_time > s->t + tiny) dt = fmin(dt, s->ip.c0_time - s->t);
   if (s->ip.c0_until > s->t + tiny) dt = fmin(dt, s->ip.c0_until - s->t);
   if (s->ip.c0_ramp_start >= 0 && s->ip.c0_ramp_start > s->t + tiny)

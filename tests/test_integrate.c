@@ -266,6 +266,33 @@ static void test_protocols(void **state) {
   ves_setup_destroy(&s);
 }
 
+/* The volume ramp's end falls inside a step (V/V0 = 1 - t reaches 0.99 at t
+ * = 0.01, constant dt 0.004): that step is cut to end on it, and V follows
+ * the ramp, then holds. Steps 0.004 0.008 0.01 0.014 0.018 0.02 (without the
+ * cut: 0.004 ... 0.02 in five). */
+static void test_volume_ramp_end(void **state) {
+  (void)state;
+  ves_setup *s = small_setup();
+  ves_integrate_params ip;
+  ves_integrate_params_default(&ip);
+  ip.t_end = 0.02, ip.dt_initial = 4e-3, ip.dt_max = 4e-3, ip.adaptive = 0;
+  ip.volume_rate = -1.0, ip.volume_final = 0.99;
+  ves_sim *sim = make_sim(s, "newton", &ip);
+  double E0, A0, V0;
+  ves_sim_initial(sim, &E0, &A0, &V0);
+  ves_step_report rep;
+  int n = 0, on_end = 0;
+  while (ves_sim_step(sim, &rep) == VES_OK) {
+    n++;
+    on_end |= fabs(rep.t - 0.01) < 1e-12;
+    assert_true(fabs(rep.V / (V0 * fmax(1.0 - rep.t, 0.99)) - 1) <= 1e-8); /* ctol */
+  }
+  assert_int_equal(n, 6);
+  assert_true(on_end);
+  ves_sim_destroy(&sim);
+  ves_setup_destroy(&s);
+}
+
 /* The C0 ramp: C0 R0 from 0 at t = 0.0075 linearly to 2 at t = 0.0175, then
  * held; steps are cut to land on both times, each step takes C0 at its end
  * time (rep.c0 is the ramp's value at rep.t up to rounding of the linear
@@ -616,7 +643,7 @@ int main(void) {
       cmocka_unit_test(test_near_equilibrium),    cmocka_unit_test(test_euler_adaptive),
       cmocka_unit_test(test_freeze_across_steps),
       cmocka_unit_test(test_protocols),
-      cmocka_unit_test(test_c0_ramp),             cmocka_unit_test(test_c0_switch_restarts_dt),
+      cmocka_unit_test(test_c0_ramp), cmocka_unit_test(test_volume_ramp_end),             cmocka_unit_test(test_c0_switch_restarts_dt),
       cmocka_unit_test(test_failure_keeps_state), cmocka_unit_test(test_reconnect_every),
       cmocka_unit_test(test_reconnect_stabilized),
       cmocka_unit_test(test_reconnect_threshold), cmocka_unit_test(test_reconnect_failure),
