@@ -160,7 +160,7 @@ row() { # name: the run's figures, or "not run"
   echo
   echo "| Fig. 6 | the paper states | ours |"
   echo "|---|---|---|"
-  echo "| protocol | prolate v 0.9 deflated to v 0.55 at constant area, C0 R0 raised to 12 (no rates, no times given) | problems/pearling.ini: V/V0 0.9 -> 0.55/0.9 at -0.778 V0 per t* and C0 R0 0 -> 12 linearly, both over t* [0, 0.5], then held |"
+  echo "| protocol | prolate v 0.9 deflated to v 0.55 at constant area, C0 R0 raised to 12 (no rates, no times given) | problems/pearling.ini: V/V0 1 -> 0.55/0.9 = 0.611 at -0.778 V0 per t* and C0 R0 0 -> 12 linearly, both over t* [0, 0.5], then held |"
   echo "| resolution | eps/R0 0.01, 12,650 nodes | eps $(key geometry.epsilon fig6), $(key nodes fig6) -> $(key nodes_final fig6) nodes |"
   echo "| resets | frequent | $(key reconnections fig6) (every 20 steps) |"
   echo "| remeshings | four, at later stages | $(key remeshings fig6) |"
