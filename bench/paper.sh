@@ -4,7 +4,7 @@
 #   PAPER_EPS   eps/R0 of every run (empty: each result's default scale below;
 #               0.01 is the paper's)
 #   PAPER_ONLY  run only the results whose name contains it (fig34, table1,
-#               fig5left, fig5right, fig7)
+#               fig5left, fig5right, fig6, fig7)
 #   PAPER_OUT   where the runs go (default results/paper; not in git)
 #   VESICA, TABLE1  the programs (make paper passes build/vesica and
 #               build/bench/bench_table1)
@@ -16,7 +16,8 @@
 # the nodes coloured by phi, the constraints and the volume protocol);
 # the table of each result next to the paper's statement:
 # bench/PAPER.md, rewritten from whatever has finished at every call.
-# Fig. 6 (pearling) has no problem file yet: listed as not done.
+# Fig. 6 (pearling, problems/pearling.ini) and Fig. 7 also get their own
+# figure and tables in the paper's layout (bench/fig6.py, bench/fig7.py).
 set -u
 VESICA=${VESICA:-build/vesica}
 TABLE1=${TABLE1:-build/bench/bench_table1}
@@ -75,6 +76,19 @@ awk -v e="$e7" 'BEGIN { exit !(e >= 0.08) }' && fig7set="$fig7set --set geometry
 run fig34 problems/oblate.ini 0.08
 run fig5left problems/stomatocyte_discocyte.ini 0.04
 run fig5right problems/prolate_c0.ini 0.04
+# Fig. 6 at eps 0.04 (the file's; 0.08 cannot hold the pearls: C0 eps would be
+# 0.96), then bench/fig6.py: the nodes coloured by phi at six times, E*, C0 R0
+# and v against t*, the pearls' and necks' radii, the remeshings
+run fig6 problems/pearling.ini 0.04
+fig6md=""
+if want fig6 && [ -f "$OUT/fig6.done" ]; then
+  if /usr/bin/python3 bench/fig6.py "$OUT/fig6.h5" "$FIG" > "$OUT/fig6.md.part"; then
+    mv "$OUT/fig6.md.part" "$OUT/fig6.md"
+  else
+    echo "paper: fig6: bench/fig6.py failed"; failed=1
+  fi
+fi
+[ -f "$OUT/fig6.md" ] && fig6md=$OUT/fig6.md
 for r in fast medium slow; do
   # shellcheck disable=SC2086
   run fig7_$r problems/deflate_$r.ini 0.08 $fig7set
@@ -127,9 +141,10 @@ row() { # name: the run's figures, or "not run"
   echo "restarts). What each result shows against the paper, and why ours differs"
   echo "where it does: bench/RESULTS.md (sections named below)."
   echo
-  echo "Not possible yet: Fig. 6 (pearling; no problem file: the C0 ramp, the volume"
-  echo "ramp and remeshing exist, the run has not been set up or tried); Fig. 5 right"
-  echo "runs but has reached no end state at any eps (tethers grow to the walls at 0.04);"
+  echo "Not possible yet: Fig. 5 right runs but has reached no end state at any eps"
+  echo "(tethers grow to the walls at 0.04); Fig. 6 (problems/pearling.ini) has been run"
+  echo "at eps 0.04 only, and not to a settled end (RESULTS \"Fig. 6: deflation with rising"
+  echo "C0, pearling (issue 18)\");"
   echo "the Fig. 3-4 figure is ours in the README's layout, not the paper's panels at its"
   echo "times. The default set's run time has not been measured end to end: Fig. 5 left"
   echo "(to t* 40 at eps 0.04) alone took hours on the shared machine, so the issue's"
@@ -137,7 +152,19 @@ row() { # name: the run's figures, or "not run"
   echo
   echo "| run | eps | nodes (initial -> final) | steps | t* | E* initial | E* final | dt growth | resets | remeshings | max \|A/A0-1\| | max \|V/Vt-1\| | wall s |"
   echo "|---|---|---|---|---|---|---|---|---|---|---|---|---|"
-  for n in fig34 fig5left fig5right fig7_slow fig7_medium fig7_fast; do row $n; done
+  for n in fig34 fig5left fig5right fig6 fig7_slow fig7_medium fig7_fast; do row $n; done
+  echo
+  echo "Fig. 6 (bench/fig6.py; figure bench/figures/paper/fig6_epsE.png):"
+  echo
+  if [ -n "$fig6md" ]; then grep -v '^figure: ' "$fig6md"; else echo "not run"; fi
+  echo
+  echo "| Fig. 6 | the paper states | ours |"
+  echo "|---|---|---|"
+  echo "| protocol | prolate v 0.9 deflated to v 0.55 at constant area, C0 R0 raised to 12 (no rates, no times given) | problems/pearling.ini: V/V0 1 -> 0.55/0.9 = 0.611 at -0.778 V0 per t* and C0 R0 0 -> 12 linearly, both over t* [0, 0.5], then held |"
+  echo "| resolution | eps/R0 0.01, 12,650 nodes | eps $(key geometry.epsilon fig6), $(key nodes fig6) -> $(key nodes_final fig6) nodes |"
+  echo "| resets | frequent | $(key reconnections fig6) (every 20 steps) |"
+  echo "| remeshings | four, at later stages | $(key remeshings fig6) |"
+  echo "| outcome | elongation and pearling | the table above: pearls and necks against t* (RESULTS \"Fig. 6: deflation with rising C0, pearling (issue 18)\") |"
   echo
   echo "Fig. 7 (bench/fig7.py; figure bench/figures/paper/fig7_epsE.png):"
   echo
@@ -149,7 +176,7 @@ row() { # name: the run's figures, or "not run"
   echo "| Table 1 (VTI vs forward Euler) | VTI stable at dt* 1e-2..1e-4 with E*(t2) 9.243/9.240/9.239; FE needs dt* 1e-5 | $( [ -f "$OUT/table1.txt.done" ] && echo "$OUT/table1.txt" || echo "not run") ; at eps 0.01 RESULTS \"The paper's Table 1\" |"
   echo "| Fig. 5 left (stomatocyte -> discocyte) | a C0 pulse pushes the stomatocyte past the barrier into a discocyte | RESULTS \"The two Fig. 5 runs with drift damping\" (eps 0.04: a discocyte with damping and resets) |"
   echo "| Fig. 5 right (prolate, C0 R0 = 10) | two dissimilar spheres joined by a narrow neck | no end state at eps 0.04 (tethers grow to the walls); RESULTS \"The prolate vesicle after the C0 jump\" |"
-  echo "| Fig. 6 (pearling: v 0.9 -> 0.55, C0 R0 -> 12, four remeshings, 12,650 nodes) | elongation and pearling | not done: no problem file yet (the C0 ramp and remeshing exist: problems/README.md) |"
+  echo "| Fig. 6 (pearling: v 0.9 -> 0.55, C0 R0 -> 12, four remeshings, 12,650 nodes) | elongation and pearling | the Fig. 6 tables above (bench/fig6.py; RESULTS \"Fig. 6: deflation with rising C0, pearling (issue 18)\") |"
   echo "| Fig. 7 (deflation at three rates) | E* peaks at the end of deflation; the faster the rate, the further from equilibrium at that instant (shape and E*); all reach the same equilibrium shape D by t* ~ 1 | E* peaks at each ramp's end (within the step crossing it), fast / medium / slow 40.5 / 31.8 / 22.0 at eps 0.08, 61.8 / 31.5 / 16.4 at 0.04; the shapes at the maxima ordered as the paper's A, B, C (distance from the final shape 0.13 / 0.088 / 0.028 R0 at eps 0.08, 0.19 / 0.15 / 0.064 at 0.04); one final shape, a discocyte (the three within 3e-4 R0), 6e-3 R0 from the sharp discocyte at eps 0.04 (0.06 at 0.08); but not by t* ~ 1: E* still falls at t* 6 (0.1 per t* at eps 0.08, 0.03 at 0.04): most of the peak is the interface profile compressed with the fluid, which relaxes at a rate set by the penalty viscosity lambda (fast rate at eps 0.08, t* 1.5: E* 12.7 / 14.5 / 21.9 at lambda/mu 10 / 100 / 1000, the interface within 8e-3 R0; the paper does not give its lambda) (tables above; figures fig7_eps0.08.png, fig7_eps0.04.png; RESULTS \"Fig. 7: deflation at three rates\") |"
 } > "$MD.part" && mv "$MD.part" "$MD"
 echo "paper: wrote $MD"

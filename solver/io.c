@@ -1653,7 +1653,8 @@ static ves_status write_remesh(ves_io *io, const ves_io_remesh *rm) {
            {"res_V", in->res_V},
            {"disp_max", in->disp_max},
            {"disp_mean", in->disp_mean},
-           {"seconds", in->seconds}};
+           {"seconds", in->seconds},
+           {"band_layers", in->band_layers}};
   for (size_t i = 0; i < sizeof a / sizeof a[0] && st == VES_OK; i++)
     st = attr_double(g, a[i].name, a[i].v);
   if (st == VES_OK)
@@ -1667,7 +1668,8 @@ static ves_status write_remesh(ves_io *io, const ves_io_remesh *rm) {
                   "dE = E_proj - E_old, dA = A_proj/A_old - 1, dV = V_proj/V_old - 1; "
                   "corr_max (max |delta_a|/h_a), corr_norm (|delta|, R0), corr_iter, res_A, "
                   "res_V (|A/A_target - 1|, |V/V_target - 1| after it), disp_max, disp_mean "
-                  "(the interface's displacement, R0), seconds (wall)");
+                  "(the interface's displacement, R0), seconds (wall), band_layers (1: the band on "
+                  "layers, 0: without, as band_layers = 0 or where the layers fold)");
   if (st == VES_OK) st = describe_at(g, "x", "R0", "n x 2 node positions (R, Z)");
   if (st == VES_OK) st = describe_at(g, "h", "R0", "n node spacings h_a");
   if (st == VES_OK)

@@ -457,7 +457,18 @@ ves_status ves_remesh_create(const ves_config *cfg, ves_model *m, const double *
 
   /* 2. nodes, quadrature, tables */
   t = ves_wall_seconds();
-  if ((st = ves_setup_nodes(cfg, r->shape, &sizing, &gen, err, errlen)) != VES_OK) goto fail;
+  /* the band layers are offset curves of the interface: where it bends more
+   * tightly than band*eps (a neck, a thin tube, a small pearl) they fold, and
+   * the band is then filled as the setup fills it without layers (CVT with the
+   * same sizing) rather than refusing the remeshing */
+  in->band_layers = cfg->band_layers;
+  st = ves_setup_nodes(cfg, r->shape, &sizing, &gen, err, errlen);
+  if (st == VES_ERR_CONFIG && cfg->band_layers) {
+    ves_config c = *cfg;
+    c.band_layers = 0, in->band_layers = 0;
+    st = ves_setup_nodes(&c, r->shape, &sizing, &gen, err, errlen);
+  }
+  if (st != VES_OK) goto fail;
   if ((st = make_nodes(gen->LR, gen->LZ, gen->n, gen->x, gen->h, gen->flag, &r->nodes)) != VES_OK)
     FAIL(st, "remesh: %s", ves_error_text(st));
   ves_nodes_destroy(&gen);

@@ -16,7 +16,9 @@
  *      own scale);
  *   2. nodes adapted to that curve exactly as the setup adapts them to the
  *      initial shape (ves_setup_nodes: band, grading, axis lattice, band
- *      layers, ghosts; the same [geometry] keys and seed), the Delaunay
+ *      layers, ghosts; the same [geometry] keys and seed; where the band
+ *      layers would fold, the interface bending more tightly than band*eps,
+ *      the band without layers, as band_layers = 0 makes it), the Delaunay
  *      quadrature on them and the LME tables with the old tables' parameters;
  *   3. phi0' = the L2 projection (ves_project_l2, as the setup fits
  *      phi0) of the current phi onto the new basis, c minimizing
@@ -67,6 +69,9 @@ typedef struct {
   int n_old, n_new;              /* real nodes before and after */
   int nq_old, nq_new;            /* quadrature points before and after */
   int curve_points;              /* knots of the interface curve */
+  int band_layers;               /* 1: the band on interface-aligned layers ([geometry]
+                                    band_layers = 1); 0: CVT in the band (band_layers = 0,
+                                    or the layers folded on the curve: step 2) */
   double curve_length;           /* its length (units R0) */
   double E_old, A_old, V_old;    /* the old model at y */
   double E_proj, A_proj, V_proj; /* the new model at the identity, before the correction */
@@ -103,7 +108,8 @@ typedef struct ves_remesh ves_remesh;
  * VES_ERR_ARG (NULL, non-finite y, a box not m's); VES_ERR_DOMAIN (det F
  * <= 0 or r <= 0 at an old point); VES_ERR_GEOM (no interface from pole to
  * pole, or one of more than one piece); VES_ERR_CONFIG (the band does not
- * fit in the box or the band layers fold on the curve); errors of the node
+ * fit in the box; a fold of the band layers is not one: the band is then
+ * made without them, info.band_layers = 0); errors of the node
  * generation, tables and projection. On error a line in err. */
 ves_status ves_remesh_create(const ves_config *cfg, ves_model *m, const double *y,
                              const ves_remesh_params *par, ves_remesh **out, char *err,
