@@ -166,7 +166,7 @@ static double norm_inf(int n, const double *v) {
 }
 
 /* Assemble H at (x, lam) into the KKT values' (1,1) block (no copy of its
- * own: at eps 0.01 the block has ~1e7 entries), the rows, and factorize
+ * own: at eps 0.01 the block has 1.5e7 entries), the rows, and factorize
  * with the inertia correction: exactly KKT_NROWS negative pivots. A rung
  * of the ladder adds (delta - the last rung's delta) K in place. */
 static ves_status assemble_factor(newton_state *w, ves_step *s, const double *x, const double *lam,
