@@ -248,6 +248,16 @@ static ves_status factor_values(ves_ldl *f) {
   return s;
 }
 
+/* The single precision factors failed (float values singular or
+ * overflowing) or could not give |b - A x| <= LDL_REFINE_TOL |b|: this
+ * factorization is redone in double precision (a new analysis); the next
+ * one is single again (ves_ldl_factor). */
+static ves_status to_double(ves_ldl *f) {
+  f->info_.fallbacks++;
+  VES_CALL(switch_precision(f, 0));
+  return factor_values(f);
+}
+
 ves_status ves_ldl_factor(ves_ldl *f, const double *val) {
   VES_CHECK(f && val, VES_ERR_ARG);
   f->a = val;
@@ -255,10 +265,7 @@ ves_status ves_ldl_factor(ves_ldl *f, const double *val) {
   if (f->prefer_single && !f->single) VES_CALL(switch_precision(f, 1)); /* after a fallback */
   ves_status s = factor_values(f);
   if (s == VES_OK || s == VES_ERR_ALLOC || !f->single) return s;
-  /* the values rounded to float are singular or overflow: double precision */
-  f->info_.fallbacks++;
-  VES_CALL(switch_precision(f, 0));
-  return factor_values(f);
+  return to_double(f); /* the values rounded to float are singular or overflow */
 }
 
 /* One MUMPS solve (JOB = 3) of the live instance, in place on x[n]. */
@@ -311,15 +318,6 @@ static double dot(int n, const double *x, const double *y) {
   double s = 0;
   for (int i = 0; i < n; i++) s += x[i] * y[i];
   return s;
-}
-
-/* The single precision factors M ~ A could not give |b - A x| <=
- * LDL_REFINE_TOL |b|: this factorization is redone in double precision (a
- * new analysis); the next one is single again (ves_ldl_factor). */
-static ves_status to_double(ves_ldl *f) {
-  f->info_.fallbacks++;
-  VES_CALL(switch_precision(f, 0));
-  return factor_values(f);
 }
 
 /* x += correction of A x = b, right-preconditioned by the single precision
