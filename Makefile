@@ -193,13 +193,15 @@ run: deps
 # The paper's results (bench/paper.sh): every finished run kept in
 # results/paper/ and skipped next time, an interrupted one continued;
 # figures in bench/figures/paper/, the table in bench/PAPER.md. PAPER_EPS
-# sets eps/R0 of every run (0.01: the paper's scale), PAPER_ONLY a subset.
+# sets eps/R0 of every run (0.01: the paper's scale), PAPER_ONLY a subset,
+# PAPER_JOBS the runs at a time (default 2, one thread each).
 PAPER_EPS ?=
 PAPER_ONLY ?=
+PAPER_JOBS ?= 2
 paper: deps
 	@$(MAKE) --no-print-directory $(BUILD)/vesica $(BUILD)/bench/bench_table1
 	@VESICA=$(BUILD)/vesica TABLE1=$(BUILD)/bench/bench_table1 PAPER_EPS=$(PAPER_EPS) \
-	  PAPER_ONLY=$(PAPER_ONLY) sh bench/paper.sh
+	  PAPER_ONLY=$(PAPER_ONLY) PAPER_JOBS=$(PAPER_JOBS) sh bench/paper.sh
 
 # Every C/C++ file of the repository, formatted by .clang-format: format
 # rewrites them, format-check only reports (exit 1 and the lines that differ;
