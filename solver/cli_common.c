@@ -28,17 +28,35 @@ int cli_exit_for(ves_status st) {
 }
 
 /* The node count of a problem's setup, estimated before building it: the
- * band |d| < band eps on both sides of a meridian of length L = pi R (R0 = 1;
- * a sphere: its radius) at the hexagonal density 2 / (sqrt(3) h^2) of
- * h_band eps, the graded zone from there to h_far at `slope` (its integral
- * halved: the zones overlap), and the box at h_far. Calibrated on four
- * measured setups: 19,391 / 2,225 / 1,203 / 331 nodes estimated within 8%. */
+ * band |d| < band eps on both sides of the meridian (the shape's own
+ * generating curve, of length L from pole to pole) at the hexagonal density
+ * rho = 2 / (sqrt(3) h^2) of h_band eps, the graded zone from there to h_far
+ * at `slope` (width D = (h_far - h0) / slope on each side), and the part of
+ * the box [0, box_r] x [-box_z, box_z] beyond that zone at h_far; times
+ * EST_FILL, the nodes the layers, the axis lattice and the Lloyd smoothing
+ * add, fitted on two measured setups at eps 0.01 (the oblate 19,391 and the
+ * prolate of prolate_c0.ini 27,447 nodes: 19,356 and 27,446 estimated).
+ * Checked on four more: the oblate at eps 0.08 2,225 (estimate 2,343, +5%),
+ * the sphere at 0.04 6,093 (6,463, +6%), pearling.ini 6,076 (6,149, +1%),
+ * prolate_c0.ini at 0.04 6,625 (6,759, +2%). Until session 18 the meridian
+ * was taken as pi for every shape: the prolate's 27,447 was estimated at
+ * 17,017 and its memory at 2.6 GB. Memory scales linearly from the oblate's
+ * below: 4.2 GB for that prolate, whose run with resets peaked at 6.7 GB
+ * (the factorization's fill and the reset's tables: not modelled).
+ * Returns 0 when the shape cannot be built (the setup then says why). */
+#define EST_FILL 1.27
 static double estimate_nodes(const ves_config *c) {
-  const double L = M_PI * (strcmp(c->shape_type, "sphere") ? 1.0 : c->radius);
+  char err[256];
+  ves_shape *shape = NULL;
+  if (ves_setup_shape(c, &shape, err, sizeof err) != VES_OK) return 0.0;
+  const double L = ves_shape_length(shape);
+  ves_shape_destroy(&shape);
   const double h0 = c->h_band * c->epsilon, rho = 2 / sqrt(3.0);
   const double band = L * 2 * c->band * c->epsilon * rho / (h0 * h0);
   const double grade = c->h_far > h0 ? L * rho * (1 / h0 - 1 / c->h_far) / c->slope : 0.0;
-  return band + grade + 2 * c->box_r * 2 * c->box_z * rho / (c->h_far * c->h_far);
+  const double D = c->h_far > h0 ? (c->h_far - h0) / c->slope : 0.0;
+  const double far = fmax(0.0, c->box_r * 2 * c->box_z - 2 * L * D) * rho / (c->h_far * c->h_far);
+  return EST_FILL * (band + grade) + far;
 }
 
 /* Rates measured at the paper's scale (19,391 nodes, bench/RESULTS.md, the

@@ -30,6 +30,46 @@ void ves_setup_destroy(ves_setup **s) {
     goto fail;                                                                                     \
   } while (0)
 
+/* The shape stage of the setup (setup.h). */
+ves_status ves_setup_shape(const ves_config *cfg, ves_shape **shape, char *err, size_t errlen) {
+  VES_CHECK(cfg && shape && err && errlen, VES_ERR_ARG);
+  *shape = NULL;
+  ves_status st;
+  double *cpts = NULL;
+  ves_shape_params sp;
+  ves_shape_params_default(&sp);
+  if (!strcasecmp(cfg->shape_type, "sphere"))
+    sp.kind = VES_SHAPE_SPHERE;
+  else if (!strcasecmp(cfg->shape_type, "spheroid"))
+    sp.kind = VES_SHAPE_SPHEROID;
+  else if (!strcasecmp(cfg->shape_type, "curve"))
+    sp.kind = VES_SHAPE_CURVE;
+  else
+    sp.kind = VES_SHAPE_DISCOCYTE;
+  if (sp.kind == VES_SHAPE_CURVE) {
+    if ((st = ves_config_read_points(cfg, &sp.npts, &cpts, err, errlen)) != VES_OK) goto fail;
+    sp.pts = cpts;
+  }
+  sp.radius = cfg->radius;
+  sp.v = cfg->reduced_volume;
+  sp.prolate = !strcasecmp(cfg->orientation, "prolate");
+  sp.mode = cfg->mode;
+  sp.delta = cfg->delta;
+  st = ves_shape_create(&sp, shape);
+  free(cpts);
+  cpts = NULL;
+  if (st == VES_ERR_GEOM && sp.kind == VES_SHAPE_CURVE) /* bad input: exit code 2 */
+    FAIL(VES_ERR_CONFIG,
+         "[shape] points = %s: the spline through the points crosses the axis (R < 0 between "
+         "the poles) or encloses no volume; add points along its longest segments",
+         cfg->points);
+  if (st != VES_OK) FAIL(st, "shape: %s", ves_error_text(st));
+  return VES_OK;
+fail:
+  free(cpts);
+  return st;
+}
+
 /* The node set of cfg's discretization adapted to a shape: the band and
  * box check, the sizing field, the interface-aligned band layers and
  * ves_nodes_generate (used by the setup and by a remeshing, remesh.h). */
@@ -105,38 +145,11 @@ ves_status ves_setup_create(const ves_config *cfg, ves_phi0_method method, ves_s
   ves_error_clear(); /* err names the record of this setup's failure (status.h) */
   double t0 = ves_wall_seconds(), t;
   ves_status st;
-  double *f = NULL, *cpts = NULL;
+  double *f = NULL;
   ves_setup *s = calloc(1, sizeof *s);
   if (!s) return VES_ERR_ALLOC;
 
-  ves_shape_params sp;
-  ves_shape_params_default(&sp);
-  if (!strcasecmp(cfg->shape_type, "sphere"))
-    sp.kind = VES_SHAPE_SPHERE;
-  else if (!strcasecmp(cfg->shape_type, "spheroid"))
-    sp.kind = VES_SHAPE_SPHEROID;
-  else if (!strcasecmp(cfg->shape_type, "curve"))
-    sp.kind = VES_SHAPE_CURVE;
-  else
-    sp.kind = VES_SHAPE_DISCOCYTE;
-  if (sp.kind == VES_SHAPE_CURVE) {
-    if ((st = ves_config_read_points(cfg, &sp.npts, &cpts, err, errlen)) != VES_OK) goto fail;
-    sp.pts = cpts;
-  }
-  sp.radius = cfg->radius;
-  sp.v = cfg->reduced_volume;
-  sp.prolate = !strcasecmp(cfg->orientation, "prolate");
-  sp.mode = cfg->mode;
-  sp.delta = cfg->delta;
-  st = ves_shape_create(&sp, &s->shape);
-  free(cpts);
-  cpts = NULL;
-  if (st == VES_ERR_GEOM && sp.kind == VES_SHAPE_CURVE) /* bad input: exit code 2 */
-    FAIL(VES_ERR_CONFIG,
-         "[shape] points = %s: the spline through the points crosses the axis (R < 0 between "
-         "the poles) or encloses no volume; add points along its longest segments",
-         cfg->points);
-  if (st != VES_OK) FAIL(st, "shape: %s", ves_error_text(st));
+  if ((st = ves_setup_shape(cfg, &s->shape, err, errlen)) != VES_OK) goto fail;
   ves_shape_sharp(s->shape, &s->area_sharp, &s->volume_sharp);
   t = ves_wall_seconds();
   if ((st = ves_setup_nodes(cfg, s->shape, &s->sizing, &s->nodes, err, errlen)) != VES_OK)
@@ -195,7 +208,6 @@ ves_status ves_setup_create(const ves_config *cfg, ves_phi0_method method, ves_s
   *out = s;
   return VES_OK;
 fail:
-  free(cpts);
   free(f);
   ves_setup_destroy(&s);
   return st;

@@ -355,6 +355,13 @@ void ves_shape_extent(const ves_shape *s, double *rmax, double *zmax) {
   *rmax = r, *zmax = z;
 }
 
+double ves_shape_length(const ves_shape *s) {
+  double L = 0;
+  for (int i = 1; i < VES_SHAPE_NS; i++)
+    L += hypot(s->ps[2 * i] - s->ps[2 * i - 2], s->ps[2 * i + 1] - s->ps[2 * i - 1]);
+  return L;
+}
+
 void ves_shape_axes(const ves_shape *s, double *a, double *c) {
   double P[2], D[2], DD[2];
   curve(s, 0.5 * M_PI, P, D, DD);

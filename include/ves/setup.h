@@ -39,6 +39,11 @@ ves_status ves_setup_create(const ves_config *cfg, ves_phi0_method method, ves_s
                             char *err, size_t errlen);
 void ves_setup_destroy(ves_setup **s);
 
+/* The initial shape of cfg ([shape]; a points file is read), as the setup
+ * builds it: *shape is taken by the caller. VES_ERR_CONFIG for a points
+ * file the setup refuses (one line in err). */
+ves_status ves_setup_shape(const ves_config *cfg, ves_shape **shape, char *err, size_t errlen);
+
 /* The node set of cfg's discretization ([geometry]: epsilon, h_band, band,
  * slope, h_far, box, band_layers, axis_spacings, lloyd_iterations, seed)
  * adapted to a shape (borrowed), exactly as the setup builds it: *sizing

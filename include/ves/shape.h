@@ -59,6 +59,10 @@ double ves_shape_sharp_energy(const ves_shape *s, double c0);
 /* Largest R and |Z| on the generating curve (from its samples). */
 void ves_shape_extent(const ves_shape *s, double *rmax, double *zmax);
 
+/* Length of the generating curve from pole to pole (the meridian; pi R for a
+ * sphere), from its samples (relative error ~1e-6). */
+double ves_shape_length(const ves_shape *s);
+
 /* Semi-axes (equatorial along R, polar along Z) of the unperturbed curve. */
 void ves_shape_axes(const ves_shape *s, double *a, double *c);
 
