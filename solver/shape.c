@@ -33,6 +33,7 @@ struct ves_shape {
   double scale;                                  /* discocyte: factor to area 4 pi */
   double ts[VES_SHAPE_NS], ps[2 * VES_SHAPE_NS]; /* samples t_i, P(t_i) */
   double ds_max;                                 /* largest distance between consecutive samples */
+  double length;                                 /* sum of those distances: the meridian's length */
   /* curve: periodic cubic spline through the points and their mirror image */
   int ns;     /* knots of the closed loop, 2 (npts - 1) */
   double *u;  /* ns + 1 chord-length parameters, u[ns] = U */
@@ -332,7 +333,7 @@ ves_status ves_shape_create(const ves_shape_params *par, ves_shape **out) {
     sharp_integrals(s, &A, &V);
     s->scale = sqrt(4 * M_PI / A);
   }
-  s->ds_max = 0;
+  s->ds_max = 0, s->length = 0;
   for (int i = 0; i < VES_SHAPE_NS; i++) {
     double D[2], DD[2];
     s->ts[i] = M_PI * i / (VES_SHAPE_NS - 1);
@@ -340,6 +341,7 @@ ves_status ves_shape_create(const ves_shape_params *par, ves_shape **out) {
     if (i > 0) {
       double l = hypot(s->ps[2 * i] - s->ps[2 * i - 2], s->ps[2 * i + 1] - s->ps[2 * i - 1]);
       if (l > s->ds_max) s->ds_max = l;
+      s->length += l;
     }
   }
   *out = s;
@@ -355,12 +357,7 @@ void ves_shape_extent(const ves_shape *s, double *rmax, double *zmax) {
   *rmax = r, *zmax = z;
 }
 
-double ves_shape_length(const ves_shape *s) {
-  double L = 0;
-  for (int i = 1; i < VES_SHAPE_NS; i++)
-    L += hypot(s->ps[2 * i] - s->ps[2 * i - 2], s->ps[2 * i + 1] - s->ps[2 * i - 1]);
-  return L;
-}
+double ves_shape_length(const ves_shape *s) { return s->length; }
 
 void ves_shape_axes(const ves_shape *s, double *a, double *c) {
   double P[2], D[2], DD[2];
