@@ -50,7 +50,7 @@ static const key_spec KEYS[] = {
      "d4|d6|d4x4|d6x4|d4x16|d6x16",
      "rule per Delaunay triangle: base degree 4 (6 points) or 6 (12 points, Dunavant), "
      "xN on each of N congruent sub-triangles (issue 22; see bench/RESULTS.md)"},
-    {"geometry", "stabilization", KEY_DOUBLE, OFF(stabilization), "1e-2", 0, 1e6, NULL,
+    {"geometry", "stabilization", KEY_DOUBLE, OFF(stabilization), "0.1", 0, 1e6, NULL,
      "kappa (units k/R0^3): E gets (1/2) sum_a kappa 2 pi M_a/h_a^2 |y^a - y(X_a)|^2, positive "
      "curvature on the grid-scale coefficient modes, zero at the reference, O(h^2) on smooth "
      "motions (0: off, the paper's energy; issue 22, bench/RESULTS.md)"},

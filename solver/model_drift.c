@@ -12,7 +12,8 @@
  * in bench/RESULTS.md, "Drift damping".
  *
  * Coefficient-mode stabilization (ves_model_params.stab; the problem file's
- * [geometry] stabilization, 1e-2 by default): the same defect in E instead
+ * [geometry] stabilization, 0.1 by default since session 19, 1e-2 before):
+ * the same defect in E instead
  * of K, E_s = (1/2) sum_a c_a |y^a - y(X_a)|^2 (model_stab_build,
  * model_stab_eval), zero on affine maps (so at the reference), O(h^2) on
  * smooth motions, and of the size of the coefficients on the grid-scale
@@ -20,8 +21,14 @@
  * them (the relaxed sphere at eps 0.1 becomes a minimum; at eps 0.04 a smooth
  * tangential mode of -4e-3 per t* is left, which no kappa reaches), and the
  * oblate at eps 0.01 relaxes to the sharp equilibrium's E* within 1.2e-5
- * instead of falling through it (bench/RESULTS.md, issue 22). E_s is
- * measured from the reference: a reset or a remeshing drops it to 0. */
+ * instead of falling through it (bench/RESULTS.md, issue 22). The default
+ * kappa: the sphere relaxed to rest at eps 0.04 has mu_1 = -6.5e-4 /
+ * -1.6e-4 / -1.1e-5 per t* at h_band 0.35 / 0.5 / 0.7 eps with 0.1, against
+ * -2.5e-3 / -1.4e-3 / -6.0e-4 with 1e-2; the sphere's E, the l = 2 rate and
+ * the oblate's E* at eps 0.01 move by less than their discretization
+ * errors, and the Fig. 5 left run keeps its steps, resets and end shape
+ * (bench/RESULTS.md, sessions 18-19). E_s is measured from the reference: a
+ * reset or a remeshing drops it to 0. */
 #include "model_core_impl.h"
 
 #include <assert.h>
