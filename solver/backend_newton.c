@@ -52,6 +52,15 @@
  * 5-50 directions of negative curvature (the spurious modes of issue 22)
  * and each rung is a factorization (~5 s there).
  *
+ * Build limit (opt->max_builds, [solver] max_builds, 12 by default; 0 = none):
+ * an attempt that would build more matrices returns VES_MAXITER and the
+ * integrator retries at dt/2. A failing attempt is a damped Newton run that
+ * builds a matrix nearly every iteration until max_iter (measured: 23-38
+ * builds in 40 iterations, 190-390 s at eps 0.02-0.04), while accepted
+ * attempts built at most 10 in every run recorded (bench/RESULTS.md,
+ * session 19). bench_robust and the robustness studies set 0: their single
+ * large steps are meant to run long (dt* 100 takes 30 builds).
+ *
  * Convergence (both):
  *   |g + J^T lam|_inf <= max(tol * S, N),  S = max(|g(x_start)|_inf, |J^T lam|_inf),
  *   |c_i| <= ctol * target_i  (A0, V_target),
@@ -491,6 +500,11 @@ static ves_status newton_solve(void *state, ves_step *s, double *x, double *lamb
     if (nwin == NEWTON_STALL_WINDOW) memmove(res_win, res_win + 1, --nwin * sizeof *res_win);
     res_win[nwin++] = res;
     int built_now = 0;
+    if ((fresh || !w->opt.freeze_hessian) && w->opt.max_builds > 0 &&
+        stt->h_evals >= w->opt.max_builds) { /* a damped attempt that wanders: give it up */
+      result = VES_MAXITER;
+      break;
+    }
     if (fresh || !w->opt.freeze_hessian) {
       if ((st = assemble_factor(w, s, x, lam, ncon, stt)) != VES_OK) break;
       fresh = 0, built_now = 1;

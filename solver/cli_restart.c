@@ -16,6 +16,7 @@
 static const char *const RESTART_KEYS[] = {"solver.tol",
                                            "solver.ctol",
                                            "solver.max_iter",
+                                           "solver.max_builds",
                                            "solver.freeze_hessian",
                                            "solver.factor_precision",
                                            "time.t_end"};
@@ -101,7 +102,8 @@ int cli_run_restart(run_ctx *r, const char *file, int nset, const char *const *s
     if (k == nk) {
       fprintf(stderr,
               "vesica run: --restart %s: --set %s: a restart may change only solver.tol, "
-              "solver.ctol, solver.max_iter, solver.freeze_hessian, solver.factor_precision "
+              "solver.ctol, solver.max_iter, solver.max_builds, solver.freeze_hessian, "
+              "solver.factor_precision "
               "and time.t_end (the other "
               "keys define the setup and the steps already taken)\n",
               file, set[i]);

@@ -389,7 +389,10 @@ static void test_domain_start(void **state) {
  * comes with the constraints met. Forward Euler takes the step it is given,
  * x0 + dt ydot with ydot ~ 0.1-1 R0/t* in the band: nodes move ~1e2 R0,
  * far through the fixed wall at 1.9 R0, and the state after it is refused
- * (VES_ERR_DOMAIN, after one factorization). The step is restored afterwards. */
+ * (VES_ERR_DOMAIN, after one factorization). Newton's attempt builds 2
+ * matrices in its 8 iterations, so with [solver] max_builds = 1 it stops
+ * before the second.
+ * The step is restored afterwards. */
 static void test_huge_dt(void **state) {
   (void)state;
   ves_step_params par = FX.par;
@@ -415,6 +418,20 @@ static void test_huge_dt(void **state) {
       double E, A, V;
       eval_at(x, &E, &A, &V);
       assert_true(fabs(A / FX.A0 - 1) <= 1e-9 && fabs(V / FX.V0 - 1) <= 1e-9);
+    }
+    if (!strcmp(names[k], "newton")) {
+      /* the build limit: this damped attempt builds a second matrix within
+       * its 8 iterations; with max_builds 1 it is given up where it would
+       * build it (VES_MAXITER, after fewer iterations) */
+      assert_true(stats.h_evals > 1);
+      opt.max_builds = 1;
+      ves_backend_stats capped = {0};
+      double lambda2[2] = {0.0, 0.0};
+      st = run_backend(b, &opt, x, lambda2, &capped);
+      print_stats("newton, max_builds 1", st, &capped);
+      assert_int_equal(st, VES_MAXITER);
+      assert_int_equal(capped.h_evals, 1);
+      assert_true(capped.iterations < stats.iterations);
     }
   }
   free(x);
