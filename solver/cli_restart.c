@@ -13,13 +13,10 @@
 /* The keys a restart may change: how each step is solved, and where the run
  * ends; the rest defines the setup, the physics or the protocol the stored
  * steps followed. */
-static const char *const RESTART_KEYS[] = {"solver.tol",
-                                           "solver.ctol",
-                                           "solver.max_iter",
-                                           "solver.max_builds",
-                                           "solver.freeze_hessian",
-                                           "solver.factor_precision",
-                                           "time.t_end"};
+static const char *const RESTART_KEYS[] = {
+    "solver.tol",        "solver.ctol",           "solver.max_iter",
+    "solver.max_builds", "solver.freeze_hessian", "solver.factor_precision",
+    "time.t_end"};
 
 /* A file cut short (a torn last write): its last complete snapshot, the
  * rows and references before it salvaged into a new FILE.h5 (io.h), the

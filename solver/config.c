@@ -130,8 +130,8 @@ static const key_spec KEYS[] = {
     {"solver", "max_iter", KEY_INT, OFF(max_iter), "40", 1, 100000, NULL,
      "iterations per attempt of a step; an attempt that needs more is retried at dt/2"},
     {"solver", "max_builds", KEY_INT, OFF(max_builds), "20", 0, 100000, NULL,
-     "newton: matrix builds (Hessian + factorization) per attempt of a step; an attempt "
-     "that needs more is given up and retried at dt/2 (0: no limit)"},
+     "newton (freeze_hessian >= 1): matrix builds (Hessian + factorization) per attempt of a "
+     "step; an attempt that needs more is given up and retried at dt/2 (0: no limit)"},
     {"solver", "freeze_hessian", KEY_INT, OFF(freeze_hessian), "1", 0, 2, NULL,
      "newton: 0 a fresh Hessian every iteration; 1 assembled once per step, rebuilt when "
      "the chord stalls (paper); 2 also kept across steps while the chord converges"},

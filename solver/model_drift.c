@@ -18,8 +18,7 @@
  * model_stab_eval), zero on affine maps (so at the reference), O(h^2) on
  * smooth motions, and of the size of the coefficients on the grid-scale
  * patterns along which the discrete E has negative curvature: it removes
- * them (the relaxed sphere at eps 0.1 becomes a minimum; at eps 0.04 a smooth
- * tangential mode of -4e-3 per t* is left, which no kappa reaches), and the
+ * them (the relaxed sphere at eps 0.1 becomes a minimum), and the
  * oblate at eps 0.01 relaxes to the sharp equilibrium's E* within 1.2e-5
  * instead of falling through it (bench/RESULTS.md, issue 22). The default
  * kappa: the sphere relaxed to rest at eps 0.04 has mu_1 = -6.5e-4 /

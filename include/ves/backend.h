@@ -20,8 +20,8 @@ typedef struct {
   double tol;         /* optimality / KKT residual tolerance (relative; [solver] tol) */
   double ctol;        /* constraint violation tolerance, relative to A0, V ([solver] ctol) */
   int max_iter;       /* iteration limit per step ([solver] max_iter) */
-  int max_builds;     /* newton: matrix builds per step, then VES_MAXITER ([solver]
-                         max_builds; 0 = no limit) */
+  int max_builds;     /* newton with a frozen Hessian: matrix builds per step, then
+                         VES_MAXITER ([solver] max_builds; 0 = no limit) */
   int freeze_hessian; /* newton: 0 = a fresh Hessian every iteration; 1 = assembled
                          once per step, rebuilt when the chord stalls (paper);
                          2 = also kept across steps (backend_newton.c) */
