@@ -129,7 +129,7 @@ static const key_spec KEYS[] = {
      "constraint tolerance, relative to A0 and V"},
     {"solver", "max_iter", KEY_INT, OFF(max_iter), "40", 1, 100000, NULL,
      "iterations per attempt of a step; an attempt that needs more is retried at dt/2"},
-    {"solver", "max_builds", KEY_INT, OFF(max_builds), "20", 0, 100000, NULL,
+    {"solver", "max_builds", KEY_INT, OFF(max_builds), "0", 0, 100000, NULL,
      "newton (freeze_hessian >= 1): matrix builds (Hessian + factorization) per attempt of a "
      "step; an attempt that needs more is given up and retried at dt/2 (0: no limit)"},
     {"solver", "freeze_hessian", KEY_INT, OFF(freeze_hessian), "1", 0, 2, NULL,
