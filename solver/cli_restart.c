@@ -96,14 +96,12 @@ int cli_run_restart(run_ctx *r, const char *file, int nset, const char *const *s
     const size_t len = strcspn(set[i], "=");
     while (k < nk && !(strlen(RESTART_KEYS[k]) == len && !strncmp(set[i], RESTART_KEYS[k], len)))
       k++;
-    if (k == nk) {
-      fprintf(stderr,
-              "vesica run: --restart %s: --set %s: a restart may change only solver.tol, "
-              "solver.ctol, solver.max_iter, solver.max_builds, solver.freeze_hessian, "
-              "solver.factor_precision "
-              "and time.t_end (the other "
-              "keys define the setup and the steps already taken)\n",
-              file, set[i]);
+    if (k == nk) { /* the allowed keys listed from RESTART_KEYS, the one list */
+      fprintf(stderr, "vesica run: --restart %s: --set %s: a restart may change only ", file,
+              set[i]);
+      for (size_t j = 0; j < nk; j++)
+        fprintf(stderr, "%s%s", RESTART_KEYS[j], j + 2 < nk ? ", " : j + 1 < nk ? " and " : "");
+      fprintf(stderr, " (the other keys define the setup and the steps already taken)\n");
       return 2;
     }
   }
