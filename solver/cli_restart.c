@@ -18,6 +18,21 @@ static const char *const RESTART_KEYS[] = {
     "solver.max_builds", "solver.freeze_hessian", "solver.factor_precision",
     "time.t_end"};
 
+int cli_restart_keys_print(FILE *f, int col, int indent, int width) {
+  const size_t nk = sizeof RESTART_KEYS / sizeof RESTART_KEYS[0];
+  for (size_t j = 0; j < nk; j++) {
+    const char *sep = j + 2 < nk ? "," : j + 1 < nk ? " and" : "";
+    const int len = (int)(strlen(RESTART_KEYS[j]) + strlen(sep));
+    if (j > 0 && width > 0 && col + 1 + len >= width) {
+      col = fprintf(f, "\n%*s", indent, "") - 1;
+    } else if (j > 0) {
+      col += fprintf(f, " ");
+    }
+    col += fprintf(f, "%s%s", RESTART_KEYS[j], sep);
+  }
+  return col;
+}
+
 /* A file cut short (a torn last write): its last complete snapshot, the
  * rows and references before it salvaged into a new FILE.h5 (io.h), the
  * damaged file kept as FILE.h5.damaged. 0, or exit code 3 with a message. */
@@ -99,8 +114,7 @@ int cli_run_restart(run_ctx *r, const char *file, int nset, const char *const *s
     if (k == nk) { /* the allowed keys listed from RESTART_KEYS, the one list */
       fprintf(stderr, "vesica run: --restart %s: --set %s: a restart may change only ", file,
               set[i]);
-      for (size_t j = 0; j < nk; j++)
-        fprintf(stderr, "%s%s", RESTART_KEYS[j], j + 2 < nk ? ", " : j + 1 < nk ? " and " : "");
+      cli_restart_keys_print(stderr, 0, 0, 0);
       fprintf(stderr, " (the other keys define the setup and the steps already taken)\n");
       return 2;
     }

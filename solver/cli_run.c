@@ -25,11 +25,11 @@ static void usage_run(FILE *f) {
           "                    parameters, one row per accepted step (flushed at every step),\n"
           "                    snapshots every [output] snapshot_every steps and at the end\n"
           "  --restart FILE.h5 continue the run of FILE.h5 from its last snapshot, appending to\n"
-          "                    it; the trajectory is bit for bit the uninterrupted one;\n"
-          "                    --set may change solver.tol, solver.ctol, solver.max_iter,\n"
-          "                    solver.max_builds, solver.freeze_hessian,\n"
-          "                    solver.factor_precision and\n"
-          "                    time.t_end (recorded in the file)\n"
+          "                    it; the trajectory is bit for bit the uninterrupted one;\n");
+  int col = fprintf(f, "                    --set may change ");
+  col = cli_restart_keys_print(f, col, 20, 86);
+  fprintf(f, "%s(recorded in the file)\n", col + 23 < 86 ? " " : "\n                    ");
+  fprintf(f,
           "  --max-steps N     stop (with a snapshot, exit 0) once N steps are accepted in all\n"
           "  --series FILE.tsv also one tab-separated line per accepted step: step t dt E\n"
           "                    A/A0-1 V/Vtarget-1 lambda_A lambda_V iterations f_evals g_evals\n"

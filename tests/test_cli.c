@@ -1009,6 +1009,19 @@ static void test_restart_set(void **state) {
   run(&r, "run", "--restart", out, "--set", "geometry.epsilon=0.1", NULL);
   assert_int_equal(r.code, 2);
   assert_non_null(strstr(r.err, "a restart may change only"));
+  { /* run --help names the same keys (both print the one list) */
+    char keys[1024];
+    snprintf(keys, sizeof keys, "%s", strstr(r.err, "may change only ") + 16);
+    char *end = strstr(keys, " (the other keys");
+    assert_non_null(end);
+    *end = '\0';
+    run(&r, "run", "--help", NULL);
+    assert_int_equal(r.code, 0);
+    int n = 0;
+    for (char *k = strtok(keys, ", "); k; k = strtok(NULL, ", "))
+      if (strcmp(k, "and")) n++, assert_non_null(strstr(r.out, k));
+    assert_true(n >= 7); /* solver.tol ... time.t_end */
+  }
   run(&r, "run", "--restart", out, "--set", "solver.max_iter=0", NULL);
   assert_int_equal(r.code, 2); /* out of range */
   run(&r, "run", "--restart", out, "--set", "solver.max_iter=7", "--set", "time.t_end=0.03", NULL);
