@@ -41,8 +41,10 @@ int cli_exit_for(ves_status st) {
  * prolate_c0.ini at 0.04 6,625 (6,759, +2%). Until session 18 the meridian
  * was taken as pi for every shape: the prolate's 27,447 was estimated at
  * 17,017 and its memory at 2.6 GB. Memory scales linearly from the oblate's
- * below: 4.2 GB for that prolate, whose run with resets peaked at 6.7 GB
- * (the factorization's fill and the reset's tables: not modelled).
+ * below (no resets): 4.2 GB for that prolate, whose steps before its first
+ * reset peaked at 4.1 GB; a reset or a remeshing builds the new reference's
+ * tables beside the old ones (integrate.c), EST_RESET more: the same run
+ * peaked at 6.7 GB (session 17), +1.1 GB of 2.1 at eps 0.02 (session 16).
  * Returns 0 when the shape cannot be built (the setup then says why). */
 #define EST_FILL 1.27
 static double estimate_nodes(const ves_config *c) {
@@ -69,12 +71,17 @@ static double estimate_nodes(const ves_config *c) {
 #define EST_PEAK_GB 3.0
 #define EST_STEP_S 8.0
 #define EST_LARGE 10000 /* nodes from which the estimate is printed */
+#define EST_RESET 1.6   /* the peak with resets or remeshings against the steps' */
 
 /* Before a setup: a line with the estimated size and cost when the problem
  * is large (not with quiet); a refusal when its estimated memory exceeds
  * the machine's. 0 ok, else 2 (message printed). */
 int cli_setup_estimate(const char *cmd, const ves_config *c, int quiet) {
-  const double n = estimate_nodes(c), x = n / EST_NODES, gb = EST_PEAK_GB * x;
+  const int resets = c->reconnect_every > 0 || c->reconnect_cond_max > 0 ||
+                     c->reconnect_det_min > 0 || c->remesh_every > 0 || c->remesh_cond_max > 0 ||
+                     c->remesh_det_min > 0 || c->remesh_on_failed_reset;
+  const double n = estimate_nodes(c), x = n / EST_NODES,
+               gb = EST_PEAK_GB * x * (resets ? EST_RESET : 1.0);
   const long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGESIZE);
   const double have = pages > 0 && page > 0 ? (double)pages * (double)page / 1e9 : 0.0;
   if (have > 0 && gb > have) {
@@ -87,9 +94,10 @@ int cli_setup_estimate(const char *cmd, const ves_config *c, int quiet) {
   if (!quiet && n >= EST_LARGE)
     fprintf(stderr,
             "vesica %s: setting up about %.0f nodes (an estimate): ~%.0f s of setup on one thread, "
-            "~%.1f GB peak memory in a run, ~%.0f s a Newton step (scaled from %.0f nodes: "
+            "~%.1f GB peak memory in a run%s, ~%.0f s a Newton step (scaled from %.0f nodes: "
             "bench/RESULTS.md)\n",
-            cmd, n, EST_SETUP_S * x, gb, EST_STEP_S * pow(x, 1.22), EST_NODES);
+            cmd, n, EST_SETUP_S * x, gb, resets ? " (with its resets)" : "",
+            EST_STEP_S * pow(x, 1.22), EST_NODES);
   return 0;
 }
 

@@ -1341,6 +1341,19 @@ static void test_setup_estimate(void **state) {
    * 69,372 (computed independently); 10% either way */
   assert_true(n > 62000 && n < 77000);
   assert_true(strstr(r.err, "does not fit") > l); /* the line comes first */
+  /* with resets the peak is EST_RESET = 1.6x the steps' (a reset's tables) */
+  const char *g = strstr(l, "GB peak memory in a run, ");
+  assert_non_null(g);
+  while (g > l && g[-1] != '~') g--;
+  const double gb = strtod(g, NULL);
+  run(&r, "check", ini, "--set", "reconnect.every=20", NULL);
+  assert_int_equal(r.code, 2);
+  g = strstr(r.err, "GB peak memory in a run (with its resets), ");
+  assert_non_null(g);
+  while (g > r.err && g[-1] != '~') g--;
+  const double gb_reset = strtod(g, NULL);
+  printf("# peak estimate %.1f GB, with resets %.1f GB\n", gb, gb_reset);
+  assert_true(fabs(gb_reset / gb - 1.6) < 0.02); /* both printed to 0.1 GB of ~10 */
   const double have = (double)sysconf(_SC_PHYS_PAGES) * (double)sysconf(_SC_PAGESIZE);
   if (have < 1e12) { /* ~6e6 nodes, ~1 TB: refused on any smaller machine */
     run(&r, "check", ini, "--set", "geometry.box_z=4", "--set", "geometry.epsilon=1e-4", NULL);
