@@ -14,7 +14,11 @@
  *
  * Adaptivity (paper Sec. 4, Fig. 4): dt_next = dt * clamp(dE_target / |dE|,
  * 1/2, growth_max), not grown when the backend needed more than iter_target
- * iterations, capped by dt_max and by the next protocol event, and for
+ * iterations or (factor_target > 0) more than factor_target KKT
+ * factorizations (newton's matrix builds with their inertia corrections:
+ * the chord needed fresh matrices, the sign that a larger step will need
+ * more; bench/RESULTS.md, session 20), capped by dt_max and by the next
+ * protocol event, and for
  * retry_memory accepted steps after a rejected attempt at dt_r by retry_cap
  * dt_r. Without that memory the controller regrew dt right after a retry
  * and the next attempt failed again: every other step of the prolate C0
@@ -98,6 +102,7 @@ void ves_integrate_params_default(ves_integrate_params *p) {
   p->dE_target = 0.02;
   p->growth_max = 2.0;
   p->iter_target = 8;
+  p->factor_target = 2;
   p->predictor = 1;
   p->retry_memory = 10;
   p->retry_cap = 0.7;
@@ -146,6 +151,7 @@ ves_status ves_sim_create(ves_model *model, const ves_backend_type *backend,
   VES_CHECK(ip->dt_min > 0 && ip->dt_min <= ip->dt_initial, VES_ERR_ARG);
   VES_CHECK(ip->growth_max >= 1, VES_ERR_ARG);
   VES_CHECK(ip->dE_target > 0, VES_ERR_ARG);
+  VES_CHECK(ip->factor_target >= 0, VES_ERR_ARG);
   VES_CHECK(ip->volume_final > 0, VES_ERR_ARG);
   VES_CHECK(ip->retry_memory >= 0, VES_ERR_ARG);
   VES_CHECK(ip->retry_cap > 0 && ip->retry_cap <= 1, VES_ERR_ARG);
@@ -523,13 +529,16 @@ static double event_dt(const ves_sim *s, double tiny) {
 }
 
 /* The step controller after an accepted step of size dt that changed E by
- * dE in `iterations` backend iterations after `retries` halvings: sets s->dt. */
-static void next_dt(ves_sim *s, double dt, double dE, int iterations, int retries) {
+ * dE in `iterations` backend iterations with `factorizations` KKT
+ * factorizations after `retries` halvings: sets s->dt. */
+static void next_dt(ves_sim *s, double dt, double dE, int iterations, int factorizations,
+                    int retries) {
   double next = s->dt;
   if (s->ip.adaptive) {
     double f = dE > 0 ? s->ip.dE_target * ves_model_get_k(s->model) / dE : s->ip.growth_max;
     f = fmin(fmax(f, 0.5), s->ip.growth_max);
     if (iterations > s->ip.iter_target) f = fmin(f, 1.0);
+    if (s->ip.factor_target > 0 && factorizations > s->ip.factor_target) f = fmin(f, 1.0);
     next = dt * f;
     if (retries) next = fmin(next, dt); /* just halved: do not jump back at once */
     if (s->dt_rejected > 0 && s->since_rejected >= s->ip.retry_memory)
@@ -592,7 +601,7 @@ static void accept(ves_sim *s, double dt, double E, double A, double V, const do
   rep->E = E / ves_model_get_k(s->model), rep->A = A, rep->V = V;
   rep->lambda[0] = lam[0], rep->lambda[1] = lam[1];
   rep->c0 = s->c0, rep->V_target = Vt, rep->retries = retries, rep->solve_status = VES_OK;
-  next_dt(s, dt, dE, rep->stats.iterations, retries);
+  next_dt(s, dt, dE, rep->stats.iterations, rep->stats.factorizations, retries);
 }
 
 /* Book a rejected attempt at dt (status st) into rep and the controller's

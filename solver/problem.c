@@ -10,6 +10,7 @@ static void integrate_params(const ves_config *c, ves_integrate_params *ip) {
   ip->t_end = c->t_end, ip->dt_initial = c->dt_initial, ip->dt_max = c->dt_max;
   ip->dt_min = c->dt_min, ip->adaptive = c->adaptive, ip->dE_target = c->dE_target;
   ip->growth_max = c->growth_max, ip->iter_target = c->iter_target;
+  ip->factor_target = c->factor_target;
   ip->predictor = c->predictor;
   ip->retry_memory = c->retry_memory, ip->retry_cap = c->retry_cap;
   ip->hold_area = c->area, ip->hold_volume = c->volume;

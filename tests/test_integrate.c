@@ -138,6 +138,42 @@ static void test_freeze_across_steps(void **state) {
   ves_setup_destroy(&s);
 }
 
+/* The factorization rule (ip.factor_target): newton grows dt 2x a step
+ * (dE_target far above the steps' dE, iter_target out of the way) until a
+ * step needs a second factorization (measured here: dt* 16.4, the 15th
+ * step, 2 matrices). With factor_target 1 the step after it keeps that dt;
+ * without the rule it doubles. The steps before are the same bit for bit. */
+static int factor_rule_run(ves_setup *s, int target, double *dt_at, double *next_at) {
+  ves_integrate_params ip;
+  ves_integrate_params_default(&ip);
+  ip.t_end = 50, ip.dt_initial = 1e-3, ip.dt_max = 100, ip.dE_target = 10;
+  ip.iter_target = 1000, ip.factor_target = target;
+  ves_sim *sim = make_sim(s, "newton", &ip);
+  ves_step_report rep;
+  int k = 0, found = 0;
+  while (!found && k < 40 && ves_sim_step(sim, &rep) == VES_OK) {
+    k++;
+    assert_int_equal(rep.retries, 0);
+    if (rep.stats.factorizations > 1) found = 1, *dt_at = rep.dt, *next_at = ves_sim_dt(sim);
+  }
+  ves_sim_destroy(&sim);
+  return found ? k : 0;
+}
+
+static void test_factor_rule(void **state) {
+  (void)state;
+  ves_setup *s = small_setup();
+  double dt0, next0, dt1, next1;
+  const int k0 = factor_rule_run(s, 0, &dt0, &next0), k1 = factor_rule_run(s, 1, &dt1, &next1);
+  printf("# first step with 2 factorizations: step %d, dt* %.4g; next dt* %.4g (no rule), "
+         "%.4g (factor_target 1)\n",
+         k1, dt1, next0, next1);
+  assert_true(k0 > 0 && k1 == k0 && dt1 == dt0); /* the same steps until then */
+  assert_true(next0 == 2 * dt0);                 /* growth_max */
+  assert_true(next1 == dt1);
+  ves_setup_destroy(&s);
+}
+
 /* Near equilibrium without constraints (as problems/mode2.ini): the step's
  * objective (1/2) d^T K d + dt E is ~dt 2 pi while its decrease per Newton
  * iteration falls below the rounding of E, so a strict Armijo test rejected
@@ -641,7 +677,7 @@ int main(void) {
       /* first in the process: see there */
       cmocka_unit_test(test_reconnect_off),       cmocka_unit_test(test_relaxation),
       cmocka_unit_test(test_near_equilibrium),    cmocka_unit_test(test_euler_adaptive),
-      cmocka_unit_test(test_freeze_across_steps),
+      cmocka_unit_test(test_freeze_across_steps), cmocka_unit_test(test_factor_rule),
       cmocka_unit_test(test_protocols),
       cmocka_unit_test(test_c0_ramp), cmocka_unit_test(test_volume_ramp_end),             cmocka_unit_test(test_c0_switch_restarts_dt),
       cmocka_unit_test(test_failure_keeps_state), cmocka_unit_test(test_reconnect_every),
