@@ -14,10 +14,12 @@
  *
  * Adaptivity (paper Sec. 4, Fig. 4): dt_next = dt * clamp(dE_target / |dE|,
  * 1/2, growth_max), not grown when the backend needed more than iter_target
- * iterations or (factor_target > 0) more than factor_target KKT
- * factorizations (newton's matrix builds with their inertia corrections:
- * the chord needed fresh matrices, the sign that a larger step will need
- * more; bench/RESULTS.md, session 20), capped by dt_max and by the next
+ * iterations or (factor_target > 0, a frozen Hessian) more than
+ * factor_target KKT factorizations (newton's matrix builds with their
+ * inertia corrections: the chord needed fresh matrices, the sign that a
+ * larger step will need more; bench/RESULTS.md, session 20; with
+ * freeze_hessian 0 every iteration factorizes and the iteration rule is the
+ * one that counts), capped by dt_max and by the next
  * protocol event, and for
  * retry_memory accepted steps after a rejected attempt at dt_r by retry_cap
  * dt_r. Without that memory the controller regrew dt right after a retry
@@ -538,7 +540,9 @@ static void next_dt(ves_sim *s, double dt, double dE, int iterations, int factor
     double f = dE > 0 ? s->ip.dE_target * ves_model_get_k(s->model) / dE : s->ip.growth_max;
     f = fmin(fmax(f, 0.5), s->ip.growth_max);
     if (iterations > s->ip.iter_target) f = fmin(f, 1.0);
-    if (s->ip.factor_target > 0 && factorizations > s->ip.factor_target) f = fmin(f, 1.0);
+    if (s->ip.factor_target > 0 && s->bopt.freeze_hessian > 0 &&
+        factorizations > s->ip.factor_target)
+      f = fmin(f, 1.0);
     next = dt * f;
     if (retries) next = fmin(next, dt); /* just halved: do not jump back at once */
     if (s->dt_rejected > 0 && s->since_rejected >= s->ip.retry_memory)

@@ -23,9 +23,10 @@ typedef struct {
   double dE_target;     /* adaptive: target |E*(n+1) - E*(n)| per step (units k) */
   double growth_max;    /* adaptive: largest factor between consecutive steps (> 1) */
   int iter_target;      /* adaptive: above this many backend iterations dt is not grown */
-  int factor_target;    /* adaptive: above this many KKT factorizations in the accepted
-                           attempt (newton, euler; inertia corrections included) dt is not
-                           grown (0: no such rule) */
+  int factor_target;    /* adaptive, with a frozen Hessian (ves_backend_options
+                           freeze_hessian >= 1): above this many KKT factorizations in the
+                           accepted attempt (newton's builds and inertia corrections; euler
+                           has one) dt is not grown (0: no such rule) */
   int predictor;        /* 1: a step starts from the linear extrapolation of the last two
                            states (and multipliers scaled by dt); 0: from y^n. y^{n-1} is
                            part of the restart state (ves_sim_y_prev, ves_sim_set_prev),
