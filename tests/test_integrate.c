@@ -142,7 +142,7 @@ static void test_freeze_across_steps(void **state) {
  * (dE_target far above the steps' dE, iter_target out of the way) until a
  * step needs a second factorization (measured here: dt* 16.4, the 15th
  * step, 2 matrices). With factor_target 1 the step after it keeps that dt;
- * without the rule it doubles. The steps before are the same bit for bit. */
+ * without the rule it doubles. The steps before are the same (count, dt). */
 static int factor_rule_run(ves_setup *s, int target, double *dt_at, double *next_at) {
   ves_integrate_params ip;
   ves_integrate_params_default(&ip);
