@@ -77,9 +77,9 @@ static double estimate_nodes(const ves_config *c) {
  * is large (not with quiet); a refusal when its estimated memory exceeds
  * the machine's. 0 ok, else 2 (message printed). */
 int cli_setup_estimate(const char *cmd, const ves_config *c, int quiet) {
-  const int resets = c->reconnect_every > 0 || c->reconnect_cond_max > 0 ||
-                     c->reconnect_det_min > 0 || c->remesh_every > 0 || c->remesh_cond_max > 0 ||
-                     c->remesh_det_min > 0 || c->remesh_on_failed_reset;
+  ves_problem_params pp; /* its .resets: the one reading of [reconnect] and [remesh] */
+  ves_problem_params_from_config(c, &pp);
+  const int resets = pp.resets;
   const double n = estimate_nodes(c), x = n / EST_NODES,
                gb = EST_PEAK_GB * x * (resets ? EST_RESET : 1.0);
   const long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGESIZE);

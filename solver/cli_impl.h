@@ -112,9 +112,9 @@ const char *cli_io_cause(const ves_io *io, ves_status st);
 int cli_loop(run_ctx *r);
 /* Continue FILE.h5 from its last snapshot with the overrides set[nset]. */
 int cli_run_restart(run_ctx *r, const char *file, int nset, const char *const *set);
-/* The keys a restart may change, "a, b and c", into f: the first line after
- * `col` characters already printed on it, wrapped before `width` with
- * continuation lines indented by `indent` spaces. Returns the column after. */
-int cli_restart_keys_print(FILE *f, int col, int indent, int width);
+/* The keys a restart may change, "a, b and c", then " tail", into f: the
+ * first line after `col` characters already printed on it, wrapped before
+ * `width` (0: no wrapping) with continuation lines indented by `indent`. */
+void cli_restart_keys_print(FILE *f, int col, int indent, int width, const char *tail);
 
 #endif

@@ -18,19 +18,18 @@ static const char *const RESTART_KEYS[] = {
     "solver.max_builds", "solver.freeze_hessian", "solver.factor_precision",
     "time.t_end"};
 
-int cli_restart_keys_print(FILE *f, int col, int indent, int width) {
+void cli_restart_keys_print(FILE *f, int col, int indent, int width, const char *tail) {
   const size_t nk = sizeof RESTART_KEYS / sizeof RESTART_KEYS[0];
-  for (size_t j = 0; j < nk; j++) {
+  for (size_t j = 0; j <= nk; j++) { /* the keys, then the tail as one more word */
+    const char *word = j < nk ? RESTART_KEYS[j] : tail;
     const char *sep = j + 2 < nk ? "," : j + 1 < nk ? " and" : "";
-    const int len = (int)(strlen(RESTART_KEYS[j]) + strlen(sep));
-    if (j > 0 && width > 0 && col + 1 + len >= width) {
+    const int len = (int)(strlen(word) + strlen(sep));
+    if (j > 0 && width > 0 && col + 1 + len >= width)
       col = fprintf(f, "\n%*s", indent, "") - 1;
-    } else if (j > 0) {
+    else if (j > 0)
       col += fprintf(f, " ");
-    }
-    col += fprintf(f, "%s%s", RESTART_KEYS[j], sep);
+    col += fprintf(f, "%s%s", word, sep);
   }
-  return col;
 }
 
 /* A file cut short (a torn last write): its last complete snapshot, the
@@ -114,8 +113,8 @@ int cli_run_restart(run_ctx *r, const char *file, int nset, const char *const *s
     if (k == nk) { /* the allowed keys listed from RESTART_KEYS, the one list */
       fprintf(stderr, "vesica run: --restart %s: --set %s: a restart may change only ", file,
               set[i]);
-      cli_restart_keys_print(stderr, 0, 0, 0);
-      fprintf(stderr, " (the other keys define the setup and the steps already taken)\n");
+      cli_restart_keys_print(stderr, 0, 0, 0,
+                             "(the other keys define the setup and the steps already taken)\n");
       return 2;
     }
   }

@@ -26,9 +26,8 @@ static void usage_run(FILE *f) {
           "                    snapshots every [output] snapshot_every steps and at the end\n"
           "  --restart FILE.h5 continue the run of FILE.h5 from its last snapshot, appending to\n"
           "                    it; the trajectory is bit for bit the uninterrupted one;\n");
-  int col = fprintf(f, "                    --set may change ");
-  col = cli_restart_keys_print(f, col, 20, 86);
-  fprintf(f, "%s(recorded in the file)\n", col + 23 < 86 ? " " : "\n                    ");
+  cli_restart_keys_print(f, fprintf(f, "                    --set may change "), 20, 86,
+                         "(recorded in the file)\n");
   fprintf(f,
           "  --max-steps N     stop (with a snapshot, exit 0) once N steps are accepted in all\n"
           "  --series FILE.tsv also one tab-separated line per accepted step: step t dt E\n"

@@ -19,10 +19,9 @@
  * inertia corrections: the chord needed fresh matrices, the sign that a
  * larger step will need more; bench/RESULTS.md, session 20; with
  * freeze_hessian 0 every iteration factorizes and the iteration rule is the
- * one that counts), capped by dt_max and by the next
- * protocol event, and for
- * retry_memory accepted steps after a rejected attempt at dt_r by retry_cap
- * dt_r. Without that memory the controller regrew dt right after a retry
+ * one that counts), capped by dt_max and by the next protocol event, and
+ * for retry_memory accepted steps after a rejected attempt at dt_r by
+ * retry_cap dt_r. Without that memory the controller regrew dt right after a retry
  * and the next attempt failed again: every other step of the prolate C0
  * run was a rejected attempt (160-390 s each, Newton damped by inertia
  * corrections of up to 1e6 K: at those dt the step problem is not convex,

@@ -1320,6 +1320,13 @@ static void test_sigkill(void **state) {
 
 /* ---- the size of a setup, said before it starts ---------------------------- */
 
+static double estimate_gb(const char *text, const char *unit) { /* "~X <unit>" in text */
+  const char *g = strstr(text, unit);
+  assert_non_null(g);
+  while (g > text && g[-1] != '~') g--;
+  return strtod(g, NULL);
+}
+
 /* A large problem is announced with its estimated size and cost before the
  * setup (here one refused right after, by the box check); one beyond the
  * machine's memory is refused with the estimate, nothing built. */
@@ -1342,16 +1349,10 @@ static void test_setup_estimate(void **state) {
   assert_true(n > 62000 && n < 77000);
   assert_true(strstr(r.err, "does not fit") > l); /* the line comes first */
   /* with resets the peak is EST_RESET = 1.6x the steps' (a reset's tables) */
-  const char *g = strstr(l, "GB peak memory in a run, ");
-  assert_non_null(g);
-  while (g > l && g[-1] != '~') g--;
-  const double gb = strtod(g, NULL);
+  const double gb = estimate_gb(l, "GB peak memory in a run, ");
   run(&r, "check", ini, "--set", "reconnect.every=20", NULL);
   assert_int_equal(r.code, 2);
-  g = strstr(r.err, "GB peak memory in a run (with its resets), ");
-  assert_non_null(g);
-  while (g > r.err && g[-1] != '~') g--;
-  const double gb_reset = strtod(g, NULL);
+  const double gb_reset = estimate_gb(r.err, "GB peak memory in a run (with its resets), ");
   printf("# peak estimate %.1f GB, with resets %.1f GB\n", gb, gb_reset);
   assert_true(fabs(gb_reset / gb - 1.6) < 0.02); /* both printed to 0.1 GB of ~10 */
   const double have = (double)sysconf(_SC_PHYS_PAGES) * (double)sysconf(_SC_PAGESIZE);
