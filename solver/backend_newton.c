@@ -51,6 +51,13 @@
  * negative pivots remain: at eps 0.01 and dt* ~0.8 the step Hessian has
  * 5-50 directions of negative curvature (the spurious modes of issue 22)
  * and each rung is a factorization (~5 s there).
+ * Across steps, the ladder of a step's first build climbs from the
+ * correction the previous step's first build needed (delta = 0 is still
+ * tried first): in the bud phase of the prolate C0 run at eps 0.01 the first
+ * builds of consecutive steps needed 1, 10, 10, 100, 10, 10, each after the
+ * rungs 0, 1e-3, 1e-2, 0.1, ... (6 factorizations of ~4 s, one thread, for 10;
+ * bench/RESULTS.md, session 21). The hint is forgotten at a fresh step (a
+ * restart point or a retry), so a restart stays bit for bit.
  *
  * Build limit (opt->max_builds, [solver] max_builds; 0, the default, = none):
  * an attempt that would build more matrices returns VES_MAXITER and the
@@ -115,6 +122,7 @@ typedef struct {
   int ncon_factor;         /* the constraints held in it */
   double delta_last;       /* the last inertia correction (0: none since the matrix was fresh) */
   double delta_build;      /* the correction of the last build (0: none was needed) */
+  double delta_hint;       /* the correction the last step's first build needed (0: none) */
   /* Anderson acceleration of the chord iteration (columns of nvar + KKT_NROWS) */
   double *aa_du;       /* NEWTON_AA_DEPTH differences of the iterates u = (x, lam) */
   double *aa_dg;       /* NEWTON_AA_DEPTH differences of their chord steps */
@@ -197,8 +205,9 @@ static ves_status assemble_factor(newton_state *w, ves_step *s, const double *x,
   }
   w->noise = DBL_EPSILON * norm_inf(w->nvar, acc);
   kkt_fill_rows(&w->kkt, w->J, ncon);
-  const double *K = NULL; /* assembled only for a correction (ves_step_K) */
-  const double d0 = fmax(NEWTON_DELTA0, w->delta_last / 10);
+  const double *K = NULL;              /* assembled only for a correction (ves_step_K) */
+  const int first = stt->h_evals == 1; /* the step's first build */
+  const double d0 = fmax(fmax(NEWTON_DELTA0, w->delta_last / 10), first ? w->delta_hint : 0);
   /* the ladder's first rung: delta = 0, unless the last build needed a
    * correction, whose third is tried first (the iterate moved little since;
    * measured at eps 0.01, dt* 0.8: 19 factorizations in 7 builds, a build
@@ -215,6 +224,7 @@ static ves_status assemble_factor(newton_state *w, ves_step *s, const double *x,
     if (st == VES_OK && w->kkt.neg == KKT_NROWS) {
       if (delta > 0) w->delta_last = delta;
       w->delta_build = delta;
+      if (first) w->delta_hint = delta;
       w->have_factor = 1, w->ncon_factor = ncon;
       w->dt_factor = ves_step_get_params(s)->dt;
       return VES_OK;
@@ -464,7 +474,8 @@ static ves_status newton_solve(void *state, ves_step *s, double *x, double *lamb
                     w->ncon_factor == ncon && par->dt <= NEWTON_REUSE_DT * w->dt_factor &&
                     w->dt_factor <= NEWTON_REUSE_DT * par->dt;
   if (!reuse) w->have_factor = 0, w->noise = 0, w->delta_last = 0, w->delta_build = 0;
-  w->aa_n = 0, w->aa_prev = 0; /* a new step: a new residual */
+  if (par->fresh) w->delta_hint = 0; /* a restart point or a retry: as a new run */
+  w->aa_n = 0, w->aa_prev = 0;       /* a new step: a new residual */
   VES_CHECK(nv == ves_step_nvar(s), VES_ERR_ARG);
   VES_CHECK(ncon == 0 || lambda, VES_ERR_ARG);
   double tgt[KKT_NROWS] = {1, 1}, lam[KKT_NROWS] = {0, 0}, c[KKT_NROWS] = {0, 0},

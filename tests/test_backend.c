@@ -10,7 +10,8 @@
  * constraints; euler's explicit step leaves the domain: VES_ERR_DOMAIN),
  * NULL arguments and bad options (VES_ERR_ARG), a step problem never set
  * or of another size (newton, euler: VES_ERR_ARG), a singular KKT matrix
- * (no viscosity: newton, euler VES_ERR_SOLVER). Prints iterations, evaluations and seconds
+ * (no viscosity: newton, euler VES_ERR_SOLVER). Newton's inertia hint across
+ * steps (test_inertia_hint). Prints iterations, evaluations and seconds
  * for each backend. */
 #include <setjmp.h>
 #include <stdarg.h>
@@ -438,6 +439,63 @@ static void test_huge_dt(void **state) {
   assert_int_equal(ves_step_set(FX.step, FX.yn, &FX.par), VES_OK);
 }
 
+/* The inertia hint (backend_newton.c): a step's first matrix climbs its
+ * ladder of corrections from the one the previous step's first matrix
+ * needed, after delta = 0. One newton state solves the same step three
+ * times, one iteration each (max_iter 1: the first matrix only), at the
+ * first dt* of 1, 10, 100, 1e3 whose matrix needs a correction of at
+ * least 1e-2 K (the ladder 0, 1e-3, 1e-2, ...: >= 3 factorizations):
+ * the second solve factorizes twice (0, then the remembered delta); the
+ * third, marked fresh (a restart point or a retry), climbs the whole
+ * ladder again and ends where the first did, bit for bit. */
+static void test_inertia_hint(void **state) {
+  (void)state;
+  const ves_backend_type *b = ves_backend_find("newton");
+  double *x = malloc((size_t)FX.nvar * sizeof(double));
+  double *x1 = malloc((size_t)FX.nvar * sizeof(double));
+  assert_non_null(x);
+  assert_non_null(x1);
+  const double dts[] = {1, 10, 100, 1e3};
+  int found = 0;
+  for (int k = 0; k < 4 && !found; k++) {
+    ves_step_params par = FX.par;
+    par.dt = dts[k];
+    assert_int_equal(ves_step_set(FX.step, FX.yn, &par), VES_OK);
+    ves_backend_options opt;
+    ves_backend_options_default(&opt);
+    opt.max_iter = 1;
+    void *ns = NULL;
+    assert_int_equal(b->create(&opt, FX.step, &ns), VES_OK);
+    ves_backend_stats s1 = {0}, s2 = {0}, s3 = {0};
+    double lam[2] = {0, 0};
+    memcpy(x1, FX.x0, (size_t)FX.nvar * sizeof(double));
+    ves_status st = b->solve(ns, FX.step, x1, lam, &s1);
+    assert_true(st == VES_OK || st == VES_MAXITER);
+    printf("# dt* %g: first matrix, %d factorizations\n", dts[k], s1.factorizations);
+    if (s1.factorizations >= 3) {
+      found = 1;
+      lam[0] = lam[1] = 0;
+      memcpy(x, FX.x0, (size_t)FX.nvar * sizeof(double));
+      st = b->solve(ns, FX.step, x, lam, &s2);
+      assert_true(st == VES_OK || st == VES_MAXITER);
+      printf("# dt* %g: again, %d factorizations\n", dts[k], s2.factorizations);
+      assert_int_equal(s2.factorizations, 2);
+      par.fresh = 1;
+      assert_int_equal(ves_step_set(FX.step, FX.yn, &par), VES_OK);
+      lam[0] = lam[1] = 0;
+      memcpy(x, FX.x0, (size_t)FX.nvar * sizeof(double));
+      st = b->solve(ns, FX.step, x, lam, &s3);
+      assert_true(st == VES_OK || st == VES_MAXITER);
+      assert_int_equal(s3.factorizations, s1.factorizations);
+      assert_true(memcmp(x, x1, (size_t)FX.nvar * sizeof(double)) == 0);
+    }
+    b->destroy(&ns);
+  }
+  assert_true(found);
+  free(x), free(x1);
+  assert_int_equal(ves_step_set(FX.step, FX.yn, &FX.par), VES_OK);
+}
+
 /* Usage errors: NULL arguments and bad options are VES_ERR_ARG (euler
  * honours no tolerance and takes any); newton and euler refuse a step
  * problem that was never set, and one of another size than the problem they
@@ -572,7 +630,8 @@ int main(void) {
       cmocka_unit_test(test_ipopt_converges), cmocka_unit_test(test_nlopt_small_step),
       cmocka_unit_test(test_nlopt_matches_ipopt),
       cmocka_unit_test(test_conformance),     cmocka_unit_test(test_domain_start),
-      cmocka_unit_test(test_huge_dt),         cmocka_unit_test(test_bad_arguments),
+      cmocka_unit_test(test_huge_dt),         cmocka_unit_test(test_inertia_hint),
+      cmocka_unit_test(test_bad_arguments),
       cmocka_unit_test(test_singular_kkt),
   };
   // clang-format on
