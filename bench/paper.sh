@@ -183,9 +183,12 @@ row() { # name: the run's figures, or "not run"
     echo "| $1 | not run | | | | | | | | | | | |"
   fi
 }
+# the runs, in the table's order (fig34_eps001 only at the default scale)
+RUNS="fig34 fig5left fig5right fig6 fig7_slow fig7_medium fig7_fast"
+[ -z "$PAPER_EPS" ] && RUNS="fig34 fig34_eps001 ${RUNS#fig34 }"
 lane_wall() { # the sum of the wall seconds of lane $1's finished runs
   tot=0
-  for n in fig34 fig34_eps001 fig6 fig5left fig5right fig7_slow fig7_medium fig7_fast; do
+  for n in $RUNS; do
     [ "$(lane_of "$n")" = "$1" ] && [ -f "$OUT/$n.done" ] && tot=$(awk -v a="$tot" -v b="$(key wall_seconds "$n")" 'BEGIN { print a + b }')
   done
   [ "$1" = 1 ] && [ -f "$OUT/table1.txt.wall" ] && tot=$(awk -v a="$tot" -v b="$(cat "$OUT/table1.txt.wall")" 'BEGIN { print a + b }')
@@ -216,10 +219,7 @@ lane_wall() { # the sum of the wall seconds of lane $1's finished runs
   echo
   echo "| run | eps | nodes (initial -> final) | steps | t* | E* initial | E* final | dt growth | resets | remeshings | max \|A/A0-1\| | max \|V/Vt-1\| | wall s |"
   echo "|---|---|---|---|---|---|---|---|---|---|---|---|---|"
-  for n in fig34 fig34_eps001 fig5left fig5right fig6 fig7_slow fig7_medium fig7_fast; do
-    [ "$n" = fig34_eps001 ] && [ -n "$PAPER_EPS" ] && continue
-    row $n
-  done
+  for n in $RUNS; do row $n; done
   echo
   echo "Fig. 6 (bench/fig6.py; figure bench/figures/paper/fig6_epsE.png):"
   echo

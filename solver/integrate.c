@@ -538,10 +538,10 @@ static void next_dt(ves_sim *s, double dt, double dE, int iterations, int factor
   if (s->ip.adaptive) {
     double f = dE > 0 ? s->ip.dE_target * ves_model_get_k(s->model) / dE : s->ip.growth_max;
     f = fmin(fmax(f, 0.5), s->ip.growth_max);
-    if (iterations > s->ip.iter_target) f = fmin(f, 1.0);
-    if (s->ip.factor_target > 0 && s->bopt.freeze_hessian > 0 &&
-        factorizations > s->ip.factor_target)
-      f = fmin(f, 1.0);
+    const int hard =
+        iterations > s->ip.iter_target || (s->ip.factor_target > 0 && s->bopt.freeze_hessian > 0 &&
+                                           factorizations > s->ip.factor_target);
+    if (hard) f = fmin(f, 1.0); /* a hard step: no growth */
     next = dt * f;
     if (retries) next = fmin(next, dt); /* just halved: do not jump back at once */
     if (s->dt_rejected > 0 && s->since_rejected >= s->ip.retry_memory)

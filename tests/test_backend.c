@@ -448,6 +448,13 @@ static void test_huge_dt(void **state) {
  * the second solve factorizes twice (0, then the remembered delta); the
  * third, marked fresh (a restart point or a retry), climbs the whole
  * ladder again and ends where the first did, bit for bit. */
+static void hint_solve(const ves_backend_type *b, void *ns, double *x, ves_backend_stats *stats) {
+  double lam[2] = {0, 0};
+  memcpy(x, FX.x0, (size_t)FX.nvar * sizeof(double));
+  const ves_status st = b->solve(ns, FX.step, x, lam, stats); /* from x0, lambda 0 */
+  assert_true(st == VES_OK || st == VES_MAXITER);
+}
+
 static void test_inertia_hint(void **state) {
   (void)state;
   const ves_backend_type *b = ves_backend_find("newton");
@@ -467,25 +474,16 @@ static void test_inertia_hint(void **state) {
     void *ns = NULL;
     assert_int_equal(b->create(&opt, FX.step, &ns), VES_OK);
     ves_backend_stats s1 = {0}, s2 = {0}, s3 = {0};
-    double lam[2] = {0, 0};
-    memcpy(x1, FX.x0, (size_t)FX.nvar * sizeof(double));
-    ves_status st = b->solve(ns, FX.step, x1, lam, &s1);
-    assert_true(st == VES_OK || st == VES_MAXITER);
+    hint_solve(b, ns, x1, &s1);
     printf("# dt* %g: first matrix, %d factorizations\n", dts[k], s1.factorizations);
     if (s1.factorizations >= 3) {
       found = 1;
-      lam[0] = lam[1] = 0;
-      memcpy(x, FX.x0, (size_t)FX.nvar * sizeof(double));
-      st = b->solve(ns, FX.step, x, lam, &s2);
-      assert_true(st == VES_OK || st == VES_MAXITER);
+      hint_solve(b, ns, x, &s2);
       printf("# dt* %g: again, %d factorizations\n", dts[k], s2.factorizations);
       assert_int_equal(s2.factorizations, 2);
       par.fresh = 1;
       assert_int_equal(ves_step_set(FX.step, FX.yn, &par), VES_OK);
-      lam[0] = lam[1] = 0;
-      memcpy(x, FX.x0, (size_t)FX.nvar * sizeof(double));
-      st = b->solve(ns, FX.step, x, lam, &s3);
-      assert_true(st == VES_OK || st == VES_MAXITER);
+      hint_solve(b, ns, x, &s3);
       assert_int_equal(s3.factorizations, s1.factorizations);
       assert_true(memcmp(x, x1, (size_t)FX.nvar * sizeof(double)) == 0);
     }
