@@ -18,6 +18,8 @@
 #include "ves/setup.h"
 #include "blas_core_impl.h"
 
+#define EVAL_REPEAT 5 /* E+A+V+g passes timed (a run makes hundreds) */
+
 static double now(void) {
   struct timespec ts;
   clock_gettime(CLOCK_MONOTONIC, &ts);
@@ -65,10 +67,14 @@ static int run(double eps, row *r) {
   if (!y || !g || !blk) return 1;
   ves_model_reference(s->model, y);
   double E, A, V;
-  t = now();
-  st =
-      ves_model_eval(s->model, y, VES_F_E | VES_F_A | VES_F_V, &E, &A, &V, g, g + 2 * n, g + 4 * n);
-  r->t_eval = now() - t;
+  r->t_eval = 1e300; /* the fastest of EVAL_REPEAT: the first pass also pays the cold caches */
+  for (int k = 0; k < EVAL_REPEAT; k++) {
+    t = now();
+    st = ves_model_eval(s->model, y, VES_F_E | VES_F_A | VES_F_V, &E, &A, &V, g, g + 2 * n,
+                        g + 4 * n);
+    const double dt = now() - t;
+    if (dt < r->t_eval) r->t_eval = dt;
+  }
   double c = cpu();
   t = now();
   if (st == VES_OK) st = ves_model_hessian(s->model, y, 1, 1, 1, blk);

@@ -150,10 +150,11 @@ int model_triangle_union(const ves_model *m, model_ws *w, int t, folded f[NPT], 
  * to vectorize with OpenMP simd: the same binary sums in the same order on
  * every thread, so results stay bitwise independent of the thread count. */
 #ifdef _OPENMP
-#define OMP_SIMD_SUM _Pragma("omp simd reduction(+ : s)")
 #define OMP_SIMD _Pragma("omp simd")
+#define OMP_PRAGMA(x) _Pragma(#x)
+#define OMP_SIMD_SUMS(...) OMP_PRAGMA(omp simd reduction(+ : __VA_ARGS__))
 #else
-#define OMP_SIMD_SUM
+#define OMP_SIMD_SUMS(...)
 #define OMP_SIMD
 #endif
 
@@ -165,40 +166,72 @@ static void kinematics(const folded *f, const double *y, double *yl, double q[VE
   const int *un = f->un;
   double *yr = yl, *yz = yl + mu;
   for (int u = 0; u < mu; u++) yr[u] = y[2 * un[u]], yz[u] = y[2 * un[u] + 1];
-  for (int j = 0; j < 6; j++) {
-    const double *row = Tr + j * mu;
-    double s = 0.0;
-    OMP_SIMD_SUM /* over s */
-        for (int u = 0; u < mu; u++) s += row[u] * yr[u];
-    q[MAP_Q.qr[j]] = s;
+  /* the 6 r sums in one pass and the 5 z sums in another: each is a
+   * reduction over u as its own loop would be (one vector accumulator a
+   * sum), the node's y loaded once for all of them */
+  const double *r0 = Tr, *r1 = Tr + mu, *r2 = Tr + 2 * mu, *r3 = Tr + 3 * mu, *r4 = Tr + 4 * mu,
+               *r5 = Tr + 5 * mu;
+  double s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0, s4 = 0.0, s5 = 0.0;
+  OMP_SIMD_SUMS(s0, s1, s2, s3, s4, s5)
+  for (int u = 0; u < mu; u++) {
+    const double v = yr[u];
+    s0 += r0[u] * v, s1 += r1[u] * v, s2 += r2[u] * v;
+    s3 += r3[u] * v, s4 += r4[u] * v, s5 += r5[u] * v;
   }
-  for (int j = 0; j < 5; j++) {
-    const double *row = Tz + MAP_Q.rz[j] * mu;
+  q[MAP_Q.qr[0]] = s0, q[MAP_Q.qr[1]] = s1, q[MAP_Q.qr[2]] = s2;
+  q[MAP_Q.qr[3]] = s3, q[MAP_Q.qr[4]] = s4, q[MAP_Q.qr[5]] = s5;
+  const double *z1 = Tz + mu, *z2 = Tz + 2 * mu, *z3 = Tz + 3 * mu, *z4 = Tz + 4 * mu,
+               *z5 = Tz + 5 * mu; /* MAP_Q.rz = 1..5 */
+  double t1 = 0.0, t2 = 0.0, t3 = 0.0, t4 = 0.0, t5 = 0.0;
+  OMP_SIMD_SUMS(t1, t2, t3, t4, t5)
+  for (int u = 0; u < mu; u++) {
+    const double v = yz[u];
+    t1 += z1[u] * v, t2 += z2[u] * v, t3 += z3[u] * v, t4 += z4[u] * v, t5 += z5[u] * v;
+  }
+  q[MAP_Q.qz[0]] = t1, q[MAP_Q.qz[1]] = t2, q[MAP_Q.qz[2]] = t3;
+  q[MAP_Q.qz[3]] = t4, q[MAP_Q.qz[4]] = t5;
+}
+
+/* out[u] = sum_j c_j T[row_j][u] over the nodes, summed in j order from 0
+ * (the order of the axpys it replaces: bitwise the same), one pass over u
+ * with the sum in a register: 5 or 6 rows, their loads shared by nothing
+ * else, vectorized over u. */
+static void rows6(int mu, const double *T, const double c[6], double *out) {
+  const double *t0 = T, *t1 = T + mu, *t2 = T + 2 * mu, *t3 = T + 3 * mu, *t4 = T + 4 * mu,
+               *t5 = T + 5 * mu;
+  OMP_SIMD
+  for (int u = 0; u < mu; u++) {
     double s = 0.0;
-    OMP_SIMD_SUM /* over s */
-        for (int u = 0; u < mu; u++) s += row[u] * yz[u];
-    q[MAP_Q.qz[j]] = s;
+    s += c[0] * t0[u], s += c[1] * t1[u], s += c[2] * t2[u];
+    s += c[3] * t3[u], s += c[4] * t4[u], s += c[5] * t5[u];
+    out[u] = s;
+  }
+}
+
+static void rows5(int mu, const double *T, const double c[5], double *out) {
+  const double *t1 = T + mu, *t2 = T + 2 * mu, *t3 = T + 3 * mu, *t4 = T + 4 * mu,
+               *t5 = T + 5 * mu;
+  OMP_SIMD
+  for (int u = 0; u < mu; u++) {
+    double s = 0.0;
+    s += c[0] * t1[u], s += c[1] * t2[u], s += c[2] * t3[u];
+    s += c[3] * t4[u], s += c[4] * t5[u];
+    out[u] = s;
   }
 }
 
 /* g += c B^T ge on the entries of the nodes of slab k: per node u,
- * (B^T ge)_r(u) = sum_j ge[qr_j] Tr[rr_j][u], (B^T ge)_z(u) likewise, formed
- * row by row over the nodes (sl: 2 mu scratch), then added. */
+ * (B^T ge)_r(u) = sum_j c ge[qr_j] Tr[rr_j][u] (rows 0-5 of Tr), (B^T
+ * ge)_z(u) = sum_j c ge[qz_j] Tz[rz_j][u] (rows 1-5 of Tz), formed over the
+ * nodes (sl: 2 mu scratch), then added. */
 static void scatter_grad(const folded *f, const int *owner, int k, double c, const double *ge,
                          double *sl, double *g) {
   const int mu = f->mu;
-  double *sr = sl, *sz = sl + mu;
-  for (int u = 0; u < mu; u++) sr[u] = sz[u] = 0.0;
-  for (int j = 0; j < 6; j++) {
-    const double a = c * ge[MAP_Q.qr[j]], *row = f->Tr + MAP_Q.rr[j] * mu;
-    OMP_SIMD
-    for (int u = 0; u < mu; u++) sr[u] += a * row[u];
-  }
-  for (int j = 0; j < 5; j++) {
-    const double a = c * ge[MAP_Q.qz[j]], *row = f->Tz + MAP_Q.rz[j] * mu;
-    OMP_SIMD
-    for (int u = 0; u < mu; u++) sz[u] += a * row[u];
-  }
+  double *sr = sl, *sz = sl + mu, cr[6], cz[5];
+  for (int j = 0; j < 6; j++) cr[j] = c * ge[MAP_Q.qr[j]]; /* MAP_Q.rr = 0..5 */
+  for (int j = 0; j < 5; j++) cz[j] = c * ge[MAP_Q.qz[j]]; /* MAP_Q.rz = 1..5 */
+  rows6(mu, f->Tr, cr, sr);
+  rows5(mu, f->Tz, cz, sz);
   for (int u = 0; u < mu; u++) {
     const int a = f->un[u];
     if (owner[a] == k) g[2 * a] += sr[u], g[2 * a + 1] += sz[u];
