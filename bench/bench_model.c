@@ -1,5 +1,6 @@
 /* vesica — benchmark of the model assembly (solver/model.c): setup time, one
- * E+A+V value+gradient evaluation, one Hessian (cE = cA = cV = 1) and one K
+ * E+A+V value+gradient evaluation (the fastest of EVAL_REPEAT, as in a run's
+ * warm loop), one Hessian (cE = cA = cV = 1) and one K
  * assembly, with the sizes that drive them, for a sphere in a 2 x 2 box at
  * eps = 0.04 (quick row) and eps = 0.01 (the paper's scale), h_band = 0.5 eps.
  * Wall times, and the process CPU time of the Hessian and K (all threads:
