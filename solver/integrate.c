@@ -660,8 +660,7 @@ ves_status ves_sim_step(ves_sim *s, ves_step_report *rep) {
     }
     if (st == VES_OK) {
       ves_step_expand(s->step, s->x, s->ynew);
-      st = ves_model_eval(s->model, s->ynew, VES_F_E | VES_F_A | VES_F_V, &E, &A, &V, NULL, NULL,
-                          NULL);
+      st = ves_step_values(s->step, s->x, &E, &A, &V); /* the backend's last pass, mostly */
     }
     /* energy stability: a VTI minimizer cannot raise E when y^n was feasible;
      * an explicit Euler step that raises it is unstable */

@@ -168,6 +168,19 @@ ves_status ves_step_eval_f(ves_step *s, const double *x, double *f) {
   return VES_OK;
 }
 
+ves_status ves_step_values(ves_step *s, const double *x, double *E, double *A, double *V) {
+  STEP_READY(s, x);
+  VES_CHECK(E && A && V, VES_ERR_ARG);
+  const int all = VES_F_E | VES_F_A | VES_F_V;
+  if (s->cache && s->cst == VES_OK && (s->which & all) == all &&
+      memcmp(x, s->xc, (size_t)s->nvar * sizeof *x) == 0) {
+    *E = s->E, *A = s->A, *V = s->V;
+    return VES_OK;
+  }
+  ves_step_expand(s, x, s->y);
+  return ves_model_eval(s->m, s->y, all, E, A, V, NULL, NULL, NULL);
+}
+
 /* Restrict a full gradient (2n) to the free dofs, scaled: out = a g_free (+ out if add). */
 static void restrict_grad(const ves_step *s, const double *gfull, double a, int add, double *out) {
   for (int i = 0; i < 2 * s->n; i++) {

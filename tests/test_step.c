@@ -284,6 +284,8 @@ static void test_hessian_fd(void **state) {
 /* The cache is keyed by content: values at x, then at x changed in place
  * (same pointer), then back, agree with a fresh step object; the gradient
  * asked after the value at the same x is the same as asked first. */
+static void eav(const double *x, double *E, double *A, double *V);
+
 static void test_cache(void **state) {
   (void)state;
   const int nv = P->nv;
@@ -309,6 +311,23 @@ static void test_cache(void **state) {
   x[nv / 2] -= 1e-3;
   assert_int_equal(ves_step_eval_f(P->s, x, &f3), VES_OK);
   assert_true(f3 == f1);
+  /* ves_step_values: the model's E, A, V bit for bit, from the cache at the
+   * last point (both constraints held) and by a pass elsewhere; with one
+   * constraint the cache lacks V and it evaluates all three */
+  double Em, Am, Vm, Es, As, Vs;
+  eav(x, &Em, &Am, &Vm);
+  assert_int_equal(ves_step_values(P->s, x, &Es, &As, &Vs), VES_OK);
+  assert_true(Es == Em && As == Am && Vs == Vm);
+  x[nv / 3] += 1e-3; /* not the cached point */
+  eav(x, &Em, &Am, &Vm);
+  assert_int_equal(ves_step_values(P->s, x, &Es, &As, &Vs), VES_OK);
+  assert_true(Es == Em && As == Am && Vs == Vm);
+  par.hold_volume = 0;
+  assert_int_equal(ves_step_set(s2, P->yn, &par), VES_OK);
+  assert_int_equal(ves_step_eval_f(s2, x, &f3), VES_OK);
+  assert_int_equal(ves_step_values(s2, x, &Es, &As, &Vs), VES_OK);
+  assert_true(Es == Em && As == Am && Vs == Vm);
+  assert_int_equal(ves_step_values(s2, x, &Es, &As, NULL), VES_ERR_ARG);
   ves_step_destroy(&s2);
   assert_null(s2);
   free(x), free(g1), free(g2);

@@ -52,6 +52,13 @@ ves_status ves_step_eval_grad(ves_step *s, const double *x, double *g); /* g[nva
 ves_status ves_step_eval_c(ves_step *s, const double *x, double *c);    /* c[ncon] */
 ves_status ves_step_eval_jac(ves_step *s, const double *x, double *J); /* J[ncon*nvar], row-major */
 
+/* E, A and V of the model at x (nvar), as ves_model_eval gives them (the same
+ * sums, bit for bit): from the cache when the last evaluation was at x and
+ * covered all three (both constraints held), else by a values-only model
+ * pass. For the integrator at a converged step: the backend's last point is
+ * nearly always its answer. */
+ves_status ves_step_values(ves_step *s, const double *x, double *E, double *A, double *V);
+
 /* 1: every evaluation of values at a new x computes the gradients in the same
  * model pass (about 3x a values-only pass, against 4x for a values pass and
  * a gradient pass at the same point); for a solver that asks for gradients
