@@ -209,8 +209,7 @@ static void rows6(int mu, const double *T, const double c[6], double *out) {
 }
 
 static void rows5(int mu, const double *T, const double c[5], double *out) {
-  const double *t1 = T + mu, *t2 = T + 2 * mu, *t3 = T + 3 * mu, *t4 = T + 4 * mu,
-               *t5 = T + 5 * mu;
+  const double *t1 = T + mu, *t2 = T + 2 * mu, *t3 = T + 3 * mu, *t4 = T + 4 * mu, *t5 = T + 5 * mu;
   OMP_SIMD
   for (int u = 0; u < mu; u++) {
     double s = 0.0;
