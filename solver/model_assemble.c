@@ -461,6 +461,7 @@ static ves_status triangle_eval(ves_model *m, model_ws *w, int which, const step
     double q[VES_NQ], e, ge[VES_NQ], wa = m->q->w[al], gk[VES_NQD];
     fold_point(m->q, m->mmax, w, al, 0, &f);
     kinematics(&f, y, w->yl, q);
+    if (k == m->tlo[t]) memcpy(m->qrec + VES_NQD * (size_t)al, q, VES_NQD * sizeof *q);
     if (sr) { /* the step's dissipation: gk = 2 pi w D dq */
       double D[VES_NQD * VES_NQD], dq[VES_NQD], dv = 0;
       VES_CALL(step_ref_dissip(m, sr, al, D));
@@ -506,6 +507,7 @@ ves_status model_eval_points(ves_model *m, const double *y, int which, const ste
   for (int i = 0; i < 3; i++)
     if (g[i]) memset(g[i], 0, 2 * (size_t)n * sizeof *g[i]);
   for (int k = 0; k < m->nthr; k++) st[k] = VES_OK;
+  m->qrec_ok = 0; /* overwritten from here on */
 #pragma omp parallel num_threads(m->nthr)
   {
     const int tid = ves_omp_tid(), nt = ves_omp_nteam();
@@ -517,6 +519,10 @@ ves_status model_eval_points(ves_model *m, const double *y, int which, const ste
   }
   for (int k = 0; k < m->nthr; k++)
     if (st[k] != VES_OK) return st[k];
+  if (which) { /* every point's kinematics passed the domain check: q is a reference */
+    memcpy(m->yrec, y, 2 * (size_t)n * sizeof *y);
+    m->qrec_ok = 1;
+  }
   /* The totals are accumulated in extended precision, in point order: the
    * sums run over ~1e4..1e6 points, and the optimizers (line searches,
    * finite-difference checks) compare values that differ by far less than

@@ -65,6 +65,13 @@ struct ves_model {
   model_ws *ws;   /* nthr workspaces */
   double *ev;     /* 4 nq: per-point w e of E, A, V and the step's dissipation
                      (summed in point order) */
+  /* The velocity variables q_0..4 of every point at the last evaluated y,
+   * recorded by each value pass (model_eval_points), so that the next
+   * step's reference at that y (ves_model_dissipation_ref at y^{n+1}, the
+   * answer the last pass evaluated) is a copy, not a pass of its own. */
+  double *qrec; /* VES_NQD nq */
+  double *yrec; /* 2n: the y they belong to */
+  int qrec_ok;  /* 1 when qrec holds a complete, admissible pass at yrec */
   /* Drift damping (par.drift > 0, else NULL): the block values of the
    * constant matrix S added to K (model_drift_build); qn, the points at the
    * nodes with their tables, lives only while the model is built (the rows

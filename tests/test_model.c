@@ -628,6 +628,36 @@ static void test_dissipation(void **state) {
   free(blk), free(v), free(vel), free(wel), free(sum), free(vf), free(wf), free(Kv);
 }
 
+/* ves_model_dissipation_ref at y after a value pass at y is the pass's
+ * record, bit for bit the reference computed by a pass of its own; after
+ * a pass elsewhere, or one that failed half-way (the record partly
+ * overwritten), it is computed afresh. Exact equality: the same kinematics
+ * on the same tables, copied or recomputed. */
+static void test_dissipation_ref_record(void **state) {
+  (void)state;
+  problem *P = P1;
+  ves_model *m = P->s->model;
+  const size_t nq = ves_model_dissipation_ref_size(m);
+  double *y2 = xmalloc(2 * (size_t)P->n), *bad = xmalloc(2 * (size_t)P->n);
+  double *q0 = xmalloc(nq), *q1 = xmalloc(nq), E;
+  motion_smooth(P, 0.013, y2); /* not P->y */
+  assert_int_equal(ves_model_eval(m, P->y, VES_F_E, &E, NULL, NULL, NULL, NULL, NULL), VES_OK);
+  assert_int_equal(ves_model_dissipation_ref(m, y2, q0), VES_OK); /* the record is at P->y */
+  assert_int_equal(ves_model_eval(m, y2, VES_F_E, &E, NULL, NULL, NULL, NULL, NULL), VES_OK);
+  assert_int_equal(ves_model_dissipation_ref(m, y2, q1), VES_OK); /* the record */
+  assert_memory_equal(q0, q1, nq * sizeof *q0);
+  /* a pass that fails: r < 0 at the nodes of the upper half */
+  memcpy(bad, y2, 2 * (size_t)P->n * sizeof *bad);
+  for (int a = 0; a < P->n; a++)
+    if (P->X[2 * a + 1] > 0 && P->pat->dof[2 * a] >= 0) bad[2 * a] = -bad[2 * a];
+  assert_int_equal(ves_model_eval(m, bad, VES_F_E, &E, NULL, NULL, NULL, NULL, NULL),
+                   VES_ERR_DOMAIN);
+  memset(q1, 0, nq * sizeof *q1);
+  assert_int_equal(ves_model_dissipation_ref(m, y2, q1), VES_OK);
+  assert_memory_equal(q0, q1, nq * sizeof *q0);
+  free(y2), free(bad), free(q0), free(q1);
+}
+
 /* Rigid translation along z of ALL nodes (walls included) leaves E, A, V
  * unchanged. q changes only through sum_a dp_a/dX * t, which vanishes for the
  * LME basis (consistency; the tables are built from centred moments in
@@ -1202,6 +1232,7 @@ int main(void) {
       cmocka_unit_test(test_hessian_columns),
       cmocka_unit_test(test_hessian_direction),
       cmocka_unit_test(test_dissipation),
+      cmocka_unit_test(test_dissipation_ref_record),
       cmocka_unit_test(test_drift_damping),
       cmocka_unit_test(test_stabilization),
       cmocka_unit_test(test_translation_invariance),
