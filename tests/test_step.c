@@ -281,11 +281,12 @@ static void test_hessian_fd(void **state) {
   free(x), free(v), free(xp), free(gp), free(gm), free(J), free(H), free(Hv);
 }
 
-/* The cache is keyed by content: values at x, then at x changed in place
- * (same pointer), then back, agree with a fresh step object; the gradient
- * asked after the value at the same x is the same as asked first. */
 static void eav(const double *x, double *E, double *A, double *V);
 
+/* The cache is keyed by content: values at x, then at x changed in place
+ * (same pointer), then back, agree with a fresh step object; the gradient
+ * asked after the value at the same x is the same as asked first; and
+ * ves_step_values hands out the model's own E, A, V from it or without it. */
 static void test_cache(void **state) {
   (void)state;
   const int nv = P->nv;
