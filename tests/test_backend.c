@@ -439,6 +439,14 @@ static void test_huge_dt(void **state) {
   assert_int_equal(ves_step_set(FX.step, FX.yn, &FX.par), VES_OK);
 }
 
+/* One solve of the fixture's step from x0 with lambda 0 (test_inertia_hint). */
+static void hint_solve(const ves_backend_type *b, void *ns, double *x, ves_backend_stats *stats) {
+  double lam[2] = {0, 0};
+  memcpy(x, FX.x0, (size_t)FX.nvar * sizeof(double));
+  const ves_status st = b->solve(ns, FX.step, x, lam, stats); /* from x0, lambda 0 */
+  assert_true(st == VES_OK || st == VES_MAXITER);
+}
+
 /* The inertia hint (backend_newton.c): a step's first matrix climbs its
  * ladder of corrections from the one the previous step's first matrix
  * needed, after delta = 0. One newton state solves the same step three
@@ -448,13 +456,6 @@ static void test_huge_dt(void **state) {
  * the second solve factorizes twice (0, then the remembered delta); the
  * third, marked fresh (a restart point or a retry), climbs the whole
  * ladder again and ends where the first did, bit for bit. */
-static void hint_solve(const ves_backend_type *b, void *ns, double *x, ves_backend_stats *stats) {
-  double lam[2] = {0, 0};
-  memcpy(x, FX.x0, (size_t)FX.nvar * sizeof(double));
-  const ves_status st = b->solve(ns, FX.step, x, lam, stats); /* from x0, lambda 0 */
-  assert_true(st == VES_OK || st == VES_MAXITER);
-}
-
 static void test_inertia_hint(void **state) {
   (void)state;
   const ves_backend_type *b = ves_backend_find("newton");
