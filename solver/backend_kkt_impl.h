@@ -101,4 +101,10 @@ static inline ves_status kkt_solve(kkt_system *k, double *rhs) {
   return ves_ldl_solve(k->ldl, rhs);
 }
 
+/* As kkt_solve, single precision factors refined only to |b - A x| <= tol |b|
+ * (ves_ldl_solve_tol). */
+static inline ves_status kkt_solve_tol(kkt_system *k, double *rhs, double tol) {
+  return ves_ldl_solve_tol(k->ldl, rhs, tol);
+}
+
 #endif

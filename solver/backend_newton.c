@@ -40,6 +40,18 @@
  * the previous step's: one assembly (Hessian + K's share + factorization,
  * ~10x a chord iteration at eps 0.01) serves several steps.
  *
+ * Inexact chord solves: with a frozen Hessian the iteration is a chord
+ * method, which converges linearly whatever the accuracy of its direction
+ * (its residual g + J^T lam and c are recomputed exactly, and so is its
+ * fixed point), so single precision factors (opt->factor_single) are
+ * refined only to |b - A x| <= NEWTON_SOLVE_TOL |b| (inexact Newton with
+ * forcing term NEWTON_SOLVE_TOL, far below the chord's own contraction,
+ * 0.05-0.3 a step at eps 0.01). The single precision solve alone is
+ * within 1e-5..2e-4 on the KKT matrices at eps 0.01, so the refinement's
+ * second MUMPS solve and product are skipped: half a solve's cost
+ * (bench/RESULTS.md, session 23). freeze_hessian = 0 (Newton proper)
+ * refines to VES_LDL_REFINE_TOL, keeping its quadratic convergence.
+ *
  * Inertia correction memory (as Ipopt's): after a corrected factorization
  * with delta, the next one that needs a correction starts at delta/10
  * instead of NEWTON_DELTA0 (each rung of the ladder is a factorization:
@@ -105,6 +117,7 @@
 #define NEWTON_REUSE_DT 1.25  /* freeze 2: reuse while dt / dt_m is within [1/this, this] */
 #define NEWTON_AA_DEPTH 5     /* Anderson acceleration of the chord: steps remembered */
 #define NEWTON_AA_GROW 10.0   /* an accelerated step longer than this many chord steps is refused */
+#define NEWTON_SOLVE_TOL 1e-3 /* frozen: the KKT solves' relative residual (single precision) */
 
 typedef struct {
   ves_backend_options opt; /* copied */
@@ -236,6 +249,12 @@ static ves_status assemble_factor(newton_state *w, ves_step *s, const double *x,
     delta = delta == 0 ? d0 : (extra > NEWTON_NEG_JUMP ? 100 : 10) * delta;
   }
   return VES_ERR_SINGULAR;
+}
+
+/* The KKT solves' refinement target: NEWTON_SOLVE_TOL for the chord (a
+ * frozen Hessian), VES_LDL_REFINE_TOL for Newton proper (the header). */
+static double solve_tol(const newton_state *w) {
+  return w->opt.freeze_hessian ? NEWTON_SOLVE_TOL : VES_LDL_REFINE_TOL;
 }
 
 /* Values at x: f and c (one model pass). */
@@ -440,7 +459,7 @@ static ves_status line_search(newton_state *w, ves_step *s, const double *x, con
     if (ls == 0 && ncon > 0) {
       memset(w->soc, 0, (size_t)(nv + KKT_NROWS) * sizeof *w->soc);
       for (int i = 0; i < ncon; i++) w->soc[nv + i] = -ct[i];
-      VES_CALL(kkt_solve(&w->kkt, w->soc));
+      VES_CALL(kkt_solve_tol(&w->kkt, w->soc, solve_tol(w)));
       for (int j = 0; j < nv; j++) w->xt[j] = x[j] + dx[j] + w->soc[j];
       e = eval_fc(s, w->xt, ft, ct, stt);
       if (e != VES_ERR_DOMAIN) VES_CALL(e);
@@ -526,7 +545,7 @@ static ves_status newton_solve(void *state, ves_step *s, double *x, double *lamb
     /* Newton direction: [H J^T; J 0][dx; dlam] = -[r; c] */
     for (int j = 0; j < nv; j++) w->sol[j] = -w->r[j];
     for (int i = 0; i < KKT_NROWS; i++) w->sol[nv + i] = i < ncon ? -c[i] : 0.0;
-    if ((st = kkt_solve(&w->kkt, w->sol)) != VES_OK) break;
+    if ((st = kkt_solve_tol(&w->kkt, w->sol, solve_tol(w))) != VES_OK) break;
     const double *dx = w->sol, *dlam = w->sol + nv;
     int accel = 0;
     if (built_now) { /* a new matrix: a new iteration map */

@@ -20,7 +20,6 @@
 #define JOB_FACTOR 2
 #define JOB_SOLVE 3
 #define USE_COMM_WORLD (-987654) /* the Fortran MPI_COMM_WORLD of the sequential fake MPI */
-#define LDL_REFINE_TOL 1e-6      /* single precision: |b - A x| / |b| a solve reaches */
 #define LDL_GMRES_M 20           /* single precision: Krylov vectors of the refinement */
 #define LDL_GMRES_MAX 60         /* ... and its iterations before the double fallback */
 #define LDL_MATVEC_CHUNKS 4      /* the residual's products: fixed chunks of the triplets */
@@ -249,7 +248,7 @@ static ves_status factor_values(ves_ldl *f) {
 }
 
 /* The single precision factors failed (float values singular or
- * overflowing) or could not give |b - A x| <= LDL_REFINE_TOL |b|: this
+ * overflowing) or could not give |b - A x| <= tol |b| in a solve: this
  * factorization is redone in double precision (a new analysis); the next
  * one is single again (ves_ldl_factor). */
 static ves_status to_double(ves_ldl *f) {
@@ -322,7 +321,7 @@ static double dot(int n, const double *x, const double *y) {
 
 /* x += correction of A x = b, right-preconditioned by the single precision
  * factors M (flexible GMRES: FGMRES(LDL_GMRES_M) keeping z_k = M^-1 v_k),
- * until |b - A x| <= LDL_REFINE_TOL |b| or LDL_GMRES_MAX iterations. On
+ * until |b - A x| <= tol |b| or LDL_GMRES_MAX iterations. On
  * entry f->r holds r0 = b - A x, |r0| = beta. The residual is the GMRES
  * recurrence's, r = V_{k+1} Q^T (0, .., 0, g_k), of norm |g_k| (V
  * orthonormal: classical Gram-Schmidt twice); it differs from b - A x by
@@ -333,7 +332,7 @@ static double dot(int n, const double *x, const double *y) {
  * matrices at large dt (eps 0.01, dt* 0.1-0.8: from 3e-2 it needed 5
  * corrections, and the solver fell back to double precision for the rest of
  * the run), where GMRES, minimizing over the Krylov space, needs a few. */
-static ves_status gmres(ves_ldl *f, double *x, double beta, double bn, int *done) {
+static ves_status gmres(ves_ldl *f, double *x, double beta, double bn, double tol, int *done) {
   const int n = f->n, m = LDL_GMRES_M;
   double H[(LDL_GMRES_M + 1) * LDL_GMRES_M], cs[LDL_GMRES_M], sn[LDL_GMRES_M], g[LDL_GMRES_M + 1],
       y[LDL_GMRES_M + 1];
@@ -372,7 +371,7 @@ static ves_status gmres(ves_ldl *f, double *x, double beta, double bn, int *done
       H[k * m + k] = rho;
       g[k + 1] = -sn[k] * g[k], g[k] *= cs[k];
       k++;
-      if (fabs(g[k]) <= LDL_REFINE_TOL * bn || breakdown) break;
+      if (fabs(g[k]) <= tol * bn || breakdown) break;
     }
     for (int i = k - 1; i >= 0; i--) { /* R y = g, upper triangular k x k */
       double d = g[i];
@@ -385,7 +384,7 @@ static ves_status gmres(ves_ldl *f, double *x, double beta, double bn, int *done
     }
     beta = fabs(g[k]);
     if (!isfinite(beta)) return VES_OK;
-    if (beta <= LDL_REFINE_TOL * bn) {
+    if (beta <= tol * bn) {
       *done = 1;
       return VES_OK;
     }
@@ -407,12 +406,13 @@ static ves_status gmres(ves_ldl *f, double *x, double beta, double bn, int *done
 }
 
 /* rhs <- A^-1 rhs. With single precision factors: x0 = M^-1 b, then, when
- * |b - A x0| > LDL_REFINE_TOL |b| (~5e-5 on the KKT matrices), FGMRES
- * preconditioned by M (gmres) to that tolerance, usually in one iteration;
- * a solve that cannot get there redoes the factorization in double
- * precision (to_double) and solves with it. */
-ves_status ves_ldl_solve(ves_ldl *f, double *rhs) {
+ * |b - A x0| > tol |b| (~5e-5 on the KKT matrices), FGMRES preconditioned
+ * by M (gmres) to that tolerance, usually in one iteration; a solve that
+ * cannot get there redoes the factorization in double precision (to_double)
+ * and solves with it. */
+ves_status ves_ldl_solve_tol(ves_ldl *f, double *rhs, double tol) {
   VES_CHECK(f && rhs && f->factored, VES_ERR_ARG);
+  VES_CHECK(tol > 0 && tol < 1, VES_ERR_ARG);
   f->info_.refinements = 0;
   if (!f->single) return mumps_solve(f, rhs);
   const int n = f->n;
@@ -422,13 +422,17 @@ ves_status ves_ldl_solve(ves_ldl *f, double *rhs) {
   matvec(f, rhs, f->r);
   for (int j = 0; j < n; j++) f->r[j] = f->b[j] - f->r[j];
   const double rn = sqrt(dot(n, f->r, f->r));
-  if (rn <= LDL_REFINE_TOL * bn) return VES_OK; /* also b = 0 */
+  if (rn <= tol * bn) return VES_OK; /* also b = 0 */
   int done = 0;
-  if (isfinite(rn)) VES_CALL(gmres(f, rhs, rn, bn, &done));
+  if (isfinite(rn)) VES_CALL(gmres(f, rhs, rn, bn, tol, &done));
   if (done) return VES_OK;
   memcpy(rhs, f->b, (size_t)n * sizeof *rhs);
   VES_CALL(to_double(f));
   return mumps_solve(f, rhs);
+}
+
+ves_status ves_ldl_solve(ves_ldl *f, double *rhs) {
+  return ves_ldl_solve_tol(f, rhs, VES_LDL_REFINE_TOL);
 }
 
 int ves_ldl_size(const ves_ldl *f) { return f ? f->n : 0; }

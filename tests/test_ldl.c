@@ -202,6 +202,54 @@ static void test_ldl_single_kkt(void **state) {
   ves_ldl_destroy(&f);
 }
 
+/* ves_ldl_solve_tol: the refinement stops at the tolerance asked. The
+ * system of test_ldl_single_kkt, whose single precision solve alone leaves
+ * |b - A x0| ~ 1e-6 |b| (measured 1.05e-6, printed below), just above
+ * VES_LDL_REFINE_TOL. */
+static void test_ldl_single_solve_tol(void **state) {
+  (void)state;
+  enum { NK = 40, N = NK + 1 };
+  uint64_t seed = 11;
+  static double K[NK * NK], A[N * N];
+  double b[N], x[N], err, res[3];
+  const double tols[3] = {1e-3, 1e-5, VES_LDL_REFINE_TOL};
+  int refine[3];
+  make_spd(NK, K, &seed);
+  kkt_dense(NK, K, A);
+  for (int i = 0; i < N; i++)
+    for (int j = 0; j < N; j++) A[i * N + j] *= pow(10.0, 2.0 * (i + j) / N);
+  static int ir[N * N], jc[N * N];
+  static double v[N * N];
+  int nnz = dense_to_lower(N, A, ir, jc, v);
+  ves_ldl *f = NULL;
+  assert_int_equal(ves_ldl_create_prec(N, nnz, ir, jc, 0, 1, &f), VES_OK);
+  assert_int_equal(ves_ldl_factor(f, v), VES_OK);
+  for (int t = 0; t < 3; t++) {
+    for (int i = 0; i < N; i++) b[i] = x[i] = cos(0.5 * i);
+    assert_int_equal(ves_ldl_solve_tol(f, x, tols[t]), VES_OK);
+    ves_ldl_info info;
+    ves_ldl_get_info(f, &info);
+    assert_int_equal(info.fallbacks, 0);
+    refine[t] = info.refinements;
+    against_dsysv(N, A, b, x, &err, &res[t]);
+    printf("# solve_tol %.0e: %d GMRES iterations, |Ax - b|/|b| = %.2e\n", tols[t], refine[t],
+           res[t]);
+    /* the stopping test is on the GMRES recurrence's residual, which
+     * differs from b - A x by the rounding of A's products (~1e-16 |A||x|,
+     * |A||x|/|b| <= cond(A) < 1e5 here): a margin of 2 covers it */
+    assert_true(res[t] <= 2 * tols[t]);
+  }
+  /* 1e-3 and 1e-5 are met by the single precision solve alone, 1e-6 is
+   * not: the looser targets skip the refinement, the tighter one runs it */
+  assert_int_equal(refine[0], 0);
+  assert_int_equal(refine[1], 0);
+  assert_true(refine[2] >= 1);
+  assert_true(res[0] > VES_LDL_REFINE_TOL); /* the loose solve did stop early */
+  assert_int_equal(ves_ldl_solve_tol(f, x, 0.0), VES_ERR_ARG);
+  assert_int_equal(ves_ldl_solve_tol(f, x, 1.0), VES_ERR_ARG);
+  ves_ldl_destroy(&f);
+}
+
 /* A matrix single precision represents badly: [1 c; c 1], c = 1 - 1e-7,
  * eigenvalues 2 and 1e-7; rounded to float, c becomes 1 - 1.19e-7, the small
  * eigenvalue 19% off, so plain iterative refinement gains only a factor
@@ -596,7 +644,8 @@ int main(void) {
   // clang-format off
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_ldl_spd_vs_lapack), cmocka_unit_test(test_ldl_kkt),
-      cmocka_unit_test(test_ldl_single_kkt), cmocka_unit_test(test_ldl_single_gmres),
+      cmocka_unit_test(test_ldl_single_kkt), cmocka_unit_test(test_ldl_single_solve_tol),
+      cmocka_unit_test(test_ldl_single_gmres),
       cmocka_unit_test(test_ldl_single_restart),
       cmocka_unit_test(test_ldl_single_solve_fallback),
       cmocka_unit_test(test_ldl_single_fallback),

@@ -76,8 +76,18 @@ ves_status ves_ldl_create_prec(int n, int nnz, const int *irow, const int *jcol,
 ves_status ves_ldl_factor(ves_ldl *f, const double *val);
 
 /* Solve A x = rhs in place (JOB = 3): rhs[n] in, x out. Requires a successful
- * factor. Returns VES_OK, VES_ERR_ARG (no valid factorization), VES_ERR_SOLVER. */
+ * factor. With single precision factors the solve is refined to
+ * |b - A x| <= VES_LDL_REFINE_TOL |b|. Returns VES_OK, VES_ERR_ARG (no valid
+ * factorization), VES_ERR_SOLVER. */
 ves_status ves_ldl_solve(ves_ldl *f, double *rhs);
+#define VES_LDL_REFINE_TOL 1e-6 /* ves_ldl_solve's refinement target, relative */
+/* As ves_ldl_solve, the single precision refinement stopping at
+ * |b - A x| <= tol |b|, 0 < tol < 1 (VES_ERR_ARG otherwise): an iteration
+ * that needs only an approximate direction (a chord or inexact Newton step,
+ * whose own residual is recomputed exactly) skips the refinement when the
+ * single precision solve is within tol (one MUMPS solve and one product
+ * instead of two of each). Double precision factors solve exactly. */
+ves_status ves_ldl_solve_tol(ves_ldl *f, double *rhs, double tol);
 
 /* Order of the matrix. */
 int ves_ldl_size(const ves_ldl *f);
