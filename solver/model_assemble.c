@@ -9,7 +9,8 @@
  * block matrix over the union of their node lists, formed by the BLAS as
  * three dense products X^T diag_p(c H_p) X (the rr, rz and zz parts; X the
  * points' B stacked, K = 36 / 30 deep; one BLAS thread per triangle, the
- * triangles in parallel), and each lower block is added to the pattern
+ * triangles in parallel; the symmetric rr and zz parts by panels over one
+ * triangle only), and each lower block is added to the pattern
  * once, not once per point (~6x fewer scattered updates). The triangles
  * are visited in the order and by the slabs of model_threads.c: every
  * block and gradient entry receives its contributions in the same order for
@@ -37,6 +38,9 @@ typedef struct {
 
 static const local_map MAP_Q = {
     6, 5, {0, 1, 2, 5, 6, 7}, {0, 1, 2, 3, 4, 5}, {3, 4, 8, 9, 10}, {1, 2, 3, 4, 5}, VES_NQ};
+/* Column panels of the symmetric block products (upper_product). */
+#define ASM_PANELS 4
+
 static const local_map MAP_QD = {3, 2, {0, 1, 2}, {0, 1, 2}, {3, 4}, {1, 2}, VES_NQD};
 
 void model_ws_free(model_ws *w) {
@@ -311,8 +315,9 @@ static void triangle_xy(const local_map *mp, const folded f[NPT], const int *slo
 /* Add the owned rows of the triangle's block matrix to the pattern: block
  * (U[i], U[j]), j <= i, with entries (rr, rz, zr, zz) =
  * (Mrr[j + i nu], Mrz[i + j nu], Mrz[j + i nu], Mzz[j + i nu]) (Mrr and Mzz
- * are symmetric: column i is read), by one forward walk along the pattern
- * row of U[i] (ascending, as U is). Pairs of the union that share no point
+ * are symmetric: column i is read, rows j <= i, the triangle upper_product
+ * forms), by one forward walk along the pattern row of U[i] (ascending, as
+ * U is). Pairs of the union that share no point
  * are not in the pattern; their sums are exactly zero (X is zero where a
  * point does not see the node) and are skipped. */
 static void triangle_scatter(const ves_model *m, const int *U, int nu, int k, const double *M,
@@ -346,6 +351,23 @@ static void triangle_scatter(const ves_model *m, const int *U, int nu, int k, co
   }
 }
 
+/* The upper triangle (rows i <= column j, column-major, leading dimension
+ * nu) of the symmetric M = X Y^T (X, Y: nu x K, column-major), by
+ * ASM_PANELS column panels, panel c its columns [c0, c1) over rows [0, c1):
+ * (P + 1) / 2P of the full product's flops (5/8 for 4 panels). Entries
+ * below the diagonal are partly left unset: triangle_scatter reads Mrr and
+ * Mzz only at rows <= column. Each entry is the same dot product over K
+ * as in the full product (bench_model 0.02: the Hessian bitwise the same,
+ * ~17% faster at one thread; bench/RESULTS.md, session 23). */
+static void upper_product(int nu, int K, const double *X, const double *Y, double *M) {
+  for (int c = 0; c < ASM_PANELS; c++) {
+    const int c0 = c * nu / ASM_PANELS, c1 = (c + 1) * nu / ASM_PANELS;
+    if (c1 > c0) /* M[0:c1, c0:c1] = X[0:c1, :] Y[c0:c1, :]^T */
+      cblas_dgemm(CblasColMajor, CblasNoTrans, CblasTrans, c1, c1 - c0, K, 1.0, X, nu, Y + c0, nu,
+                  0.0, M + (size_t)c0 * nu, nu);
+  }
+}
+
 /* D = d2 diss / dqdot2 at point al of y^n (without 2 pi w). */
 static ves_status step_ref_dissip(const ves_model *m, const step_ref *sr, int al, double *D) {
   double qa[VES_NQ] = {0};
@@ -357,8 +379,9 @@ static ves_status step_ref_dissip(const ves_model *m, const step_ref *sr, int al
  * points (fac[3] = f_E cE, f_A cA, f_V cV for ASM_HESS), then its block
  * matrix sum_p B_p^T cH_p B_p over its union as three products
  *   Mrr = Xr Yrr^T,  Mrz = Xr Yrz^T,  Mzz = Xz Yzz^T   (triangle_xy)
- * by the BLAS (one thread: the caller runs the triangles in parallel), and
- * its owned rows into blk. */
+ * by the BLAS (one thread: the caller runs the triangles in parallel; of
+ * the symmetric Mrr and Mzz only the triangle the scatter reads), and its
+ * owned rows into blk. */
 static ves_status triangle_blocks(const ves_model *m, model_ws *w, asm_kind kind,
                                   const double fac[3], const step_ref *sr, int t, int k,
                                   const double *y, double *blk) {
@@ -405,12 +428,10 @@ static ves_status triangle_blocks(const ves_model *m, model_ws *w, asm_kind kind
   const double *Xr = w->X, *Xz = w->X + (size_t)Kr * nu;
   const double *Yrr = w->Y, *Yrz = w->Y + (size_t)Kr * nu, *Yzz = w->Y + 2 * (size_t)Kr * nu;
   double *M = w->M;
-  cblas_dgemm(CblasColMajor, CblasNoTrans, CblasTrans, nu, nu, Kr, 1.0, Xr, nu, Yrr, nu, 0.0, M,
-              nu); /* Mrr = Xr Yrr^T */
+  upper_product(nu, Kr, Xr, Yrr, M); /* Mrr = Xr Yrr^T, upper triangle */
   cblas_dgemm(CblasColMajor, CblasNoTrans, CblasTrans, nu, nu, Kr, 1.0, Xr, nu, Yrz, nu, 0.0,
-              M + (size_t)nu * nu, nu); /* Mrz = Xr Yrz^T */
-  cblas_dgemm(CblasColMajor, CblasNoTrans, CblasTrans, nu, nu, Kz, 1.0, Xz, nu, Yzz, nu, 0.0,
-              M + 2 * (size_t)nu * nu, nu); /* Mzz = Xz Yzz^T */
+              M + (size_t)nu * nu, nu);                    /* Mrz = Xr Yrz^T */
+  upper_product(nu, Kz, Xz, Yzz, M + 2 * (size_t)nu * nu); /* Mzz = Xz Yzz^T, upper triangle */
   triangle_scatter(m, U, nu, k, M, blk);
   return VES_OK;
 }
