@@ -162,27 +162,39 @@ static void test_ldl_kkt(void **state) {
   ves_ldl_destroy(&f);
 }
 
+enum { SK_NK = 40, SK_N = SK_NK + 1 };
+
+/* The KKT system of test_ldl_kkt (K from seed 11) scaled by D = diag(10^(2
+ * i / N)), cond(A) ~ 1e4 cond(K), into A (SK_N x SK_N dense), factored in
+ * single precision (ves_ldl_create_prec); *cond the bound make_spd gives for
+ * cond(K). The single precision solve alone leaves |b - A x0| ~ 1e-6 |b|
+ * (measured 1.05e-6 for b_i = cos(i/2)), just above VES_LDL_REFINE_TOL, so
+ * a solve to it needs the refinement. */
+static ves_ldl *scaled_kkt_single(double *A, double *cond) {
+  uint64_t seed = 11;
+  static double K[SK_NK * SK_NK], v[SK_N * SK_N];
+  static int ir[SK_N * SK_N], jc[SK_N * SK_N];
+  *cond = make_spd(SK_NK, K, &seed);
+  kkt_dense(SK_NK, K, A);
+  for (int i = 0; i < SK_N; i++)
+    for (int j = 0; j < SK_N; j++) A[i * SK_N + j] *= pow(10.0, 2.0 * (i + j) / SK_N);
+  int nnz = dense_to_lower(SK_N, A, ir, jc, v);
+  ves_ldl *f = NULL;
+  assert_int_equal(ves_ldl_create_prec(SK_N, nnz, ir, jc, 0, 1, &f), VES_OK);
+  assert_int_equal(ves_ldl_factor(f, v), VES_OK);
+  return f;
+}
+
 /* Single precision factors (ves_ldl_create_prec): the same KKT system as
- * test_ldl_kkt, factored in single precision and refined in double. */
+ * test_ldl_kkt, scaled, factored in single precision and refined in
+ * double. */
 static void test_ldl_single_kkt(void **state) {
   (void)state;
-  enum { NK = 40, N = NK + 1 };
-  uint64_t seed = 11;
-  static double K[NK * NK], A[N * N];
-  double b[N], x[N];
-  const double cond = make_spd(NK, K, &seed);
-  kkt_dense(NK, K, A);
-  /* scaled by D = diag(10^(2 i / N)): cond(A) ~ 1e4 cond, so that single
-   * precision alone (residual ~ cond u_single ~ 1e-3) needs the refinement */
-  for (int i = 0; i < N; i++)
-    for (int j = 0; j < N; j++) A[i * N + j] *= pow(10.0, 2.0 * (i + j) / N);
-  static int ir[N * N], jc[N * N];
-  static double v[N * N];
-  int nnz = dense_to_lower(N, A, ir, jc, v);
+  enum { N = SK_N };
+  static double A[N * N];
+  double b[N], x[N], cond;
+  ves_ldl *f = scaled_kkt_single(A, &cond);
   for (int i = 0; i < N; i++) b[i] = x[i] = cos(0.5 * i);
-  ves_ldl *f = NULL;
-  assert_int_equal(ves_ldl_create_prec(N, nnz, ir, jc, 0, 1, &f), VES_OK);
-  assert_int_equal(ves_ldl_factor(f, v), VES_OK);
   assert_int_equal(ves_ldl_solve(f, x), VES_OK);
   ves_ldl_info info;
   ves_ldl_get_info(f, &info);
@@ -202,28 +214,16 @@ static void test_ldl_single_kkt(void **state) {
   ves_ldl_destroy(&f);
 }
 
-/* ves_ldl_solve_tol: the refinement stops at the tolerance asked. The
- * system of test_ldl_single_kkt, whose single precision solve alone leaves
- * |b - A x0| ~ 1e-6 |b| (measured 1.05e-6, printed below), just above
- * VES_LDL_REFINE_TOL. */
+/* ves_ldl_solve_tol: the refinement stops at the tolerance asked (the
+ * system of scaled_kkt_single). */
 static void test_ldl_single_solve_tol(void **state) {
   (void)state;
-  enum { NK = 40, N = NK + 1 };
-  uint64_t seed = 11;
-  static double K[NK * NK], A[N * N];
-  double b[N], x[N], err, res[3];
+  enum { N = SK_N };
+  static double A[N * N];
+  double b[N], x[N], err, res[3], cond;
   const double tols[3] = {1e-3, 1e-5, VES_LDL_REFINE_TOL};
   int refine[3];
-  make_spd(NK, K, &seed);
-  kkt_dense(NK, K, A);
-  for (int i = 0; i < N; i++)
-    for (int j = 0; j < N; j++) A[i * N + j] *= pow(10.0, 2.0 * (i + j) / N);
-  static int ir[N * N], jc[N * N];
-  static double v[N * N];
-  int nnz = dense_to_lower(N, A, ir, jc, v);
-  ves_ldl *f = NULL;
-  assert_int_equal(ves_ldl_create_prec(N, nnz, ir, jc, 0, 1, &f), VES_OK);
-  assert_int_equal(ves_ldl_factor(f, v), VES_OK);
+  ves_ldl *f = scaled_kkt_single(A, &cond);
   for (int t = 0; t < 3; t++) {
     for (int i = 0; i < N; i++) b[i] = x[i] = cos(0.5 * i);
     assert_int_equal(ves_ldl_solve_tol(f, x, tols[t]), VES_OK);
