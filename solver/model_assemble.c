@@ -28,6 +28,8 @@
 
 #include <cblas.h>
 
+#define ASM_PANELS 4 /* column panels of the symmetric block products (upper_product) */
+
 /* Which q entries an r-dof (resp. z-dof) feeds, and from which table row. */
 typedef struct {
   int nr, nz;       /* entries fed by r and by z */
@@ -38,9 +40,6 @@ typedef struct {
 
 static const local_map MAP_Q = {
     6, 5, {0, 1, 2, 5, 6, 7}, {0, 1, 2, 3, 4, 5}, {3, 4, 8, 9, 10}, {1, 2, 3, 4, 5}, VES_NQ};
-/* Column panels of the symmetric block products (upper_product). */
-#define ASM_PANELS 4
-
 static const local_map MAP_QD = {3, 2, {0, 1, 2}, {0, 1, 2}, {3, 4}, {1, 2}, VES_NQD};
 
 void model_ws_free(model_ws *w) {
@@ -357,8 +356,8 @@ static void triangle_scatter(const ves_model *m, const int *U, int nu, int k, co
  * (P + 1) / 2P of the full product's flops (5/8 for 4 panels). Entries
  * below the diagonal are partly left unset: triangle_scatter reads Mrr and
  * Mzz only at rows <= column. Each entry is the same dot product over K
- * as in the full product (bench_model 0.02: the Hessian bitwise the same,
- * ~17% faster at one thread; bench/RESULTS.md, session 23). */
+ * as in the full product (the Hessian measured bitwise the same:
+ * bench/RESULTS.md, session 23). */
 static void upper_product(int nu, int K, const double *X, const double *Y, double *M) {
   for (int c = 0; c < ASM_PANELS; c++) {
     const int c0 = c * nu / ASM_PANELS, c1 = (c + 1) * nu / ASM_PANELS;
