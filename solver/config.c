@@ -141,7 +141,8 @@ static const key_spec KEYS[] = {
     {"solver", "factor_precision", KEY_STRING, OFF(factor_precision), "single", 0, 0,
      "single|double",
      "newton, euler: precision of the KKT factorization (single: half the memory, ~1.7x "
-     "faster at eps 0.01, each solve refined in double to 1e-6 relative; double: MUMPS in double)"},
+     "faster at eps 0.01, each solve refined in double to 1e-6 relative, newton's chord solves "
+     "to 1e-3; double: MUMPS in double)"},
     {"solver", "drift_damping", KEY_DOUBLE, OFF(drift_damping), "0", 0, 1e6, NULL,
      "viscous penalty alpha on the rate of the coefficient drift y^a - y(X_a), added to the "
      "dissipation (0: off; see bench/RESULTS.md)"},
