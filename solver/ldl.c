@@ -406,10 +406,10 @@ static ves_status gmres(ves_ldl *f, double *x, double beta, double bn, double to
 }
 
 /* rhs <- A^-1 rhs. With single precision factors: x0 = M^-1 b, then, when
- * |b - A x0| > tol |b| (~5e-5 on the KKT matrices), FGMRES preconditioned
- * by M (gmres) to that tolerance, usually in one iteration; a solve that
- * cannot get there redoes the factorization in double precision (to_double)
- * and solves with it. */
+ * |b - A x0| > tol |b| (it is 1e-5..2e-4 on the KKT matrices), FGMRES
+ * preconditioned by M (gmres) to that tolerance, usually in one iteration;
+ * a solve that cannot get there redoes the factorization in double
+ * precision (to_double) and solves with it. */
 ves_status ves_ldl_solve_tol(ves_ldl *f, double *rhs, double tol) {
   VES_CHECK(f && rhs && f->factored, VES_ERR_ARG);
   VES_CHECK(tol > 0 && tol < 1, VES_ERR_ARG);

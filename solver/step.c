@@ -122,10 +122,15 @@ void ves_step_expand(const ves_step *s, const double *x, double *y) {
   }
 }
 
+/* 1 when the cache holds an evaluation at x (admissible or not). */
+static int holds(const ves_step *s, const double *x) {
+  return s->cache && memcmp(x, s->xc, (size_t)s->nvar * sizeof *x) == 0;
+}
+
 /* Make the cache hold x with at least `level` (1 values, 2 gradients). */
 static ves_status ensure(ves_step *s, const double *x, int level) {
   const size_t nv = (size_t)s->nvar;
-  if (s->cache && memcmp(x, s->xc, nv * sizeof *x) == 0) {
+  if (holds(s, x)) {
     if (s->cst != VES_OK) return s->cst; /* the same inadmissible point */
     if (s->cache >= level) return VES_OK;
   } else {
@@ -172,8 +177,7 @@ ves_status ves_step_values(ves_step *s, const double *x, double *E, double *A, d
   STEP_READY(s, x);
   VES_CHECK(E && A && V, VES_ERR_ARG);
   const int all = VES_F_E | VES_F_A | VES_F_V;
-  if (s->cache && s->cst == VES_OK && (s->which & all) == all &&
-      memcmp(x, s->xc, (size_t)s->nvar * sizeof *x) == 0) {
+  if (holds(s, x) && s->cst == VES_OK && (s->which & all) == all) {
     *E = s->E, *A = s->A, *V = s->V;
     return VES_OK;
   }
