@@ -16,7 +16,7 @@
 static const char *const RESTART_KEYS[] = {
     "solver.tol",        "solver.ctol",           "solver.max_iter",
     "solver.max_builds", "solver.freeze_hessian", "solver.factor_precision",
-    "time.t_end"};
+    "time.factor_shrink", "time.t_end"};
 
 void cli_restart_keys_print(FILE *f, int col, int indent, int width, const char *tail) {
   const size_t nk = sizeof RESTART_KEYS / sizeof RESTART_KEYS[0];

@@ -27,6 +27,13 @@
  * corrections of up to 1e6 K: at those dt the step problem is not convex,
  * E having 6-8 directions of negative curvature while the vesicle buds)
  * against 20-40 s for the accepted ones. When C0
+ * With factor_shrink > 0 a step that needed more than factor_shrink
+ * factorizations makes the next at most dt/2 (off by default): in the eps
+ * 0.01 prolate's bud phase a 6-factorization step at dt* 0.0205 was
+ * followed by a rejected attempt at the same dt (40 iterations, 28
+ * Hessians, 301 s); with factor_shrink 4 the same t* span cost 1.7x less,
+ * while at eps 0.04 the same rule cost 10% more (bench/RESULTS.md, session
+ * 24). When C0
  * switches, dt starts again from dt_initial (no larger than it was): the
  * step grown on the old landscape is far too large for the new one (measured:
  * a stomatocyte relaxed to dt* = 0.48, then a C0 pulse; Newton failed at
@@ -104,6 +111,7 @@ void ves_integrate_params_default(ves_integrate_params *p) {
   p->growth_max = 2.0;
   p->iter_target = 8;
   p->factor_target = 2;
+  p->factor_shrink = 0;
   p->predictor = 1;
   p->retry_memory = 10;
   p->retry_cap = 0.7;
@@ -153,6 +161,7 @@ ves_status ves_sim_create(ves_model *model, const ves_backend_type *backend,
   VES_CHECK(ip->growth_max >= 1, VES_ERR_ARG);
   VES_CHECK(ip->dE_target > 0, VES_ERR_ARG);
   VES_CHECK(ip->factor_target >= 0, VES_ERR_ARG);
+  VES_CHECK(ip->factor_shrink >= 0, VES_ERR_ARG);
   VES_CHECK(ip->volume_final > 0, VES_ERR_ARG);
   VES_CHECK(ip->retry_memory >= 0, VES_ERR_ARG);
   VES_CHECK(ip->retry_cap > 0 && ip->retry_cap <= 1, VES_ERR_ARG);
@@ -542,6 +551,9 @@ static void next_dt(ves_sim *s, double dt, double dE, int iterations, int factor
         iterations > s->ip.iter_target || (s->ip.factor_target > 0 && s->bopt.freeze_hessian > 0 &&
                                            factorizations > s->ip.factor_target);
     if (hard) f = fmin(f, 1.0); /* a hard step: no growth */
+    if (s->ip.factor_shrink > 0 && s->bopt.freeze_hessian > 0 &&
+        factorizations > s->ip.factor_shrink)
+      f = fmin(f, 0.5); /* a very hard one: the next is shorter */
     next = dt * f;
     if (retries) next = fmin(next, dt); /* just halved: do not jump back at once */
     if (s->dt_rejected > 0 && s->since_rejected >= s->ip.retry_memory)

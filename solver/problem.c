@@ -11,6 +11,7 @@ static void integrate_params(const ves_config *c, ves_integrate_params *ip) {
   ip->dt_min = c->dt_min, ip->adaptive = c->adaptive, ip->dE_target = c->dE_target;
   ip->growth_max = c->growth_max, ip->iter_target = c->iter_target;
   ip->factor_target = c->factor_target;
+  ip->factor_shrink = c->factor_shrink;
   ip->predictor = c->predictor;
   ip->retry_memory = c->retry_memory, ip->retry_cap = c->retry_cap;
   ip->hold_area = c->area, ip->hold_volume = c->volume;

@@ -144,13 +144,14 @@ static void test_freeze_across_steps(void **state) {
  * (measured here: dt* 32.8, the 16th step, with the SkylakeX kernels
  * tests/run.sh selects; dt* 16.4, the 15th, with OpenBLAS's own choice on
  * this machine, Cooperlake, whose rounding stalls the 15th step's chord). With factor_target 1
- * the step after it keeps that dt; without the rule it doubles. The steps
- * before are the same (count, dt). */
-static int factor_rule_run(ves_setup *s, int target, double *dt_at, double *next_at) {
+ * the step after it keeps that dt; without the rule it doubles; with
+ * factor_shrink 1 (and no factor_target) it is halved. The steps before are
+ * the same (count, dt). */
+static int factor_rule_run(ves_setup *s, int target, int shrink, double *dt_at, double *next_at) {
   ves_integrate_params ip;
   ves_integrate_params_default(&ip);
   ip.t_end = 1e4, ip.dt_initial = 1e-3, ip.dt_max = 1e4, ip.dE_target = 10;
-  ip.iter_target = 1000, ip.factor_target = target;
+  ip.iter_target = 1000, ip.factor_target = target, ip.factor_shrink = shrink;
   ves_sim *sim = make_sim(s, "newton", &ip);
   ves_step_report rep;
   int k = 0, found = 0;
@@ -166,14 +167,17 @@ static int factor_rule_run(ves_setup *s, int target, double *dt_at, double *next
 static void test_factor_rule(void **state) {
   (void)state;
   ves_setup *s = small_setup();
-  double dt0, next0, dt1, next1;
-  const int k0 = factor_rule_run(s, 0, &dt0, &next0), k1 = factor_rule_run(s, 1, &dt1, &next1);
+  double dt0, next0, dt1, next1, dt2, next2;
+  const int k0 = factor_rule_run(s, 0, 0, &dt0, &next0), k1 = factor_rule_run(s, 1, 0, &dt1, &next1);
+  const int k2 = factor_rule_run(s, 0, 1, &dt2, &next2);
   printf("# first step with 2 factorizations: step %d, dt* %.4g; next dt* %.4g (no rule), "
-         "%.4g (factor_target 1)\n",
-         k1, dt1, next0, next1);
+         "%.4g (factor_target 1), %.4g (factor_shrink 1)\n",
+         k1, dt1, next0, next1, next2);
   assert_true(k0 > 0 && k1 == k0 && dt1 == dt0); /* the same steps until then */
-  assert_true(next0 == 2 * dt0);                 /* growth_max */
+  assert_true(k2 == k0 && dt2 == dt0);
+  assert_true(next0 == 2 * dt0); /* growth_max */
   assert_true(next1 == dt1);
+  assert_true(next2 == dt2 / 2); /* exact: the factors are powers of 2 */
   ves_setup_destroy(&s);
 }
 

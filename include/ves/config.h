@@ -52,6 +52,7 @@ typedef struct {
   double growth_max;                        /* largest dt growth factor per step */
   int iter_target;                          /* no dt growth above this many iterations */
   int factor_target;                        /* ... or factorizations (0: off) */
+  int factor_shrink;                        /* above this many factorizations: dt/2 (0: off) */
   int predictor;                            /* 1: steps start from the extrapolation */
   int retry_memory;                         /* accepted steps a rejected dt is remembered */
   double retry_cap;                         /* dt <= retry_cap x that dt meanwhile */

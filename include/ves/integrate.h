@@ -27,6 +27,9 @@ typedef struct {
                            freeze_hessian >= 1): above this many KKT factorizations in the
                            accepted attempt (newton's builds and inertia corrections; euler
                            has one) dt is not grown (0: no such rule) */
+  int factor_shrink;    /* adaptive, with a frozen Hessian: above this many KKT
+                           factorizations in the accepted attempt the next dt is at most
+                           dt/2 (0: no such rule) */
   int predictor;        /* 1: a step starts from the linear extrapolation of the last two
                            states (and multipliers scaled by dt); 0: from y^n. y^{n-1} is
                            part of the restart state (ves_sim_y_prev, ves_sim_set_prev),
