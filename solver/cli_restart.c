@@ -13,10 +13,14 @@
 /* The keys a restart may change: how each step is solved, and where the run
  * ends; the rest defines the setup, the physics or the protocol the stored
  * steps followed. */
-static const char *const RESTART_KEYS[] = {
-    "solver.tol",        "solver.ctol",           "solver.max_iter",
-    "solver.max_builds", "solver.freeze_hessian", "solver.factor_precision",
-    "time.factor_shrink", "time.t_end"};
+static const char *const RESTART_KEYS[] = {"solver.tol",
+                                           "solver.ctol",
+                                           "solver.max_iter",
+                                           "solver.max_builds",
+                                           "solver.freeze_hessian",
+                                           "solver.factor_precision",
+                                           "time.factor_shrink",
+                                           "time.t_end"};
 
 void cli_restart_keys_print(FILE *f, int col, int indent, int width, const char *tail) {
   const size_t nk = sizeof RESTART_KEYS / sizeof RESTART_KEYS[0];

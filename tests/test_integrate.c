@@ -168,7 +168,8 @@ static void test_factor_rule(void **state) {
   (void)state;
   ves_setup *s = small_setup();
   double dt0, next0, dt1, next1, dt2, next2;
-  const int k0 = factor_rule_run(s, 0, 0, &dt0, &next0), k1 = factor_rule_run(s, 1, 0, &dt1, &next1);
+  const int k0 = factor_rule_run(s, 0, 0, &dt0, &next0),
+            k1 = factor_rule_run(s, 1, 0, &dt1, &next1);
   const int k2 = factor_rule_run(s, 0, 1, &dt2, &next2);
   printf("# first step with 2 factorizations: step %d, dt* %.4g; next dt* %.4g (no rule), "
          "%.4g (factor_target 1), %.4g (factor_shrink 1)\n",
