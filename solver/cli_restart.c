@@ -10,9 +10,11 @@
 
 #include "cli_impl.h"
 
-/* The keys a restart may change: how each step is solved, and where the run
- * ends; the rest defines the setup, the physics or the protocol the stored
- * steps followed. */
+/* The keys a restart may change: how each step is solved, the controller's
+ * halving after a hard step (time.factor_shrink: a cost knob for the bud
+ * phase of a long run, bench/RESULTS.md session 24), and where the run ends;
+ * the rest defines the setup, the physics or the protocol the stored steps
+ * followed. */
 static const char *const RESTART_KEYS[] = {"solver.tol",
                                            "solver.ctol",
                                            "solver.max_iter",
