@@ -50,7 +50,8 @@
  * within 1e-5..2e-4 on the KKT matrices at eps 0.01, so the refinement's
  * second MUMPS solve and product are skipped: half a solve's cost
  * (bench/RESULTS.md, session 23). freeze_hessian = 0 (Newton proper)
- * refines to VES_LDL_REFINE_TOL, keeping its quadratic convergence.
+ * refines to VES_LDL_REFINE_TOL, keeping its quadratic convergence, and so
+ * does a chord whose convergence test is the rounding floor (solve_tol).
  *
  * Inertia correction memory (as Ipopt's): after a corrected factorization
  * with delta, the next one that needs a correction starts at delta/10
