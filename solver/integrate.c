@@ -26,7 +26,7 @@
  * run was a rejected attempt (160-390 s each, Newton damped by inertia
  * corrections of up to 1e6 K: at those dt the step problem is not convex,
  * E having 6-8 directions of negative curvature while the vesicle buds)
- * against 20-40 s for the accepted ones. When C0
+ * against 20-40 s for the accepted ones.
  * With factor_shrink > 0 a step that needed more than factor_shrink
  * factorizations makes the next at most dt/2 (off by default): in the eps
  * 0.01 prolate's bud phase a 6-factorization step at dt* 0.0205 was
