@@ -3,6 +3,7 @@
 
 #include <errno.h>
 #include <limits.h>
+#include <math.h>
 #include <stdio.h>
 #include <string.h>
 #include <sys/stat.h>
@@ -131,6 +132,17 @@ int cli_run_restart(run_ctx *r, const char *file, int nset, const char *const *s
   ves_io_snapinfo si;
   char pre[PATH_MAX + 32];
   snprintf(pre, sizeof pre, "vesica run: --restart %s", file);
+  /* Already at t_end (the problem's, or the one a restart before recorded):
+   * said before the setup is rebuilt (minutes at the paper's scale), the
+   * file untouched; the integrator's own test (integrate.c). */
+  if (ves_io_read_snapshot(r->io, S - 1, NULL, NULL, NULL, &si) == VES_OK &&
+      si.state.t >= r->cfg.t_end - 1e-12 * (1.0 + fabs(si.state.t))) {
+    fprintf(stderr,
+            "vesica run: --restart %s: the run is at t* = %.9g, its [time] t_end = %.9g%s: "
+            "nothing to integrate; --set time.t_end=T continues it to T\n",
+            file, si.state.t, r->cfg.t_end, nset ? "" : " (recorded in the file)");
+    return 0;
+  }
   if ((rc = cli_rebuild_at(r, pre, S - 1, &si))) return rc;
   if ((st = ves_io_truncate(r->io, si.rows)) != VES_OK ||
       (st = ves_io_truncate_references(r->io, si.reconnections)) != VES_OK ||

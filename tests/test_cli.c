@@ -1033,11 +1033,23 @@ static void test_restart_set(void **state) {
   assert_non_null(strstr(r.out, "time.t_end = 0.03\n"));
   assert_non_null(strstr(r.out, "t_final = 0.03\n"));
   assert_non_null(strstr(r.out, "status = finished\n"));
-  /* a later restart keeps them: t_end 0.03 is reached, nothing to do */
+  /* a later restart keeps them: t_end 0.03 is reached, nothing to do, said
+   * before any setup, the file untouched (its bytes compared) */
+  struct stat before, after;
+  assert_int_equal(stat(out, &before), 0);
   run(&r, "run", "--restart", out, NULL);
   assert_int_equal(r.code, 0);
+  assert_non_null(strstr(r.err, "nothing to integrate; --set time.t_end=T continues it"));
+  assert_non_null(strstr(r.err, "t_end = 0.03 (recorded in the file)"));
+  assert_int_equal(stat(out, &after), 0);
+  assert_true(after.st_size == before.st_size && after.st_mtime == before.st_mtime);
   run(&r, "info", out, NULL);
   assert_non_null(strstr(r.out, "t_final = 0.03\n"));
+  assert_non_null(strstr(r.out, "status = finished\n"));
+  run(&r, "run", "--restart", out, "--set", "time.t_end=0.04", NULL); /* continues */
+  if (r.code) fail_msg("restart to 0.04: exit %d: %s", r.code, r.err);
+  run(&r, "info", out, NULL);
+  assert_non_null(strstr(r.out, "t_final = 0.04\n"));
   unlink(ini), unlink(out);
   tmp_path(out, sizeof out, "rset.xdmf"), unlink(out);
 }
