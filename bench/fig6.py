@@ -7,7 +7,8 @@ the paper's layout, and the numbers that describe it.
 Usage: /usr/bin/python3 bench/fig6.py RUN.h5 [FIGDIR [NSHOT]]
   RUN.h5 is the run (bench/paper.sh: OUT/fig6.h5; a run still being written can be read from a
   copy, or with HDF5_USE_FILE_LOCKING=FALSE); its working files go to a folder RUN.fig6/ beside
-  it. FIGDIR (default bench/figures/paper) gets fig6_epsE.png: top, the nodes y(X_a) coloured by
+  it. FIGDIR (default bench/figures/paper) gets fig6_epsE.png (RUN_pearls.png for a run
+  without a C0 ramp, e.g. problems/prolate_c0.ini's Fig. 5 right, titled by its protocol): top, the nodes y(X_a) coloured by
   phi at NSHOT (default 6) snapshots (those nearest t* = 0, half and end of the C0 ramp, and
   equal steps in t* from there to the last; the meridian plane mirrored to R < 0, as the paper
   shows it); bottom, E* against
@@ -184,11 +185,19 @@ def main():
             s = int(f[f"remeshes/{k}"].attrs["step"])
             marks.append(f"set arrow from {t[s - 1]},graph 0 to {t[s - 1]},graph 1 nohead dt 2 lc rgb '#d62728'")
     os.makedirs(figdir, exist_ok=True)
-    png = os.path.join(figdir, f"fig6_eps{eps:g}.png")
+    if ramp > 0:  # the C0 ramp of problems/pearling.ini: Fig. 6
+        png = os.path.join(figdir, f"fig6_eps{eps:g}.png")
+        what = f"Fig. 6 at eps {eps}: v 0.9 -> 0.55 at constant area, C0 R0 0 -> 12"
+    else:  # any other run (e.g. problems/prolate_c0.ini, Fig. 5 right): named by its file
+        png = os.path.join(figdir, f"{os.path.splitext(os.path.basename(path))[0]}_pearls.png")
+        par = f["parameters"].attrs
+        what = (f"eps {eps}, v {float(par['shape.reduced_volume']):g}: C0 R0 "
+                f"{float(par['material.c0']):g} -> {float(par['protocol.c0_after']):g} "
+                f"at t* {float(par['protocol.c0_time']):g}")
     w = 1.0 / len(pick)
     xr = min(2.0, 1.5)
     g = ["set terminal pngcairo size 1600,1000 font ',11'", f"set output '{png}'",
-         f"set multiplot title 'Fig. 6 at eps {eps}: v 0.9 -> 0.55 at constant area, C0 R0 0 -> 12 "
+         f"set multiplot title '{what} "
          f"({len(t)} steps, resets grey, remeshings red dashed)'",
          "set palette defined (-1 '#3060c0', 0 '#f0f0f0', 1 '#c03030'); set cbrange [-1:1]; unset colorbox",
          "set size ratio -1; unset key; set tics font ',8'"]
