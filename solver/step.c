@@ -283,6 +283,12 @@ const double *ves_step_K(ves_step *s) {
 
 ves_model *ves_step_model(ves_step *s) { return s ? s->m : NULL; }
 
+ves_status ves_step_set_dt(ves_step *s, double dt) {
+  VES_CHECK(s && s->is_set && dt > 0 && isfinite(dt), VES_ERR_ARG);
+  if (dt != s->par.dt) s->par.dt = dt, s->cache = 0; /* f and grad f weigh E by dt */
+  return VES_OK;
+}
+
 const ves_step_params *ves_step_get_params(const ves_step *s) {
   return s && s->is_set ? &s->par : NULL;
 }

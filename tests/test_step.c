@@ -369,6 +369,48 @@ static void eav(const double *x, double *E, double *A, double *V) {
   free(y);
 }
 
+/* ves_step_set_dt: the same step with another dt (nlopt's continuation)
+ * gives, at a point whose evaluation is cached at the first dt, f and grad f
+ * of a step set afresh with the second dt, bit for bit (f = D + dt E, grad f
+ * = K d + dt grad E formed by the model pass at that dt), and c unchanged;
+ * set back, the first dt's values again. Bad dt refused. */
+static void test_set_dt(void **state) {
+  (void)state;
+  const int nv = P->nv;
+  set_step(1e-2, 1, 1);
+  ves_step *s2 = NULL;
+  assert_int_equal(ves_step_create(P->m, &s2), VES_OK);
+  ves_step_params par = {10.0, 1, P->A0, 1, P->V0, 0};
+  assert_int_equal(ves_step_set(s2, P->yn, &par), VES_OK);
+  double *x = xmalloc(nv), *g1 = xmalloc(nv), *g2 = xmalloc(nv), *g0 = xmalloc(nv);
+  perturbed_x(0.03, x);
+  double f0, f1, f2, c0[2], c1[2];
+  assert_int_equal(ves_step_eval_grad(P->s, x, g0), VES_OK); /* cached at dt 1e-2 */
+  assert_int_equal(ves_step_eval_f(P->s, x, &f0), VES_OK);
+  assert_int_equal(ves_step_eval_c(P->s, x, c0), VES_OK);
+  assert_int_equal(ves_step_set_dt(P->s, 10.0), VES_OK);
+  assert_true(ves_step_get_params(P->s)->dt == 10.0);
+  assert_int_equal(ves_step_eval_f(P->s, x, &f1), VES_OK);
+  assert_int_equal(ves_step_eval_grad(P->s, x, g1), VES_OK);
+  assert_int_equal(ves_step_eval_c(P->s, x, c1), VES_OK);
+  assert_int_equal(ves_step_eval_grad(s2, x, g2), VES_OK);
+  assert_int_equal(ves_step_eval_f(s2, x, &f2), VES_OK);
+  assert_true(f1 == f2 && f1 != f0);
+  assert_memory_equal(g1, g2, (size_t)nv * sizeof *g1);
+  assert_true(c1[0] == c0[0] && c1[1] == c0[1]);
+  assert_int_equal(ves_step_set_dt(P->s, 1e-2), VES_OK);
+  assert_int_equal(ves_step_eval_f(P->s, x, &f1), VES_OK);
+  assert_int_equal(ves_step_eval_grad(P->s, x, g1), VES_OK);
+  assert_true(f1 == f0);
+  assert_memory_equal(g1, g0, (size_t)nv * sizeof *g1);
+  assert_int_equal(ves_step_set_dt(P->s, 0.0), VES_ERR_ARG);
+  assert_int_equal(ves_step_set_dt(P->s, NAN), VES_ERR_ARG);
+  assert_int_equal(ves_step_set_dt(NULL, 1.0), VES_ERR_ARG);
+  assert_true(ves_step_get_params(P->s)->dt == 1e-2);
+  free(x), free(g0), free(g1), free(g2);
+  ves_step_destroy(&s2);
+}
+
 /* One VTI step with the newton backend, both constraints held, from the
  * out-of-equilibrium y^n, dt = 1e-2 (paper Table 1's largest VTI step; the
  * forces move the nodes by 2.0e-4 in this step, 0.3% of the band spacing:
@@ -574,7 +616,7 @@ int main(void) {
       cmocka_unit_test(test_at_x0),       cmocka_unit_test(test_gradient_jacobian_fd),
       cmocka_unit_test(test_hessian_fd),  cmocka_unit_test(test_cache),
       cmocka_unit_test(test_newton_step), cmocka_unit_test(test_euler_limit),
-      cmocka_unit_test(test_errors),
+      cmocka_unit_test(test_errors),      cmocka_unit_test(test_set_dt),
   };
   // clang-format on
   return cmocka_run_group_tests(tests, group_setup, group_teardown);

@@ -37,6 +37,13 @@ void ves_step_destroy(ves_step **s);
  * stores the targets. */
 ves_status ves_step_set(ves_step *s, const double *yn, const ves_step_params *par);
 
+/* The same step with another dt in the objective f = (1/2) d^T K d + dt E:
+ * y^n, K(y^n), the drift damping and the constraint targets are kept, the
+ * cached evaluation is dropped. For a continuation in dt inside a backend
+ * (nlopt's large steps), which must set the step's own dt back before it
+ * returns. VES_ERR_ARG before ves_step_set or for dt not > 0 and finite. */
+ves_status ves_step_set_dt(ves_step *s, double dt);
+
 int ves_step_nvar(const ves_step *s); /* free dofs */
 int ves_step_ncon(const ves_step *s); /* 0, 1 or 2: area first, then volume */
 
