@@ -133,9 +133,12 @@ int cli_run_restart(run_ctx *r, const char *file, int nset, const char *const *s
   char pre[PATH_MAX + 32];
   snprintf(pre, sizeof pre, "vesica run: --restart %s", file);
   /* Already at t_end (the problem's, or the one a restart before recorded):
-   * said before the setup is rebuilt (minutes at the paper's scale), the
-   * file untouched; the integrator's own test (integrate.c). */
+   * said before the setup is rebuilt (minutes at the paper's scale),
+   * nothing written; the integrator's own test (integrate.c). A file that
+   * lacks the references its snapshot needs goes on to cli_rebuild_at's
+   * refusal. */
   if (ves_io_read_snapshot(r->io, S - 1, NULL, NULL, NULL, &si) == VES_OK &&
+      si.reconnections <= ves_io_references(r->io) &&
       si.state.t >= r->cfg.t_end - 1e-12 * (1.0 + fabs(si.state.t))) {
     fprintf(stderr,
             "vesica run: --restart %s: the run is at t* = %.9g, its [time] t_end = %.9g%s: "
