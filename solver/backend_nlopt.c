@@ -62,19 +62,19 @@
  * (its line search leaves the domain, or it stalls: VES_ERR_DOMAIN or
  * VES_ERR_NOCONV) and x_start itself is admissible, the same step is solved
  * through easier ones: the objective's dt is lowered (ves_step_set_dt: y^n,
- * K and the constraint targets stay) by factors NLB_CONT_FACTOR from x_start
- * until a solve converges (at most NLB_CONT_DOWN factors), then raised
- * towards dt from each converged answer (the multipliers scaled with dt, a
- * tension times dt), the factor shrunk to its square root after a failed
- * stage, and the last stage is the step itself at the requested tolerances;
- * the step's dt is set back before returning. The answer is the step's own
- * KKT point: only the path to it changes, and a step the direct solve
- * converges on never enters it. Measured on the robustness problem (eps 0.1,
- * 1,483 nodes, bench/RESULTS.md session 25): dt* 1e3 and 1e4 converge (506 and
- * 503 gradients, 9 Hessians, 4.3x and 2.8x newton's CPU time, E* to 1.4e-9
- * and 5e-10 of newton's) where the direct solve left the domain; the
- * intermediate stages (100 from x_start, then 1e3) cost ~150 gradients, the
- * last stage, from the 1e3 answer to tol 1e-9, ~230.
+ * K and the constraint targets stay) by factors NLB_CONT_DOWN_FACTOR from
+ * x_start until a solve converges (at most NLB_CONT_DOWN factors), then
+ * raised by NLB_CONT_FACTOR from each converged answer towards dt (the
+ * multipliers scaled with dt, a tension times dt), that factor shrunk to its
+ * square root after a failed stage, and the last stage is the step itself at
+ * the requested tolerances; the step's dt is set back before returning. The
+ * answer is the step's own KKT point: only the path to it changes, and a
+ * step the direct solve converges on never enters it. Measured on the
+ * robustness problem (eps 0.1, 1,483 nodes, bench/RESULTS.md session 25):
+ * dt* 1e3 and 1e4 converge (358 and 370 gradients, 7-8 Hessians, 3.1x and
+ * 2.1x newton's CPU time, E* to 1e-11 and 5e-10 of newton's) where the
+ * direct solve left the domain; searching down by 10 instead of 100 cost
+ * 506 and 503 gradients (a second failed direct solve, at dt/10, ~130).
  * lambda out is the least-squares solution of grad f + J^T lambda = 0 at the
  * solution. Every point NLopt evaluates gets its gradient in the same model
  * pass (ves_step_eager_gradients).
@@ -123,9 +123,14 @@
 #ifndef NLB_CSCALE
 #define NLB_CSCALE 10.0 /* constraint scale: |grad_u r_i| at the start */
 #endif
-#define NLB_CONT_FACTOR 10.0 /* continuation in dt: first factor between stages */
-#define NLB_CONT_DOWN 6      /* ... down from dt at most this many factors */
-#define NLB_CONT_MIN 1.2     /* ... a stage factor shrunk below this: give up */
+#ifndef NLB_CONT_FACTOR
+#define NLB_CONT_FACTOR 10.0 /* continuation in dt: first factor between stages up */
+#endif
+#ifndef NLB_CONT_DOWN_FACTOR
+#define NLB_CONT_DOWN_FACTOR 100.0 /* ... the factor of the search down from dt */
+#endif
+#define NLB_CONT_DOWN 3  /* ... down from dt at most this many factors */
+#define NLB_CONT_MIN 1.2 /* ... a stage factor shrunk below this: give up */
 #ifndef NLB_DENSE_MAX
 #define NLB_DENSE_MAX 12000 /* largest nvar with the exact (dense) factor: 1.15 GB */
 #endif
@@ -688,10 +693,10 @@ static ves_status nlb_continue(nlb_state *st, ves_step *s, double *x, double lam
   ves_status out = xs && xk ? VES_OK : VES_ERR_ALLOC;
   double dk = dt, lam_in[2] = {lam[0], lam[1]}, lk[2] = {lam[0], lam[1]};
   if (out == VES_OK) memcpy(xs, x, (size_t)n * sizeof *xs);
-  /* down: the largest dt / NLB_CONT_FACTOR^j from x_start that converges */
+  /* down: the largest dt / NLB_CONT_DOWN_FACTOR^j from x_start that converges */
   int ok = 0;
   for (int j = 1; j <= NLB_CONT_DOWN && out == VES_OK && !ok; j++) {
-    dk = dt / pow(NLB_CONT_FACTOR, j);
+    dk = dt / pow(NLB_CONT_DOWN_FACTOR, j);
     memcpy(xk, xs, (size_t)n * sizeof *xk);
     lk[0] = lam_in[0] * dk / dt, lk[1] = lam_in[1] * dk / dt; /* lambda ~ dt (tension) */
     if ((out = ves_step_set_dt(s, dk)) != VES_OK) break;
