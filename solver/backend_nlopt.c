@@ -59,8 +59,8 @@
  * NLB_DOMAIN_MAX consecutive refusals, or at the start, the solve is stopped
  * with nlopt_force_stop and VES_ERR_DOMAIN is returned.
  * Continuation in dt (large steps). When the direct solve from x_start fails
- * (its line search leaves the domain, or it stalls: VES_ERR_DOMAIN or
- * VES_ERR_NOCONV) and x_start itself is admissible, the same step is solved
+ * because its line search left the domain (VES_ERR_DOMAIN) and x_start
+ * itself is admissible, the same step is solved
  * through easier ones: the objective's dt is lowered (ves_step_set_dt: y^n,
  * K and the constraint targets stay) by factors NLB_CONT_DOWN_FACTOR from
  * x_start until a solve converges (at most NLB_CONT_DOWN factors), then
@@ -72,7 +72,7 @@
  * step the direct solve converges on never enters it. Measured on the
  * robustness problem (eps 0.1, 1,483 nodes, bench/RESULTS.md session 25):
  * dt* 1e3 and 1e4 converge (358 and 370 gradients, 7-8 Hessians, 3.1x and
- * 2.1x newton's CPU time, E* to 1e-11 and 5e-10 of newton's) where the
+ * 2.1x newton's CPU time, E* to 1e-10 and 5e-10 of newton's) where the
  * direct solve left the domain; searching down by 10 instead of 100 cost
  * 506 and 503 gradients (a second failed direct solve, at dt/10, ~130).
  * lambda out is the least-squares solution of grad f + J^T lambda = 0 at the
@@ -154,7 +154,6 @@ typedef struct {
   int h_evals;          /* Hessians assembled for the factor */
   int outer;            /* objective calls without gradient (AUGLAG's own) */
   int domain_run;       /* consecutive domain errors */
-  int cont_stages;      /* converged stages of the continuation in dt (nlb_continue) */
   ves_status reason;    /* why the solve was forced to stop (VES_OK: not) */
 } nlb_ctx;
 
@@ -730,7 +729,6 @@ static ves_status nlb_continue(nlb_state *st, ves_step *s, double *x, double lam
     if (e == VES_OK) {
       memcpy(xk, x, (size_t)n * sizeof *xk);
       dk = dn, lk[0] = xn_lam[0], lk[1] = xn_lam[1];
-      st->ctx.cont_stages++;
     } else if (e == VES_ERR_DOMAIN || e == VES_ERR_NOCONV || e == VES_MAXITER) {
       f = sqrt(f);
       if (f < NLB_CONT_MIN) out = e;
@@ -785,9 +783,10 @@ static ves_status nlb_solve(void *state, ves_step *s, double *x, double *lambda,
     memcpy(xs, x, (size_t)n * sizeof *xs);
     out = nlb_direct(st, s, x, lam, tgt, st->opt.tol, st->opt.ctol, 1, gS, &r, &viol);
   }
-  /* A step too long for L-BFGS from x_start (its line search leaves the
-   * domain, or it stalls): the continuation in dt, from x_start again */
-  if (admissible && (out == VES_ERR_DOMAIN || out == VES_ERR_NOCONV)) {
+  /* A step too long for L-BFGS from x_start (its line search left the
+   * domain): the continuation in dt, from x_start again. Other failures (a
+   * stall, the evaluation limit) go back to the integrator, which halves dt. */
+  if (admissible && out == VES_ERR_DOMAIN) {
     memcpy(x, xs, (size_t)n * sizeof *x);
     lam[0] = m > 0 ? lambda[0] : 0.0, lam[1] = m > 1 ? lambda[1] : 0.0;
     c->reason = VES_OK;
