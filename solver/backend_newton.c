@@ -51,7 +51,7 @@
  * second MUMPS solve and product are skipped: half a solve's cost
  * (bench/RESULTS.md, session 23). freeze_hessian = 0 (Newton proper)
  * refines to VES_LDL_REFINE_TOL, keeping its quadratic convergence, and so
- * does a chord whose convergence test is the rounding floor (solve_tol).
+ * does a chord iteration whose error could hide under the rounding floor (solve_tol).
  *
  * Inertia correction memory (as Ipopt's): after a corrected factorization
  * with delta, the next one that needs a correction starts at delta/10
@@ -119,6 +119,7 @@
 #define NEWTON_AA_DEPTH 5     /* Anderson acceleration of the chord: steps remembered */
 #define NEWTON_AA_GROW 10.0   /* an accelerated step longer than this many chord steps is refused */
 #define NEWTON_SOLVE_TOL 1e-3 /* frozen: the KKT solves' relative residual (single precision) */
+#define NEWTON_FLOOR_FRAC 1e-2 /* at the floor: refine a direction above this of the step */
 
 typedef struct {
   ves_backend_options opt; /* copied */
@@ -137,7 +138,8 @@ typedef struct {
   double delta_last;       /* the last inertia correction (0: none since the matrix was fresh) */
   double delta_build;      /* the correction of the last build (0: none was needed) */
   double delta_hint;       /* the correction the last step's first build needed (0: none) */
-  int at_floor;            /* the convergence test is the rounding floor, not tol (solve_tol) */
+  int at_floor;            /* a loose direction's error would hide under the floor (solve_tol) */
+  double *xn;              /* the step's start x^n (ves_step_x0): the displacement's origin */
   /* Anderson acceleration of the chord iteration (columns of nvar + KKT_NROWS) */
   double *aa_du;       /* NEWTON_AA_DEPTH differences of the iterates u = (x, lam) */
   double *aa_dg;       /* NEWTON_AA_DEPTH differences of their chord steps */
@@ -152,7 +154,7 @@ static void newton_destroy(void **state) {
   if (!state || !*state) return;
   newton_state *w = *state;
   kkt_destroy(&w->kkt);
-  free(w->g), free(w->J), free(w->r), free(w->sol), free(w->soc), free(w->xt);
+  free(w->g), free(w->J), free(w->r), free(w->sol), free(w->soc), free(w->xt), free(w->xn);
   free(w->aa_du), free(w->aa_dg), free(w->aa_q), free(w->aa_u), free(w->aa_g), free(w->aa_p);
   free(w);
   *state = NULL;
@@ -179,6 +181,7 @@ static ves_status newton_create(const ves_backend_options *opt, ves_step *s, voi
   w->sol = malloc(na * sizeof *w->sol);
   w->soc = malloc(na * sizeof *w->soc);
   w->xt = malloc(nv * sizeof *w->xt);
+  w->xn = malloc(nv * sizeof *w->xn);
   w->aa_du = malloc(NEWTON_AA_DEPTH * na * sizeof *w->aa_du);
   w->aa_dg = malloc(NEWTON_AA_DEPTH * na * sizeof *w->aa_dg);
   w->aa_q = malloc(NEWTON_AA_DEPTH * nv * sizeof *w->aa_q);
@@ -186,7 +189,7 @@ static ves_status newton_create(const ves_backend_options *opt, ves_step *s, voi
   w->aa_g = malloc(na * sizeof *w->aa_g);
   w->aa_p = malloc(na * sizeof *w->aa_p);
   *state = w;
-  if (!w->g || !w->J || !w->r || !w->sol || !w->soc || !w->xt || !w->aa_du || !w->aa_dg ||
+  if (!w->g || !w->J || !w->r || !w->sol || !w->soc || !w->xt || !w->xn || !w->aa_du || !w->aa_dg ||
       !w->aa_q || !w->aa_u || !w->aa_g || !w->aa_p) {
     newton_destroy(state);
     return VES_ERR_ALLOC;
@@ -255,14 +258,34 @@ static ves_status assemble_factor(newton_state *w, ves_step *s, const double *x,
 
 /* The KKT solves' refinement target: NEWTON_SOLVE_TOL for the chord (a
  * frozen Hessian), VES_LDL_REFINE_TOL for Newton proper (the header) and
- * for a chord whose convergence test is the rounding floor (w->at_floor):
- * there a residual below the floor is accepted whatever error the last
- * direction carried, so an inexact direction would stay in the answer
- * (measured: test_step's dt 1e-6 step, tol 1e-11, converged after one
- * chord iteration 2.5e-3 of its displacement off the refined one; the
- * default run is unchanged: 39 steps, 142 iterations, E* 7.68032252348). */
+ * for a chord direction whose error could hide under the rounding floor
+ * (w->at_floor, set by floor_direction). */
 static double solve_tol(const newton_state *w) {
   return w->opt.freeze_hessian && !w->at_floor ? NEWTON_SOLVE_TOL : VES_LDL_REFINE_TOL;
+}
+
+/* Whether the chord direction dx (solved to NEWTON_SOLVE_TOL) must be solved
+ * again refined: when the convergence test is the rounding floor N (N >
+ * tol S), a residual below N is accepted whatever error the direction
+ * carried, and that error, ~NEWTON_SOLVE_TOL |dx| (measured 2.5e-3 |dx|:
+ * test_step's dt 1e-6 step, tol 1e-11, converged after one chord
+ * iteration), stays in the answer. It is negligible against the step's
+ * displacement |x + dx - x^n| when |dx| is below NEWTON_FLOOR_FRAC of it
+ * (an error <= ~2.5e-5 of the displacement), as for the corrections after
+ * a good predictor; a direction that carries the step (the first from x^n,
+ * a poor predictor) is refined. Session 24 refined every solve at the
+ * floor, which at eps 0.01 is nearly every solve of the oblate relaxation
+ * and cost it ~11% (bench/RESULTS.md, session 25). */
+static int floor_direction(const newton_state *w, const double *x, const double *dx, double res,
+                           double scale) {
+  if (!w->opt.freeze_hessian || w->noise <= w->opt.tol * scale || res <= w->opt.tol * scale)
+    return 0;
+  double d = 0, u = 0;
+  for (int j = 0; j < w->nvar; j++) {
+    d = fmax(d, fabs(dx[j]));
+    u = fmax(u, fabs(x[j] + dx[j] - w->xn[j]));
+  }
+  return d > NEWTON_FLOOR_FRAC * u;
 }
 
 /* Values at x: f and c (one model pass). */
@@ -508,6 +531,7 @@ static ves_status newton_solve(void *state, ves_step *s, double *x, double *lamb
   double tgt[KKT_NROWS] = {1, 1}, lam[KKT_NROWS] = {0, 0}, c[KKT_NROWS] = {0, 0},
          ct[KKT_NROWS] = {0, 0};
   ves_step_get_targets(s, tgt);
+  ves_step_x0(s, w->xn);
   for (int i = 0; i < ncon; i++) lam[i] = lambda[i];
 
   double f, ft, mu = 0;
@@ -551,10 +575,16 @@ static ves_status newton_solve(void *state, ves_step *s, double *x, double *lamb
       fresh = 0, built_now = 1;
     }
     /* Newton direction: [H J^T; J 0][dx; dlam] = -[r; c] */
-    w->at_floor = w->noise > w->opt.tol * scale; /* after a build: its noise */
+    w->at_floor = 0;
     for (int j = 0; j < nv; j++) w->sol[j] = -w->r[j];
     for (int i = 0; i < KKT_NROWS; i++) w->sol[nv + i] = i < ncon ? -c[i] : 0.0;
     if ((st = kkt_solve_tol(&w->kkt, w->sol, solve_tol(w))) != VES_OK) break;
+    if (floor_direction(w, x, w->sol, res, scale)) { /* again, refined */
+      w->at_floor = 1;
+      for (int j = 0; j < nv; j++) w->sol[j] = -w->r[j];
+      for (int i = 0; i < KKT_NROWS; i++) w->sol[nv + i] = i < ncon ? -c[i] : 0.0;
+      if ((st = kkt_solve_tol(&w->kkt, w->sol, solve_tol(w))) != VES_OK) break;
+    }
     const double *dx = w->sol, *dlam = w->sol + nv;
     int accel = 0;
     if (built_now) { /* a new matrix: a new iteration map */
