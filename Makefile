@@ -29,10 +29,11 @@ endif
 
 # python3-meshio and python3-h5py: test_cli reads the output with them
 # (tests/xdmf_check.py), readers that share no code with vesica;
-# clang-format: make format-check (the first step of .ci/run)
+# clang-format: make format-check (the first step of .ci/run); libsuitesparse-dev:
+# CHOLMOD, the nlopt backend's exact sparse Cholesky factor (solver/chol.c)
 DEPS_PKGS = coinor-libipopt-dev libnlopt-dev libmumps-seq-dev libcgal-dev \
             libhdf5-dev libcmocka-dev liblapacke-dev libopenblas-dev \
-            gnuplot-nox pkg-config libiniparser-dev python3-meshio python3-h5py clang-format
+            gnuplot-nox pkg-config libiniparser-dev libsuitesparse-dev python3-meshio python3-h5py clang-format
 
 PKG_CFLAGS := $(shell pkg-config --cflags ipopt hdf5 2>/dev/null)
 PKG_LIBS   := $(shell pkg-config --libs ipopt hdf5 2>/dev/null)
@@ -44,7 +45,7 @@ CFLAGS  += -std=c11 -fopenmp -D_XOPEN_SOURCE=700 $(WARN) -Iinclude -Isolver $(PK
 # check disabled so valgrind can run it.
 CXXFLAGS_CGAL = -std=c++17 -O2 -g -frounding-math -DCGAL_DISABLE_ROUNDING_MATH_CHECK \
                 -Wall -Wextra -Werror -Iinclude $(SANFLAGS) -MMD -MP
-LDLIBS   = $(PKG_LIBS) -lnlopt -ldmumps_seq -lsmumps_seq -liniparser -llapacke -lopenblas -lgmp -lstdc++ -lm
+LDLIBS   = $(PKG_LIBS) -lnlopt -ldmumps_seq -lsmumps_seq -liniparser -lcholmod -llapacke -lopenblas -lgmp -lstdc++ -lm
 LDFLAGS += $(SANFLAGS) -fopenmp
 
 LIB_C    = $(filter-out solver/cli%.c,$(wildcard solver/*.c))

@@ -10,18 +10,32 @@
  * where L L^T = M, M = the Hessian of the Lagrangian at the start
  * (K + dt Hess E + lambda Hess c; K alone if that has a non-positive
  * diagonal), with a diagonal shift M + alpha diag(M), alpha = 0, 1e-3, 1e-2,
- * ... until it is positive definite. L is the exact (dense, LAPACK dpotrf)
- * Cholesky factor up to NLB_DENSE_MAX variables (n^2 doubles: 150 MB at the
- * default oblate's 4.3k dofs), above that IC(0) on the Hessian pattern
- * (ves_ldl_ic, ldl.h). The Hessian of F in u is then the identity at the
- * start, and LBFGS's unit step a Newton step. The wrapper ves_ldl (MUMPS)
- * that newton uses cannot serve: it offers A^{-1} v only, not the half solves
- * L^{-1} v, L^{-T} v that a change of variables needs.
+ * ... until it is positive definite. L is the exact sparse Cholesky factor
+ * (ves_chol, chol.h: CHOLMOD, L = P^T L_c with P the fill-reducing
+ * permutation) at every size. The Hessian of F in u is then the identity at
+ * the start, and LBFGS's unit step a Newton step. The wrapper ves_ldl
+ * (MUMPS) that newton uses cannot serve: it offers A^{-1} v only, not the
+ * half solves L^{-1} v, L^{-T} v that a change of variables needs. Until
+ * session 26 L was dense (LAPACK dpotrf, up to 12,000 variables, IC(0)
+ * above): at 2.9k dofs a factor ~0.3 s and two O(n^2) triangular solves at
+ * every evaluation (a read of the 67 MB factor each; dtrsv ~10% of the
+ * profile); the sparse factor costs ~3% and cut the steps' CPU time by
+ * 10-20% at equal gradient counts (bench/RESULTS.md, session 26).
  * Two phases: AUGLAG to the loose relative tolerance NLB_TOL1 (constraints
  * NLB_CTOL1) in the metric of the start, then a new factor where it ended and
  * AUGLAG to the requested tolerances (the Hessian far from the start is the
- * metric that matters at large dt; at small dt the second phase costs one
- * Hessian).
+ * metric that matters at large dt). One phase, to the requested tolerances,
+ * when the step is near-quadratic: r = max_i |M_ii - K_ii| / K_ii <=
+ * NLB_ONE_PHASE_R at the start (r grows as dt: 4e-3 at dt* 1e-4, 0.41 at
+ * 1e-2, 41 at 1 on the robustness problem), where the metric of the start
+ * holds along the whole step and a second phase paid a Hessian and a
+ * restart of AUGLAG's multipliers and penalty for nothing (dt* 1e-4: 23
+ * gradients and 2 Hessians against 63 and 3; 1e-2: 47 / 2 against 39 / 3,
+ * equal CPU; bench/RESULTS.md session 26). From a warm start in the time
+ * loop one phase can stall (L-BFGS's line search on the rounding of f, or
+ * AUGLAG stopping feasible short of the first-order test): such a step is
+ * solved again from x_start in two phases (nlb_solve; without it the
+ * default relaxation retried 2 steps and took 50 instead of 40).
  * Multipliers: AUGLAG restarts its own from zero at every call, so the
  * objective carries f + lambda0^T c (the same minimizer on c = 0) with
  * lambda0 the multipliers of the quadratic model's step (the KKT system of
@@ -69,7 +83,14 @@
  * square root after a failed stage, and the last stage is the step itself at
  * the requested tolerances; the step's dt is set back before returning. The
  * answer is the step's own KKT point: only the path to it changes, and a
- * step the direct solve converges on never enters it. Measured on the
+ * step the direct solve converges on never enters it. A step whose r at
+ * the start exceeds NLB_CONT_R skips the direct solve (one Hessian spent):
+ * measured on the robustness problem, its direct solve failed at r = 4e4
+ * (dt* 1e3) after ~130 gradients and converged at r = 4e3 (dt* 100: 197
+ * gradients, 3 Hessians; through the continuation 155 and 9, no cheaper),
+ * so the gate sits between (dt* 1e3: 253 gradients against 385; session
+ * 26). The threshold is one problem's: a step on another problem that
+ * crosses it costs a continuation, never a different answer. Measured on the
  * robustness problem (eps 0.1, 1,483 nodes, bench/RESULTS.md session 25):
  * dt* 1e3 and 1e4 converge (358 and 370 gradients, 7-8 Hessians, 3.1x and
  * 2.1x newton's CPU time, E* to 1e-10 and 5e-10 of newton's) where the
@@ -92,11 +113,10 @@
 #include <string.h>
 #include <time.h>
 
-#include <cblas.h>
-#include <lapacke.h>
 #include <nlopt.h>
 
 #include "ves/backend.h"
+#include "ves/chol.h"
 #include "ves/ldl.h"
 #include "clock_impl.h"
 
@@ -112,6 +132,12 @@
 #endif
 #ifndef NLB_TOL1
 #define NLB_TOL1 1e-3 /* first phase's relative gradient tolerance (0: one phase) */
+#endif
+#ifndef NLB_ONE_PHASE_R
+#define NLB_ONE_PHASE_R 1.0 /* one phase when max |diag(M - K)| / diag(K) is below this */
+#endif
+#ifndef NLB_CONT_R
+#define NLB_CONT_R 1e4 /* a step's direct solve: straight to the continuation above this r */
 #endif
 #ifndef NLB_CTOL1
 #define NLB_CTOL1 1e-6 /* first phase's relative constraint tolerance */
@@ -131,9 +157,6 @@
 #endif
 #define NLB_CONT_DOWN 3  /* ... down from dt at most this many factors */
 #define NLB_CONT_MIN 1.2 /* ... a stage factor shrunk below this: give up */
-#ifndef NLB_DENSE_MAX
-#define NLB_DENSE_MAX 12000 /* largest nvar with the exact (dense) factor: 1.15 GB */
-#endif
 
 /* The typed context of the callbacks. */
 typedef struct {
@@ -141,7 +164,7 @@ typedef struct {
   nlopt_opt opt;        /* the outer optimizer (for nlopt_force_stop) */
   int n, m;             /* nvar, ncon */
   const ves_ldl_ic *L;  /* the factor of the change of variables (IC(0)) */
-  const double *Ld;     /* or the exact one: n x n, column-major, lower (NULL: IC(0)) */
+  ves_chol *C;          /* or the exact one (NULL: IC(0)) */
   const double *xs;     /* n the start x_start */
   double root;          /* x = x_start + root L^{-T} u */
   double f_scale;       /* root^2 */
@@ -153,7 +176,11 @@ typedef struct {
   int f_evals, g_evals; /* objective evaluations, with gradient */
   int h_evals;          /* Hessians assembled for the factor */
   int outer;            /* objective calls without gradient (AUGLAG's own) */
+  int phases;           /* AUGLAG solves started (nlb_phase) */
   int domain_run;       /* consecutive domain errors */
+  int gate;             /* the next phase is a step's direct solve: NLB_CONT_R applies */
+  int one_phase;        /* NLB_ONE_PHASE_R may make a first phase the last */
+  int promoted;         /* ... and did, in this solve */
   ves_status reason;    /* why the solve was forced to stop (VES_OK: not) */
 } nlb_ctx;
 
@@ -163,45 +190,31 @@ typedef struct {
   double *x, *g, *J, *u, *xs, *hval; /* scratch, u, start, Hessian values */
   int *hi, *hj;                      /* Hessian structure (lower triplets) */
   ves_ldl_ic *L;                     /* preconditioner: IC(0) on the Hessian pattern */
-  double *Ld;             /* or the exact Cholesky factor, n x n (NULL above NLB_DENSE_MAX) */
-  double shift;           /* the diagonal shift alpha of the last factorization */
-  int pass;               /* 0: M was the Hessian of the Lagrangian; 1: K */
-  double kkt, jtl, noise; /* max |grad f + J^T lambda|, max |J^T lambda|, its
-                             rounding floor (nlb_finish) */
+  ves_chol *C;                       /* or the exact sparse Cholesky factor (NULL: IC(0)) */
+  double shift;                      /* the diagonal shift alpha of the last factorization */
+  double rdiag;                      /* max_i |M_ii - K_ii| / K_ii of the last Hessian M */
+  double *dg;                        /* 2 n scratch: diagonals */
+  int pass;                          /* 0: M was the Hessian of the Lagrangian; 1: K */
+  double kkt, jtl, noise;            /* max |grad f + J^T lambda|, max |J^T lambda|, its
+                                        rounding floor (nlb_finish) */
   nlb_ctx ctx;
 } nlb_state;
 
-/* v = L^{-1} v with the factor in use: the exact one Ld when there is one,
- * else IC(0). */
-static void nlb_lsolve(const ves_ldl_ic *L, const double *Ld, double *v) {
-  if (Ld)
-    cblas_dtrsv(CblasColMajor, CblasLower, CblasNoTrans, CblasNonUnit, L->n, Ld, L->n, v, 1);
+/* v = L^{-1} v with the factor in use: the exact one C when there is one,
+ * else IC(0). The exact one fails only on arguments it was never given. */
+static void nlb_lsolve(const ves_ldl_ic *L, ves_chol *C, double *v) {
+  if (C)
+    (void)ves_chol_lsolve(C, v);
   else
     ves_ldl_ic_lsolve(L, v);
 }
 
 /* v = L^{-T} v with the factor in use. */
-static void nlb_ltsolve(const ves_ldl_ic *L, const double *Ld, double *v) {
-  if (Ld)
-    cblas_dtrsv(CblasColMajor, CblasLower, CblasTrans, CblasNonUnit, L->n, Ld, L->n, v, 1);
+static void nlb_ltsolve(const ves_ldl_ic *L, ves_chol *C, double *v) {
+  if (C)
+    (void)ves_chol_ltsolve(C, v);
   else
     ves_ldl_ic_ltsolve(L, v);
-}
-
-/* Ld Ld^T = (M + sum_i w_i grad c_i grad c_i^T)(1 + alpha on the diagonal),
- * M given by its lower triplets (hi, hj, v), J[m x n] the constraint
- * gradients (m = 0: none):
- * the dense Cholesky factor (LAPACK dpotrf). 0 on success, -1 if M +
- * alpha diag(M) is not positive definite. */
-static int nlb_dense_factor(double *Ld, int n, int nnz, const int *hi, const int *hj,
-                            const double *v, int m, const double *J, const double *w,
-                            double alpha) {
-  memset(Ld, 0, (size_t)n * (size_t)n * sizeof *Ld);
-  for (int k = 0; k < nnz; k++) Ld[hi[k] + (size_t)hj[k] * n] += v[k];
-  for (int i = 0; i < m; i++) /* + w_i grad c_i grad c_i^T, lower triangle */
-    if (w[i] != 0.0) cblas_dsyr(CblasColMajor, CblasLower, n, w[i], J + (size_t)i * n, 1, Ld, n);
-  for (int i = 0; i < n; i++) Ld[i + (size_t)i * n] *= 1.0 + alpha;
-  return LAPACKE_dpotrf(LAPACK_COL_MAJOR, 'L', n, Ld, n) == 0 ? 0 : -1;
 }
 
 /* ---- callbacks ---------------------------------------------------------- */
@@ -215,7 +228,7 @@ static void nlb_stop(nlb_ctx *c, ves_status st) {
 /* c->x = x_start + root L^{-T} u */
 static void nlb_x_of_u(nlb_ctx *c, const double *u) {
   for (int i = 0; i < c->n; i++) c->x[i] = c->root * u[i];
-  nlb_ltsolve(c->L, c->Ld, c->x);
+  nlb_ltsolve(c->L, c->C, c->x);
   for (int i = 0; i < c->n; i++) c->x[i] += c->xs[i];
 }
 
@@ -262,7 +275,7 @@ static double nlb_objective(unsigned n, const double *u, double *grad, void *dat
   }
   c->domain_run = 0;
   if (grad) {
-    nlb_lsolve(c->L, c->Ld, grad);
+    nlb_lsolve(c->L, c->C, grad);
     for (unsigned i = 0; i < n; i++) grad[i] /= c->root;
   }
   return f / c->f_scale;
@@ -296,7 +309,7 @@ static void nlb_constraints(unsigned m, double *r, unsigned n, const double *u, 
   for (unsigned i = 0; i < m; i++) {
     r[i] /= c->tgt[i];
     if (grad) {
-      nlb_lsolve(c->L, c->Ld, grad + (size_t)i * n);
+      nlb_lsolve(c->L, c->C, grad + (size_t)i * n);
       for (unsigned j = 0; j < n; j++) grad[i * n + j] *= c->root / c->tgt[i];
     }
   }
@@ -306,10 +319,10 @@ static void nlb_constraints(unsigned m, double *r, unsigned n, const double *u, 
 
 static void nlb_free_arrays(nlb_state *st) {
   free(st->x), free(st->g), free(st->J), free(st->u), free(st->xs), free(st->hval);
-  free(st->hi), free(st->hj), free(st->Ld);
-  st->Ld = NULL;
+  free(st->hi), free(st->hj), free(st->dg);
+  ves_chol_destroy(&st->C);
   st->x = st->g = st->J = st->u = st->xs = st->hval = NULL;
-  st->hi = st->hj = NULL;
+  st->hi = st->hj = NULL, st->dg = NULL;
   ves_ldl_ic_destroy(&st->L);
   st->n = 0, st->nnz = 0;
 }
@@ -325,21 +338,22 @@ static ves_status nlb_alloc(nlb_state *st, ves_step *s) {
   st->J = malloc(2 * N * sizeof(double)), st->u = malloc(N * sizeof(double));
   st->xs = malloc(N * sizeof(double)), st->hval = malloc(Z * sizeof(double));
   st->hi = malloc(Z * sizeof(int)), st->hj = malloc(Z * sizeof(int));
-  if (!st->x || !st->g || !st->J || !st->u || !st->xs || !st->hval || !st->hi || !st->hj) {
+  st->dg = malloc(2 * N * sizeof(double));
+  if (!st->x || !st->g || !st->J || !st->u || !st->xs || !st->hval || !st->hi || !st->hj ||
+      !st->dg) {
     nlb_free_arrays(st);
     return VES_ERR_ALLOC;
   }
   ves_step_hess_structure(s, st->hi, st->hj);
+  ves_status rc = VES_OK;
 #ifndef NLB_PRECOND_IC0 /* measurement: the IC(0) change of variables at every size */
-  if (n <= NLB_DENSE_MAX) {
-    st->Ld = malloc(N * N * sizeof(double));
-    if (!st->Ld) {
-      nlb_free_arrays(st);
-      return VES_ERR_ALLOC;
-    }
+  rc = ves_chol_create(n, nnz, st->hi, st->hj, &st->C);
+  if (rc != VES_OK) {
+    nlb_free_arrays(st);
+    return rc;
   }
 #endif
-  ves_status rc = ves_ldl_ic_create(n, nnz, st->hi, st->hj, &st->L);
+  rc = ves_ldl_ic_create(n, nnz, st->hi, st->hj, &st->L);
   if (rc != VES_OK) {
     nlb_free_arrays(st);
     return rc;
@@ -374,34 +388,27 @@ static ves_status nlb_create(const ves_backend_options *opt, ves_step *s, void *
 
 /* Factor the preconditioner at x (header comment): M = Hessian of the
  * Lagrangian, or K if that has a non-positive diagonal entry; the exact
- * Cholesky factor when st->Ld is allocated, else IC(0). */
+ * sparse Cholesky factor when st->C exists, else IC(0). */
 static ves_status nlb_precondition(nlb_state *st, ves_step *s, const double *x,
                                    const double *lambda, int m, const double *J) {
   ves_ldl_ic *L = st->L;
   const double *K = ves_step_K(s);
   VES_CHECK(K != NULL, VES_ERR_ARG);
   VES_CALL(ves_step_eval_hess(s, x, 1.0, lambda, st->hval));
-  /* AUGLAG's penalty, rho/2 sum_i r_i^2 with rho = NLB_RHO0 and |grad_u r_i|
-   * = NLB_CSCALE, in x: w_i grad c_i grad c_i^T, w_i = rho NLB_CSCALE^2 /
-   * (grad c_i^T M^-1 grad c_i), the last estimated with diag(M). It makes
-   * the factored matrix the Hessian of the subproblem AUGLAG hands to
-   * L-BFGS, positive definite where the Lagrangian's is so on the tangent
-   * space only (large dt). A measurement, off by default: with the diagonal
-   * estimate of w_i it tripled the gradients (bench/RESULTS.md, issue 17). */
-  double w[2] = {0.0, 0.0};
-#ifdef NLB_PENALTY_PRE
-  for (int i = 0; i < m; i++) {
-    double q = 0.0;
+  (void)J, (void)m; /* (the constraints' gradients: not in the factored matrix) */
+  {
+    double *dh = st->dg, *dk = st->dg + st->n;
+    memset(st->dg, 0, 2 * (size_t)st->n * sizeof *st->dg);
     for (int k = 0; k < st->nnz; k++)
-      if (st->hi[k] == st->hj[k] && st->hval[k] > 0.0) {
-        double gj = J[(size_t)i * st->n + st->hi[k]];
-        q += gj * gj / st->hval[k];
-      }
-    w[i] = q > 0.0 ? NLB_RHO0 * NLB_CSCALE * NLB_CSCALE / q : 0.0;
-  }
-#else
-  (void)J, (void)m;
+      if (st->hi[k] == st->hj[k]) dh[st->hi[k]] += st->hval[k], dk[st->hi[k]] += K[k];
+    double r = 0.0;
+    for (int i = 0; i < st->n; i++)
+      r = fmax(r, dk[i] > 0.0 ? fabs(dh[i] - dk[i]) / dk[i] : HUGE_VAL);
+    st->rdiag = r;
+#ifdef NLB_TRACE
+    fprintf(stderr, "nlopt precondition: max |diag(M - K)| / diag(K) = %.3e\n", r);
 #endif
+  }
   for (int pass = 0; pass < 2; pass++) {
     const double *v = pass == 0 ? st->hval : K;
     ves_ldl_ic_set(L, v);
@@ -414,8 +421,8 @@ static ves_status nlb_precondition(nlb_state *st, ves_step *s, const double *x,
     if (!posdiag) continue;
     double alpha = 0.0;
     for (int t = 0; t < NLB_IC_SHIFTS; t++, alpha = alpha == 0.0 ? 1e-3 : 10.0 * alpha) {
-      if (st->Ld ? nlb_dense_factor(st->Ld, st->n, st->nnz, st->hi, st->hj, v, m, J, w, alpha) == 0
-                 : ves_ldl_ic_factor(L, alpha) == VES_OK) {
+      if (st->C ? ves_chol_factor(st->C, v, alpha) == VES_OK
+                : ves_ldl_ic_factor(L, alpha) == VES_OK) {
         st->shift = alpha, st->pass = pass;
         return VES_OK;
       }
@@ -500,9 +507,9 @@ static ves_status nlb_start(nlb_state *st, ves_step *s, const double *x, const d
     if (rc == VES_OK) rc = nlb_precondition(st, s, x, m > 0 ? lam_m : NULL, m, st->J);
     if (rc != VES_OK) break;
     c->g_evals++, c->h_evals++;
-    nlb_lsolve(st->L, st->Ld, st->g); /* the gradient in u at root = 1 */
-    for (int i = 0; i < m; i++) nlb_lsolve(st->L, st->Ld, st->J + (size_t)i * n);
-    *have_qp = m > 0 && st->Ld != NULL; /* an estimate, also from a shifted factor */
+    nlb_lsolve(st->L, st->C, st->g); /* the gradient in u at root = 1 */
+    for (int i = 0; i < m; i++) nlb_lsolve(st->L, st->C, st->J + (size_t)i * n);
+    *have_qp = m > 0 && st->C != NULL; /* an estimate, also from a shifted factor */
     if (!*have_qp) break;
     nlb_multipliers(n, m, st->J, st->g, c0, lam_qp);
     double dl = 0.0, lm = 0.0;
@@ -570,12 +577,17 @@ static ves_status nlb_status(nlopt_result r) {
 /* One AUGLAG solve from x (in/out) to relative tolerances tol (gradient in
  * the metric of the factor) and ctol (constraints), in the variables of the
  * factor of the Hessian at x with multipliers lambda (in; out: least-squares
- * ones at the result). *r: NLopt's verdict. */
+ * ones at the result). *last (in/out): 0 for a first phase, to NLB_TOL1 and
+ * NLB_CTOL1, unless the Hessian at x is near K (max_i |M_ii - K_ii| / K_ii
+ * <= NLB_ONE_PHASE_R: a near-quadratic step, whose metric does not change
+ * along it), which makes it the last phase, to tol and ctol (*last = 1).
+ * *r: NLopt's verdict. */
 static ves_status nlb_phase(nlb_state *st, ves_step *s, double *x, double *lambda,
-                            const double *tgt, double tol, double ctol_rel, nlopt_result *r,
-                            double *viol) {
+                            const double *tgt, double tol, double ctol_rel, int *last,
+                            nlopt_result *r, double *viol) {
   nlb_ctx *c = &st->ctx;
   const int n = st->n, m = c->m;
+  c->phases++;
   *r = NLOPT_FAILURE;
   *viol = HUGE_VAL;
   c->domain_run = 0;
@@ -583,6 +595,10 @@ static ves_status nlb_phase(nlb_state *st, ves_step *s, double *x, double *lambd
   int have_qp = 0;
   ves_status rc = nlb_start(st, s, x, lambda, lam_qp, &have_qp);
   if (rc != VES_OK) return rc;
+  if (c->gate && st->rdiag > NLB_CONT_R) return VES_ERR_DOMAIN; /* to the continuation */
+  c->gate = 0;
+  if (!*last && c->one_phase && st->rdiag <= NLB_ONE_PHASE_R) *last = 1, c->promoted = 1;
+  if (!*last) tol = NLB_TOL1, ctol_rel = NLB_CTOL1;
 #ifdef NLB_TRACE
   fprintf(stderr,
           "nlopt start: tol %g lambda in %.6e %.6e  qp %.6e %.6e (have %d, pass %d, shift %g)\n",
@@ -656,11 +672,11 @@ static ves_status nlb_direct(nlb_state *st, ves_step *s, double *x, double lam[2
                              const double *tgt, double tol, double ctol, int check, double gS,
                              nlopt_result *r, double *viol) {
   ves_status out = VES_OK;
-  const int phases = st->Ld && NLB_TOL1 > tol ? 2 : 1;
+  const int phases = st->C && NLB_TOL1 > tol ? 2 : 1;
   st->ctx.reason = VES_OK; /* a domain stop of an earlier solve is that solve's */
-  for (int ph = 0; ph < phases && out == VES_OK; ph++) {
-    const int last = ph == phases - 1;
-    out = nlb_phase(st, s, x, lam, tgt, last ? tol : NLB_TOL1, last ? ctol : NLB_CTOL1, r, viol);
+  for (int ph = 0, last = 0; ph < phases && out == VES_OK && !last; ph++) {
+    last = ph == phases - 1;
+    out = nlb_phase(st, s, x, lam, tgt, tol, ctol, &last, r, viol);
     if (!last && (out == VES_ERR_NOCONV || out == VES_MAXITER)) out = VES_OK; /* go on */
   }
   /* AUGLAG reports success also when L-BFGS could not move (every trial
@@ -760,7 +776,7 @@ static ves_status nlb_solve(void *state, ves_step *s, double *x, double *lambda,
                  .n = n,
                  .m = m,
                  .L = st->L,
-                 .Ld = st->Ld,
+                 .C = st->C,
                  .xs = st->xs,
                  .x = st->x,
                  .g = st->g,
@@ -781,8 +797,20 @@ static ves_status nlb_solve(void *state, ves_step *s, double *x, double *lambda,
   const int admissible = out == VES_OK; /* x_start itself (else nothing to continue from) */
   if (out == VES_OK) {
     memcpy(xs, x, (size_t)n * sizeof *xs);
+    c->gate = 1, c->one_phase = 1;
+    out = nlb_direct(st, s, x, lam, tgt, st->opt.tol, st->opt.ctol, 1, gS, &r, &viol);
+    c->gate = 0;
+  }
+  /* A near-quadratic step that one phase did not solve (measured: L-BFGS
+   * stalled on the rounding of f from a warm start in the default
+   * relaxation, 2 retried steps): again from x_start in two phases. */
+  if (c->promoted && (out == VES_ERR_NOCONV || out == VES_MAXITER)) {
+    memcpy(x, xs, (size_t)n * sizeof *x);
+    lam[0] = m > 0 ? lambda[0] : 0.0, lam[1] = m > 1 ? lambda[1] : 0.0;
+    c->one_phase = 0, c->reason = VES_OK;
     out = nlb_direct(st, s, x, lam, tgt, st->opt.tol, st->opt.ctol, 1, gS, &r, &viol);
   }
+  c->one_phase = 0;
   /* A step too long for L-BFGS from x_start (its line search left the
    * domain): the continuation in dt, from x_start again. Other failures (a
    * stall, the evaluation limit) go back to the integrator, which halves dt. */
@@ -796,8 +824,7 @@ static ves_status nlb_solve(void *state, ves_step *s, double *x, double *lambda,
   if (out == VES_OK || out == VES_MAXITER)
     for (int i = 0; i < m; i++) lambda[i] = lam[i];
   if (stats) {
-    const int phases = st->Ld && NLB_TOL1 > st->opt.tol ? 2 : 1;
-    stats->iterations = c->outer > phases * (m > 0) ? c->outer - phases * (m > 0) : 0;
+    stats->iterations = c->outer > c->phases * (m > 0) ? c->outer - c->phases * (m > 0) : 0;
     stats->f_evals = c->f_evals + 1;
     stats->g_evals = c->g_evals;
     stats->h_evals = c->h_evals;
