@@ -45,9 +45,10 @@ int cli_exit_for(ves_status st) {
  * reset peaked at 4.1 GB; a reset or a remeshing builds the new reference's
  * tables beside the old ones (integrate.c), EST_RESET more: the same run
  * peaked at 6.7 GB after its first reset (session 17; +1.1 GB of 2.1 at eps
- * 0.02, session 16) and at 8.7 GB by t* 1.0 after 6 resets (session 24;
+ * 0.02, session 16), at 8.7 GB by t* 1.0 after 6 resets (session 24;
  * which part grew was not measured), 2.05x the 4.25 GB the steps' scaling
- * gives; EST_RESET was 1.6 until then.
+ * gives, and at 8.85 GB by t* 3.6 (session 25, 2.08x); EST_RESET was 1.6
+ * until session 24.
  * Returns 0 when the shape cannot be built (the setup then says why). */
 #define EST_FILL 1.27
 static double estimate_nodes(const ves_config *c) {
