@@ -386,29 +386,31 @@ static ves_status nlb_create(const ves_backend_options *opt, ves_step *s, void *
   return VES_OK;
 }
 
+/* max_i |M_ii - K_ii| / K_ii of the Hessian in st->hval against K (the
+ * triplets' diagonal entries summed; HUGE_VAL where K_ii <= 0): how far the
+ * step is from quadratic (nlb_phase, the header comment). */
+static double nlb_rdiag(nlb_state *st, const double *K) {
+  double *dh = st->dg, *dk = st->dg + st->n, r = 0.0;
+  memset(st->dg, 0, 2 * (size_t)st->n * sizeof *st->dg);
+  for (int k = 0; k < st->nnz; k++)
+    if (st->hi[k] == st->hj[k]) dh[st->hi[k]] += st->hval[k], dk[st->hi[k]] += K[k];
+  for (int i = 0; i < st->n; i++) r = fmax(r, dk[i] > 0.0 ? fabs(dh[i] - dk[i]) / dk[i] : HUGE_VAL);
+  return r;
+}
+
 /* Factor the preconditioner at x (header comment): M = Hessian of the
  * Lagrangian, or K if that has a non-positive diagonal entry; the exact
  * sparse Cholesky factor when st->C exists, else IC(0). */
 static ves_status nlb_precondition(nlb_state *st, ves_step *s, const double *x,
-                                   const double *lambda, int m, const double *J) {
+                                   const double *lambda) {
   ves_ldl_ic *L = st->L;
   const double *K = ves_step_K(s);
   VES_CHECK(K != NULL, VES_ERR_ARG);
   VES_CALL(ves_step_eval_hess(s, x, 1.0, lambda, st->hval));
-  (void)J, (void)m; /* (the constraints' gradients: not in the factored matrix) */
-  {
-    double *dh = st->dg, *dk = st->dg + st->n;
-    memset(st->dg, 0, 2 * (size_t)st->n * sizeof *st->dg);
-    for (int k = 0; k < st->nnz; k++)
-      if (st->hi[k] == st->hj[k]) dh[st->hi[k]] += st->hval[k], dk[st->hi[k]] += K[k];
-    double r = 0.0;
-    for (int i = 0; i < st->n; i++)
-      r = fmax(r, dk[i] > 0.0 ? fabs(dh[i] - dk[i]) / dk[i] : HUGE_VAL);
-    st->rdiag = r;
+  st->rdiag = nlb_rdiag(st, K);
 #ifdef NLB_TRACE
-    fprintf(stderr, "nlopt precondition: max |diag(M - K)| / diag(K) = %.3e\n", r);
+  fprintf(stderr, "nlopt precondition: max |diag(M - K)| / diag(K) = %.3e\n", st->rdiag);
 #endif
-  }
   for (int pass = 0; pass < 2; pass++) {
     const double *v = pass == 0 ? st->hval : K;
     ves_ldl_ic_set(L, v);
@@ -504,7 +506,7 @@ static ves_status nlb_start(nlb_state *st, ves_step *s, const double *x, const d
   for (int pass = 0; pass < 2 && rc == VES_OK; pass++) {
     rc = ves_step_eval_grad(s, x, st->g);
     if (rc == VES_OK && m > 0) rc = ves_step_eval_jac(s, x, st->J);
-    if (rc == VES_OK) rc = nlb_precondition(st, s, x, m > 0 ? lam_m : NULL, m, st->J);
+    if (rc == VES_OK) rc = nlb_precondition(st, s, x, m > 0 ? lam_m : NULL);
     if (rc != VES_OK) break;
     c->g_evals++, c->h_evals++;
     nlb_lsolve(st->L, st->C, st->g); /* the gradient in u at root = 1 */
