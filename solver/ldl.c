@@ -9,6 +9,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "mem_impl.h"
+
 /* ---- MUMPS LDL^T ---- */
 
 #define ICNTL(i) icntl[(i)-1] /* MUMPS documents its controls 1-based */
@@ -98,7 +100,7 @@ static ves_status workspace(ves_ldl *f) {
   if ((size_t)want <= f->lwk && f->wk) return VES_OK;
   free(f->wk);
   f->lwk = 0;
-  f->wk = malloc((size_t)want * (f->single ? sizeof(float) : sizeof(double)));
+  f->wk = ves_big_alloc((size_t)want * (f->single ? sizeof(float) : sizeof(double)));
   if (!f->wk) return VES_ERR_ALLOC;
   f->lwk = (size_t)want;
   const int lwk = want > 2e9 ? -(int)(want / 1e6) : (int)want;
@@ -195,7 +197,7 @@ ves_status ves_ldl_create_prec(int n, int nnz, const int *irow, const int *jcol,
   f->jcn = malloc((size_t)nnz * sizeof *f->jcn);
   if (!f->irn || !f->jcn) goto fail;
   if (f->single) {
-    f->as = calloc((size_t)nnz, sizeof *f->as);
+    f->as = ves_big_calloc((size_t)nnz, sizeof *f->as);
     f->xs = malloc((size_t)n * sizeof *f->xs);
     f->b = malloc((size_t)n * sizeof *f->b);
     f->r = malloc((size_t)n * sizeof *f->r);

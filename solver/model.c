@@ -20,6 +20,7 @@
 
 #include <stdlib.h>
 #include <string.h>
+#include "mem_impl.h"
 #include "omp_impl.h"
 
 const ves_pattern *ves_model_pattern(const ves_model *m) { return m->pat; }
@@ -68,12 +69,12 @@ static ves_status model_build(const ves_nodes *nodes, const ves_quad *q, const d
   if (m->nthr > 64) /* zcut[] in model_make_slabs; beyond 2 cores untested anyway */
     m->nthr = 64;
   if (m->nthr < 1) m->nthr = 1;
-  m->pt = malloc((size_t)q->nq * sizeof *m->pt);
+  m->pt = ves_big_alloc((size_t)q->nq * sizeof *m->pt);
   m->fixed = malloc(2 * (size_t)n);
   m->yref = malloc(2 * (size_t)n * sizeof *m->yref);
   m->ws = calloc((size_t)m->nthr, sizeof *m->ws);
-  m->ev = malloc(4 * (size_t)q->nq * sizeof *m->ev);
-  m->qrec = malloc(VES_NQD * (size_t)q->nq * sizeof *m->qrec);
+  m->ev = ves_big_alloc(4 * (size_t)q->nq * sizeof *m->ev);
+  m->qrec = ves_big_alloc(VES_NQD * (size_t)q->nq * sizeof *m->qrec);
   m->yrec = malloc(2 * (size_t)n * sizeof *m->yrec);
   if (!m->pt || !m->fixed || !m->yref || !m->ws || !m->ev || !m->qrec || !m->yrec) goto fail;
   for (int k = 0; k < m->nthr; k++)

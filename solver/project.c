@@ -7,6 +7,7 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include "mem_impl.h"
 #include "omp_impl.h"
 #include "ves/ldl.h"
 
@@ -170,9 +171,9 @@ static ves_status folded_create(const ves_quad *q, int n, int with_values, folde
         fo->uptr[g + 1] += fo->uptr[g];
       }
       const size_t tot = (size_t)fo->uptr[ng] + 1;
-      fo->unod = malloc(tot * sizeof *fo->unod);
-      fo->umask = malloc(tot);
-      fo->uval = with_values ? calloc((size_t)gs * tot, sizeof *fo->uval) : NULL;
+      fo->unod = ves_big_alloc(tot * sizeof *fo->unod);
+      fo->umask = ves_big_alloc(tot);
+      fo->uval = with_values ? ves_big_calloc((size_t)gs * tot, sizeof *fo->uval) : NULL;
       bad_alloc = !fo->unod || !fo->umask || (with_values && !fo->uval);
     }
     /* pass 2: the unions, masks and values; node counts per thread */
@@ -204,8 +205,8 @@ static ves_status folded_create(const ves_quad *q, int n, int with_values, folde
         }
         fo->npt[a + 1] = off;
       }
-      fo->tgrp = malloc(((size_t)fo->npt[n] + 1) * sizeof *fo->tgrp);
-      fo->tpos = malloc(((size_t)fo->npt[n] + 1) * sizeof *fo->tpos);
+      fo->tgrp = ves_big_alloc(((size_t)fo->npt[n] + 1) * sizeof *fo->tgrp);
+      fo->tpos = ves_big_alloc(((size_t)fo->npt[n] + 1) * sizeof *fo->tpos);
       bad_alloc = !fo->tgrp || !fo->tpos;
     }
     /* pass 3: the transpose */
@@ -293,7 +294,7 @@ static int pattern_row(const folded *fos, int nfo, int a, pattern_ws *w) {
       if (w->cap - w->used < (size_t)(ea - e0 + 1)) { /* room for the whole head */
         size_t c = w->cap ? 2 * w->cap : 1 << 16;
         while (c - w->used < (size_t)(ea - e0 + 1)) c *= 2;
-        int *tmp = realloc(w->col, c * sizeof *tmp);
+        int *tmp = ves_big_realloc(w->col, w->cap * sizeof *tmp, c * sizeof *tmp);
         if (!tmp) return -1;
         w->col = tmp, w->cap = c;
       }
@@ -353,7 +354,7 @@ static ves_status node_pattern(const folded *fos, int nfo, int n, int **ptr_out,
   for (int k = 0; k < nt; k++) fail |= ws[k].fail;
   if (fail) goto done;
   for (int a = 0; a < n; a++) ptr[a + 1] += ptr[a];
-  col = malloc(((size_t)ptr[n] + 1) * sizeof *col);
+  col = ves_big_alloc(((size_t)ptr[n] + 1) * sizeof *col);
   if (!col) goto done;
 #pragma omp parallel for num_threads(nt) schedule(static)
   for (int c = 0; c < nchunk; c++) {
@@ -416,9 +417,9 @@ ves_status ves_pattern_create(const ves_quad *q, const ves_quad *q2, int n,
       }
     if (!pass) {
       p->nnz = (int)cnt;
-      p->irow = malloc(((size_t)cnt + 1) * sizeof *p->irow);
-      p->jcol = malloc(((size_t)cnt + 1) * sizeof *p->jcol);
-      p->src = malloc(((size_t)cnt + 1) * sizeof *p->src);
+      p->irow = ves_big_alloc(((size_t)cnt + 1) * sizeof *p->irow);
+      p->jcol = ves_big_alloc(((size_t)cnt + 1) * sizeof *p->jcol);
+      p->src = ves_big_alloc(((size_t)cnt + 1) * sizeof *p->src);
       if (!p->irow || !p->jcol || !p->src) goto fail;
     }
   }

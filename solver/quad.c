@@ -15,6 +15,7 @@
 #include <strings.h>
 #include <time.h>
 #include "clock_impl.h"
+#include "mem_impl.h"
 #include "omp_impl.h"
 
 #define QA1 0.4459484909159648863183292538830519883991
@@ -268,7 +269,7 @@ static int grow(void **buf, size_t *cap, size_t need, size_t sz) {
   if (need <= *cap) return 0;
   size_t c = *cap ? *cap : 1024;
   while (c < need) c *= 2;
-  void *p = realloc(*buf, c * sz);
+  void *p = ves_big_realloc(*buf, *cap * sz, c * sz);
   if (!p) return -1;
   *buf = p;
   *cap = c;
@@ -376,9 +377,9 @@ static ves_status tables_lists(ves_quad *q, const ves_geom_search *search, int g
   q->ptr[0] = 0;
   for (int p = 0; p < q->nq; p++) q->ptr[p + 1] += q->ptr[p];
   size_t nnz = (size_t)q->ptr[q->nq];
-  q->nbr = malloc((nnz ? nnz : 1) * sizeof *q->nbr);
-  q->mirror = malloc(nnz ? nnz : 1);
-  q->tab = malloc(6 * (nnz ? nnz : 1) * sizeof *q->tab);
+  q->nbr = ves_big_alloc((nnz ? nnz : 1) * sizeof *q->nbr);
+  q->mirror = ves_big_alloc(nnz ? nnz : 1);
+  q->tab = ves_big_alloc(6 * (nnz ? nnz : 1) * sizeof *q->tab);
   if (!q->nbr || !q->mirror || !q->tab) return VES_ERR_ALLOC;
   for (int k = 0; k < nt; k++) {
     const int p0 = gsize * ws[k].g0 < q->nq ? gsize * ws[k].g0 : q->nq;

@@ -13,6 +13,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "mem_impl.h"
 #include "step_impl.h"
 
 struct ves_step {
@@ -66,8 +67,8 @@ ves_status ves_step_create(ves_model *m, ves_step **out) {
   const size_t n2 = 2 * (size_t)s->n, nv = (size_t)s->nvar;
   s->yn = malloc(n2 * sizeof *s->yn);
   s->x0 = malloc(nv * sizeof *s->x0);
-  s->K = malloc(((size_t)pat->nnz + 1) * sizeof *s->K);
-  s->blk = malloc((4 * (size_t)pat->ptr[pat->n] + 1) * sizeof *s->blk);
+  s->K = ves_big_alloc(((size_t)pat->nnz + 1) * sizeof *s->K);
+  s->blk = ves_big_alloc((4 * (size_t)pat->ptr[pat->n] + 1) * sizeof *s->blk);
   s->y = malloc(n2 * sizeof *s->y);
   s->d = malloc(nv * sizeof *s->d);
   s->Sd = malloc(nv * sizeof *s->Sd);
@@ -75,7 +76,7 @@ ves_status ves_step_create(ves_model *m, ves_step **out) {
   s->xc = malloc(nv * sizeof *s->xc);
   s->qn = malloc((ves_model_dissipation_ref_size(m) + 1) * sizeof *s->qn);
   const double *S = ves_model_drift_blocks(m);
-  if (S && (s->S = malloc(((size_t)pat->nnz + 1) * sizeof *s->S)))
+  if (S && (s->S = ves_big_alloc(((size_t)pat->nnz + 1) * sizeof *s->S)))
     ves_pattern_extract(pat, S, s->S);
   if (!s->yn || !s->x0 || !s->K || !s->blk || !s->y || !s->d || !s->Sd || !s->gfull || !s->xc ||
       !s->qn || (S && !s->S)) {
