@@ -21,20 +21,11 @@
  * near the interface, so a sparse pattern would save memory at large nvar,
  * but it would have to be guessed from x0 and could miss entries later.
  *
- * The heap (ipopt_keep_heap): Ipopt 3.11 factorizes with MUMPS through its
- * own interface, which cannot hand MUMPS a workspace kept across
- * factorizations (ldl.c does, WK_USER), so MUMPS allocates its factor and
- * stack anew at every factorization, i.e. at every Ipopt iteration. glibc
- * serves a block above its mmap threshold (at most 32 MiB by default) with
- * fresh pages and returns them on free: every factorization then faults in
- * and zero-fills its whole workspace again (1.5 million page faults and
- * ~20% of Ipopt's CPU over the default relaxation; bench/RESULTS.md, session
- * 27). create therefore raises glibc's mmap and trim thresholds to
- * IPOPT_HEAP_KEEP, so such blocks come from the heap and stay there for the
- * next factorization. The setting is process-wide and lasts after destroy:
- * it changes where glibc places large blocks (and keeps up to
- * IPOPT_HEAP_KEEP bytes of freed memory resident), never a result. */
-#include <malloc.h>
+ * The heap: Ipopt 3.11's MUMPS interface allocates MUMPS's factor workspace
+ * anew at every factorization, i.e. at every Ipopt iteration; create calls
+ * ves_mem_keep_heap (mem.c) so that it is reused instead of faulted in
+ * again (-21% CPU over the default relaxation; bench/RESULTS.md, session
+ * 27). */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -44,10 +35,7 @@
 
 #include "ves/backend.h"
 #include "clock_impl.h"
-
-/* Freed memory glibc keeps in the heap, and the block size below which it
- * does not map fresh pages (header comment): 1 GiB. */
-#define IPOPT_HEAP_KEEP (1 << 30)
+#include "mem_impl.h"
 
 /* Ipopt's representation of an infinite bound ("nlp_lower_bound_inf"). */
 #define IPOPT_INF 2e19
@@ -219,17 +207,10 @@ static void ipopt_destroy(void **state) {
   *state = NULL;
 }
 
-/* Large blocks from the heap, kept there after free (header comment); a
- * refused setting only costs the page faults. */
-static void ipopt_keep_heap(void) {
-  (void)mallopt(M_MMAP_THRESHOLD, IPOPT_HEAP_KEEP);
-  (void)mallopt(M_TRIM_THRESHOLD, IPOPT_HEAP_KEEP);
-}
-
 static ves_status ipopt_create(const ves_backend_options *opt, ves_step *s, void **state) {
   VES_CHECK(opt && s && state, VES_ERR_ARG);
   VES_CHECK(opt->tol > 0 && opt->ctol > 0 && opt->max_iter >= 0, VES_ERR_ARG);
-  ipopt_keep_heap();
+  ves_mem_keep_heap(); /* header comment */
   ipopt_state *st = calloc(1, sizeof *st);
   VES_CHECK(st, VES_ERR_ALLOC);
   st->opt = *opt;

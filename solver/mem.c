@@ -14,6 +14,7 @@
  * computed depends on it. Arrays below VES_BIG_MIN, and what MUMPS,
  * CHOLMOD and Ipopt allocate themselves, stay on plain malloc. */
 #define _DEFAULT_SOURCE /* MADV_HUGEPAGE (Linux) beside the build's _XOPEN_SOURCE */
+#include <malloc.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
@@ -22,6 +23,7 @@
 #include "mem_impl.h"
 
 #define VES_HUGE_PAGE ((size_t)2 << 20) /* x86-64's transparent huge page */
+#define VES_HEAP_KEEP (1 << 30)         /* ves_mem_keep_heap: 1 GiB */
 
 void *ves_big_alloc(size_t bytes) {
   if (bytes < VES_BIG_MIN) return malloc(bytes ? bytes : 1);
@@ -47,4 +49,23 @@ void *ves_big_realloc(void *old, size_t old_bytes, size_t new_bytes) {
   if (!p) return NULL;
   if (old) memcpy(p, old, old_bytes < new_bytes ? old_bytes : new_bytes), free(old);
   return p;
+}
+
+/* Ipopt 3.11 hands MUMPS no workspace (WK_USER), so MUMPS allocates its
+ * factor workspace anew at every factorization, i.e. at every Ipopt
+ * iteration. glibc serves a block above its mmap threshold (dynamic, at most
+ * 32 MiB) with fresh pages and unmaps it on free, so every factorization
+ * faulted its workspace in and zero-filled it again: 1.5 million page faults
+ * and ~20% of Ipopt's CPU over the default relaxation (bench/RESULTS.md,
+ * session 27). Raising the mmap and trim thresholds to VES_HEAP_KEEP makes
+ * such blocks come from the heap and stay there for the next factorization.
+ * Process-wide and lasting: it changes where glibc places large blocks (and
+ * keeps up to VES_HEAP_KEEP bytes of freed memory resident), never a
+ * result; a refused setting costs only the faults. newton's own MUMPS
+ * (ldl.c, with WK_USER) measured no gain from it (eps 0.02, a dt* 100 step
+ * of 23 factorizations: 77.2 / 76.0 CPU s), so only the ipopt backend calls
+ * it. */
+void ves_mem_keep_heap(void) {
+  (void)mallopt(M_MMAP_THRESHOLD, VES_HEAP_KEEP);
+  (void)mallopt(M_TRIM_THRESHOLD, VES_HEAP_KEEP);
 }

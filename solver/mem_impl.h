@@ -22,4 +22,8 @@ void *ves_big_calloc(size_t n, size_t size);
  * old untouched. */
 void *ves_big_realloc(void *old, size_t old_bytes, size_t new_bytes);
 
+/* Keep large freed blocks in the heap: glibc's mmap and trim thresholds
+ * raised to VES_HEAP_KEEP (process-wide; mem.c). */
+void ves_mem_keep_heap(void);
+
 #endif

@@ -6,7 +6,6 @@
 #include <setjmp.h>
 #include <cmocka.h>
 
-#include <malloc.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -31,13 +30,12 @@ static void test_big_alloc(void **state) {
 }
 
 /* Zeroed (the block is written first, freed, and asked again: with glibc's
- * mmap threshold raised, as the ipopt backend does, the heap hands the same
- * memory back, so a missing zeroing would show), and NULL on n size
- * overflow. */
+ * mmap threshold raised by ves_mem_keep_heap, as the ipopt backend does,
+ * the heap hands the same memory back, so a missing zeroing would show),
+ * and NULL on n size overflow. */
 static void test_big_calloc(void **state) {
   (void)state;
-  (void)mallopt(M_MMAP_THRESHOLD, 1 << 30);
-  (void)mallopt(M_TRIM_THRESHOLD, 1 << 30);
+  ves_mem_keep_heap();
   const size_t n = VES_BIG_MIN / sizeof(double) + 7;
   double *a = ves_big_alloc(n * sizeof *a);
   assert_non_null(a);
