@@ -207,8 +207,9 @@ lane_wall() { # the sum of the wall seconds of lane $1's finished runs
   echo "(tethers grow to the walls at 0.04, and at 0.01 by t* ~2.8, where they are"
   echo "under-resolved without remeshing: RESULTS \"The prolate C0 jump at eps 0.01"
   echo "continued to t* 3.6\"); Fig. 6 (problems/pearling.ini) has been run"
-  echo "at eps 0.04 only, and not to a settled end (RESULTS \"Fig. 6: deflation with rising"
-  echo "C0, pearling (issue 18)\");"
+  echo "to t* 3 at eps 0.04, not to a settled end (RESULTS \"Fig. 6: deflation with rising"
+  echo "C0, pearling (issue 18)\"), and at eps 0.01 to the ramps' end only (t* 0.5: five"
+  echo "pearls on necks at the sharp tube radius; RESULTS \"Fig. 6 at the paper's eps\");"
   echo "the Fig. 3-4 figure is ours in the README's layout, not the paper's panels at its"
   echo "times."
   echo
