@@ -22,8 +22,7 @@
 
 #include "mem_impl.h"
 
-#define VES_HUGE_PAGE ((size_t)2 << 20) /* x86-64's transparent huge page */
-#define VES_HEAP_KEEP (1 << 30)         /* ves_mem_keep_heap: 1 GiB */
+#define VES_HEAP_KEEP (1 << 30) /* ves_mem_keep_heap: 1 GiB */
 
 void *ves_big_alloc(size_t bytes) {
   if (bytes < VES_BIG_MIN) return malloc(bytes ? bytes : 1);

@@ -7,6 +7,9 @@
 /* Arrays of at least this many bytes are placed on huge pages (mem.c). */
 #define VES_BIG_MIN ((size_t)4 << 20)
 
+/* x86-64's transparent huge page: the alignment of those arrays. */
+#define VES_HUGE_PAGE ((size_t)2 << 20)
+
 /* malloc(bytes) for a large array: from VES_BIG_MIN bytes on, aligned to a
  * 2 MiB huge page and advised to the kernel as huge-page memory
  * (madvise MADV_HUGEPAGE); smaller requests are plain malloc. Freed with

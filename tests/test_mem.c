@@ -11,8 +11,6 @@
 
 #include "mem_impl.h"
 
-#define HUGE_PAGE ((uintptr_t)2 << 20)
-
 /* Below VES_BIG_MIN a plain block; from it on a block aligned to 2 MiB,
  * writable to its last byte. */
 static void test_big_alloc(void **state) {
@@ -20,7 +18,7 @@ static void test_big_alloc(void **state) {
   unsigned char *s = ves_big_alloc(100), *b = ves_big_alloc(VES_BIG_MIN + 12345);
   assert_non_null(s);
   assert_non_null(b);
-  assert_int_equal((uintptr_t)b % HUGE_PAGE, 0);
+  assert_int_equal((uintptr_t)b % VES_HUGE_PAGE, 0);
   memset(b, 0xab, VES_BIG_MIN + 12345);
   assert_int_equal(b[VES_BIG_MIN + 12344], 0xab);
   free(s), free(b);
@@ -62,7 +60,7 @@ static void test_big_realloc(void **state) {
   for (size_t i = 0; i < n0; i++) p[i] = (int)i;
   p = ves_big_realloc(p, n0 * sizeof *p, n1 * sizeof *p);
   assert_non_null(p);
-  assert_int_equal((uintptr_t)p % HUGE_PAGE, 0);
+  assert_int_equal((uintptr_t)p % VES_HUGE_PAGE, 0);
   for (size_t i = 0; i < n0; i++) assert_int_equal(p[i], (int)i);
   for (size_t i = n0; i < n1; i++) p[i] = (int)i;
   p = ves_big_realloc(p, n1 * sizeof *p, n2 * sizeof *p);
