@@ -76,6 +76,10 @@ static double estimate_nodes(const ves_config *c) {
 #define EST_STEP_S 8.0
 #define EST_LARGE 10000 /* nodes from which the estimate is printed */
 #define EST_RESET 2.1   /* the peak with resets or remeshings against the steps' */
+/* A remeshing builds a new node set adapted to the interface as it is: the
+ * Fig. 6 run at eps 0.01 grew from 24,537 to 39,746 nodes over three and its
+ * peak from the estimated 8.0 GB to 11.1 GB (bench/RESULTS.md, session 27):
+ * the line says so rather than guessing the growth. */
 
 /* Before a setup: a line with the estimated size and cost when the problem
  * is large (not with quiet); a refusal when its estimated memory exceeds
@@ -100,7 +104,11 @@ int cli_setup_estimate(const char *cmd, const ves_config *c, int quiet) {
             "vesica %s: setting up about %.0f nodes (an estimate): ~%.0f s of setup on one thread, "
             "~%.1f GB peak memory in a run%s, ~%.0f s a Newton step (scaled from %.0f nodes: "
             "bench/RESULTS.md)\n",
-            cmd, n, EST_SETUP_S * x, gb, resets ? " (with its resets)" : "",
+            cmd, n, EST_SETUP_S * x, gb,
+            pp.remesh ? " (with its resets, for this node set: a remeshing that adds nodes raises "
+                        "it in proportion)"
+            : resets  ? " (with its resets)"
+                      : "",
             EST_STEP_S * pow(x, 1.22), EST_NODES);
   return 0;
 }

@@ -1368,6 +1368,13 @@ static void test_setup_estimate(void **state) {
   const double gb_reset = estimate_gb(r.err, "GB peak memory in a run (with its resets), ");
   printf("# peak estimate %.1f GB, with resets %.1f GB\n", gb, gb_reset);
   assert_true(fabs(gb_reset / gb - 2.1) < 0.02); /* both printed to 0.1 GB of ~10 */
+  /* with remeshings the same figure, said to hold for the initial node set */
+  run(&r, "check", ini, "--set", "remesh.every=50", NULL);
+  assert_int_equal(r.code, 2);
+  const double gb_remesh = estimate_gb(
+      r.err, "GB peak memory in a run (with its resets, for this node set: a remeshing that adds "
+             "nodes raises it in proportion), ");
+  assert_true(gb_remesh == gb_reset);
   const double have = (double)sysconf(_SC_PHYS_PAGES) * (double)sysconf(_SC_PAGESIZE);
   if (have < 1e12) { /* ~6e6 nodes, ~1 TB: refused on any smaller machine */
     run(&r, "check", ini, "--set", "geometry.box_z=4", "--set", "geometry.epsilon=1e-4", NULL);
