@@ -377,9 +377,9 @@ static ves_status tables_lists(ves_quad *q, const ves_geom_search *search, int g
   q->ptr[0] = 0;
   for (int p = 0; p < q->nq; p++) q->ptr[p + 1] += q->ptr[p];
   size_t nnz = (size_t)q->ptr[q->nq];
-  q->nbr = ves_big_alloc((nnz ? nnz : 1) * sizeof *q->nbr);
-  q->mirror = ves_big_alloc(nnz ? nnz : 1);
-  q->tab = ves_big_alloc(6 * (nnz ? nnz : 1) * sizeof *q->tab);
+  q->nbr = ves_big_alloc(nnz * sizeof *q->nbr); /* nnz 0 is served (mem_impl.h) */
+  q->mirror = ves_big_alloc(nnz);
+  q->tab = ves_big_alloc(6 * nnz * sizeof *q->tab);
   if (!q->nbr || !q->mirror || !q->tab) return VES_ERR_ALLOC;
   for (int k = 0; k < nt; k++) {
     const int p0 = gsize * ws[k].g0 < q->nq ? gsize * ws[k].g0 : q->nq;
