@@ -188,10 +188,12 @@ static Bool ipopt_intermediate(Index alg_mod, Index iter, Number obj, Number inf
                                Number mu, Number d_norm, Number reg, Number alpha_du,
                                Number alpha_pr, Index ls_trials, UserDataPtr ud) {
   ipopt_ctx *c = ud;
-  (void)alg_mod, (void)obj, (void)inf_pr, (void)mu, (void)d_norm, (void)reg;
+  (void)obj, (void)inf_pr, (void)mu, (void)d_norm, (void)reg;
   (void)alpha_du, (void)alpha_pr, (void)ls_trials;
   c->iterations = iter;
-  if (iter > 0 && c->noise > 0 && inf_du <= c->noise && c->viol <= c->ctol) {
+  /* regular mode only: in the restoration phase (alg_mod 1) inf_du is the
+   * restoration problem's */
+  if (alg_mod == 0 && iter > 0 && c->noise > 0 && inf_du <= c->noise && c->viol <= c->ctol) {
     c->floor_stop = 1;
     return FALSE;
   }

@@ -20,6 +20,7 @@
 /* cmocka needs the four headers above first */
 #include <cmocka.h>
 
+#include <float.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -166,7 +167,7 @@ static void kkt_residual(const double *x, const double *lambda, double *r, doubl
     acc[irow[t]] += fabs(val[t] * x[jcol[t]]);
     if (irow[t] != jcol[t]) acc[jcol[t]] += fabs(val[t] * x[irow[t]]);
   }
-  *floor = 2.220446049250313e-16 * max_abs(acc, n);
+  *floor = DBL_EPSILON * max_abs(acc, n);
   free(g), free(J), free(val), free(acc), free(irow), free(jcol);
 }
 
