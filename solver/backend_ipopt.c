@@ -43,7 +43,6 @@
  * ves_mem_keep_heap (mem.c) so that it is reused instead of faulted in
  * again (-21% CPU over the default relaxation; bench/RESULTS.md, session
  * 27). */
-#include <float.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -60,23 +59,22 @@
 
 /* What the callbacks share during one IpoptSolve (the typed context). */
 typedef struct {
-  ves_step *s;            /* the step problem (borrowed) */
-  int n, m;               /* nvar, ncon */
-  int f_evals, g_evals;   /* objective / gradient evaluations */
-  int c_evals, j_evals;   /* constraint / Jacobian evaluations */
-  int h_evals;            /* Hessian assemblies */
-  int iterations;         /* last iter_count seen by the intermediate callback */
-  int domain_errors;      /* evaluations refused as outside the domain */
-  double noise;           /* eps_mach (|H| |x|)_inf of the last Hessian (0: none yet) */
-  double viol;            /* max |c_i| / target_i at the last constraint evaluation */
-  double tgt[2];          /* the constraints' targets */
-  double ctol;            /* ves_backend_options.ctol */
-  int floor_stop;         /* 1: stopped by the intermediate callback at the rounding floor */
-  const int *hrow, *hcol; /* the Hessian's structure (ipopt_state's) */
-  double *acc;            /* n scratch for |H| |x| */
-  int first_domain;       /* 1 when the very first evaluation was refused */
-  int n_calls;            /* evaluations so far (to recognise the first) */
-  ves_status error;       /* first non-domain error met in a callback */
+  ves_step *s;          /* the step problem (borrowed) */
+  int n, m;             /* nvar, ncon */
+  int f_evals, g_evals; /* objective / gradient evaluations */
+  int c_evals, j_evals; /* constraint / Jacobian evaluations */
+  int h_evals;          /* Hessian assemblies */
+  int iterations;       /* last iter_count seen by the intermediate callback */
+  int domain_errors;    /* evaluations refused as outside the domain */
+  double noise;         /* eps_mach (|H| |x|)_inf of the last Hessian (0: none yet) */
+  double viol;          /* max |c_i| / target_i at the last constraint evaluation */
+  double tgt[2];        /* the constraints' targets */
+  double ctol;          /* ves_backend_options.ctol */
+  int floor_stop;       /* 1: stopped by the intermediate callback at the rounding floor */
+  double *acc;          /* n scratch for |H| |x| */
+  int first_domain;     /* 1 when the very first evaluation was refused */
+  int n_calls;          /* evaluations so far (to recognise the first) */
+  ves_status error;     /* first non-domain error met in a callback */
 } ipopt_ctx;
 
 /* Backend state: one IpoptProblem per step-problem size. */
@@ -88,7 +86,6 @@ typedef struct {
   double *mult_x_U;        /* n zeros */
   double *grad;            /* n scratch (initial gradient, for the objective scale) */
   double *acc;             /* n scratch (|H| |x|, the rounding floor) */
-  int *hrow, *hcol;        /* nnz_h: the Hessian's structure */
   double g[2];             /* final constraint values */
   ipopt_ctx ctx;           /* the callback context */
 } ipopt_state;
@@ -159,24 +156,14 @@ static Bool ipopt_eval_h(Index n, Number *x, Bool new_x, Number obj_factor, Inde
                          Bool new_lambda, Index nele, Index *irow, Index *jcol, Number *val,
                          UserDataPtr ud) {
   ipopt_ctx *c = ud;
-  (void)new_x, (void)new_lambda;
+  (void)n, (void)new_x, (void)new_lambda, (void)nele;
   if (val == NULL) {
     ves_step_hess_structure(c->s, irow, jcol);
     return TRUE;
   }
   c->h_evals++;
   ves_status st = ves_step_eval_hess(c->s, x, obj_factor, m > 0 ? lambda : NULL, val);
-  if (st == VES_OK) { /* the rounding floor (header comment) */
-    memset(c->acc, 0, (size_t)n * sizeof *c->acc);
-    for (Index t = 0; t < nele; t++) {
-      const int i = c->hrow[t], j = c->hcol[t];
-      c->acc[i] += fabs(val[t] * x[j]);
-      if (i != j) c->acc[j] += fabs(val[t] * x[i]); /* the mirrored upper entry */
-    }
-    double amax = 0.0;
-    for (Index i = 0; i < n; i++) amax = fmax(amax, c->acc[i]);
-    c->noise = DBL_EPSILON * amax;
-  }
+  if (st == VES_OK) c->noise = ves_step_hess_floor(c->s, x, val, c->acc); /* header comment */
   return ipopt_map(c, st);
 }
 
@@ -217,14 +204,6 @@ static ves_status ipopt_build(ipopt_state *st, ves_step *s) {
     st->n = 0;
     VES_CHECK(st->mult_x_L && st->mult_x_U && st->grad && st->acc, VES_ERR_ALLOC);
   }
-  if (st->nnz_h != nnz || !st->hrow) {
-    free(st->hrow), free(st->hcol);
-    st->hrow = ves_big_alloc((size_t)nnz * sizeof(int));
-    st->hcol = ves_big_alloc((size_t)nnz * sizeof(int));
-    st->nnz_h = -1;
-    VES_CHECK(st->hrow && st->hcol, VES_ERR_ALLOC);
-  }
-  ves_step_hess_structure(s, st->hrow, st->hcol); /* the rounding floor's copy */
   double *xl = malloc((size_t)n * sizeof(double)), *xu = malloc((size_t)n * sizeof(double));
   double gl[2] = {0.0, 0.0}, gu[2] = {0.0, 0.0}; /* equality constraints c = 0 */
   if (!xl || !xu) {
@@ -264,7 +243,6 @@ static void ipopt_destroy(void **state) {
   ipopt_state *st = *state;
   if (st->prob) FreeIpoptProblem(st->prob);
   free(st->mult_x_L), free(st->mult_x_U), free(st->grad), free(st->acc);
-  free(st->hrow), free(st->hcol);
   free(st);
   *state = NULL;
 }
@@ -333,8 +311,6 @@ static ves_status ipopt_solve(void *state, ves_step *s, double *x, double *lambd
                    .tgt = {tgt[0], tgt[1]},
                    .ctol = st->opt.ctol,
                    .viol = HUGE_VAL,
-                   .hrow = st->hrow,
-                   .hcol = st->hcol,
                    .acc = st->acc};
 
   /* Scales: the objective by its initial force, the constraints by their

@@ -213,15 +213,7 @@ static ves_status assemble_factor(newton_state *w, ves_step *s, const double *x,
   w->have_factor = 0;     /* the values are overwritten from here on */
   VES_CALL(ves_step_eval_hess(s, x, 1.0, lam, H));
   stt->h_evals++;
-  /* rounding floor of the residual: eps_mach (|H| |x|)_inf, w->xt as scratch */
-  double *acc = w->xt;
-  memset(acc, 0, (size_t)w->nvar * sizeof *acc);
-  for (int t = 0; t < w->kkt.nh; t++) {
-    const int i = w->kkt.irow[t], j = w->kkt.jcol[t];
-    acc[i] += fabs(H[t] * x[j]);
-    if (i != j) acc[j] += fabs(H[t] * x[i]); /* the mirrored upper entry */
-  }
-  w->noise = DBL_EPSILON * norm_inf(w->nvar, acc);
+  w->noise = ves_step_hess_floor(s, x, H, w->xt); /* the residual's floor, w->xt scratch */
   kkt_fill_rows(&w->kkt, w->J, ncon);
   const double *K = NULL;              /* assembled only for a correction (ves_step_K) */
   const int first = stt->h_evals == 1; /* the step's first build */

@@ -9,6 +9,7 @@
  * never served stale values. */
 #include "ves/step.h"
 
+#include <float.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -266,6 +267,19 @@ ves_status ves_step_eval_hess(ves_step *s, const double *x, double sigma_f, cons
   VES_CALL(ves_model_hessian_step(s->m, s->y, s->qn, sigma_f * s->par.dt, lA, lV, sigma_f, s->blk));
   ves_pattern_extract(s->pat, s->blk, val);
   return VES_OK;
+}
+
+double ves_step_hess_floor(const ves_step *s, const double *x, const double *val, double *acc) {
+  const int *irow = s->pat->irow, *jcol = s->pat->jcol;
+  memset(acc, 0, (size_t)s->nvar * sizeof *acc);
+  for (int t = 0; t < s->pat->nnz; t++) {
+    const int i = irow[t], j = jcol[t];
+    acc[i] += fabs(val[t] * x[j]);
+    if (i != j) acc[j] += fabs(val[t] * x[i]); /* the mirrored upper entry */
+  }
+  double amax = 0.0;
+  for (int i = 0; i < s->nvar; i++) amax = fmax(amax, acc[i]);
+  return DBL_EPSILON * amax;
 }
 
 /* s->K = K(y^n) + S, assembled at the first request of the step. */

@@ -10,6 +10,7 @@
 /* cmocka needs the four headers above first */
 #include <cmocka.h>
 
+#include <float.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -277,6 +278,18 @@ static void test_hessian_fd(void **state) {
            "error %.2e, |Hv| = %.3e\n",
            sf, emax / hmax, hmax);
     assert_true(hmax > 0 && emax <= 1e-6 * hmax);
+    /* the rounding floor eps max_i (|H| |x|)_i, here by the pattern's own
+     * symmetric product of |H| with |x| (xp, gp as scratch): the same sums
+     * in another order, so to 1e-12 relative */
+    const int nnz = ves_step_hess_nnz(P->s);
+    double *aH = xmalloc(nnz), amax = 0;
+    for (int t = 0; t < nnz; t++) aH[t] = fabs(H[t]);
+    for (int j = 0; j < nv; j++) xp[j] = fabs(x[j]);
+    ves_pattern_symv(pat, aH, xp, gp);
+    for (int j = 0; j < nv; j++) amax = fmax(amax, gp[j]);
+    const double fl = ves_step_hess_floor(P->s, x, H, gm);
+    assert_true(fl > 0 && fabs(fl - DBL_EPSILON * amax) <= 1e-12 * fl);
+    free(aH);
   }
   free(x), free(v), free(xp), free(gp), free(gm), free(J), free(H), free(Hv);
 }

@@ -81,6 +81,13 @@ int ves_step_hess_nnz(const ves_step *s);
 void ves_step_hess_structure(const ves_step *s, int *irow, int *jcol);
 ves_status ves_step_eval_hess(ves_step *s, const double *x, double sigma_f, const double *lambda,
                               double *val);
+/* The rounding floor of a first-order residual with Hessian values val
+ * (hess_nnz, the structure above, the lower triangle standing for both) at
+ * x: eps_mach max_i sum_j |H_ij x_j|. x holds absolute positions to
+ * eps_mach, and H magnifies that to this bound, below which no iteration
+ * resolves the residual (backend_newton.c, backend_ipopt.c). acc: nvar
+ * scratch. */
+double ves_step_hess_floor(const ves_step *s, const double *x, const double *val, double *acc);
 
 /* The dissipation matrix K(y^n) (+ the drift damping S) over the free dofs,
  * in the same structure (for the explicit Euler backend, inertia corrections
