@@ -133,15 +133,20 @@ static void report_step(const run_ctx *r, const ves_step_report *rep, const loop
             rep->shift, rep->mirrored, rep->E, rep->E_reset);
   if (rep->remeshed && !r->quiet) {
     const ves_remesh_info *m = &rep->remesh;
+    char thin[160] = "";
+    if (m->proj_cells_refined)
+      snprintf(thin, sizeof thin,
+               "; %d old cell(s) spread thin refined for the projection, %d of them still thin",
+               m->proj_cells_refined, m->proj_cells_capped);
     fprintf(stderr,
             "%sstep %ld: remeshing #%d (%d -> %d nodes; before the correction dE* %.3g, "
             "dA/A %.3g, dV/V %.3g; correction max |delta|/h %.3g, |delta| %.3g in %d "
             "iteration(s), then |A/A0 - 1| %.2g, |V/Vt - 1| %.2g; interface moved max %.3g, "
-            "mean %.3g; E* %.9g -> %.9g; %.1f s%s)\n",
+            "mean %.3g; E* %.9g -> %.9g; %.1f s%s%s)\n",
             tty ? "\n" : "", rep->step, ves_sim_remeshings(r->sim), m->n_old, m->n_new, m->dE,
             m->dA, m->dV, m->corr_max, m->corr_norm, m->corr_iter, m->res_A, m->res_V, m->disp_max,
             m->disp_mean, m->E_old, m->E, m->seconds,
-            m->band_layers ? "" : "; the band without layers");
+            m->band_layers ? "" : "; the band without layers", thin);
   }
   if (rep->remesh_status != VES_OK) /* a warning even with --quiet: a remeshing was skipped */
     fprintf(stderr,

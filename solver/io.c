@@ -1654,7 +1654,10 @@ static ves_status write_remesh(ves_io *io, const ves_io_remesh *rm) {
            {"disp_max", in->disp_max},
            {"disp_mean", in->disp_mean},
            {"seconds", in->seconds},
-           {"band_layers", in->band_layers}};
+           {"band_layers", in->band_layers},
+           {"proj_points", in->proj_points},
+           {"proj_cells_refined", in->proj_cells_refined},
+           {"proj_cells_capped", in->proj_cells_capped}};
   for (size_t i = 0; i < sizeof a / sizeof a[0] && st == VES_OK; i++)
     st = attr_double(g, a[i].name, a[i].v);
   if (st == VES_OK)
@@ -1669,7 +1672,10 @@ static ves_status write_remesh(ves_io *io, const ves_io_remesh *rm) {
                   "corr_max (max |delta_a|/h_a), corr_norm (|delta|, R0), corr_iter, res_A, "
                   "res_V (|A/A_target - 1|, |V/V_target - 1| after it), disp_max, disp_mean "
                   "(the interface's displacement, R0), seconds (wall), band_layers (1: the band on "
-                  "layers, 0: without, as band_layers = 0 or where the layers fold)");
+                  "layers, 0: without, as band_layers = 0 or where the layers fold), "
+                  "proj_points (points of the phi projection), proj_cells_refined (old cells "
+                  "the motion spread too thin for the new basis, their points replaced by a "
+                  "finer rule), proj_cells_capped (still too thin at the finest)");
   if (st == VES_OK) st = describe_at(g, "x", "R0", "n x 2 node positions (R, Z)");
   if (st == VES_OK) st = describe_at(g, "h", "R0", "n node spacings h_a");
   if (st == VES_OK)

@@ -57,29 +57,35 @@ void ves_remesh_get_info(const ves_remesh *r, ves_remesh_info *info) { *info = r
 /* The interface                                                             */
 /* ------------------------------------------------------------------------ */
 
+/* The L2 fit c[n] of the model's point values of phi0 onto its basis (the
+ * setup's tolerance; the best iterate when it is not met: the point values
+ * came from a field of this basis, or from one close to it). */
+static ves_status old_coefficients(const ves_model *m, double *c) {
+  const ves_quad *q = ves_model_quad(m);
+  double *pd = malloc(6 * (size_t)q->nq * sizeof *pd);
+  if (!pd) return VES_ERR_ALLOC;
+  ves_model_point_data(m, pd);
+  for (int al = 0; al < q->nq; al++) pd[al] = pd[6 * (size_t)al]; /* phi0 row, in place */
+  ves_status st = ves_project_l2(q, ves_model_nodes(m)->n, pd, c, 1e-12, 3, NULL, NULL);
+  free(pd);
+  return st == VES_MAXITER ? VES_OK : st;
+}
+
 /* The material at the real nodes, xm[2n] = y(X_a), and phi there, phi[n]:
- * the field of phi0c, or (phi0c NULL) of the L2 fit of the model's point
- * values of phi0 onto its basis. */
+ * the field of phi0c, or (phi0c NULL) of old_coefficients. */
 static ves_status node_state(const ves_model *m, const double *y, const double *phi0c, double *xm,
                              double *phi) {
   const ves_nodes *nd = ves_model_nodes(m);
   const ves_quad *q = ves_model_quad(m);
   const int n = nd->n;
   ves_quad *pq = NULL;
-  double *pd = NULL, *c = NULL, *fld = malloc(6 * (size_t)n * sizeof *fld);
+  double *c = NULL, *fld = malloc(6 * (size_t)n * sizeof *fld);
   ves_status st = fld ? ves_quad_create_at_nodes(nd, &pq) : VES_ERR_ALLOC;
   if (st == VES_OK) st = ves_quad_tables(pq, nd, &q->lme, NULL);
   if (st == VES_OK) ves_reconnect_motion_at_nodes(nd, pq, y, xm, NULL);
   if (st == VES_OK && !phi0c) {
-    pd = malloc(6 * (size_t)q->nq * sizeof *pd);
     c = malloc((size_t)n * sizeof *c);
-    st = pd && c ? VES_OK : VES_ERR_ALLOC;
-    if (st == VES_OK) {
-      ves_model_point_data(m, pd);
-      for (int al = 0; al < q->nq; al++) pd[al] = pd[6 * (size_t)al]; /* phi0 row, in place */
-      st = ves_project_l2(q, n, pd, c, 1e-12, 3, NULL, NULL);
-      if (st == VES_MAXITER) st = VES_OK; /* the best iterate: ample for a curve */
-    }
+    st = c ? old_coefficients(m, c) : VES_ERR_ALLOC;
     phi0c = c;
   }
   if (st == VES_OK) {
@@ -87,7 +93,7 @@ static ves_status node_state(const ves_model *m, const double *y, const double *
     for (int a = 0; a < n; a++) phi[a] = fld[6 * (size_t)a];
   }
   ves_quad_destroy(&pq);
-  free(pd), free(c), free(fld);
+  free(c), free(fld);
   return st;
 }
 
@@ -330,6 +336,134 @@ static ves_status moved_points(const ves_quad *q, const double *y, double *xq, d
   return bad ? VES_ERR_DOMAIN : VES_OK;
 }
 
+/* Points per h^2 of the new sizing that the projection's points must have:
+ * the setup's own density is ~14 (12 points a node, two triangles of 6, on
+ * a hex lattice of spacing h, whose node cell is (sqrt3/2) h^2). A cell
+ * below half of it is refined to the full density. */
+#define CROSS_DENSITY 14.0
+#define CROSS_THIN 7.0
+
+/* Signed area of the reference triangle v of nodes nd. */
+static double tri_area(const ves_nodes *nd, const int v[3]) {
+  const double *A = nd->x + 2 * v[0], *B = nd->x + 2 * v[1], *C = nd->x + 2 * v[2];
+  return 0.5 * ((B[0] - A[0]) * (C[1] - A[1]) - (C[0] - A[0]) * (B[1] - A[1]));
+}
+
+/* The projection's points xo[2 np], weights wo[np] (w det F: the current
+ * measure) and phi values fo[np]: the old points moved with the material,
+ * except in the old cells the motion has spread too thin for the new basis
+ * (fewer than CROSS_THIN / h^2 points per area at the cell, h the new
+ * sizing there: the stretched core of a thinning neck, where the new nodes
+ * are finer than the old ones and the normal equations of the fit become
+ * singular in all but name). Such a cell's points are replaced by the rule
+ * {4, s} (s = 2 or 4: 24 or 96 points) on its reference triangle, the old
+ * field (coefficients c, old_coefficients) and motion evaluated there.
+ * in->proj_cells_refined, proj_cells_capped (still too thin at s = 4),
+ * proj_points report it; no cell refined: the old points exactly. */
+static ves_status cross_points(const ves_model *m, const double *y, const double *c, ves_sizing *sz,
+                               int *npo, double **xo, double **wo, double **fo,
+                               ves_remesh_info *in) {
+  const ves_quad *oq = ves_model_quad(m);
+  const ves_nodes *od = ves_model_nodes(m);
+  const int nq = oq->nq;
+  int ncell = 0, *cells = NULL, *split = NULL, np = 0, nr = 0;
+  double *xq = malloc(2 * (size_t)nq * sizeof *xq), *wq = malloc((size_t)nq * sizeof *wq);
+  double *f = malloc(6 * (size_t)nq * sizeof *f), *xr = NULL, *wr = NULL, *fr = NULL;
+  ves_quad *pq = NULL;
+  ves_status st = xq && wq && f ? VES_OK : VES_ERR_ALLOC;
+  if (st == VES_OK) st = moved_points(oq, y, xq, wq);
+  if (st != VES_OK) goto done;
+  ves_model_point_data(m, f);
+  for (int al = 0; al < nq; al++) f[al] = f[6 * (size_t)al]; /* phi0 row, in place */
+  in->proj_cells_refined = in->proj_cells_capped = 0;
+  in->proj_points = nq;
+  if (oq->ntri == 0) goto done; /* a point set without cells: nothing to refine */
+  if ((st = ves_quad_cells(oq, &ncell, &cells)) != VES_OK) goto done;
+  const int npc = nq / ncell; /* points a cell */
+  if (npc * ncell != nq) goto done;
+  if (!(split = calloc((size_t)ncell, sizeof *split))) {
+    st = VES_ERR_ALLOC;
+    goto done;
+  }
+  for (int t = 0; t < ncell; t++) { /* the split each cell needs */
+    double am = 0, xc[2] = {0, 0};
+    for (int k = t * npc; k < (t + 1) * npc; k++)
+      am += wq[k], xc[0] += wq[k] * xq[2 * k], xc[1] += wq[k] * xq[2 * k + 1];
+    xc[0] /= am, xc[1] /= am;
+    const double h = ves_sizing_eval(xc, sz), need = CROSS_DENSITY * am / (h * h);
+    if (npc >= CROSS_THIN * am / (h * h)) continue;   /* dense enough */
+    if (!(tri_area(od, cells + 3 * t) > 0)) continue; /* no triangle to split */
+    split[t] = 6 * 4 >= need ? 2 : 4;
+    in->proj_cells_refined++;
+    if (6 * 16 < need) in->proj_cells_capped++;
+    nr += 6 * split[t] * split[t];
+  }
+  if (!in->proj_cells_refined) goto done;
+
+  /* the refined cells' points in the reference, then the old field there */
+  double bary[2][3 * VES_QUAD_NPT_MAX], wb[2][VES_QUAD_NPT_MAX];
+  if ((st = ves_quad_rule_composite((ves_quad_rulespec){4, 2}, bary[0], wb[0])) != VES_OK ||
+      (st = ves_quad_rule_composite((ves_quad_rulespec){4, 4}, bary[1], wb[1])) != VES_OK)
+    goto done;
+  xr = malloc(2 * (size_t)nr * sizeof *xr), wr = malloc((size_t)nr * sizeof *wr);
+  fr = malloc(6 * (size_t)nr * sizeof *fr);
+  if (!xr || !wr || !fr) {
+    st = VES_ERR_ALLOC;
+    goto done;
+  }
+  for (int t = 0, p = 0; t < ncell; t++) {
+    if (!split[t]) continue;
+    const int *v = cells + 3 * t, r = split[t] == 2 ? 0 : 1, npt = 6 * split[t] * split[t];
+    const double *A = od->x + 2 * v[0], *B = od->x + 2 * v[1], *C = od->x + 2 * v[2];
+    const double area = tri_area(od, v);
+    for (int k = 0; k < npt; k++, p++) {
+      const double *b = bary[r] + 3 * k;
+      xr[2 * p] = b[0] * A[0] + b[1] * B[0] + b[2] * C[0];
+      xr[2 * p + 1] = b[0] * A[1] + b[1] * B[1] + b[2] * C[1];
+      wr[p] = wb[r][k] * area;
+    }
+  }
+  if ((st = ves_quad_create_points(nr, xr, wr, 0, NULL, &pq)) != VES_OK ||
+      (st = ves_quad_tables(pq, od, &oq->lme, NULL)) != VES_OK)
+    goto done;
+  ves_quad_field(pq, c, 0, fr);
+  /* the cells kept, then the refined ones, moved */
+  double *x2 = malloc(2 * (size_t)(nq + nr) * sizeof *x2),
+         *w2 = malloc((size_t)(nq + nr) * sizeof *w2);
+  double *f2 = malloc((size_t)(nq + nr) * sizeof *f2);
+  if (!x2 || !w2 || !f2) {
+    free(x2), free(w2), free(f2);
+    st = VES_ERR_ALLOC;
+    goto done;
+  }
+  for (int t = 0; t < ncell; t++) {
+    if (split[t]) continue;
+    for (int k = t * npc; k < (t + 1) * npc; k++, np++)
+      x2[2 * np] = xq[2 * k], x2[2 * np + 1] = xq[2 * k + 1], w2[np] = wq[k], f2[np] = f[k];
+  }
+  int bad = 0;
+  for (int p = 0; p < nr; p++, np++) {
+    double mo[12];
+    ves_quad_motion(pq, y, p, 1, mo);
+    const double J = mo[1] * mo[8] - mo[2] * mo[7];
+    if (!(J > 0) || !(mo[0] > 0)) bad++;
+    x2[2 * np] = mo[0], x2[2 * np + 1] = mo[6], w2[np] = wr[p] * J, f2[np] = fr[6 * (size_t)p];
+  }
+  free(xq), free(wq), free(f);
+  xq = x2, wq = w2, f = f2;
+  in->proj_points = np;
+  if (bad) st = VES_ERR_DOMAIN;
+done:
+  ves_quad_destroy(&pq);
+  free(cells), free(split), free(xr), free(wr), free(fr);
+  if (st != VES_OK) {
+    free(xq), free(wq), free(f);
+    return st;
+  }
+  *npo = in->proj_points, *xo = xq, *wo = wq, *fo = f;
+  return VES_OK;
+}
+
 /* Free dofs: wall nodes fixed, axis nodes' r fixed (as the model fixes them). */
 static int is_free(const ves_nodes *nd, int i) {
   const int f = nd->flag[i / 2];
@@ -414,6 +548,7 @@ ves_status ves_remesh_create(const ves_config *cfg, ves_model *m, const double *
   const ves_quad *oq = ves_model_quad(m);
   ves_status st = VES_OK;
   double *poly = NULL, *knots = NULL, *xq = NULL, *wq = NULL, *f = NULL, *gA = NULL, *gV = NULL;
+  double *cold = NULL;
   ves_sizing *sizing = NULL;
   ves_nodes *gen = NULL;
   ves_quad *cross = NULL;
@@ -440,7 +575,10 @@ ves_status ves_remesh_create(const ves_config *cfg, ves_model *m, const double *
   /* 1. the interface curve */
   double t = ves_wall_seconds();
   int np = 0, nk = 0, pieces = 0;
-  if ((st = ves_remesh_interface(m, y, NULL, &np, &poly, &pieces)) != VES_OK)
+  if (!(cold = malloc((size_t)od->n * sizeof *cold))) FAIL(VES_ERR_ALLOC, "remesh: out of memory");
+  if ((st = old_coefficients(m, cold)) != VES_OK)
+    FAIL(st, "remesh: the old field's coefficients: %s", ves_error_text(st));
+  if ((st = ves_remesh_interface(m, y, cold, &np, &poly, &pieces)) != VES_OK)
     FAIL(st, "remesh: interface: %s (no zero line of phi from pole to pole)", ves_error_text(st));
   if (pieces != 1)
     FAIL(VES_ERR_GEOM, "remesh: the interface has %d pieces (one vesicle only)", pieces);
@@ -472,7 +610,6 @@ ves_status ves_remesh_create(const ves_config *cfg, ves_model *m, const double *
   if ((st = make_nodes(gen->LR, gen->LZ, gen->n, gen->x, gen->h, gen->flag, &r->nodes)) != VES_OK)
     FAIL(st, "remesh: %s", ves_error_text(st));
   ves_nodes_destroy(&gen);
-  ves_sizing_destroy(&sizing);
   in->seconds_nodes = ves_wall_seconds() - t;
   t = ves_wall_seconds();
   if ((st = build(r, oq)) != VES_OK)
@@ -480,19 +617,17 @@ ves_status ves_remesh_create(const ves_config *cfg, ves_model *m, const double *
   in->n_new = r->nodes->n, in->nq_new = r->quad->nq;
   in->seconds_tables = ves_wall_seconds() - t;
 
-  /* 3. phi projected over the old points moved with the material */
+  /* 3. phi projected over the old points moved with the material (the thin
+   * cells' refined) */
   t = ves_wall_seconds();
   const int n = r->nodes->n;
-  xq = malloc(2 * (size_t)oq->nq * sizeof *xq);
-  wq = malloc((size_t)oq->nq * sizeof *wq);
-  f = malloc(6 * (size_t)oq->nq * sizeof *f);
+  int ncross = 0;
   r->phi0c = malloc((size_t)n * sizeof *r->phi0c);
-  if (!xq || !wq || !f || !r->phi0c) FAIL(VES_ERR_ALLOC, "remesh: out of memory");
-  if ((st = moved_points(oq, y, xq, wq)) != VES_OK)
+  if (!r->phi0c) FAIL(VES_ERR_ALLOC, "remesh: out of memory");
+  if ((st = cross_points(m, y, cold, sizing, &ncross, &xq, &wq, &f, in)) != VES_OK)
     FAIL(st, "remesh: the state: %s", ves_error_text(st));
-  ves_model_point_data(m, f);
-  for (int al = 0; al < oq->nq; al++) f[al] = f[6 * (size_t)al]; /* phi0 row, in place */
-  if ((st = ves_quad_create_points(oq->nq, xq, wq, 0, NULL, &cross)) != VES_OK ||
+  ves_sizing_destroy(&sizing);
+  if ((st = ves_quad_create_points(ncross, xq, wq, 0, NULL, &cross)) != VES_OK ||
       (st = ves_quad_tables(cross, r->nodes, &oq->lme, NULL)) != VES_OK)
     FAIL(st, "remesh: the moved points on the new basis: %s", ves_error_text(st));
   /* the setup's tolerance: the fit error far below the discretization's */
@@ -538,11 +673,11 @@ ves_status ves_remesh_create(const ves_config *cfg, ves_model *m, const double *
   }
   in->disp_max = dmax, in->disp_mean = dsum / np;
   in->seconds = ves_wall_seconds() - t0;
-  free(poly), free(knots), free(xq), free(wq), free(f), free(gA), free(gV);
+  free(poly), free(knots), free(xq), free(wq), free(f), free(gA), free(gV), free(cold);
   *out = r;
   return cst; /* VES_OK, or VES_MAXITER from the correction */
 fail:
-  free(poly), free(knots), free(xq), free(wq), free(f), free(gA), free(gV);
+  free(poly), free(knots), free(xq), free(wq), free(f), free(gA), free(gV), free(cold);
   ves_quad_destroy(&cross);
   ves_nodes_destroy(&gen);
   ves_sizing_destroy(&sizing);

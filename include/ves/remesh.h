@@ -25,7 +25,14 @@
  *        sum_alpha w_alpha det F(Xh_alpha) (sum_a p'_a(y(Xh_alpha)) c_a - phi0(Xh_alpha))^2,
  *      i.e. over the old quadrature moved with the material (points y(Xh),
  *      weights w det F: the measure of the current configuration), where
- *      the current phi is known exactly as the old model sees it;
+ *      the current phi is known exactly as the old model sees it; where the
+ *      motion has spread an old cell's points thinner than half the density
+ *      the setup gives the new basis (~14 points per h^2 of the new sizing:
+ *      the stretched core of a thinning neck, where the normal equations
+ *      turn singular and the coefficients oscillate from node to node), the
+ *      cell's points are replaced by a rule of 24 or 96 points on its
+ *      reference triangle, the old field there from the L2 fit of its point
+ *      values onto the old basis (info.proj_cells_refined);
  *   4. the new model on the new nodes with phi0' (its motion the identity,
  *      y' = X'), then the correction: y' + delta with delta the minimal
  *      Euclidean norm (over the free dofs) that restores A(y') = A_target
@@ -85,6 +92,13 @@ typedef struct {
   double disp_max, disp_mean;    /* distance of the new interface's points from the old
                                     interface curve: max and mean (units R0) */
   ves_quad_info qinfo;           /* the new tables */
+  int proj_points;               /* points of the projection: the old ones moved, with
+                                   the thin cells' replaced (proj_cells_refined) */
+  int proj_cells_refined;        /* old cells the motion had spread thinner than the new
+                                    basis needs (CROSS_DENSITY in remesh.c: 14 points per
+                                    h^2 of the new sizing), their points replaced by a
+                                    rule of 24 or 96 points on the reference triangle */
+  int proj_cells_capped;         /* of those, the ones still thinner at 96 points */
   int proj_refinements;          /* refinement steps of the projection */
   double proj_residual;          /* its relative residual */
   double seconds_interface, seconds_nodes, seconds_tables, seconds_project, seconds_correct,
