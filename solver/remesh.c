@@ -441,18 +441,12 @@ static ves_status cross_points(const ves_model *m, const double *y, const double
     for (int k = t * npc; k < (t + 1) * npc; k++, np++)
       x2[2 * np] = xq[2 * k], x2[2 * np + 1] = xq[2 * k + 1], w2[np] = wq[k], f2[np] = f[k];
   }
-  int bad = 0;
-  for (int p = 0; p < nr; p++, np++) {
-    double mo[12];
-    ves_quad_motion(pq, y, p, 1, mo);
-    const double J = mo[1] * mo[8] - mo[2] * mo[7];
-    if (!(J > 0) || !(mo[0] > 0)) bad++;
-    x2[2 * np] = mo[0], x2[2 * np + 1] = mo[6], w2[np] = wr[p] * J, f2[np] = fr[6 * (size_t)p];
-  }
+  st = moved_points(pq, y, x2 + 2 * (size_t)np, w2 + np); /* pq's weights are wr */
+  for (int p = 0; p < nr; p++) f2[np + p] = fr[6 * (size_t)p];
+  np += nr;
   free(xq), free(wq), free(f);
   xq = x2, wq = w2, f = f2;
   in->proj_points = np;
-  if (bad) st = VES_ERR_DOMAIN;
 done:
   ves_quad_destroy(&pq);
   free(cells), free(split), free(xr), free(wr), free(fr);
