@@ -34,6 +34,8 @@ ves_status ves_sizing_create(const ves_shape *s, const ves_sizing_params *par, d
     free(z);
     return VES_ERR_ALLOC;
   }
+  /* independent evaluations of a read-only shape, on the OpenMP threads */
+#pragma omp parallel for schedule(dynamic, 8)
   for (int j = 0; j < z->nz; j++)
     for (int i = 0; i < z->nr; i++) {
       double X[2] = {i * z->g, -LZ + j * z->g};

@@ -168,6 +168,71 @@ static void test_discocyte(void **state) {
   ves_shape_destroy(&s);
 }
 
+/* The pruned coarse search (blocks of samples bounded by circles) gives the
+ * plain search's distance bit for bit: the same seeds, the same Newton runs.
+ * Shapes with near-ties and pinched necks (a pearled curve, a discocyte's
+ * dimple, a prolate's poles) and points where ties are likely (the axis, the
+ * equator, the curve itself, far away). A search that skips a block it
+ * needs fails it (tried: blocks whose bound exceeds half the window); slips
+ * that only matter at near-ties (the window without ds_max, radii 10% short)
+ * passed these points, so the exactness rests on the bounds' argument in
+ * shape.c, and this test guards the code around it. */
+static void test_distance_pruned(void **state) {
+  (void)state;
+  enum { NP = 241 };
+  double pts[2 * NP];
+  for (int k = 0; k < NP; k++) { /* three pearls on two necks of radius 0.05 */
+    const double t = M_PI * k / (NP - 1), z = 2.2 * cos(t);
+    const double r = 0.05 + 0.45 * fabs(sin(3 * t)) * (1 + 0.3 * cos(t));
+    pts[2 * k] = k == 0 || k == NP - 1 ? 0.0 : r * sin(t) / (sin(t) + 1e-3);
+    pts[2 * k + 1] = z;
+  }
+  ves_shape_params p[6];
+  for (int j = 0; j < 6; j++) ves_shape_params_default(p + j);
+  p[0].kind = VES_SHAPE_SPHEROID, p[0].v = 0.9;
+  p[1].kind = VES_SHAPE_SPHEROID, p[1].v = 0.6, p[1].prolate = 1;
+  p[2].kind = VES_SHAPE_DISCOCYTE;
+  p[3].kind = VES_SHAPE_SPHERE, p[3].mode = 4, p[3].delta = 0.3;
+  p[4].kind = VES_SHAPE_CURVE, p[4].npts = NP, p[4].pts = pts;
+  p[5].kind = VES_SHAPE_CURVE, p[5].npts = NP, p[5].pts = pts, p[5].keep_scale = 1;
+  uint64_t seed = 0x5eed5eedULL;
+  long compared = 0;
+  for (int j = 0; j < 6; j++) {
+    ves_shape *s = NULL;
+    assert_int_equal(ves_shape_create(p + j, &s), VES_OK);
+    double rmax, zmax;
+    ves_shape_extent(s, &rmax, &zmax);
+    for (int k = 0; k < 10000; k++) {
+      double X[2];
+      const int kind = k % 5;
+      if (kind == 0) /* anywhere in a box around the shape */
+        X[0] = 1.6 * rmax * urand(&seed), X[1] = 1.6 * zmax * (2 * urand(&seed) - 1);
+      else if (kind == 1) /* on the axis */
+        X[0] = 0.0, X[1] = 1.6 * zmax * (2 * urand(&seed) - 1);
+      else if (kind == 2) /* on the equator */
+        X[0] = 1.6 * rmax * urand(&seed), X[1] = 0.0;
+      else if (kind == 3) { /* on or next to the curve: a meridian point, nudged */
+        const double z = zmax * (2 * urand(&seed) - 1);
+        double lo = 0.0, hi = rmax; /* the outermost crossing of |z| by bisection */
+        for (int it = 0; it < 40; it++) {
+          const double mid = 0.5 * (lo + hi), Y[2] = {mid, z};
+          if (ves_shape_distance(s, Y) > 0)
+            lo = mid;
+          else
+            hi = mid;
+        }
+        X[0] = lo * (1 + 1e-3 * (urand(&seed) - 0.5)), X[1] = z;
+      } else /* far away */
+        X[0] = 10 * rmax * urand(&seed), X[1] = 10 * zmax * (2 * urand(&seed) - 1);
+      const double a = ves_shape_distance(s, X), b = ves_shape_distance_reference(s, X);
+      if (a != b) fail_msg("shape %d, X = (%.17g, %.17g): %.17g != %.17g", j, X[0], X[1], a, b);
+      compared++;
+    }
+    ves_shape_destroy(&s);
+  }
+  printf("# pruned distance search: %ld points on 6 shapes, all bit for bit\n", compared);
+}
+
 static void test_sphere_energy(void **state) {
   (void)state;
   ves_shape_params p;
@@ -298,6 +363,7 @@ int main(void) {
   // clang-format off
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_spheroid_axes), cmocka_unit_test(test_distance_exact),
+      cmocka_unit_test(test_distance_pruned),
       cmocka_unit_test(test_mode_perturbation), cmocka_unit_test(test_discocyte),
       cmocka_unit_test(test_sphere_energy),
       cmocka_unit_test(test_band_nodes), cmocka_unit_test(test_curve_points),
