@@ -29,6 +29,7 @@
  * (bench/RESULTS.md, sessions 18-19). E_s is measured from the reference: a
  * reset or a remeshing drops it to 0. */
 #include "model_core_impl.h"
+#include "omp_impl.h"
 
 #include <assert.h>
 #include <math.h>
@@ -65,7 +66,7 @@ static int defect_row(const ves_quad *qn, int a, int *nb, double *dr, double *dz
 }
 
 /* A row's scratch: its entries sorted by weight and the pattern positions
- * of their pairs (model_stab_build). */
+ * of their pairs (cut_row). */
 typedef struct {
   int b;
   double r, z;
@@ -87,9 +88,7 @@ static int by_weight(const void *x, const void *y) {
 /* Cut a defect row to the quadrature's couplings: its entries by falling
  * weight, each kept when it is coupled to every one kept before (the
  * pattern of the points, which a node's row exceeds only at the edge of its
- * support: weights ~1e-6..1e-4 of the row's). The pattern positions of the
- * kept pairs are left in w->pos (row i, column k, both < the returned
- * count). */
+ * support: weights ~1e-6..1e-4 of the row's). Returns the kept count. */
 static int cut_row(const ves_pattern *pat, row_scratch *w, int cnt, int *nb, double *dr,
                    double *dz) {
   for (int i = 0; i < cnt; i++) w->e[i] = (row_entry){nb[i], dr[i], dz[i]};
@@ -109,9 +108,6 @@ static int cut_row(const ves_pattern *pat, row_scratch *w, int cnt, int *nb, dou
     for (int k = 0; k < kept && ok; k++) ok = w->pos[(size_t)i * cap + keep[k]] >= 0;
     if (ok) keep[kept++] = i;
   }
-  for (int i = 0; i < kept; i++) /* compact the positions: row i of the kept */
-    for (int k = 0; k < kept; k++)
-      w->pos[(size_t)i * cap + k] = w->pos[(size_t)keep[i] * cap + keep[k]];
   for (int i = kept - 1; i >= 0; i--) { /* keep[i] >= i: back to front is safe */
     const row_entry en = w->e[keep[i]];
     nb[i] = en.b, dr[i] = en.r, dz[i] = en.z;
@@ -145,18 +141,25 @@ static void refit_row(const double *X, int a, int cnt, const int *nb, double *dr
   }
 }
 
-/* blk += c (dr dr^T, dz dz^T) at the positions of a cut row: the rr entry
- * of block t at blk[stride t], the zz entry at blk[stride t + zz] (r and z
- * decouple: S's 4-value blocks, or Hess E_s's rr and zz alone). */
-static void row_blocks(const row_scratch *w, int cnt, const int *nb, const double *dr,
-                       const double *dz, double c, int stride, int zz, double *blk) {
-  for (int i = 0; i < cnt; i++)
+/* blk += c (dr dr^T, dz dz^T) over the pairs (i, k) of a cut row whose
+ * pattern row nb[i] (>= nb[k]) lies in [lo, hi): the rr entry of block t at
+ * blk[stride t], the zz entry at blk[stride t + zz] (r and z decouple: S's
+ * 4-value blocks, or Hess E_s's rr and zz alone). where[n] is -1 and left so. */
+static void row_blocks(const ves_pattern *pat, long *where, int lo, int hi, int cnt, const int *nb,
+                       const double *dr, const double *dz, double c, int stride, int zz,
+                       double *blk) {
+  for (int i = 0; i < cnt; i++) {
+    const int bi = nb[i];
+    if (bi < lo || bi >= hi) continue;
+    for (int t = pat->ptr[bi]; t < pat->ptr[bi + 1]; t++) where[pat->col[t]] = t;
     for (int k = 0; k < cnt; k++) {
-      if (nb[k] > nb[i]) continue;
-      const long t = w->pos[(size_t)i * w->cap + k];
+      if (nb[k] > bi) continue;
+      const long t = where[nb[k]]; /* >= 0: the cut kept coupled pairs only */
       blk[stride * t] += c * dr[i] * dr[k];
       blk[stride * t + zz] += c * dz[i] * dz[k];
     }
+    for (int t = pat->ptr[bi]; t < pat->ptr[bi + 1]; t++) where[pat->col[t]] = -1;
+  }
 }
 
 /* The scratch for the rows of the points at the nodes qn (n nodes). */
@@ -183,6 +186,64 @@ static int node_row(const ves_model *m, row_scratch *w, int a, int *nb, double *
   return cnt;
 }
 
+/* The cut and refit defect rows of the nodes off the wall (wall nodes: empty
+ * rows) into ptr[n + 1], nb, dr, dz (capacity qn->ptr[n] + n + 1, rows a
+ * node's points' list and the node itself), and sum_a c[a] (dr dr^T, dz
+ * dz^T) of them into blk (stride, zz: row_blocks). Threaded twice over: the
+ * rows by node, each thread with its scratch, written at their largest
+ * offsets and then packed; the blocks by ranges of pattern rows, every
+ * thread walking all rows in node order, so each entry sums its terms in
+ * the order of the serial loop: the same bits for any thread count. */
+static ves_status defect_rows(const ves_model *m, const double *c, int stride, int zz, int *ptr,
+                              int *nb, double *dr, double *dz, double *blk) {
+  const ves_quad *qn = m->qn;
+  const int n = m->nodes->n;
+  int *cnt = malloc((size_t)n * sizeof *cnt);
+  ves_status st = cnt ? VES_OK : VES_ERR_ALLOC;
+#pragma omp parallel if (n > 1000)
+  {
+    row_scratch w = {0};
+    ves_status mine = st == VES_OK ? row_scratch_open(qn, n, &w) : VES_ERR_ALLOC;
+#pragma omp for schedule(dynamic, 64)
+    for (int a = 0; a < n; a++) {
+      const size_t k0 = (size_t)qn->ptr[a] + a;
+      cnt[a] = mine != VES_OK || (m->nodes->flag[a] & VES_NODE_WALL)
+                   ? 0
+                   : node_row(m, &w, a, nb + k0, dr + k0, dz + k0);
+    }
+#pragma omp critical(ves_defect_rows)
+    if (mine != VES_OK) st = mine;
+    row_scratch_close(&w);
+  }
+  if (st != VES_OK) goto done;
+  ptr[0] = 0;
+  for (int a = 0; a < n; a++) { /* pack: a row moves only towards the front */
+    const size_t k0 = (size_t)qn->ptr[a] + a;
+    ptr[a + 1] = ptr[a] + cnt[a];
+    memmove(nb + ptr[a], nb + k0, (size_t)cnt[a] * sizeof *nb);
+    memmove(dr + ptr[a], dr + k0, (size_t)cnt[a] * sizeof *dr);
+    memmove(dz + ptr[a], dz + k0, (size_t)cnt[a] * sizeof *dz);
+  }
+#pragma omp parallel if (n > 1000)
+  {
+    const int nt = ves_omp_nteam(), me = ves_omp_tid();
+    const int lo = (int)((long)n * me / nt), hi = (int)((long)n * (me + 1) / nt);
+    long *where = malloc((size_t)n * sizeof *where);
+    if (where) {
+      for (int b = 0; b < n; b++) where[b] = -1;
+      for (int a = 0; a < n; a++)
+        row_blocks(m->pat, where, lo, hi, ptr[a + 1] - ptr[a], nb + ptr[a], dr + ptr[a],
+                   dz + ptr[a], c[a], stride, zz, blk);
+    }
+#pragma omp critical(ves_defect_rows)
+    if (!where) st = VES_ERR_ALLOC;
+    free(where);
+  }
+done:
+  free(cnt);
+  return st;
+}
+
 /* The drift-damping matrix S (model.h, ves_model_params.drift):
  *   u^T S u = sum_a c_a |u^a - u(X_a)|^2,  c_a = drift mu 2 pi M_a / h_a^2,
  *   M_a = sum_alpha w_alpha R_alpha P_a(X_alpha)  (P_a: p_a plus its ghost's),
@@ -199,28 +260,19 @@ static int node_row(const ves_model *m, row_scratch *w, int a, int *nb, double *
 ves_status model_drift_build(ves_model *m) {
   const ves_quad *qn = m->qn;
   const int n = m->nodes->n;
-  const size_t cap = (size_t)qn->ptr[n] + 1;
-  double *M = calloc((size_t)n, sizeof *M);
-  int *nb = malloc(cap * sizeof *nb);
-  double *dr = malloc(cap * sizeof *dr);
-  double *dz = malloc(cap * sizeof *dz);
+  const size_t cap = (size_t)qn->ptr[n] + n + 1;
+  double *c = calloc((size_t)n, sizeof *c);
+  int *ptr = malloc(((size_t)n + 1) * sizeof *ptr), *nb = malloc(cap * sizeof *nb);
+  double *dr = malloc(cap * sizeof *dr), *dz = malloc(cap * sizeof *dz);
   m->dblk = calloc(4 * (size_t)m->pat->ptr[n] + 1, sizeof *m->dblk);
-  row_scratch w;
-  ves_status s = row_scratch_open(qn, n, &w);
-  if (s == VES_OK && (!M || !nb || !dr || !dz || !m->dblk)) s = VES_ERR_ALLOC;
-  if (s != VES_OK) goto done;
-  node_measure(m->q, n, M);
-  for (int a = 0; a < n; a++) {
-    if (m->nodes->flag[a] & VES_NODE_WALL) /* fixed, u = 0 there; and its point sits */
-      continue;                            /* off the hull, so no exact reproduction */
-    const int cnt = node_row(m, &w, a, nb, dr, dz);
-    const double h = m->nodes->h[a];
-    const double c = m->par.drift * m->par.mu * 2 * M_PI * M[a] / (h * h);
-    row_blocks(&w, cnt, nb, dr, dz, c, 4, 3, m->dblk);
+  ves_status s = VES_ERR_ALLOC;
+  if (c && ptr && nb && dr && dz && m->dblk) {
+    node_measure(m->q, n, c);   /* M_a, then c_a; wall nodes: no term (fixed, u = 0 */
+    for (int a = 0; a < n; a++) /* there, and their points sit off the hull) */
+      c[a] = m->par.drift * m->par.mu * 2 * M_PI * c[a] / (m->nodes->h[a] * m->nodes->h[a]);
+    s = defect_rows(m, c, 4, 3, ptr, nb, dr, dz, m->dblk);
   }
-done:
-  row_scratch_close(&w);
-  free(M), free(nb), free(dr), free(dz);
+  free(c), free(ptr), free(nb), free(dr), free(dz);
   return s;
 }
 
@@ -233,36 +285,19 @@ ves_status model_stab_build(ves_model *m) {
   const ves_quad *qn = m->qn;
   const int n = m->nodes->n;
   const size_t cap = (size_t)qn->ptr[n] + n + 1; /* a row: its list, and a itself */
-  row_scratch w;
-  ves_status st = row_scratch_open(qn, n, &w);
   m->sptr = malloc(((size_t)n + 1) * sizeof *m->sptr);
   m->snb = malloc(cap * sizeof *m->snb);
   m->sdr = malloc(cap * sizeof *m->sdr);
   m->sdz = malloc(cap * sizeof *m->sdz);
   m->sc = calloc((size_t)n, sizeof *m->sc);
   m->sblk = calloc(2 * (size_t)m->pat->ptr[n] + 1, sizeof *m->sblk);
-  if (st == VES_OK && (!m->sptr || !m->snb || !m->sdr || !m->sdz || !m->sc || !m->sblk))
-    st = VES_ERR_ALLOC;
-  if (st != VES_OK) goto done;
+  if (!m->sptr || !m->snb || !m->sdr || !m->sdz || !m->sc || !m->sblk) return VES_ERR_ALLOC;
   node_measure(m->q, n, m->sc);
-  m->sptr[0] = 0;
-  for (int a = 0; a < n; a++) {
-    const int k0 = m->sptr[a];
-    if (m->nodes->flag[a] & VES_NODE_WALL) { /* fixed: no term (as the drift damping) */
-      m->sc[a] = 0, m->sptr[a + 1] = k0;
-      continue;
-    }
-    int *nb = m->snb + k0;
-    double *dr = m->sdr + k0, *dz = m->sdz + k0;
-    const int cnt = node_row(m, &w, a, nb, dr, dz);
-    const double h = m->nodes->h[a];
-    m->sc[a] = m->par.stab * m->par.k * 2 * M_PI * m->sc[a] / (h * h);
-    row_blocks(&w, cnt, nb, dr, dz, m->sc[a], 2, 1, m->sblk);
-    m->sptr[a + 1] = k0 + cnt;
-  }
-done:
-  row_scratch_close(&w);
-  return st;
+  for (int a = 0; a < n; a++) /* wall nodes: fixed, no term (as the drift damping) */
+    m->sc[a] = m->nodes->flag[a] & VES_NODE_WALL ? 0
+                                                 : m->par.stab * m->par.k * 2 * M_PI * m->sc[a] /
+                                                       (m->nodes->h[a] * m->nodes->h[a]);
+  return defect_rows(m, m->sc, 2, 1, m->sptr, m->snb, m->sdr, m->sdz, m->sblk);
 }
 
 /* E_s = (1/2) sum_a c_a |d_a|^2 and (g != NULL) g += grad E_s. */

@@ -1129,6 +1129,57 @@ static void test_drift_damping(void **state) {
   free(Kd), free(K0), free(M), free(u);
 }
 
+/* The rows of the stabilization and the drift damping are built on the
+ * OpenMP threads (model_drift.c, defect_rows: by node, then their blocks by
+ * ranges of pattern rows, each entry's terms summed in node order): S, the
+ * Hessian with E_s, and E_s with its gradient, bit for bit the same for 1,
+ * 2 and 3 threads. */
+static void test_rows_threads(void **state) {
+  (void)state;
+  problem *P = P1;
+  const int n = P->n;
+  const ves_model_params par = {.eps = P->cfg.epsilon,
+                                .c0 = P->cfg.c0,
+                                .k = P->cfg.k,
+                                .mu = P->cfg.mu,
+                                .lambda = P->cfg.lambda_ratio * P->cfg.mu,
+                                .drift = 0.7,
+                                .stab = 0.5};
+#ifdef _OPENMP
+  const int nthr0 = omp_get_max_threads();
+#endif
+  double *S[3], *H[3], *g[3], E[3];
+  size_t len = 0;
+  for (int nt = 1; nt <= 3; nt++) {
+#ifdef _OPENMP
+    omp_set_num_threads(nt);
+#endif
+    ves_model *m = NULL;
+    assert_int_equal(ves_model_create(P->s->nodes, P->s->quad, P->s->phi0c, &par, &m), VES_OK);
+    len = 4 * (size_t)ves_model_pattern(m)->ptr[n];
+    S[nt - 1] = xmalloc(len), H[nt - 1] = xmalloc(len), g[nt - 1] = xmalloc(2 * (size_t)n);
+    memcpy(S[nt - 1], ves_model_drift_blocks(m), len * sizeof(double));
+    assert_int_equal(ves_model_hessian(m, P->y, 1, 0, 0, H[nt - 1]), VES_OK);
+    assert_int_equal(ves_model_eval(m, P->y, 1, E + nt - 1, NULL, NULL, g[nt - 1], NULL, NULL),
+                     VES_OK);
+    ves_model_destroy(&m);
+  }
+#ifdef _OPENMP
+  omp_set_num_threads(nthr0);
+#endif
+  double smax = 0;
+  for (size_t t = 0; t < len; t++) smax = fmax(smax, fabs(S[0][t]));
+  printf("# drift and stabilization rows on 1-3 threads: max |S| %.3e, E %.12f\n", smax, E[0]);
+  assert_true(smax > 0); /* a term that is there */
+  for (int k = 1; k < 3; k++) {
+    assert_memory_equal(S[0], S[k], len * sizeof(double));
+    assert_memory_equal(H[0], H[k], len * sizeof(double));
+    assert_memory_equal(g[0], g[k], 2 * (size_t)n * sizeof(double));
+    assert_true(E[0] == E[k]);
+  }
+  for (int k = 0; k < 3; k++) free(S[k]), free(H[k]), free(g[k]);
+}
+
 /* The coefficient-mode stabilization (ves_model_params.stab): E_kappa - E_0
  * = E_s = (1/2) sum_a c_a |y^a - y(X_a)|^2, c_a = kappa k 2 pi M_a / h_a^2,
  * against the definition computed here (y(X_a) by ves_quad_motion on a point
@@ -1246,6 +1297,7 @@ int main(void) {
       cmocka_unit_test(test_dissipation_ref_record),
       cmocka_unit_test(test_drift_damping),
       cmocka_unit_test(test_stabilization),
+      cmocka_unit_test(test_rows_threads),
       cmocka_unit_test(test_translation_invariance),
       cmocka_unit_test(test_locality),
       cmocka_unit_test(test_assembly_reference),
