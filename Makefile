@@ -43,7 +43,7 @@ CFLAGS  ?= $(OPT) -g
 CFLAGS  += -std=c11 -fopenmp -D_XOPEN_SOURCE=700 $(WARN) -Iinclude -Isolver $(PKG_CFLAGS) $(SANFLAGS) -MMD -MP
 # CGAL: always -O2 (16x slower at -O0); rounding-math as CGAL requires, and the
 # check disabled so valgrind can run it.
-CXXFLAGS_CGAL = -std=c++17 -O2 -g -frounding-math -DCGAL_DISABLE_ROUNDING_MATH_CHECK \
+CXXFLAGS_CGAL = -std=c++17 -O2 -g -fopenmp -frounding-math -DCGAL_DISABLE_ROUNDING_MATH_CHECK \
                 -Wall -Wextra -Werror -Iinclude $(SANFLAGS) -MMD -MP
 LDLIBS   = $(PKG_LIBS) -lnlopt -ldmumps_seq -lsmumps_seq -liniparser -lcholmod -llapacke -lopenblas -lgmp -lstdc++ -lm
 LDFLAGS += $(SANFLAGS) -fopenmp

@@ -584,11 +584,13 @@ void clip(std::vector<double> &p, std::vector<double> &tmp, int i, double v, dou
 }
 
 /* Lloyd: move each free node to the rho-weighted centroid of its Voronoi cell (clipped to
- * the box), rho = h^-RHO_EXP; fixed nodes stay. Stops at max move < 1e-3 h. */
+ * the box), rho = h^-RHO_EXP; fixed nodes stay. Stops at max move < 1e-3 h. The cells of
+ * an iteration are independent reads of one triangulation: they run on the OpenMP threads
+ * (a node's new position is its own, the max move order-free: the same nodes for any
+ * thread count). */
 void lloyd(Builder &b, int nfixed, int iters) {
   const int n = (int)b.flag.size();
   std::vector<DT::Vertex_handle> vh((std::size_t)n);
-  std::vector<double> poly, tmp;
   /* degree-2 rule on a triangle: barycentres (2/3, 1/6, 1/6) and permutations, weights 1/3 */
   const double bw[3][3] = {
       {2. / 3, 1. / 6, 1. / 6}, {1. / 6, 2. / 3, 1. / 6}, {1. / 6, 1. / 6, 2. / 3}};
@@ -598,46 +600,61 @@ void lloyd(Builder &b, int nfixed, int iters) {
     for (auto v = dt.finite_vertices_begin(); v != dt.finite_vertices_end(); ++v) vh[v->info()] = v;
     double maxmove = 0.0;
     std::vector<double> nx(b.x);
-    for (int a = nfixed; a < n; a++) {
-      DT::Face_circulator fc = dt.incident_faces(vh[a]), done = fc;
-      poly.clear();
-      bool ok = true;
-      do {
-        if (dt.is_infinite(fc)) {
-          ok = false;
-          break;
-        }
-        Point_2 c = dt.circumcenter(fc);
-        poly.push_back(c.x()), poly.push_back(c.y());
-      } while (++fc != done);
-      if (!ok) continue;
-      clip(poly, tmp, 0, b.LR, 1.0), clip(poly, tmp, 0, 0.0, -1.0);
-      clip(poly, tmp, 1, b.LZ, 1.0), clip(poly, tmp, 1, -b.LZ, -1.0);
-      double Ra = b.x[2 * a], Za = b.x[2 * a + 1];
-      double M = 0.0, MR = 0.0, MZ = 0.0; /* int rho, int rho X over the cell */
-      std::size_t m = poly.size() / 2;
-      for (std::size_t i = 0; i < m; i++) { /* fan triangles (X_a, c_i, c_i+1) */
-        std::size_t j = (i + 1) % m;
-        double R1 = poly[2 * i], Z1 = poly[2 * i + 1], R2 = poly[2 * j], Z2 = poly[2 * j + 1];
-        double A = 0.5 * ((R1 - Ra) * (Z2 - Za) - (R2 - Ra) * (Z1 - Za));
-        for (int q = 0; q < 3; q++) {
-          double R = bw[q][0] * Ra + bw[q][1] * R1 + bw[q][2] * R2;
-          double Z = bw[q][0] * Za + bw[q][1] * Z1 + bw[q][2] * Z2;
-          double w = A / 3.0 * std::pow(b.h(std::max(R, 0.0), Z), -RHO_EXP);
-          M += w, MR += w * R, MZ += w * Z;
-        }
-      }
-      if (!(M > 0.0)) continue;
-      double dR = MR / M - Ra, dZ = MZ / M - Za;
-      /* keep the node in the free region: halve the move until inside, else stay */
-      for (int half = 0; half < 5; half++, dR *= 0.5, dZ *= 0.5) {
-        if (b.in_free(Ra + dR, Za + dZ)) {
-          nx[2 * a] = Ra + dR, nx[2 * a + 1] = Za + dZ;
-          maxmove = std::max(maxmove, std::hypot(dR, dZ) / b.h(Ra, Za));
-          break;
+    /* an exception cannot leave the parallel region: caught, rethrown after it */
+    bool bad = false, oom = false;
+#pragma omp parallel reduction(max : maxmove) reduction(|| : bad, oom)
+    {
+      std::vector<double> poly, tmp;
+#pragma omp for schedule(dynamic, 256)
+      for (int a = nfixed; a < n; a++) {
+        try {
+          DT::Face_circulator fc = dt.incident_faces(vh[a]), done = fc;
+          poly.clear();
+          bool ok = true;
+          do {
+            if (dt.is_infinite(fc)) {
+              ok = false;
+              break;
+            }
+            Point_2 c = dt.circumcenter(fc);
+            poly.push_back(c.x()), poly.push_back(c.y());
+          } while (++fc != done);
+          if (!ok) continue;
+          clip(poly, tmp, 0, b.LR, 1.0), clip(poly, tmp, 0, 0.0, -1.0);
+          clip(poly, tmp, 1, b.LZ, 1.0), clip(poly, tmp, 1, -b.LZ, -1.0);
+          double Ra = b.x[2 * a], Za = b.x[2 * a + 1];
+          double M = 0.0, MR = 0.0, MZ = 0.0; /* int rho, int rho X over the cell */
+          std::size_t m = poly.size() / 2;
+          for (std::size_t i = 0; i < m; i++) { /* fan triangles (X_a, c_i, c_i+1) */
+            std::size_t j = (i + 1) % m;
+            double R1 = poly[2 * i], Z1 = poly[2 * i + 1], R2 = poly[2 * j], Z2 = poly[2 * j + 1];
+            double A = 0.5 * ((R1 - Ra) * (Z2 - Za) - (R2 - Ra) * (Z1 - Za));
+            for (int q = 0; q < 3; q++) {
+              double R = bw[q][0] * Ra + bw[q][1] * R1 + bw[q][2] * R2;
+              double Z = bw[q][0] * Za + bw[q][1] * Z1 + bw[q][2] * Z2;
+              double w = A / 3.0 * std::pow(b.h(std::max(R, 0.0), Z), -RHO_EXP);
+              M += w, MR += w * R, MZ += w * Z;
+            }
+          }
+          if (!(M > 0.0)) continue;
+          double dR = MR / M - Ra, dZ = MZ / M - Za;
+          /* keep the node in the free region: halve the move until inside, else stay */
+          for (int half = 0; half < 5; half++, dR *= 0.5, dZ *= 0.5) {
+            if (b.in_free(Ra + dR, Za + dZ)) {
+              nx[2 * a] = Ra + dR, nx[2 * a + 1] = Za + dZ;
+              maxmove = std::max(maxmove, std::hypot(dR, dZ) / b.h(Ra, Za));
+              break;
+            }
+          }
+        } catch (const Bad_sizing &) {
+          bad = true;
+        } catch (const std::bad_alloc &) {
+          oom = true;
         }
       }
     }
+    if (bad) throw Bad_sizing();
+    if (oom) throw std::bad_alloc();
     b.x.swap(nx);
     if (maxmove < 1e-3) break;
   }

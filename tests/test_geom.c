@@ -11,6 +11,9 @@
 #include <string.h>
 #include <time.h>
 
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 #include "ves/geom.h"
 
 /* splitmix64 in [0, 1): seeded, so every test is deterministic. */
@@ -412,12 +415,24 @@ static void test_nodes_sphere(void **state) {
    * the Lloyd nodes where the strip narrows (measured [0.961, 1.108]) */
   assert_true(lo >= 0.93 && hi <= 1.12);
 
-  /* determinism: the same seed gives the same set */
-  ves_nodes *nd2 = NULL;
-  assert_int_equal(ves_nodes_generate(&par, &nd2), VES_OK);
-  assert_int_equal(nd2->n, n);
-  assert_memory_equal(nd2->x, nd->x, sizeof(double) * 2 * (size_t)n);
-  ves_nodes_destroy(&nd2);
+  /* determinism: the same seed gives the same set, for 1, 2 and 3 threads (the Lloyd
+   * cells run on the OpenMP threads) */
+#ifdef _OPENMP
+  const int nthr0 = omp_get_max_threads();
+#endif
+  for (int nt = 1; nt <= 3; nt++) {
+#ifdef _OPENMP
+    omp_set_num_threads(nt);
+#endif
+    ves_nodes *nd2 = NULL;
+    assert_int_equal(ves_nodes_generate(&par, &nd2), VES_OK);
+    assert_int_equal(nd2->n, n);
+    assert_memory_equal(nd2->x, nd->x, sizeof(double) * 2 * (size_t)n);
+    ves_nodes_destroy(&nd2);
+  }
+#ifdef _OPENMP
+  omp_set_num_threads(nthr0);
+#endif
 
   free(seen), free(xe), free(w), free(ratio);
   ves_nodes_destroy(&nd);
