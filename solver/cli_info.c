@@ -9,7 +9,11 @@
 #include "ves/plot.h"
 
 static void usage_info(FILE *f) {
-  fprintf(f, "usage: vesica info FILE.h5\n"
+  fprintf(f, "usage: vesica info FILE.h5 [--series N]\n"
+             "  --series N  instead of the summary, the last N rows of the file's series (every\n"
+             "              row with N = 0) as tab-separated text, a '# name...' header first:\n"
+             "              the columns /series holds (README, output layout), step first;\n"
+             "              also of a run still being written.\n"
              "Summary of a run, one 'key = value' per line (stable keys, for scripts):\n"
              "  file, format_version, version, status (running = still running or killed,\n"
              "  finished, stopped, failed), backend, nodes, triangles, snapshots,\n"
@@ -119,12 +123,46 @@ static void print_parameters(const ves_config *cfg) {
   }
 }
 
+/* The last `last` rows of every series (all with last = 0), tab-separated. */
+static int print_series(const char *path, ves_io *io, long last) {
+  const long R = ves_io_rows(io), r0 = last > 0 && last < R ? R - last : 0;
+  int nc = 0;
+  while (ves_io_series_name(nc)) nc++;
+  double *col = malloc((size_t)nc * (size_t)(R > 0 ? R : 1) * sizeof *col);
+  if (!col) {
+    fprintf(stderr, "vesica info: out of memory\n");
+    return 2;
+  }
+  for (int c = 0; c < nc; c++)
+    if (R > 0 && ves_io_read_series(io, ves_io_series_name(c), col + (size_t)c * R) != VES_OK) {
+      fprintf(stderr, "vesica info: %s: cannot read the series %s\n", path, ves_io_series_name(c));
+      free(col);
+      return 2;
+    }
+  /* step (the file's last column) first */
+  for (int k = 0; k < nc; k++)
+    printf("%s%s", k ? "\t" : "# ", ves_io_series_name((k + nc - 1) % nc));
+  printf("\n");
+  for (long r = r0; r < R; r++)
+    for (int k = 0; k < nc; k++)
+      printf("%.12g%s", col[(size_t)((k + nc - 1) % nc) * R + r], k + 1 < nc ? "\t" : "\n");
+  free(col);
+  return 0;
+}
+
 int cmd_info(int argc, char **argv) {
   const char *path = NULL;
+  long last = -1; /* --series N (-1: the summary) */
   for (int i = 0; i < argc; i++) {
     if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
       usage_info(stdout);
       return 0;
+    } else if (!strcmp(argv[i], "--series")) {
+      if (i + 1 >= argc) {
+        fprintf(stderr, "vesica info: --series needs a row count (0: all)\n");
+        return 2;
+      }
+      if (cli_parse_long("info", "--series", argv[++i], 0, 1000000000L, &last)) return 2;
     } else if (cli_operand("info", "file", argv[i][0] == '-', argv[i], &path)) {
       return 2;
     }
@@ -135,6 +173,11 @@ int cmd_info(int argc, char **argv) {
   if (ves_io_open(path, 0, &io, err, sizeof err) != VES_OK) {
     fprintf(stderr, "vesica info: %s\n", err);
     return 2;
+  }
+  if (last >= 0) {
+    const int rc = print_series(path, io, last);
+    ves_io_close(&io);
+    return rc;
   }
   const ves_io_info *in = ves_io_get_info(io);
   ves_config cfg;

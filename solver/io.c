@@ -1056,6 +1056,8 @@ ves_status ves_io_truncate(ves_io *io, long rows) {
   return H5Fflush(io->file, H5F_SCOPE_LOCAL) < 0 ? VES_ERR_IO : VES_OK;
 }
 
+const char *ves_io_series_name(int i) { return i >= 0 && i < NSERIES ? SERIES[i].name : NULL; }
+
 ves_status ves_io_read_series(ves_io *io, const char *name, double *out) {
   VES_CHECK(io && name && out, VES_ERR_ARG);
   int i = 0;

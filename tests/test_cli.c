@@ -1178,6 +1178,27 @@ static void test_series(void **state) {
   assert_non_null(strstr(head, "\trejected_iterations\trejected_seconds\n"));
   assert_int_equal(rows, R);
   assert_true(retried > 0);
+  /* vesica info --series N: the file's last N rows, step first, the values to the 12
+   * digits printed (%.12g: 1e-11 relative covers its rounding) */
+  run(&r, "info", out, "--series", "2", NULL);
+  if (r.code) fail_msg("info --series: exit %d: %s", r.code, r.err);
+  char *l1 = strchr(r.out, '\n'), *l2 = l1 ? strchr(l1 + 1, '\n') : NULL;
+  assert_non_null(l2);
+  assert_int_equal(strncmp(r.out, "# step\tt\tdt\tE\t", sizeof "# step\tt\tdt\tE\t" - 1), 0);
+  assert_int_equal((int)strlen(l2 + 1), (int)strcspn(l2 + 1, "\n") + 1); /* 3 lines in all */
+  long s1, s2;
+  double t2, e2;
+  assert_int_equal(sscanf(l1 + 1, "%ld", &s1), 1);
+  assert_int_equal(sscanf(l2 + 1, "%ld\t%lf\t%*f\t%lf", &s2, &t2, &e2), 3);
+  assert_true(s1 == R - 1 && s2 == R);
+  assert_true(fabs(t2 / t[R - 1] - 1) <= 1e-11 && fabs(e2 / E[R - 1] - 1) <= 1e-11);
+  run(&r, "info", out, "--series", "0", NULL); /* every row */
+  int lines = 0;
+  for (const char *c = r.out; *c; c++) lines += *c == '\n';
+  assert_int_equal(lines, R + 1);
+  run(&r, "info", out, "--series", "-1", NULL);
+  assert_int_equal(r.code, 2);
+  assert_non_null(strstr(r.err, "not an integer"));
   free(t), free(E);
   ves_io_close(&io);
   unlink(ini), unlink(out), unlink(tsv);

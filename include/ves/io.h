@@ -230,6 +230,10 @@ long ves_io_rows(const ves_io *io);
  * VES_ERR_ARG for an unknown name. */
 ves_status ves_io_read_series(ves_io *io, const char *name, double *out);
 
+/* The name of the file's series column i, in the layout's order (t first,
+ * step last), for 0 <= i < the number of columns; NULL past the last. */
+const char *ves_io_series_name(int i);
+
 /* A rise of E* between accepted steps above this relative rounding counts
  * as a rise (the integrator's acceptance test uses the same margin). */
 #define VES_IO_MONOTONE_TOL 1e-10
