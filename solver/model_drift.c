@@ -199,11 +199,12 @@ static ves_status defect_rows(const ves_model *m, const double *c, int stride, i
   const ves_quad *qn = m->qn;
   const int n = m->nodes->n;
   int *cnt = malloc((size_t)n * sizeof *cnt);
-  ves_status st = cnt ? VES_OK : VES_ERR_ALLOC;
+  if (!cnt) return VES_ERR_ALLOC;
+  ves_status st = VES_OK;
 #pragma omp parallel if (n > 1000)
   {
     row_scratch w = {0};
-    ves_status mine = st == VES_OK ? row_scratch_open(qn, n, &w) : VES_ERR_ALLOC;
+    const ves_status mine = row_scratch_open(qn, n, &w);
 #pragma omp for schedule(dynamic, 64)
     for (int a = 0; a < n; a++) {
       const size_t k0 = (size_t)qn->ptr[a] + a;
