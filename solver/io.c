@@ -1656,6 +1656,11 @@ static ves_status write_remesh(ves_io *io, const ves_io_remesh *rm) {
            {"disp_max", in->disp_max},
            {"disp_mean", in->disp_mean},
            {"seconds", in->seconds},
+           {"seconds_interface", in->seconds_interface},
+           {"seconds_nodes", in->seconds_nodes},
+           {"seconds_tables", in->seconds_tables},
+           {"seconds_project", in->seconds_project},
+           {"seconds_correct", in->seconds_correct},
            {"band_layers", in->band_layers},
            {"proj_points", in->proj_points},
            {"proj_cells_refined", in->proj_cells_refined},
@@ -1673,7 +1678,10 @@ static ves_status write_remesh(ves_io *io, const ves_io_remesh *rm) {
                   "dE = E_proj - E_old, dA = A_proj/A_old - 1, dV = V_proj/V_old - 1; "
                   "corr_max (max |delta_a|/h_a), corr_norm (|delta|, R0), corr_iter, res_A, "
                   "res_V (|A/A_target - 1|, |V/V_target - 1| after it), disp_max, disp_mean "
-                  "(the interface's displacement, R0), seconds (wall), band_layers (1: the band on "
+                  "(the interface's displacement, R0), seconds (wall; its parts seconds_interface, "
+                  "seconds_nodes, seconds_tables, seconds_project, seconds_correct: the "
+                  "interface's extraction, the nodes, the quadrature and LME tables, phi's "
+                  "projection, the model and the A, V correction), band_layers (1: the band on "
                   "layers, 0: without, as band_layers = 0 or where the layers fold), "
                   "proj_points (points of the phi projection), proj_cells_refined (old cells "
                   "the motion spread too thin for the new basis, their points replaced by a "

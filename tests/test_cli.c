@@ -796,6 +796,25 @@ static void test_restart_after_remesh(void **state) {
   printf("# %s", strstr(r.err, "step 3: remeshing") ? strstr(r.err, "step 3: remeshing") : r.err);
   assert_non_null(strstr(r.err, "step 3: remeshing #1 ("));
   assert_non_null(strstr(r.err, "step 6: remeshing #2 ("));
+  { /* the remeshing's wall time and its parts, each >= 0, their sum within the whole */
+    const char *parts[] = {"seconds_interface", "seconds_nodes",   "seconds_tables",
+                           "seconds_project",   "seconds_correct", "seconds"};
+    double v[6], sum = 0;
+    hid_t h = H5Fopen(full, H5F_ACC_RDONLY, H5P_DEFAULT),
+          g = H5Gopen2(h, "remeshes/0", H5P_DEFAULT);
+    assert_true(h >= 0 && g >= 0);
+    for (int k = 0; k < 6; k++) {
+      hid_t at = H5Aopen(g, parts[k], H5P_DEFAULT);
+      assert_true(at >= 0);
+      assert_true(H5Aread(at, H5T_NATIVE_DOUBLE, v + k) >= 0);
+      H5Aclose(at);
+      assert_true(v[k] >= 0);
+      if (k < 5) sum += v[k];
+    }
+    H5Gclose(g), H5Fclose(h);
+    printf("# remeshing #1: %.3f s, of which the parts %.3f s\n", v[5], sum);
+    assert_true(sum <= v[5] && v[5] > 0);
+  }
   run(&r, "run", ini, TINY, "--out", part, "--quiet", "--max-steps", "4", NULL);
   if (r.code) fail_msg("run: exit %d: %s", r.code, r.err);
   run(&r, "run", "--restart", part, "--quiet", "--max-steps", "5", NULL);
