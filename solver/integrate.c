@@ -300,11 +300,22 @@ static ves_status reconnect(ves_sim *s, const ves_step_params *sp) {
   if (s->ip.reconnect_nodes == VES_RESET_NODES_MOTION && !s->node_phi_ok) (void)node_phi_fit(s);
   ves_reconnect *nr = NULL;
   release_solver(s);
-  ves_status st = ves_reconnect_create(s->model, s->y, (ves_reset_nodes)s->ip.reconnect_nodes, &nr);
+  const ves_reset_nodes where = (ves_reset_nodes)s->ip.reconnect_nodes;
+  ves_status st = ves_reconnect_create(s->model, s->y, where, &nr);
+  /* the predictor's y^{n-1} carried onto the new reference (NULL: not held,
+   * or not carried: the next step then starts from y^n) */
+  double *prev = st == VES_OK && s->have_prev ? malloc(2 * (size_t)s->n * sizeof *prev) : NULL;
+  if (prev && ves_reconnect_carry(s->model, s->y, where, s->yprev, prev) != VES_OK)
+    free(prev), prev = NULL;
   if (st == VES_OK)
     st = switch_reference(s, nr, sp);
   else
     VES_CALL(restore_solver(s, sp));
+  if (st == VES_OK && prev) {
+    memcpy(s->yprev, prev, 2 * (size_t)s->n * sizeof *prev);
+    s->have_prev = 1;
+  }
+  free(prev);
   if (st != VES_OK) return st;
   s->since = 0;
   s->reset_step = s->nstep;
@@ -361,6 +372,7 @@ static ves_status remesh(ves_sim *s, ves_remesh_info *info) {
   ves_remesh_params_default(&rp);
   rp.hold_area = s->ip.hold_area, rp.A_target = s->A0;
   rp.hold_volume = s->ip.hold_volume, rp.V_target = volume_target(s, s->t);
+  rp.y_prev = s->have_prev ? s->yprev : NULL; /* the predictor's y^{n-1}, carried */
   ves_remesh *nm = NULL;
   char err[256];
   release_solver(s);
@@ -368,7 +380,11 @@ static ves_status remesh(ves_sim *s, ves_remesh_info *info) {
   if (st > 0) st = VES_OK; /* the correction short of ctol: its residuals are reported */
   if (st == VES_OK) ves_remesh_get_info(nm, info);
   if (st == VES_OK) {
-    st = switch_remesh(s, nm, rp.V_target);
+    st = switch_remesh(s, nm, rp.V_target); /* nm is s->mesh once it succeeds */
+    if (st == VES_OK && ves_remesh_y_prev(s->mesh)) {
+      memcpy(s->yprev, ves_remesh_y_prev(s->mesh), 2 * (size_t)s->n * sizeof *s->yprev);
+      s->have_prev = 1;
+    }
   } else {
     ves_remesh_destroy(&nm);
     ves_step_params sp = params_now(s);
@@ -488,7 +504,12 @@ int ves_sim_remeshings(const ves_sim *s) { return s->remeshings; }
  * is an error of O(dt^2) instead of O(dt) from y^n; the fixed point, the
  * convergence test and the answer are the step's own. A start outside the
  * domain (det F <= 0 somewhere) falls back to y^n. Evaluated here at once
- * with its gradient, which the backend finds in the step's cache. */
+ * with its gradient, which the backend finds in the step's cache.
+ * y^{n-1} survives a reset (ves_reconnect_carry: the old motion at the new
+ * nodes) and a remeshing (ves_remesh_params.y_prev: the step's displacement
+ * projected onto the new basis with phi); measured on problems/pearling.ini
+ * at eps 0.04 (bench/RESULTS.md, session 31), the step after a reset took 3
+ * iterations instead of 5-7. Only a change of C0 drops it. */
 static void predict(ves_sim *s, double dt, double lam[2]) {
   const ves_pattern *pat = ves_model_pattern(s->model);
   const double r = dt / s->dt_prev;

@@ -505,14 +505,41 @@ static int normal_equations(const ves_quad *q, const folded *fo, int n, const do
   return fail;
 }
 
+/* b_a = sum_alpha w_alpha P_alpha,a f_alpha (the right-hand side of
+ * normal_equations without M, summed in the same order). */
+static void rhs_only(const ves_quad *q, const folded *fo, int n, const double *f, double *b) {
+#pragma omp parallel for schedule(dynamic, 16) num_threads(ves_omp_threads())
+  for (int a = 0; a < n; a++) {
+    double ba = 0.0;
+    for (int u = fo->npt[a]; u < fo->npt[a + 1]; u++) {
+      const int g = fo->tgrp[u], e0 = fo->uptr[g], len = fo->uptr[g + 1] - e0,
+                ka = fo->tpos[u] - e0;
+      const unsigned char ma = fo->umask[e0 + ka];
+      const double *V = fo->uval + (size_t)fo->gs * e0;
+      for (int k = 0; k < fo->gs; k++) {
+        if (!(ma >> k & 1)) continue;
+        const int al = fo->gs * g + k;
+        ba += q->w[al] * V[(size_t)k * len + ka] * f[al];
+      }
+    }
+    b[a] = ba;
+  }
+}
+
 ves_status ves_project_l2(const ves_quad *q, int n, const double *f, double *c, double rtol,
                           int maxref, int *refinements, double *relres) {
-  VES_CHECK(q && q->tab && f && c && n > 0 && rtol >= 0 && maxref >= 0, VES_ERR_ARG);
+  return ves_project_l2_fields(q, n, 1, f, c, rtol, maxref, refinements, relres);
+}
+
+ves_status ves_project_l2_fields(const ves_quad *q, int n, int nf, const double *f, double *c,
+                                 double rtol, int maxref, int *refinements, double *relres) {
+  VES_CHECK(q && q->tab && f && c && n > 0 && nf > 0 && rtol >= 0 && maxref >= 0, VES_ERR_ARG);
   folded fo = {0};
   int *ptr = NULL, *col = NULL, *irow = NULL;
   double *val = NULL, *b = NULL, *r = NULL, *cbest = NULL;
   ves_ldl *ldl = NULL;
   ves_status s;
+  double worst = 0.0;
   if ((s = folded_create(q, n, 1, &fo)) != VES_OK) goto done;
   for (int a = 0; a < n; a++)
     if (fo.npt[a + 1] == fo.npt[a]) { /* a node no point sees: M singular */
@@ -524,40 +551,45 @@ ves_status ves_project_l2(const ves_quad *q, int n, const double *f, double *c, 
   int nnz = ptr[n];
   irow = malloc((size_t)nnz * sizeof *irow);
   val = calloc((size_t)nnz, sizeof *val);
-  b = calloc((size_t)n, sizeof *b);
+  b = calloc((size_t)nf * n, sizeof *b);
   r = malloc((size_t)n * sizeof *r);
   cbest = malloc((size_t)n * sizeof *cbest);
   if (!irow || !val || !b || !r || !cbest) goto done;
 
-  /* M and b = P^T W f (normal_equations) */
+  /* M and b = P^T W f (normal_equations), the other fields' b alone */
   int fail = normal_equations(q, &fo, n, f, ptr, col, irow, val, b);
   if (fail) goto done;
+  for (int k = 1; k < nf; k++) rhs_only(q, &fo, n, f + (size_t)k * q->nq, b + (size_t)k * n);
   folded_free(&fo); /* no longer needed: free it before the factorization */
-  double bnorm = 0.0;
-  for (int a = 0; a < n; a++) bnorm += b[a] * b[a];
-  bnorm = sqrt(bnorm);
 
-  /* c = M^-1 b by Cholesky, then refinement c += M^-1 (b - M c) */
+  /* c = M^-1 b by Cholesky, then refinement c += M^-1 (b - M c), per field */
   if ((s = ves_ldl_create(n, nnz, irow, col, 1, &ldl)) != VES_OK) goto done;
   if ((s = ves_ldl_factor(ldl, val)) != VES_OK) goto done;
-  memcpy(c, b, (size_t)n * sizeof *c);
-  if ((s = ves_ldl_solve(ldl, c)) != VES_OK) goto done;
-  double res = residual(n, ptr, col, val, b, c, bnorm, r), best = res;
-  memcpy(cbest, c, (size_t)n * sizeof *c);
-  int it = 0;
-  while (res > rtol && it < maxref) {
-    if ((s = ves_ldl_solve(ldl, r)) != VES_OK) goto done; /* r = M^-1 (b - M c) */
-    for (int a = 0; a < n; a++) c[a] += r[a];
-    it++;
-    res = residual(n, ptr, col, val, b, c, bnorm, r);
-    if (!(res < best)) break; /* stagnation at rounding level (or NaN) */
-    best = res;
-    memcpy(cbest, c, (size_t)n * sizeof *c);
+  for (int k = 0; k < nf; k++) {
+    const double *bk = b + (size_t)k * n;
+    double *ck = c + (size_t)k * n, bnorm = 0.0;
+    for (int a = 0; a < n; a++) bnorm += bk[a] * bk[a];
+    bnorm = sqrt(bnorm);
+    memcpy(ck, bk, (size_t)n * sizeof *ck);
+    if ((s = ves_ldl_solve(ldl, ck)) != VES_OK) goto done;
+    double res = residual(n, ptr, col, val, bk, ck, bnorm, r), best = res;
+    memcpy(cbest, ck, (size_t)n * sizeof *ck);
+    int it = 0;
+    while (res > rtol && it < maxref) {
+      if ((s = ves_ldl_solve(ldl, r)) != VES_OK) goto done; /* r = M^-1 (b - M c) */
+      for (int a = 0; a < n; a++) ck[a] += r[a];
+      it++;
+      res = residual(n, ptr, col, val, bk, ck, bnorm, r);
+      if (!(res < best)) break; /* stagnation at rounding level (or NaN) */
+      best = res;
+      memcpy(cbest, ck, (size_t)n * sizeof *ck);
+    }
+    memcpy(ck, cbest, (size_t)n * sizeof *ck);
+    if (refinements) refinements[k] = it;
+    if (relres) relres[k] = best;
+    worst = k == 0 || !(best <= worst) ? best : worst;
   }
-  memcpy(c, cbest, (size_t)n * sizeof *c);
-  if (refinements) *refinements = it;
-  if (relres) *relres = best;
-  s = best <= rtol ? VES_OK : VES_MAXITER;
+  s = worst <= rtol ? VES_OK : VES_MAXITER;
 done:
   folded_free(&fo);
   free(ptr);

@@ -282,6 +282,33 @@ fail:
   return s;
 }
 
+ves_status ves_reconnect_carry(const ves_model *m, const double *y, ves_reset_nodes where,
+                               const double *z, double *zn) {
+  VES_CHECK(m && y && z && zn, VES_ERR_ARG);
+  VES_CHECK(where == VES_RESET_NODES_COEF || where == VES_RESET_NODES_MOTION, VES_ERR_ARG);
+  const ves_nodes *nodes = ves_model_nodes(m);
+  const int n = nodes->n;
+  VES_CHECK(finite_vec(2 * (size_t)n, y) && finite_vec(2 * (size_t)n, z), VES_ERR_ARG);
+  if (where == VES_RESET_NODES_COEF) {
+    for (int a = 0; a < n; a++) /* a node mirrored by the reset (y^a_r < 0): z's r too */
+      zn[2 * a] = y[2 * a] < 0.0 ? -z[2 * a] : z[2 * a], zn[2 * a + 1] = z[2 * a + 1];
+    return VES_OK;
+  }
+  ves_quad *pq = NULL;
+  double *ym = malloc(2 * (size_t)n * sizeof *ym);
+  ves_status s = ym ? ves_quad_create_at_nodes(nodes, &pq) : VES_ERR_ALLOC;
+  if (s == VES_OK) s = ves_quad_tables(pq, nodes, &ves_model_quad(m)->lme, NULL);
+  if (s == VES_OK) {
+    ves_reconnect_motion_at_nodes(nodes, pq, y, ym, NULL);
+    ves_reconnect_motion_at_nodes(nodes, pq, z, zn, NULL);
+    for (int a = 0; a < n; a++)
+      if (ym[2 * a] < 0.0) zn[2 * a] = -zn[2 * a]; /* mirrored by the reset */
+  }
+  ves_quad_destroy(&pq);
+  free(ym);
+  return s;
+}
+
 ves_status ves_reconnect_restore(const ves_model *m, const double *x, const double *h, int nq,
                                  const double *xq, const double *wq, const double *pd,
                                  ves_reconnect **out) {

@@ -23,6 +23,7 @@ struct ves_remesh {
   double *phi0c;        /* n projected phi0 coefficients */
   ves_model *model;     /* the model on them (owned; borrows nodes, quad) */
   double *y;            /* 2n corrected positions */
+  double *yprev;        /* 2n the carried y_prev (NULL: none) */
   ves_remesh_info info; /* what the remeshing changed */
 };
 
@@ -41,6 +42,7 @@ void ves_remesh_destroy(ves_remesh **r) {
   ves_shape_destroy(&(*r)->shape);
   free((*r)->phi0c);
   free((*r)->y);
+  free((*r)->yprev);
   free(*r);
   *r = NULL;
 }
@@ -51,6 +53,7 @@ const ves_nodes *ves_remesh_nodes(const ves_remesh *r) { return r->nodes; }
 const ves_quad *ves_remesh_quad(const ves_remesh *r) { return r->quad; }
 const double *ves_remesh_phi0c(const ves_remesh *r) { return r->phi0c; }
 const double *ves_remesh_y(const ves_remesh *r) { return r->y; }
+const double *ves_remesh_y_prev(const ves_remesh *r) { return r->yprev; }
 void ves_remesh_get_info(const ves_remesh *r, ves_remesh_info *info) { *info = r->info; }
 
 /* ------------------------------------------------------------------------ */
@@ -336,6 +339,20 @@ static ves_status moved_points(const ves_quad *q, const double *y, double *xq, d
   return bad ? VES_ERR_DOMAIN : VES_OK;
 }
 
+/* The displacement dy (2n coefficients, y - y_prev) at q's points moved by
+ * y, as two fields even in r: dv[al] = d_r / r (d_r is odd in r; r > 0 at
+ * every moved point, as moved_points checked), dv[ld + al] = d_z. */
+static void moved_displacement(const ves_quad *q, const double *y, const double *dy, double *dv,
+                               size_t ld) {
+#pragma omp parallel for schedule(static)
+  for (int al = 0; al < q->nq; al++) {
+    double mo[12], md[12];
+    ves_quad_motion(q, y, al, 0, mo);
+    ves_quad_motion(q, dy, al, 0, md);
+    dv[al] = md[0] / mo[0], dv[ld + al] = md[6];
+  }
+}
+
 /* Points per h^2 of the new sizing that the projection's points must have:
  * the setup's own density is ~14 (12 points a node, two triangles of 6, on
  * a hex lattice of spacing h, whose node cell is (sqrt3/2) h^2). A cell
@@ -361,18 +378,20 @@ static double tri_area(const ves_nodes *nd, const int v[3]) {
  * in->proj_cells_refined, proj_cells_capped (still too thin at s = 4),
  * proj_points report it; no cell refined: the old points exactly. */
 static ves_status cross_points(const ves_model *m, const double *y, const double *c, ves_sizing *sz,
-                               int *npo, double **xo, double **wo, double **fo,
-                               ves_remesh_info *in) {
+                               const double *dy, int *npo, double **xo, double **wo, double **fo,
+                               double **dvo, ves_remesh_info *in) {
   const ves_quad *oq = ves_model_quad(m);
   const ves_nodes *od = ves_model_nodes(m);
   const int nq = oq->nq;
   int ncell = 0, *cells = NULL, *split = NULL, np = 0, nr = 0;
   double *xq = malloc(2 * (size_t)nq * sizeof *xq), *wq = malloc((size_t)nq * sizeof *wq);
   double *f = malloc(6 * (size_t)nq * sizeof *f), *xr = NULL, *wr = NULL, *fr = NULL;
+  double *dv = dy ? malloc(2 * (size_t)nq * sizeof *dv) : NULL;
   ves_quad *pq = NULL;
-  ves_status st = xq && wq && f ? VES_OK : VES_ERR_ALLOC;
+  ves_status st = xq && wq && f && (dv || !dy) ? VES_OK : VES_ERR_ALLOC;
   if (st == VES_OK) st = moved_points(oq, y, xq, wq);
   if (st != VES_OK) goto done;
+  if (dy) moved_displacement(oq, y, dy, dv, (size_t)nq);
   ves_model_point_data(m, f);
   for (int al = 0; al < nq; al++) f[al] = f[6 * (size_t)al]; /* phi0 row, in place */
   in->proj_cells_refined = in->proj_cells_capped = 0;
@@ -431,30 +450,36 @@ static ves_status cross_points(const ves_model *m, const double *y, const double
   double *x2 = malloc(2 * (size_t)(nq + nr) * sizeof *x2),
          *w2 = malloc((size_t)(nq + nr) * sizeof *w2);
   double *f2 = malloc((size_t)(nq + nr) * sizeof *f2);
-  if (!x2 || !w2 || !f2) {
-    free(x2), free(w2), free(f2);
+  double *d2 = dy ? malloc(2 * (size_t)(nq + nr) * sizeof *d2) : NULL;
+  if (!x2 || !w2 || !f2 || (dy && !d2)) {
+    free(x2), free(w2), free(f2), free(d2);
     st = VES_ERR_ALLOC;
     goto done;
   }
+  /* the points' count once the cells are replaced: the layout of the fields */
+  const size_t ld = (size_t)(nq - npc * in->proj_cells_refined + nr);
   for (int t = 0; t < ncell; t++) {
     if (split[t]) continue;
-    for (int k = t * npc; k < (t + 1) * npc; k++, np++)
+    for (int k = t * npc; k < (t + 1) * npc; k++, np++) {
       x2[2 * np] = xq[2 * k], x2[2 * np + 1] = xq[2 * k + 1], w2[np] = wq[k], f2[np] = f[k];
+      if (dy) d2[np] = dv[k], d2[ld + np] = dv[nq + k];
+    }
   }
   st = moved_points(pq, y, x2 + 2 * (size_t)np, w2 + np); /* pq's weights are wr */
   for (int p = 0; p < nr; p++) f2[np + p] = fr[6 * (size_t)p];
+  if (st == VES_OK && dy) moved_displacement(pq, y, dy, d2 + np, ld);
   np += nr;
-  free(xq), free(wq), free(f);
-  xq = x2, wq = w2, f = f2;
+  free(xq), free(wq), free(f), free(dv);
+  xq = x2, wq = w2, f = f2, dv = d2;
   in->proj_points = np;
 done:
   ves_quad_destroy(&pq);
   free(cells), free(split), free(xr), free(wr), free(fr);
   if (st != VES_OK) {
-    free(xq), free(wq), free(f);
+    free(xq), free(wq), free(f), free(dv);
     return st;
   }
-  *npo = in->proj_points, *xo = xq, *wo = wq, *fo = f;
+  *npo = in->proj_points, *xo = xq, *wo = wq, *fo = f, *dvo = dv;
   return VES_OK;
 }
 
@@ -542,7 +567,7 @@ ves_status ves_remesh_create(const ves_config *cfg, ves_model *m, const double *
   const ves_quad *oq = ves_model_quad(m);
   ves_status st = VES_OK;
   double *poly = NULL, *knots = NULL, *xq = NULL, *wq = NULL, *f = NULL, *gA = NULL, *gV = NULL;
-  double *cold = NULL;
+  double *cold = NULL, *dy = NULL, *dv = NULL, *cd = NULL;
   ves_sizing *sizing = NULL;
   ves_nodes *gen = NULL;
   ves_quad *cross = NULL;
@@ -618,14 +643,38 @@ ves_status ves_remesh_create(const ves_config *cfg, ves_model *m, const double *
   int ncross = 0;
   r->phi0c = malloc((size_t)n * sizeof *r->phi0c);
   if (!r->phi0c) FAIL(VES_ERR_ALLOC, "remesh: out of memory");
-  if ((st = cross_points(m, y, cold, sizing, &ncross, &xq, &wq, &f, in)) != VES_OK)
+  if (par->y_prev) { /* the displacement to carry (ves_remesh_params.y_prev) */
+    if (!(dy = malloc(2 * (size_t)od->n * sizeof *dy)))
+      FAIL(VES_ERR_ALLOC, "remesh: out of memory");
+    for (int i = 0; i < 2 * od->n; i++) dy[i] = y[i] - par->y_prev[i];
+  }
+  if ((st = cross_points(m, y, cold, sizing, dy, &ncross, &xq, &wq, &f, &dv, in)) != VES_OK)
     FAIL(st, "remesh: the state: %s", ves_error_text(st));
   ves_sizing_destroy(&sizing);
   if ((st = ves_quad_create_points(ncross, xq, wq, 0, NULL, &cross)) != VES_OK ||
       (st = ves_quad_tables(cross, r->nodes, &oq->lme, NULL)) != VES_OK)
     FAIL(st, "remesh: the moved points on the new basis: %s", ves_error_text(st));
-  /* the setup's tolerance: the fit error far below the discretization's */
-  st = ves_project_l2(cross, n, f, r->phi0c, 1e-12, 3, &in->proj_refinements, &in->proj_residual);
+  /* the setup's tolerance: the fit error far below the discretization's;
+   * the displacement's fields (if any) with the same factorization, their
+   * tolerance not required (a predictor's start) */
+  if (dv) {
+    double *f3 = malloc(3 * (size_t)ncross * sizeof *f3), res[3] = {0, 0, 0};
+    int ref[3] = {0, 0, 0};
+    cd = malloc(3 * (size_t)n * sizeof *cd);
+    if (!f3 || !cd) {
+      free(f3);
+      FAIL(VES_ERR_ALLOC, "remesh: out of memory");
+    }
+    memcpy(f3, f, (size_t)ncross * sizeof *f3);
+    memcpy(f3 + ncross, dv, 2 * (size_t)ncross * sizeof *f3);
+    st = ves_project_l2_fields(cross, n, 3, f3, cd, 1e-12, 3, ref, res);
+    free(f3);
+    memcpy(r->phi0c, cd, (size_t)n * sizeof *cd);
+    in->proj_refinements = ref[0], in->proj_residual = res[0];
+    if (st == VES_MAXITER && res[0] <= 1e-12) st = VES_OK; /* only the displacement missed */
+  } else
+    st = ves_project_l2(cross, n, f, r->phi0c, 1e-12, 3, &in->proj_refinements,
+                        &in->proj_residual);
   if (st != VES_OK)
     FAIL(st < 0 ? st : VES_ERR_NOCONV, "remesh: phi projection: %s (relative residual %.2e)",
          ves_error_text(st), in->proj_residual);
@@ -652,6 +701,15 @@ ves_status ves_remesh_create(const ves_config *cfg, ves_model *m, const double *
   }
   ves_status cst = correct(r, par, gA, gV);
   if (cst < 0) FAIL(cst, "remesh: correction: %s", ves_error_text(cst));
+  if (cd) { /* y_prev' = y' - d, d = (r c_{d_r / r}, c_{d_z}) at the free dofs */
+    if (!(r->yprev = malloc(2 * (size_t)n * sizeof *r->yprev)))
+      FAIL(VES_ERR_ALLOC, "remesh: out of memory");
+    for (int i = 0; i < 2 * n; i++) {
+      const int a = i / 2;
+      const double d = i % 2 ? cd[2 * (size_t)n + a] : r->nodes->x[2 * a] * cd[(size_t)n + a];
+      r->yprev[i] = r->y[i] - (is_free(r->nodes, i) ? d : 0.0);
+    }
+  }
   in->seconds_correct = ves_wall_seconds() - t;
 
   /* 5. the interface's displacement: the new state's zero line against the
@@ -668,10 +726,12 @@ ves_status ves_remesh_create(const ves_config *cfg, ves_model *m, const double *
   in->disp_max = dmax, in->disp_mean = dsum / np;
   in->seconds = ves_wall_seconds() - t0;
   free(poly), free(knots), free(xq), free(wq), free(f), free(gA), free(gV), free(cold);
+  free(dy), free(dv), free(cd);
   *out = r;
   return cst; /* VES_OK, or VES_MAXITER from the correction */
 fail:
   free(poly), free(knots), free(xq), free(wq), free(f), free(gA), free(gV), free(cold);
+  free(dy), free(dv), free(cd);
   ves_quad_destroy(&cross);
   ves_nodes_destroy(&gen);
   ves_sizing_destroy(&sizing);

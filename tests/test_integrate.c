@@ -517,6 +517,10 @@ static void test_reconnect_every(void **state) {
        * rounding and the LME reproduction residual only (tests/test_reconnect.c) */
       assert_true(fabs(rep.E_reset / rep.E - 1) <= 1e-12);
       assert_true(rep.cond >= 1 && rep.det_min > 0); /* measured by the reset */
+      /* the predictor's y^{n-1} is carried onto the new reference
+       * (ves_reconnect_carry), so the next step starts from the
+       * extrapolation, not from y^n */
+      assert_non_null(ves_sim_y_prev(sim));
       Eprev = rep.E_reset; /* the next step starts from E on the new reference */
     }
     assert_int_equal(ves_sim_reconnections(sim), n / 2);

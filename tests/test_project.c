@@ -363,6 +363,37 @@ static void test_project_threads(void **state) {
   free(f), free(c[0]), free(c[1]);
 }
 
+/* ves_project_l2_fields: three fields in one call (one factorization) give
+ * each field's ves_project_l2 coefficients, refinements and residual, bit
+ * for bit (the right-hand sides are summed in normal_equations' order and
+ * the solves see the same factor). Errors: nf = 0. */
+static void test_project_fields(void **state) {
+  const fixture *fx = *state;
+  const ves_quad *q = fx->q;
+  const int n = fx->nodes->n, nq = q->nq;
+  double *f = malloc(3 * (size_t)nq * sizeof *f), *c = malloc(3 * (size_t)n * sizeof *c);
+  double *c1 = malloc((size_t)n * sizeof *c1);
+  assert_true(f && c && c1);
+  for (int al = 0; al < nq; al++) {
+    const double R = q->x[2 * al], Z = q->x[2 * al + 1];
+    f[al] = tanh((1.0 - hypot(R, Z)) / (sqrt(2.0) * 0.1));
+    f[nq + al] = cos(R * R + 2.0 * Z);
+    f[2 * (size_t)nq + al] = 0.3 - 0.1 * Z + R * R;
+  }
+  int ref[3], ref1;
+  double res[3], res1;
+  assert_int_equal(ves_project_l2_fields(q, n, 3, f, c, 1e-12, 3, ref, res), VES_OK);
+  for (int k = 0; k < 3; k++) {
+    assert_int_equal(ves_project_l2(q, n, f + (size_t)k * nq, c1, 1e-12, 3, &ref1, &res1), VES_OK);
+    printf("# fields: field %d relres %.2e after %d refinements\n", k, res[k], ref[k]);
+    assert_memory_equal(c + (size_t)k * n, c1, (size_t)n * sizeof *c1);
+    assert_int_equal(ref[k], ref1);
+    assert_true(res[k] == res1);
+  }
+  assert_int_equal(ves_project_l2_fields(q, n, 0, f, c, 1e-12, 3, NULL, NULL), VES_ERR_ARG);
+  free(f), free(c), free(c1);
+}
+
 /* An even affine field f = 1 + 0.3 Z: LME reproduces it exactly (ghosts carry
  * the real node's Z), so the least-squares coefficients are the nodal values. */
 static void test_project_affine(void **state) {
@@ -453,6 +484,7 @@ int main(void) {
       cmocka_unit_test(test_project_folding), cmocka_unit_test(test_project_groups),
       cmocka_unit_test(test_project_threads), cmocka_unit_test(test_pattern),
       cmocka_unit_test(test_project_affine),  cmocka_unit_test(test_project_smooth),
+      cmocka_unit_test(test_project_fields),
   };
   // clang-format on
   /* the node set and tables are built once for the group (the tests only

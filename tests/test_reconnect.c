@@ -793,6 +793,56 @@ static void test_motion_nodes(void **state) {
   free(zc), free(zx), free(ys);
 }
 
+/* ves_reconnect_carry (the predictor's y^{n-1} onto the new reference), in
+ * both modes: carrying y itself gives the reset's new nodes bit for bit (the
+ * same computation); a second state z = y + (a R, d Z + e) (odd in R, even
+ * in Z, as the ghosts require: the basis reproduces it) is carried to the
+ * new nodes plus the same map of the old ones to rounding (1e-13: sums of
+ * ~20 terms of size 2), wall nodes at z^a, axis nodes at r = 0 exactly; with
+ * the paper's nodes zn = z. Errors: NULL, a bad mode, non-finite z. */
+static void test_carry(void **state) {
+  (void)state;
+  const int n = P->n;
+  const ves_nodes *n0 = P->su->nodes;
+  ves_model *m0 = P->su->model;
+  double *z = xmalloc(2 * n), *zn = xmalloc(2 * n);
+  for (int a = 0; a < n; a++) /* the wall nodes' z^a moves too: the carry keeps it */
+    z[2 * a] = P->yd[2 * a] + 0.03 * P->X[2 * a],
+          z[2 * a + 1] = P->yd[2 * a + 1] - 0.02 * P->X[2 * a + 1] + 0.01;
+  for (int mode = 0; mode < 2; mode++) {
+    const ves_reset_nodes where = mode ? VES_RESET_NODES_MOTION : VES_RESET_NODES_COEF;
+    ves_reconnect *r = NULL;
+    assert_int_equal(ves_reconnect_create(m0, P->yd, where, &r), VES_OK);
+    const ves_nodes *nn = ves_reconnect_nodes(r);
+    assert_int_equal(ves_reconnect_carry(m0, P->yd, where, P->yd, zn), VES_OK);
+    assert_memory_equal(zn, nn->x, 2 * (size_t)n * sizeof *zn);
+    assert_int_equal(ves_reconnect_carry(m0, P->yd, where, z, zn), VES_OK);
+    double err = 0;
+    for (int a = 0; a < n; a++) {
+      if (n0->flag[a] & VES_NODE_WALL) {
+        assert_true(zn[2 * a] == z[2 * a] && zn[2 * a + 1] == z[2 * a + 1]);
+        continue;
+      }
+      if (n0->flag[a] & VES_NODE_AXIS) assert_true(zn[2 * a] == 0.0);
+      if (!mode) {
+        assert_true(zn[2 * a] == z[2 * a] && zn[2 * a + 1] == z[2 * a + 1]);
+        continue;
+      }
+      err = fmax(err, fabs(zn[2 * a] - (nn->x[2 * a] + 0.03 * P->X[2 * a])));
+      err = fmax(err, fabs(zn[2 * a + 1] - (nn->x[2 * a + 1] - 0.02 * P->X[2 * a + 1] + 0.01)));
+    }
+    printf("# carry (%s): max |zn - (new node + map of the old)| = %.1e\n",
+           mode ? "motion" : "coefficients", err);
+    assert_true(err <= 1e-13);
+    ves_reconnect_destroy(&r);
+  }
+  assert_int_equal(ves_reconnect_carry(NULL, P->yd, VES_RESET_NODES_COEF, z, zn), VES_ERR_ARG);
+  assert_int_equal(ves_reconnect_carry(m0, P->yd, (ves_reset_nodes)7, z, zn), VES_ERR_ARG);
+  z[5] = NAN;
+  assert_int_equal(ves_reconnect_carry(m0, P->yd, VES_RESET_NODES_MOTION, z, zn), VES_ERR_ARG);
+  free(z), free(zn);
+}
+
 /* ------------------------------------------------------------------------ */
 /* Distortion, policy, constructors, errors                                  */
 /* ------------------------------------------------------------------------ */
@@ -1221,6 +1271,7 @@ int main(void) {
       cmocka_unit_test(test_next_step_similarity),
       cmocka_unit_test(test_next_step_deformed),
       cmocka_unit_test(test_motion_nodes),
+      cmocka_unit_test(test_carry),
       cmocka_unit_test(test_distortion_affine),
       cmocka_unit_test(test_due),
       cmocka_unit_test(test_constructors),

@@ -46,4 +46,13 @@ ves_status ves_pattern_create(const ves_quad *q, const ves_quad *q2, int n,
 ves_status ves_project_l2(const ves_quad *q, int n, const double *f, double *c, double rtol,
                           int maxref, int *refinements, double *relres);
 
+/* ves_project_l2 of nf fields at once (one M, one factorization): f[nf nq]
+ * field k at f + k nq, c[nf n] its coefficients at c + k n, refinements[nf]
+ * and relres[nf] (may be NULL) per field. Field 0 gets exactly the
+ * coefficients ves_project_l2 gives it (that function is this one with
+ * nf = 1); the others' right-hand sides are summed in the same order.
+ * VES_MAXITER when some field misses rtol (each has its best iterate). */
+ves_status ves_project_l2_fields(const ves_quad *q, int n, int nf, const double *f, double *c,
+                                 double rtol, int maxref, int *refinements, double *relres);
+
 #endif

@@ -108,6 +108,20 @@ typedef enum {
 ves_status ves_reconnect_create(const ves_model *m, const double *y, ves_reset_nodes where,
                                 ves_reconnect **out);
 
+/* A second state z of m's reference (2n coefficients; the integrator's
+ * y^{n-1}, its predictor's start) as coefficients zn (2n) on the reference
+ * that ves_reconnect_create(m, y, where, .) makes: zn = z for
+ * VES_RESET_NODES_COEF (the new nodes are y's coefficients), zn_a = z(X_a)
+ * for VES_RESET_NODES_MOTION (they are y(X_a)); r negated at the nodes the
+ * reset mirrors, axis nodes r = 0, wall nodes z^a (as the reset treats y).
+ * Carrying y itself gives the new nodes. The new basis reproduces affine
+ * fields, so a motion z = y + affine map is carried exactly; otherwise zn is
+ * a quasi-interpolant (within O(h^2) of the motion; enough for a predictor).
+ * Returns VES_OK; VES_ERR_ARG (NULL, non-finite); from the node tables
+ * (MOTION: ~n / nq of a table build) VES_ERR_NOCONV, VES_ERR_ALLOC. */
+ves_status ves_reconnect_carry(const ves_model *m, const double *y, ves_reset_nodes where,
+                               const double *z, double *zn);
+
 /* Rebuild a reference made by a reset from what defines it (a restart:
  * io.h stores these at every reset), without the motion that made it:
  *   m       a model on the same node set (flags, box, triangles; its

@@ -66,6 +66,12 @@ typedef struct {
   int max_iter;         /* Newton iterations of the correction (default 10) */
   double curve_spacing; /* resampling spacing of the interface curve, units eps
                            (default 1: a spline knot every eps) */
+  const double *y_prev; /* NULL (default), or a second state of the old reference (2n;
+                           the integrator's y^{n-1}) to carry: its displacement
+                           d = y - y_prev at the projection's points, projected
+                           with phi (d_z, and d_r / r: both even in r, so one
+                           factorization serves all three), gives
+                           ves_remesh_y_prev = y' - d on the new nodes (borrowed) */
 } ves_remesh_params;
 
 /* Defaults: no constraint held, ctol 1e-14, max_iter 10, curve_spacing 1. */
@@ -150,6 +156,9 @@ const ves_nodes *ves_remesh_nodes(const ves_remesh *r); /* owned by r */
 const ves_quad *ves_remesh_quad(const ves_remesh *r);   /* owned by r */
 const double *ves_remesh_phi0c(const ves_remesh *r);    /* n phi0 coefficients */
 const double *ves_remesh_y(const ves_remesh *r);        /* 2n corrected positions */
+/* 2n: the carried y_prev (ves_remesh_params), NULL when none was given or
+ * after a restore; wall nodes and the axis nodes' r at y' (no displacement). */
+const double *ves_remesh_y_prev(const ves_remesh *r);
 void ves_remesh_get_info(const ves_remesh *r, ves_remesh_info *info);
 
 /* The interface of the state y of model m as a polyline from the north
