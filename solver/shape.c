@@ -441,6 +441,7 @@ static double signed_distance(const ves_shape *s, const double X[2], double d, d
 }
 
 double ves_shape_distance(const ves_shape *s, const double X[2]) {
+  if (!isfinite(X[0]) || !isfinite(X[1])) return NAN; /* no nearest point to search for */
   if (s->par.kind == VES_SHAPE_SPHERE && (s->par.mode == 0 || s->par.delta == 0.0))
     return s->par.radius - hypot(X[0], X[1]); /* exact closed form */
   /* The coarse search: the samples' blocks bound the distance (|X - c| -+
@@ -493,6 +494,7 @@ double ves_shape_distance(const ves_shape *s, const double X[2]) {
 }
 
 double ves_shape_distance_reference(const ves_shape *s, const double X[2]) {
+  if (!isfinite(X[0]) || !isfinite(X[1])) return NAN;
   if (s->par.kind == VES_SHAPE_SPHERE && (s->par.mode == 0 || s->par.delta == 0.0))
     return s->par.radius - hypot(X[0], X[1]);
   double dist[VES_SHAPE_NS], dmin = INFINITY;

@@ -228,6 +228,12 @@ static void test_distance_pruned(void **state) {
       if (a != b) fail_msg("shape %d, X = (%.17g, %.17g): %.17g != %.17g", j, X[0], X[1], a, b);
       compared++;
     }
+    /* a non-finite point: NaN from both (the pruned search found no block
+     * to scan for it and returned its initial bound before) */
+    const double bad[3][2] = {{NAN, 0.5}, {0.5, INFINITY}, {-INFINITY, NAN}};
+    for (int k = 0; k < 3; k++)
+      assert_true(isnan(ves_shape_distance(s, bad[k])) &&
+                  isnan(ves_shape_distance_reference(s, bad[k])));
     ves_shape_destroy(&s);
   }
   printf("# pruned distance search: %ld points on 6 shapes, all bit for bit\n", compared);

@@ -45,7 +45,8 @@ ves_status ves_shape_create(const ves_shape_params *par, ves_shape **out);
 void ves_shape_destroy(ves_shape **s);
 
 /* Signed distance to the generating curve, > 0 inside, exact to rounding
- * (closest point by safeguarded Newton on the curve parameter). */
+ * (closest point by safeguarded Newton on the curve parameter). NaN for a
+ * non-finite X (both functions below). */
 double ves_shape_distance(const ves_shape *s, const double X[2]);
 
 /* The same distance by the plain coarse search (|P(t_i) - X| at every
