@@ -208,9 +208,9 @@ lane_wall() { # the sum of the wall seconds of lane $1's finished runs
   echo "under-resolved without remeshing: RESULTS \"The prolate C0 jump at eps 0.01"
   echo "continued to t* 3.6\"); Fig. 6 (problems/pearling.ini) has been run"
   echo "to t* 3 at eps 0.04, not to a settled end (RESULTS \"Fig. 6: deflation with rising"
-  echo "C0, pearling (issue 18)\"), and at eps 0.01 (not in the default set) to t* 1.95"
-  echo "(4.0 h: five pearls by t* 0.48, seven by 0.72, nine by 0.98, necks at 2.6-3 eps;"
-  echo "RESULTS \"Fig. 6 at eps 0.01 to t* 1.95\"), not to a settled end either;"
+  echo "C0, pearling (issue 18)\"), and at eps 0.01 (not in the default set) to t* 3"
+  echo "(5.9 h: five pearls by t* 0.48, seven by 0.72, nine by 0.98, thirteen by 3, necks"
+  echo "at 2.6-3 eps; RESULTS \"Fig. 6 at eps 0.01 to t* 3\"), not to a settled end either;"
   echo "the Fig. 3-4 figure is ours in the README's layout, not the paper's panels at its"
   echo "times."
   echo
