@@ -673,8 +673,7 @@ ves_status ves_remesh_create(const ves_config *cfg, ves_model *m, const double *
     in->proj_refinements = ref[0], in->proj_residual = res[0];
     if (st == VES_MAXITER && res[0] <= 1e-12) st = VES_OK; /* only the displacement missed */
   } else
-    st = ves_project_l2(cross, n, f, r->phi0c, 1e-12, 3, &in->proj_refinements,
-                        &in->proj_residual);
+    st = ves_project_l2(cross, n, f, r->phi0c, 1e-12, 3, &in->proj_refinements, &in->proj_residual);
   if (st != VES_OK)
     FAIL(st < 0 ? st : VES_ERR_NOCONV, "remesh: phi projection: %s (relative residual %.2e)",
          ves_error_text(st), in->proj_residual);

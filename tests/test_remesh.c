@@ -323,7 +323,7 @@ static void test_carry(void **state) {
   eav(m, P->X, v);
   for (int a = 0; a < n0; a++)
     yp[2 * a] = P->X[2 * a] - ca * P->X[2 * a],
-            yp[2 * a + 1] = P->X[2 * a + 1] - (cd * P->X[2 * a + 1] + ce);
+           yp[2 * a + 1] = P->X[2 * a + 1] - (cd * P->X[2 * a + 1] + ce);
   ves_remesh_params par;
   ves_remesh_params_default(&par);
   assert_null(par.y_prev);
