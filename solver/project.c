@@ -455,15 +455,15 @@ static double residual(int n, const int *ptr, const int *col, const double *val,
   return bnorm > 0 ? sqrt(rn) / bnorm : sqrt(rn);
 }
 
-/* M and b = P^T W f of ves_project_l2 (val on the pattern ptr/col, with the
- * rows irow; 1 when a workspace could not be allocated), row by row on the
+/* M of ves_project_l2 (val on the pattern ptr/col, with the rows irow; 1
+ * when a workspace could not be allocated; b: right_hand_side), row by row on the
  * OpenMP threads. Row a: each point alpha that sees a, in ascending order, adds w P_alpha,a
- * P_alpha,b to (a, b) for the nodes b <= a it sees and w P_alpha,a f_alpha to b_a. By groups: the
+ * P_alpha,b to (a, b) for the nodes b <= a it sees. By groups: the
  * head of U_g up to a is gathered from the row, each point k of g that sees a adds w P_k,a V_g(k,
  * .) to it (a zero of V_g adds nothing), and it is scattered back. Every entry is thus summed in
  * point order, the same sums for any number of threads. */
-static int normal_equations(const ves_quad *q, const folded *fo, int n, const double *f,
-                            const int *ptr, const int *col, int *irow, double *val, double *b) {
+static int normal_equations(const ves_quad *q, const folded *fo, int n, const int *ptr,
+                            const int *col, int *irow, double *val) {
   int fail = 0;
 #pragma omp parallel num_threads(ves_omp_threads())
   {
@@ -477,7 +477,6 @@ static int normal_equations(const ves_quad *q, const folded *fo, int n, const do
     for (int a = 0; a < n; a++) {
       if (!pos || !acc) continue;
       for (int t = ptr[a]; t < ptr[a + 1]; t++) pos[col[t]] = t, irow[t] = a;
-      double ba = 0.0;
       for (int u = fo->npt[a]; u < fo->npt[a + 1]; u++) {
         const int g = fo->tgrp[u], e0 = fo->uptr[g], len = fo->uptr[g + 1] - e0,
                   ka = fo->tpos[u] - e0;
@@ -492,12 +491,10 @@ static int normal_equations(const ves_quad *q, const folded *fo, int n, const do
           const double *Vk = V + (size_t)k * len, wPa = q->w[al] * Vk[ka];
 #pragma omp simd
           for (int i = 0; i <= ka; i++) acc[i] += wPa * Vk[i];
-          ba += q->w[al] * Vk[ka] * f[al];
         }
         for (int i = 0; i <= ka; i++)
           if (msk[i] & ma) val[pos[U[i]]] = acc[i];
       }
-      b[a] = ba;
     }
     free(pos);
     free(acc);
@@ -505,9 +502,10 @@ static int normal_equations(const ves_quad *q, const folded *fo, int n, const do
   return fail;
 }
 
-/* b_a = sum_alpha w_alpha P_alpha,a f_alpha (the right-hand side of
- * normal_equations without M, summed in the same order). */
-static void rhs_only(const ves_quad *q, const folded *fo, int n, const double *f, double *b) {
+/* b_a = sum_alpha w_alpha P_alpha,a f_alpha, the right-hand side of the
+ * normal equations (normal_equations forms M on the same folded rows). */
+static void right_hand_side(const ves_quad *q, const folded *fo, int n, const double *f,
+                            double *b) {
 #pragma omp parallel for schedule(dynamic, 16) num_threads(ves_omp_threads())
   for (int a = 0; a < n; a++) {
     double ba = 0.0;
@@ -556,10 +554,10 @@ ves_status ves_project_l2_fields(const ves_quad *q, int n, int nf, const double 
   cbest = malloc((size_t)n * sizeof *cbest);
   if (!irow || !val || !b || !r || !cbest) goto done;
 
-  /* M and b = P^T W f (normal_equations), the other fields' b alone */
-  int fail = normal_equations(q, &fo, n, f, ptr, col, irow, val, b);
+  /* M (normal_equations) and each field's b = P^T W f */
+  int fail = normal_equations(q, &fo, n, ptr, col, irow, val);
   if (fail) goto done;
-  for (int k = 1; k < nf; k++) rhs_only(q, &fo, n, f + (size_t)k * q->nq, b + (size_t)k * n);
+  for (int k = 0; k < nf; k++) right_hand_side(q, &fo, n, f + (size_t)k * q->nq, b + (size_t)k * n);
   folded_free(&fo); /* no longer needed: free it before the factorization */
 
   /* c = M^-1 b by Cholesky, then refinement c += M^-1 (b - M c), per field */

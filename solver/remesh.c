@@ -339,17 +339,17 @@ static ves_status moved_points(const ves_quad *q, const double *y, double *xq, d
   return bad ? VES_ERR_DOMAIN : VES_OK;
 }
 
-/* The displacement dy (2n coefficients, y - y_prev) at q's points moved by
- * y, as two fields even in r: dv[al] = d_r / r (d_r is odd in r; r > 0 at
- * every moved point, as moved_points checked), dv[ld + al] = d_z. */
-static void moved_displacement(const ves_quad *q, const double *y, const double *dy, double *dv,
+/* The displacement dy (2n coefficients, y - y_prev) at q's points, moved
+ * to xq (2 nq, moved_points' output), as two fields even in r: dv[al] =
+ * d_r / r (d_r is odd in r; r > 0 at every moved point, as moved_points
+ * checked), dv[ld + al] = d_z. */
+static void moved_displacement(const ves_quad *q, const double *xq, const double *dy, double *dv,
                                size_t ld) {
 #pragma omp parallel for schedule(static)
   for (int al = 0; al < q->nq; al++) {
-    double mo[12], md[12];
-    ves_quad_motion(q, y, al, 0, mo);
+    double md[12];
     ves_quad_motion(q, dy, al, 0, md);
-    dv[al] = md[0] / mo[0], dv[ld + al] = md[6];
+    dv[al] = md[0] / xq[2 * (size_t)al], dv[ld + al] = md[6];
   }
 }
 
@@ -391,7 +391,7 @@ static ves_status cross_points(const ves_model *m, const double *y, const double
   ves_status st = xq && wq && f && (dv || !dy) ? VES_OK : VES_ERR_ALLOC;
   if (st == VES_OK) st = moved_points(oq, y, xq, wq);
   if (st != VES_OK) goto done;
-  if (dy) moved_displacement(oq, y, dy, dv, (size_t)nq);
+  if (dy) moved_displacement(oq, xq, dy, dv, (size_t)nq);
   ves_model_point_data(m, f);
   for (int al = 0; al < nq; al++) f[al] = f[6 * (size_t)al]; /* phi0 row, in place */
   in->proj_cells_refined = in->proj_cells_capped = 0;
@@ -467,7 +467,7 @@ static ves_status cross_points(const ves_model *m, const double *y, const double
   }
   st = moved_points(pq, y, x2 + 2 * (size_t)np, w2 + np); /* pq's weights are wr */
   for (int p = 0; p < nr; p++) f2[np + p] = fr[6 * (size_t)p];
-  if (st == VES_OK && dy) moved_displacement(pq, y, dy, d2 + np, ld);
+  if (st == VES_OK && dy) moved_displacement(pq, x2 + 2 * (size_t)np, dy, d2 + np, ld);
   np += nr;
   free(xq), free(wq), free(f), free(dv);
   xq = x2, wq = w2, f = f2, dv = d2;
