@@ -99,7 +99,8 @@ static const key_spec KEYS[] = {
      "builds and inertia corrections) dt is not grown; 0: no such rule"},
     {"time", "factor_shrink", KEY_INT, OFF(factor_shrink), "0", 0, 10000, NULL,
      "above this many KKT factorizations in a step (newton with freeze_hessian >= 1) the next "
-     "dt is at most half this one; 0: no such rule"},
+     "dt is at most half this one, and the step counts as a rejection for retry_memory and "
+     "retry_cap; 0: no such rule"},
     {"time", "predictor", KEY_INT, OFF(predictor), "1", 0, 1, NULL,
      "1: a step starts from the linear extrapolation of the last two states (y^{n-1} is kept in "
      "the snapshots: restarts stay bit-exact); 0: from y^n"},

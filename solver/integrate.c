@@ -33,7 +33,11 @@
  * followed by a rejected attempt at the same dt (40 iterations, 28
  * Hessians, 301 s); with factor_shrink 4 the same t* span cost 1.7x less,
  * while at eps 0.04 the same rule cost 10% more (bench/RESULTS.md, session
- * 24). When C0
+ * 24). Such a step is also remembered as a rejection at its dt (retry_memory
+ * accepted steps at most retry_cap dt): without it the eps 0.01 prolate's
+ * neck phase cycled dt* 0.0036 -> 0.0072 (3-5 factorizations, 40-50 s) ->
+ * 0.0036, every fourth step a hard one (bench/RESULTS.md, session 32).
+ * When C0
  * switches, dt starts again from dt_initial (no larger than it was): the
  * step grown on the old landscape is far too large for the new one (measured:
  * a stomatocyte relaxed to dt* = 0.48, then a C0 pulse; Newton failed at
@@ -573,8 +577,14 @@ static void next_dt(ves_sim *s, double dt, double dE, int iterations, int factor
                                            factorizations > s->ip.factor_target);
     if (hard) f = fmin(f, 1.0); /* a hard step: no growth */
     if (s->ip.factor_shrink > 0 && s->bopt.freeze_hessian > 0 &&
-        factorizations > s->ip.factor_shrink)
-      f = fmin(f, 0.5); /* a very hard one: the next is shorter */
+        factorizations > s->ip.factor_shrink) {
+      f = fmin(f, 0.5); /* a very hard one: the next is shorter, */
+#ifndef VES_NO_SHRINK_MEMORY
+      if (s->dt_rejected == 0 || dt < s->dt_rejected) /* and remembered as a rejection */
+        s->dt_rejected = dt;
+      s->since_rejected = 0;
+#endif
+    }
     next = dt * f;
     if (retries) next = fmin(next, dt); /* just halved: do not jump back at once */
     if (s->dt_rejected > 0 && s->since_rejected >= s->ip.retry_memory)

@@ -147,7 +147,8 @@ static void test_freeze_across_steps(void **state) {
  * the step after it keeps that dt; without the rule it doubles; with
  * factor_shrink 1 (and no factor_target) it is halved. The steps before are
  * the same (count, dt). */
-static int factor_rule_run(ves_setup *s, int target, int shrink, double *dt_at, double *next_at) {
+static int factor_rule_run(ves_setup *s, int target, int shrink, double *dt_at, double *next_at,
+                           double *after_next) {
   ves_integrate_params ip;
   ves_integrate_params_default(&ip);
   ip.t_end = 1e4, ip.dt_initial = 1e-3, ip.dt_max = 1e4, ip.dE_target = 10;
@@ -160,6 +161,8 @@ static int factor_rule_run(ves_setup *s, int target, int shrink, double *dt_at, 
     assert_int_equal(rep.retries, 0);
     if (rep.stats.factorizations > 1) found = 1, *dt_at = rep.dt, *next_at = ves_sim_dt(sim);
   }
+  *after_next = 0; /* the dt proposed after one more step */
+  if (found && ves_sim_step(sim, &rep) == VES_OK) *after_next = ves_sim_dt(sim);
   ves_sim_destroy(&sim);
   return found ? k : 0;
 }
@@ -167,18 +170,22 @@ static int factor_rule_run(ves_setup *s, int target, int shrink, double *dt_at, 
 static void test_factor_rule(void **state) {
   (void)state;
   ves_setup *s = small_setup();
-  double dt0, next0, dt1, next1, dt2, next2;
-  const int k0 = factor_rule_run(s, 0, 0, &dt0, &next0),
-            k1 = factor_rule_run(s, 1, 0, &dt1, &next1);
-  const int k2 = factor_rule_run(s, 0, 1, &dt2, &next2);
+  double dt0, next0, dt1, next1, dt2, next2, after0, after1, after2;
+  const int k0 = factor_rule_run(s, 0, 0, &dt0, &next0, &after0),
+            k1 = factor_rule_run(s, 1, 0, &dt1, &next1, &after1);
+  const int k2 = factor_rule_run(s, 0, 1, &dt2, &next2, &after2);
   printf("# first step with 2 factorizations: step %d, dt* %.4g; next dt* %.4g (no rule), "
-         "%.4g (factor_target 1), %.4g (factor_shrink 1)\n",
-         k1, dt1, next0, next1, next2);
+         "%.4g (factor_target 1), %.4g (factor_shrink 1), then %.4g (factor_shrink 1)\n",
+         k1, dt1, next0, next1, next2, after2);
   assert_true(k0 > 0 && k1 == k0 && dt1 == dt0); /* the same steps until then */
   assert_true(k2 == k0 && dt2 == dt0);
   assert_true(next0 == 2 * dt0); /* growth_max */
   assert_true(next1 == dt1);
   assert_true(next2 == dt2 / 2); /* exact: the factors are powers of 2 */
+  /* the shrink is remembered as a rejection at dt2: the step after the
+   * halved one may not grow back to dt2 (without the memory: 2 (dt2 / 2)),
+   * only to retry_cap dt2 (the default 0.7; bound with rounding room) */
+  assert_true(after2 > 0 && after2 <= 0.7 * dt2 * (1 + 1e-12));
   ves_setup_destroy(&s);
 }
 

@@ -29,7 +29,8 @@ typedef struct {
                            has one) dt is not grown (0: no such rule) */
   int factor_shrink;    /* adaptive, with a frozen Hessian: above this many KKT
                            factorizations in the accepted attempt the next dt is at most
-                           dt/2 (0: no such rule) */
+                           dt/2, and the step is remembered as a rejected attempt at its dt
+                           (retry_memory, retry_cap) (0: no such rule) */
   int predictor;        /* 1: a step starts from the linear extrapolation of the last two
                            states (and multipliers scaled by dt); 0: from y^n. y^{n-1} is
                            part of the restart state (ves_sim_y_prev, ves_sim_set_prev),
