@@ -133,11 +133,12 @@ static void report_step(const run_ctx *r, const ves_step_report *rep, const loop
             rep->shift, rep->mirrored, rep->E, rep->E_reset);
   if (rep->remeshed && !r->quiet) {
     const ves_remesh_info *m = &rep->remesh;
-    char thin[160] = "";
+    char thin[200] = "";
     if (m->proj_cells_refined)
       snprintf(thin, sizeof thin,
-               "; %d old cell(s) spread thin refined for the projection, %d of them still thin",
-               m->proj_cells_refined, m->proj_cells_capped);
+               "; %d old cell(s) spread thin refined for the projection, %d of them still thin, "
+               "%d of their points outside the domain left out",
+               m->proj_cells_refined, m->proj_cells_capped, m->proj_points_dropped);
     fprintf(stderr,
             "%sstep %ld: remeshing #%d (%d -> %d nodes; before the correction dE* %.3g, "
             "dA/A %.3g, dV/V %.3g; correction max |delta|/h %.3g, |delta| %.3g in %d "

@@ -595,16 +595,28 @@ static void next_dt(ves_sim *s, double dt, double dE, int iterations, int factor
   s->dt = fmin(fmax(next, s->ip.dt_min), s->ip.dt_max);
 }
 
-/* After an accepted step: a remeshing when one is due, else a reset of the
- * reference when one is due, then a remeshing if that reset failed and
- * rmp.on_failed_reset; the step stands whatever happens here (the outcomes
- * are in rep). A remeshing makes a new reference, so it replaces a reset
- * due on the same step (a step records at most one new reference: the
- * file's references are numbered by reset). sp: the step's parameters (a
- * reset rebuilds the step problem with them). */
+/* After an accepted step: a remeshing when one is due, else (none due, or
+ * it failed) a reset of the reference when one is due, then a remeshing if
+ * that reset failed, rmp.on_failed_reset and none was tried already; the
+ * step stands whatever happens here (the outcomes are in rep). A remeshing
+ * makes a new reference, so it replaces a reset due on the same step (a
+ * step records at most one new reference: the file's references are
+ * numbered by reset). A failed remeshing is tried again after the next
+ * step; until session 32 it also kept the resets from running, so the
+ * reference aged while every step paid a failed remeshing (~16 s a step at
+ * eps 0.01). sp: the step's parameters (a reset rebuilds the step problem
+ * with them). */
 static void after_step(ves_sim *s, const ves_step_params *sp, ves_step_report *rep) {
-  int remesh_now = s->rcfg && remesh_due(s, rep);
-  if (!remesh_now && (s->rp.every > 0 || s->rp.cond_max > 0 || s->rp.det_min > 0)) {
+  int remesh_now = s->rcfg && remesh_due(s, rep), tried = remesh_now;
+  if (remesh_now) { /* due by its own rules */
+    rep->remesh_status = remesh(s, &rep->remesh);
+    if (rep->remesh_status == VES_OK) {
+      rep->remeshed = 1;
+      return;
+    }
+    remesh_now = 0; /* failed: the reset rules decide this step, as if none had been due */
+  }
+  if (s->rp.every > 0 || s->rp.cond_max > 0 || s->rp.det_min > 0) {
     int due = 0;
     s->since++;
     rep->reconnect_status =
@@ -621,7 +633,8 @@ static void after_step(ves_sim *s, const ves_step_params *sp, ves_step_report *r
         rep->shift = info.shift_max;
       }
     }
-    remesh_now = s->rcfg && s->rmp.on_failed_reset && rep->reconnect_status < 0;
+    remesh_now = s->rcfg && s->rmp.on_failed_reset && rep->reconnect_status < 0 &&
+                 !tried; /* not twice in a step */
   }
   if (remesh_now) {
     rep->remesh_status = remesh(s, &rep->remesh);

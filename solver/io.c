@@ -1664,7 +1664,8 @@ static ves_status write_remesh(ves_io *io, const ves_io_remesh *rm) {
            {"band_layers", in->band_layers},
            {"proj_points", in->proj_points},
            {"proj_cells_refined", in->proj_cells_refined},
-           {"proj_cells_capped", in->proj_cells_capped}};
+           {"proj_cells_capped", in->proj_cells_capped},
+           {"proj_points_dropped", in->proj_points_dropped}};
   for (size_t i = 0; i < sizeof a / sizeof a[0] && st == VES_OK; i++)
     st = attr_double(g, a[i].name, a[i].v);
   if (st == VES_OK)
@@ -1685,7 +1686,9 @@ static ves_status write_remesh(ves_io *io, const ves_io_remesh *rm) {
                   "layers, 0: without, as band_layers = 0 or where the layers fold), "
                   "proj_points (points of the phi projection), proj_cells_refined (old cells "
                   "the motion spread too thin for the new basis, their points replaced by a "
-                  "finer rule), proj_cells_capped (still too thin at the finest)");
+                  "finer rule), proj_cells_capped (still too thin at the finest), "
+                  "proj_points_dropped (of the finer rule's points, those the motion puts "
+                  "outside the domain, left out)");
   if (st == VES_OK) st = describe_at(g, "x", "R0", "n x 2 node positions (R, Z)");
   if (st == VES_OK) st = describe_at(g, "h", "R0", "n node spacings h_a");
   if (st == VES_OK)

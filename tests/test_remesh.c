@@ -303,6 +303,41 @@ static void test_sim(void **state) {
   ves_sim_destroy(&sim);
 }
 
+/* A remeshing that fails (here every time: its keys ask for another box)
+ * does not hold the resets back: with a reset and a remeshing both due
+ * every 2 steps, the remeshing fails at step 2 and after every step from
+ * then on (a failed one is tried again after the next step), and the
+ * resets are made at steps 2 and 4 all the same (until session 32 a due
+ * remeshing replaced the reset even when it failed, and the reference was
+ * never renewed). */
+static void test_failed_remesh_resets(void **state) {
+  (void)state;
+  ves_integrate_params ip;
+  ves_integrate_params_default(&ip);
+  ip.t_end = 1, ip.dt_initial = 1e-3, ip.dt_max = 1e-3, ip.adaptive = 0;
+  ip.reconnect_every = 2;
+  ves_backend_options bo;
+  ves_backend_options_default(&bo);
+  ves_sim *sim = NULL;
+  assert_int_equal(ves_sim_create(P->su->model, ves_backend_find("newton"), &bo, &ip, &sim),
+                   VES_OK);
+  ves_config c2 = P->cfg;
+  c2.box_r = 2.5; /* not the model's box: ves_remesh_create refuses (test_errors) */
+  ves_remesh_policy pol = {.every = 2};
+  assert_int_equal(ves_sim_set_remesh(sim, &c2, &pol), VES_OK);
+  ves_step_report rep;
+  for (int k = 1; k <= 4; k++) {
+    assert_int_equal(ves_sim_step(sim, &rep), VES_OK);
+    assert_int_equal(rep.remeshed, 0);
+    assert_int_equal(rep.remesh_status, k >= 2 ? VES_ERR_ARG : VES_OK);
+    assert_int_equal(rep.reconnect_status, VES_OK);
+    assert_int_equal(rep.reconnected, k % 2 == 0);
+  }
+  assert_int_equal(ves_sim_remeshings(sim), 0);
+  assert_int_equal(ves_sim_reconnections(sim), 2);
+  ves_sim_destroy(&sim);
+}
+
 /* The carried y_prev (ves_remesh_params.y_prev): from the unmoved state
  * y = X with y_prev = X - (a R, d Z + e), whose displacement the basis
  * reproduces (odd r part a R, even z part), d_r / r = a and d_z = d z + e
@@ -547,6 +582,7 @@ int main(void) {
       cmocka_unit_test(test_deformed),
       cmocka_unit_test(test_restore),
       cmocka_unit_test(test_sim),
+      cmocka_unit_test(test_failed_remesh_resets),
       cmocka_unit_test(test_carry),
       cmocka_unit_test(test_errors),
       cmocka_unit_test(test_folded_layers),

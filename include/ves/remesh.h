@@ -105,6 +105,9 @@ typedef struct {
                                     h^2 of the new sizing), their points replaced by a
                                     rule of 24 or 96 points on the reference triangle */
   int proj_cells_capped;         /* of those, the ones still thinner at 96 points */
+  int proj_points_dropped;       /* of their points, the ones the motion puts outside the
+                                    domain (det F <= 0 or r <= 0: near the axis), left out
+                                    of the fit (more than a tenth: VES_ERR_DOMAIN) */
   int proj_refinements;          /* refinement steps of the projection */
   double proj_residual;          /* its relative residual */
   double seconds_interface, seconds_nodes, seconds_tables, seconds_project, seconds_correct,
