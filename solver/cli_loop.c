@@ -152,7 +152,8 @@ static void report_step(const run_ctx *r, const ves_step_report *rep, const loop
   if (rep->remesh_status != VES_OK) /* a warning even with --quiet: a remeshing was skipped */
     fprintf(stderr,
             "%svesica run: warning: step %ld: the remeshing that was due failed (%s); "
-            "continuing on the old nodes, retried after the next step\n",
+            "continuing on the old nodes; tried again in max(1, every/4) steps ([remesh] every), "
+            "after the next one (distortion)\n",
             tty ? "\n" : "", rep->step, ves_status_str(rep->remesh_status));
   if (rep->reconnect_status != VES_OK) /* a warning even with --quiet: a reset was skipped */
     fprintf(stderr,

@@ -306,10 +306,10 @@ static void test_sim(void **state) {
 /* A remeshing that fails (here every time: its keys ask for another box)
  * does not hold the resets back: with a reset and a remeshing both due
  * every 2 steps, the remeshing fails at step 2 and after every step from
- * then on (a failed one is tried again after the next step), and the
- * resets are made at steps 2 and 4 all the same (until session 32 a due
- * remeshing replaced the reset even when it failed, and the reference was
- * never renewed). */
+ * then on (a failed one is tried again every max(1, every/4) steps), and
+ * the resets are made at steps 2 and 4 all the same (until session 32 a
+ * due remeshing replaced the reset even when it failed, and the reference
+ * was never renewed). */
 static void test_failed_remesh_resets(void **state) {
   (void)state;
   ves_integrate_params ip;
@@ -335,6 +335,18 @@ static void test_failed_remesh_resets(void **state) {
   }
   assert_int_equal(ves_sim_remeshings(sim), 0);
   assert_int_equal(ves_sim_reconnections(sim), 2);
+  ves_sim_destroy(&sim);
+  /* every 8 steps: due at step 8, then tried again every 8/4 = 2 steps
+   * (before session 32: after every step) */
+  ip.reconnect_every = 0;
+  assert_int_equal(ves_sim_create(P->su->model, ves_backend_find("newton"), &bo, &ip, &sim),
+                   VES_OK);
+  pol.every = 8;
+  assert_int_equal(ves_sim_set_remesh(sim, &c2, &pol), VES_OK);
+  for (int k = 1; k <= 12; k++) {
+    assert_int_equal(ves_sim_step(sim, &rep), VES_OK);
+    assert_int_equal(rep.remesh_status, k >= 8 && k % 2 == 0 ? VES_ERR_ARG : VES_OK);
+  }
   ves_sim_destroy(&sim);
 }
 
