@@ -475,8 +475,7 @@ static ves_status cross_points(const ves_model *m, const double *y, const double
   double *f2 = malloc((size_t)(nq + nr) * sizeof *f2);
   double *d2 = dy ? malloc(2 * (size_t)(nq + nr) * sizeof *d2) : NULL;
   int nout = 0;
-  if (!xm || !wm || (dy && !dm) || !okm || !x2 || !w2 || !f2 || (dy && !d2))
-    st = VES_ERR_ALLOC;
+  if (!xm || !wm || (dy && !dm) || !okm || !x2 || !w2 || !f2 || (dy && !d2)) st = VES_ERR_ALLOC;
   if (st == VES_OK) st = moved_points(pq, y, xm, wm, okm, &nout);
   if (st == VES_OK && nout > nr / 10) st = VES_ERR_DOMAIN;
   if (st != VES_OK) {
