@@ -463,8 +463,9 @@ static ves_status cross_points(const ves_model *m, const double *y, const double
    * points, nothing has checked the motion between them: where a cell
    * touches the axis and the motion stretches it along a tether, points
    * within a few 1e-3 of the axis can come out at r < 0 or det F <= 0
-   * (measured: 32 and 11 of 49,944, r >= -1.3e-4, in the eps 0.01 Fig. 5
-   * right run at t* 0.74; every remeshing then failed). They have no
+   * (measured: 32 of 49,944 at r < 0, down to -1.3e-4, 11 of them also at
+   * det F <= 0, in the eps 0.01 Fig. 5 right run at t* 0.74; every
+   * remeshing then failed). They have no
    * current measure and are left out of the fit (proj_points_dropped);
    * more than a tenth of them fails the remeshing. */
   double *xm = malloc(2 * (size_t)nr * sizeof *xm), *wm = malloc((size_t)nr * sizeof *wm);
