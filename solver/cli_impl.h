@@ -78,10 +78,11 @@ typedef struct {
   double *phi;                /* n scratch: phi at the nodes */
   double *y;                  /* 2n scratch: coefficients */
   double *x;                  /* 2n scratch: material positions at the nodes */
+  double *v;                  /* 2n scratch: the flow at the nodes */
   FILE *series;               /* --series file or NULL */
   int quiet;                  /* --quiet */
   long max_steps;             /* --max-steps (0: none) */
-  int ncap;                   /* nodes phi, y, x have room for */
+  int ncap;                   /* nodes phi, y, x, v have room for */
   double wall_offset;         /* wall time of the time loop before this process */
   long last_snapshot_step;    /* step of the last snapshot written */
 } run_ctx;

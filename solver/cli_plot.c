@@ -15,11 +15,13 @@
 static void usage_plot(FILE *f) {
   fprintf(f,
           "usage: vesica plot FILE.h5 [--outdir DIR] [--times T1,T2,...] [--force]\n"
-          "Writes three PNG figures (gnuplot, pngcairo) named after FILE:\n"
+          "Writes four PNG figures (gnuplot, pngcairo) named after FILE:\n"
           "  FILE_energy.png       E* and dt* against t* on a log time axis (paper Fig. 4)\n"
           "  FILE_snapshots.png    the nodes at chosen times, mirrored across the axis,\n"
           "                        coloured by phi (paper Figs. 3, 5)\n"
           "  FILE_constraints.png  |A/A0 - 1|, |V/V_target - 1| and V/V0 against t*\n"
+          "  FILE_flow.png         the flow at the nodes as arrows at the same times\n"
+          "                        (paper Fig. 5; none at t* = 0 or in files before 2026-12-05)\n"
           "--outdir DIR    where (default: the folder of FILE.h5; created if missing)\n"
           "--times LIST    the snapshots nearest to these times t* (at most %d; default: the\n"
           "                first, the last and two between them on a log time scale)\n"

@@ -17,6 +17,7 @@ void cli_run_free(run_ctx *r) {
   free(r->phi);
   free(r->y);
   free(r->x);
+  free(r->v);
   if (r->series) fclose(r->series);
 }
 
@@ -29,7 +30,9 @@ ves_status cli_ensure_nodes(run_ctx *r, int n) {
   if (y) r->y = y;
   double *x = realloc(r->x, 2 * (size_t)n * sizeof *x);
   if (x) r->x = x;
-  if (!phi || !y || !x) return VES_ERR_ALLOC;
+  double *v = realloc(r->v, 2 * (size_t)n * sizeof *v);
+  if (v) r->v = v;
+  if (!phi || !y || !x || !v) return VES_ERR_ALLOC;
   r->ncap = n;
   return VES_OK;
 }
@@ -66,7 +69,20 @@ int cli_build(run_ctx *r) {
   return 0;
 }
 
-/* A snapshot of the current state. */
+/* The flow at the nodes over the last step into r->v, from r->x (the
+ * material at the nodes now) and y_prev (the coefficients before the step):
+ * v = (x - y^{n-1}(X_a)) / dt_prev, the material's velocity in R0 per t*.
+ * Its motion at the nodes is linear in the coefficients, so this is the
+ * last step's displacement field at the nodes over its dt. */
+static ves_status flow_at_nodes(run_ctx *r, const double *y_prev, double dt_prev, int n) {
+  VES_CALL(ves_sim_motion_at_nodes(r->sim, y_prev, r->v));
+  for (int i = 0; i < 2 * n; i++) r->v[i] = (r->x[i] - r->v[i]) / dt_prev;
+  return VES_OK;
+}
+
+/* A snapshot of the current state, with the flow at the nodes when the
+ * integrator holds the last step (not at the first snapshot, nor right
+ * after a restart from a file without y_prev). */
 ves_status cli_snapshot(run_ctx *r, double wall) {
   ves_io_snapinfo si = {.wall_seconds = wall,
                         .reconnections = ves_sim_reconnections(r->sim),
@@ -85,6 +101,8 @@ ves_status cli_snapshot(run_ctx *r, double wall) {
             "vesica run: warning: step %ld: the material at the nodes could not be evaluated "
             "(%s); snapshot %d holds x and phi as NaN (y, the state, is complete)\n",
             si.state.nstep, ves_status_str(st), ves_io_snapshots(r->io));
+  } else if (si.y_prev && si.state.dt_prev > 0) {
+    if (flow_at_nodes(r, si.y_prev, si.state.dt_prev, n) == VES_OK) si.velocity = r->v;
   }
   return ves_io_snapshot(r->io, r->y, r->x, r->phi, &si);
 }

@@ -510,7 +510,8 @@ static int nodes_now(const ves_io *io);
 
 /* Two temporal collections over the snapshots: the nodes alone as points,
  * and the reference triangles at the material positions x of their nodes,
- * with phi (XDMF 3 with the XDMF 2 attribute names, which ParaView's
+ * with phi and, from the second snapshot on, the flow (velocity) at the
+ * nodes (XDMF 3 with the XDMF 2 attribute names, which ParaView's
  * readers and meshio's time-series reader take; meshio reads the last
  * collection). Written to a temporary name and renamed, so a reader never
  * sees half a file. */
@@ -561,7 +562,17 @@ static ves_status xdmf_write(const ves_io *io) {
                  "Center=\"Node\">\n");
       snprintf(dims, sizeof dims, "%d", n);
       xdmf_item(f, h5, dims, "Float", 8, phi);
-      fprintf(f, "    </Attribute>\n   </Grid>\n");
+      fprintf(f, "    </Attribute>\n");
+      char v[64];
+      snprintf(v, sizeof v, "/snapshots/%d/velocity", k);
+      if (H5Lexists(io->file, v, H5P_DEFAULT) > 0) { /* not the first snapshot's */
+        fprintf(f, "    <Attribute Name=\"velocity\" AttributeType=\"Vector\" "
+                   "Center=\"Node\">\n");
+        snprintf(dims, sizeof dims, "%d 2", n);
+        xdmf_item(f, h5, dims, "Float", 8, v);
+        fprintf(f, "    </Attribute>\n");
+      }
+      fprintf(f, "   </Grid>\n");
     }
     fprintf(f, "  </Grid>\n");
   }
@@ -1209,6 +1220,7 @@ static ves_status snapshot(ves_io *io, const double *y, const double *x, const d
   if (st == VES_OK) st = dset_write(g, "x", F, M, n, 2, x);
   if (st == VES_OK) st = dset_write(g, "phi", F, M, n, 0, phi);
   if (st == VES_OK && si->state.dt_prev > 0) st = dset_write(g, "y_prev", F, M, n, 2, si->y_prev);
+  if (st == VES_OK && si->velocity) st = dset_write(g, "velocity", F, M, n, 2, si->velocity);
   if (st == VES_OK) st = snapshot_attrs(g, si);
   /* checksums for a salvage: of the snapshot, and of the series rows up to
    * it (when the file holds them: always in a run) */
@@ -1229,6 +1241,10 @@ static ves_status snapshot(ves_io *io, const double *y, const double *x, const d
   if (st == VES_OK && si->state.dt_prev > 0)
     st = describe_at(g, "y_prev", "R0",
                      "n x 2 coefficients before the last step (the predictor's start, dt_prev)");
+  if (st == VES_OK && si->velocity)
+    st = describe_at(g, "velocity", "R0 per t*",
+                     "n x 2 flow at the nodes (r, z): the material's velocity over the last "
+                     "step, (y^n(X_a) - y^{n-1}(X_a)) / dt_prev, at x");
   VES_CALL(counted_close(io->file, s, g, io->nsnap, st));
   io->snap_t[io->nsnap++] = si->state.t;
   return xdmf_write(io);
@@ -1310,6 +1326,21 @@ ves_status ves_io_read_snapshot_prev(ves_io *io, int k, int nbuf, double *y_prev
                       : VES_ERR_IO;
   H5Gclose(g);
   return st;
+}
+
+int ves_io_read_snapshot_velocity(ves_io *io, int k, int nbuf, double *v) {
+  VES_CHECK(io && k >= 0 && k < io->nsnap && nbuf > 0 && v, VES_ERR_ARG);
+  char name[48];
+  snprintf(name, sizeof name, "snapshots/%d", k);
+  hid_t g = H5Gopen2(io->file, name, H5P_DEFAULT);
+  if (g < 0) return VES_ERR_IO;
+  int r = 0;
+  if (H5Lexists(g, "velocity", H5P_DEFAULT) > 0) {
+    ves_status st = dset_read(g, "velocity", H5T_NATIVE_DOUBLE, 2 * (hsize_t)nbuf, v);
+    r = st == VES_OK ? 1 : (int)st;
+  }
+  H5Gclose(g);
+  return r;
 }
 
 ves_status ves_io_read_mesh(ves_io *io, double *X, int *tri) {
@@ -1450,14 +1481,15 @@ ves_status ves_io_set_setup_seconds(ves_io *io, double seconds) {
 
 /* What the next writes of a run need at most, in bytes: one series row (a
  * new chunk of every series every IO_CHUNK rows, with its B-tree node),
- * `snapshots` snapshots (y, x, phi and the XDMF file rewritten beside its
- * old copy) and, with nq > 0, a reference of nq points. */
+ * `snapshots` snapshots (y, x, phi, y_prev, velocity: 9 values a node; and
+ * the XDMF file, four data items a grid, rewritten beside its old copy) and,
+ * with nq > 0, a reference of nq points. */
 static double room_needed(const ves_io *io, int snapshots, int nq) {
   const double n = nodes_now(io);
   double need = IO_ROOM_MARGIN;
   if (ves_io_rows(io) % IO_CHUNK == 0) need += NSERIES * (IO_CHUNK * 8.0 + 4096);
-  const double xdmf = 2.0 * (io->nsnap + snapshots) * (1024 + 4.0 * strlen(io->path));
-  need += snapshots * (5 * 8 * n + 4096) + (snapshots ? 2 * xdmf : 0);
+  const double xdmf = 2.0 * (io->nsnap + snapshots) * (1536 + 5.0 * strlen(io->path));
+  need += snapshots * (9 * 8 * n + 4096) + (snapshots ? 2 * xdmf : 0);
   if (nq > 0) need += 8 * (3 * n + 9.0 * nq) + 4096;
   return need;
 }

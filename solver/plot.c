@@ -11,12 +11,14 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
-const char *const ves_plot_figures[VES_PLOT_NFIG] = {"energy", "snapshots", "constraints"};
+const char *const ves_plot_figures[VES_PLOT_NFIG] = {"energy", "snapshots", "constraints", "flow"};
 
-#define PLOT_AUTO 4        /* automatic snapshot panels */
-#define PLOT_FLOOR 1e-17   /* drift values below this are drawn at it (log axis) */
-#define PLOT_PANEL 560     /* pixels per snapshot panel */
-#define PLOT_INTERFACE 0.1 /* |phi| below this marks an interface node */
+#define PLOT_AUTO 4         /* automatic snapshot panels */
+#define PLOT_FLOOR 1e-17    /* drift values below this are drawn at it (log axis) */
+#define PLOT_PANEL 560      /* pixels per snapshot panel */
+#define PLOT_INTERFACE 0.1  /* |phi| below this marks an interface node */
+#define PLOT_ARROW_ROWS 24  /* flow: cells of the arrow grid over the box's height */
+#define PLOT_ARROW_MIN 0.05 /* flow: arrows shorter than this x the longest are left out */
 
 void ves_plot_gp_quote(FILE *f, const char *s) {
   fputc('\'', f);
@@ -202,6 +204,121 @@ static ves_status fig_snapshots(FILE *f, ves_io *io, const ves_plot_params *p, c
   return VES_OK;
 }
 
+/* The flow at the selected snapshots (paper Fig. 5): the nodes coloured by
+ * phi as in fig_snapshots, and arrows of the velocity at the nodes
+ * (ves_io_read_snapshot_velocity) on a grid of square cells, PLOT_ARROW_ROWS
+ * over the box's height: in each cell the node nearest its centre, so the
+ * arrows are evenly spread however the nodes are graded. Each panel is
+ * scaled to its own fastest arrow (the speeds of a relaxation span decades;
+ * the title states it), drawn 0.9 of a cell long; arrows under
+ * PLOT_ARROW_MIN of it are left out. Mirrored at r = 0 as the points (v_r
+ * changes sign). A snapshot without a velocity (the first; a file from
+ * before 2026-12-05) shows the points alone, and says so. The points are
+ * fig_snapshots' datablocks $snapJ (the same snapshots and x, phi), so this
+ * figure follows it in the script. */
+static ves_status fig_flow(FILE *f, ves_io *io, const ves_plot_params *p, const int *sel,
+                           int nsel) {
+  const ves_io_info *in = ves_io_get_info(io);
+  int n = in->n, nmax = in->n;
+  for (int j = 0; j < nsel; j++)
+    if (ves_io_snapshot_nodes(io, sel[j]) > nmax) nmax = ves_io_snapshot_nodes(io, sel[j]);
+  double *x = malloc(2 * (size_t)nmax * sizeof *x), *v = malloc(2 * (size_t)nmax * sizeof *v);
+  double *X = malloc(2 * (size_t)n * sizeof *X);
+  int *pick = NULL;
+  ves_status st = x && v && X ? ves_io_read_mesh(io, X, NULL) : VES_ERR_ALLOC;
+  double LR = 0, LZ = 0, ts[VES_PLOT_MAXTIMES], vmax[VES_PLOT_MAXTIMES];
+  int has[VES_PLOT_MAXTIMES];
+  for (int a = 0; st == VES_OK && a < n; a++)
+    LR = fmax(LR, X[2 * a]), LZ = fmax(LZ, fabs(X[2 * a + 1]));
+  const double cell = 2 * LZ / PLOT_ARROW_ROWS;
+  const int nr = st == VES_OK ? (int)ceil(LR / cell) : 0, nc = nr * PLOT_ARROW_ROWS;
+  if (st == VES_OK && !(pick = malloc((size_t)(nc > 0 ? nc : 1) * sizeof *pick)))
+    st = VES_ERR_ALLOC;
+  for (int j = 0; j < nsel && st == VES_OK; j++) {
+    ves_io_snapinfo si;
+    n = ves_io_snapshot_nodes(io, sel[j]);
+    if ((st = ves_io_read_snapshot_n(io, sel[j], n, NULL, x, NULL, &si)) != VES_OK) break;
+    const int got = ves_io_read_snapshot_velocity(io, sel[j], n, v);
+    if (got < 0) {
+      st = (ves_status)got;
+      break;
+    }
+    ts[j] = si.state.t, has[j] = got, vmax[j] = 0;
+    if (!got) continue;
+    for (int c = 0; c < nc; c++) pick[c] = -1;
+    for (int a = 0; a < n; a++) {
+      const double r = x[2 * a], z = x[2 * a + 1];
+      if (!(r >= 0 && r < nr * cell && z >= -LZ && z < LZ) || !isfinite(v[2 * a]) ||
+          !isfinite(v[2 * a + 1]))
+        continue;
+      const int ir = (int)(r / cell), iz = (int)((z + LZ) / cell), c = iz * nr + ir;
+      const double cr = (ir + 0.5) * cell, cz = -LZ + (iz + 0.5) * cell;
+      if (pick[c] < 0 ||
+          hypot(r - cr, z - cz) < hypot(x[2 * pick[c]] - cr, x[2 * pick[c] + 1] - cz))
+        pick[c] = a;
+    }
+    for (int c = 0; c < nc; c++)
+      if (pick[c] >= 0) vmax[j] = fmax(vmax[j], hypot(v[2 * pick[c]], v[2 * pick[c] + 1]));
+    const double scale = vmax[j] > 0 ? 0.9 * cell / vmax[j] : 0;
+    if (!(vmax[j] > 0)) { /* at rest: no arrow to draw (gnuplot refuses empty data) */
+      has[j] = 2;
+      continue;
+    }
+    fprintf(f, "$flowv%d << EOD\n", j);
+    for (int c = 0; c < nc; c++) {
+      const int a = pick[c];
+      if (a < 0 || hypot(v[2 * a], v[2 * a + 1]) < PLOT_ARROW_MIN * vmax[j]) continue;
+      fprintf(f, "%.5g %.5g %.3g %.3g\n", x[2 * a], x[2 * a + 1], scale * v[2 * a],
+              scale * v[2 * a + 1]); /* a drawing's precision */
+    }
+    fprintf(f, "EOD\n");
+  }
+  free(x), free(v), free(X), free(pick);
+  VES_CALL(st);
+  int cols = nsel <= 2 ? nsel : nsel <= 4 ? 2 : (nsel + 1) / 2, rows = (nsel + cols - 1) / cols;
+  double ps = 0.6 * fmin(0.6, 0.35 * sqrt(1500.0 / n)); /* fainter: the arrows are the figure */
+  fprintf(f, "reset\nset terminal pngcairo size %d,%d font ',11'\n",
+          (int)(PLOT_PANEL * cols * LR / LZ) + 120, PLOT_PANEL * rows + 60);
+  gp_output(f, p, 3);
+  fprintf(f, "set multiplot layout %d,%d title ", rows, cols);
+  char title[256], stem[96];
+  ves_plot_gp_escape(stem, sizeof stem, p->stem);
+  snprintf(title, sizeof title,
+           "%s: the flow at the nodes (arrows; the material at the nodes coloured by "
+           "{/Symbol f}; mirrored at r = 0)",
+           stem);
+  ves_plot_gp_quote(f, title);
+  fprintf(f,
+          "\nset size ratio -1\nset xrange [%g:%g]\nset yrange [%g:%g]\n"
+          "set palette defined (-1 '#3b4cc0', 0 '#dddddd', 1 '#b40426')\nset cbrange [-1:1]\n"
+          "set cblabel '{/Symbol f}'\nset xlabel 'r / R_0'\nset ylabel 'z / R_0'\n"
+          "unset key\n",
+          -LR, LR, -LZ, LZ);
+  for (int j = 0; j < nsel; j++) {
+    if (has[j] == 1)
+      fprintf(f, "set title 't* = %.4g: arrows up to |v| = %.3g R_0 per t* (0.9 of a cell)'\n",
+              ts[j], vmax[j]);
+    else if (has[j] == 2)
+      fprintf(f, "set title 't* = %.4g: at rest (v = 0 at every node)'\n", ts[j]);
+    else
+      fprintf(f, "set title 't* = %.4g: no flow recorded (the first snapshot, or an older file)'\n",
+              ts[j]);
+    fprintf(f, /* the points: fig_snapshots' datablocks (a reset keeps them) */
+            "plot $snap%d using 1:2:3 with points pt 7 ps %.3f lc palette, "
+            "$snap%d using (-$1):2:3 with points pt 7 ps %.3f lc palette",
+            j, ps, j, ps);
+    if (has[j] == 1)
+      fprintf(f,
+              ", $flowv%d using 1:2:3:4 with vectors head filled size screen 0.006,20 "
+              "lw 1.2 lc rgb 'black', $flowv%d using (-$1):2:(-$3):4 with vectors head filled "
+              "size screen 0.006,20 lw 1.2 lc rgb 'black'",
+              j, j);
+    fputc('\n', f);
+  }
+  fprintf(f, "unset multiplot\n");
+  return VES_OK;
+}
+
 ves_status ves_plot_interface(ves_io *io, ves_level_set *ls, unsigned char *ok) {
   VES_CHECK(io && ls && ok, VES_ERR_ARG);
   const ves_io_info *in = ves_io_get_info(io);
@@ -373,6 +490,7 @@ ves_status ves_plot_write(ves_io *io, const ves_plot_params *p, char *err, size_
   fig_energy(f, p, in, R, t, dt, E);
   if ((st = fig_snapshots(f, io, p, sel, nsel)) != VES_OK) goto done;
   fig_constraints(f, p, in, R, t, A, V, Vt, S, T, ls, ok);
+  if ((st = fig_flow(f, io, p, sel, nsel)) != VES_OK) goto done;
   int bad = ferror(f);
   bad |= fclose(f) != 0;
   f = NULL;

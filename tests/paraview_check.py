@@ -3,8 +3,8 @@
 reader, XDMFReader, and the Xdmf3 one, Xdmf3ReaderS; Debian's
 python3-paraview) and FILE.h5 with h5py, and checks them against each other:
 every snapshot time, and at each both grids (the nodes as points, the
-triangles of the node set in force) with the material positions x and phi
-of the file, bit for bit. Not part of make test (ParaView is ~80 MB of
+triangles of the node set in force) with the material positions x, phi and
+the flow (velocity, from the second snapshot on) of the file, bit for bit. Not part of make test (ParaView is ~80 MB of
 Debian packages, not in make deps): run by hand, as bench/RESULTS.md
 ("Issue 21: the defects before and after") records.
 
@@ -45,6 +45,7 @@ def main():
     f = h5py.File(os.path.splitext(xdmf)[0] + ".h5", "r")
     count = int(f["snapshots"].attrs["count"])
     times = [float(f[f"snapshots/{k}"].attrs["t"]) for k in range(count)]
+    vecs = 0
     for name in ("XDMFReader", "Xdmf3ReaderS"):
         r = (simple.XDMFReader(FileNames=[xdmf]) if name == "XDMFReader"
              else simple.Xdmf3ReaderS(FileName=[xdmf]))
@@ -64,10 +65,22 @@ def main():
                 if not np.array_equal(p[:, :2], x) or a is None or \
                         not np.array_equal(vtk_to_numpy(a), phi):
                     fail(f"{name}: time {k}: points or phi differ from /snapshots/{k}")
+                # the flow (from the second snapshot on): XDMFReader pads it
+                # to 3 components (z = 0: what Glyph takes), Xdmf3 keeps 2
+                v, h = g.GetPointData().GetArray("velocity"), f[f"snapshots/{k}"]
+                if (v is None) == ("velocity" in h):
+                    fail(f"{name}: time {k}: velocity read {v is not None}, "
+                         f"in the file {'velocity' in h}")
+                if v is not None:
+                    v = vtk_to_numpy(v)
+                    if not np.array_equal(v[:, :2], h["velocity"][()]) or \
+                            (v.shape[1] > 2 and np.any(v[:, 2:] != 0)):
+                        fail(f"{name}: time {k}: velocity differs from /snapshots/{k}")
+                    vecs += 1
         simple.Delete(r)
     print(f"paraview_check: {os.path.basename(xdmf)}: ParaView {paraview.__version__} "
-          f"(XDMFReader, Xdmf3ReaderS) read {count} times, both grids, x and phi equal to "
-          f"the HDF5 file's (h5py {h5py.__version__})")
+          f"(XDMFReader, Xdmf3ReaderS) read {count} times, both grids, x and phi (and the "
+          f"flow, {vecs} grids) equal to the HDF5 file's (h5py {h5py.__version__})")
 
 
 main()

@@ -773,6 +773,69 @@ static void test_reset_and_remesh_same_step(void **state) {
   ves_io_close(&a), ves_io_close(&b);
 }
 
+/* The flow at the nodes a snapshot holds (io.h ves_io_snapinfo.velocity):
+ * with a snapshot every step and no reset, the material at the nodes of
+ * consecutive snapshots is the same (one reference), so v dt_prev must be
+ * x_k - x_{k-1}, the material's displacement over the step; both come from
+ * the same linear map of the same coefficients (y_prev is y^{k-1} copied),
+ * so they differ only by the division by dt_prev and the product with it:
+ * two roundings, <= 2 eps_mach of |x_k - x_{k-1}|, checked at 1e-12 of its
+ * largest entry (a velocity not divided by dt, or taken from the
+ * coefficients y instead of x, fails by orders of magnitude). The first
+ * snapshot has none; the XDMF file names it for the others only. */
+static void test_flow_at_nodes(void **state) {
+  (void)state;
+  char ini[128], h5[128], xdmf[160];
+  tmp_path(ini, sizeof ini, "flow.ini");
+  tmp_path(h5, sizeof h5, "flow.h5");
+  write_file(ini, "[time]\nt_end = 0.02\nadaptive = 0\n[output]\nsnapshot_every = 1\n");
+  result r;
+  run(&r, "run", ini, TINY, "--out", h5, "--quiet", NULL);
+  if (r.code) fail_msg("run: exit %d: %s", r.code, r.err);
+  ves_io *io = open_ro(h5);
+  const int S = ves_io_snapshots(io), n = ves_io_get_info(io)->n;
+  assert_int_equal(S, 5);
+  double *x0 = malloc(2 * (size_t)n * sizeof *x0), *x1 = malloc(2 * (size_t)n * sizeof *x1);
+  double *v = malloc(2 * (size_t)n * sizeof *v);
+  assert_true(x0 && x1 && v);
+  ves_io_snapinfo s0, s1;
+  assert_int_equal(ves_io_read_snapshot(io, 0, NULL, x0, NULL, &s0), VES_OK);
+  assert_int_equal(ves_io_read_snapshot_velocity(io, 0, n, v), 0); /* none at t = 0 */
+  double worst = 0;
+  for (int k = 1; k < S; k++) {
+    assert_int_equal(ves_io_read_snapshot(io, k, NULL, x1, NULL, &s1), VES_OK);
+    assert_int_equal(ves_io_read_snapshot_velocity(io, k, n, v), 1);
+    assert_int_equal(s1.reconnections, 0);
+    assert_true(s1.state.dt_prev > 0 && fabs(s1.state.t - s0.state.t - s1.state.dt_prev) <= 1e-15);
+    double dmax = 0, err = 0;
+    for (int i = 0; i < 2 * n; i++) {
+      dmax = fmax(dmax, fabs(x1[i] - x0[i]));
+      err = fmax(err, fabs(v[i] * s1.state.dt_prev - (x1[i] - x0[i])));
+    }
+    assert_true(dmax > 0); /* the vesicle moves */
+    assert_true(err <= 1e-12 * dmax);
+    worst = fmax(worst, err / dmax);
+    memcpy(x0, x1, 2 * (size_t)n * sizeof *x0), s0 = s1;
+  }
+  printf("# flow: |v dt - dx| / max |dx| <= %.2e over %d snapshots\n", worst, S - 1);
+  assert_int_equal(ves_io_read_snapshot_velocity(io, 1, n - 1, v), VES_ERR_IO); /* wrong size */
+  free(x0), free(x1), free(v);
+  ves_io_close(&io);
+  /* the XDMF file: a vector attribute in both collections, snapshots 1..S-1 */
+  snprintf(xdmf, sizeof xdmf, "%.*s.xdmf", (int)strlen(h5) - 3, h5);
+  FILE *f = fopen(xdmf, "r");
+  assert_non_null(f);
+  char line[1024];
+  int vec = 0, first = 0;
+  while (fgets(line, sizeof line, f)) {
+    vec += strstr(line, "Name=\"velocity\" AttributeType=\"Vector\"") != NULL;
+    first += strstr(line, "/snapshots/0/velocity") != NULL;
+  }
+  fclose(f);
+  assert_int_equal(vec, 2 * (S - 1));
+  assert_int_equal(first, 0);
+}
+
 /* A run with full remeshings (io.h /remeshes) continues across them bit for
  * bit: resets every 2 steps and remeshings every 3 (reset after step 2,
  * remeshing after 3, reset after 5, remeshing after 6). Stopped after step 4
@@ -1512,8 +1575,10 @@ static void test_no_overwrite(void **state) {
   char dir2[160];
   snprintf(dir2, sizeof dir2, "%s/full", tmpdir);
   char *pargs[] = {"plot", out, "--outdir", dir2, NULL};
-  run_limited(&r, 28 * 1024, pargs); /* the script (< 24 KiB) fits, a figure (> 32 KiB) not */
-  printf("# plot into a 28 KiB file-size limit -> %d: %s", r.code, r.err);
+  /* the script (27.7 KiB with the flow's arrows) fits, the snapshots'
+   * figure (~60 KiB) does not */
+  run_limited(&r, 30 * 1024, pargs);
+  printf("# plot into a 30 KiB file-size limit -> %d: %s", r.code, r.err);
   assert_int_equal(r.code, 3);
   assert_non_null(strstr(r.err, "incomplete"));
   assert_int_equal(files_in(dir2), 0);
@@ -1586,18 +1651,19 @@ static void expect_full(const char *out, const char *frag) {
 static void test_full_disk(void **state) {
   (void)state;
   char out[256], x[128];
-  /* the file-size limit (ulimit -f): 340 KiB hold the header, the first
-   * snapshot, the first chunk of every series and a few steps */
+  /* the file-size limit (ulimit -f): 400 KiB hold the header, the first
+   * snapshot, the first chunk of every series and a few steps (340 KiB
+   * until the snapshots held the flow: then the room check refused step 1) */
   tmp_path(out, sizeof out, "full.h5");
-  fsize_limit = 340 * 1024;
+  fsize_limit = 400 * 1024;
   expect_full(out, "file size limit reached");
   unlink(out);
   tmp_path(x, sizeof x, "full.xdmf"), unlink(x);
-  /* a real full disk: a 380 KiB tmpfs (needs root; issue 21's case) */
+  /* a real full disk: a 440 KiB tmpfs (needs root; issue 21's case) */
   char mnt[128];
   tmp_path(mnt, sizeof mnt, "tmpfs");
   assert_int_equal(mkdir(mnt, 0755), 0);
-  if (mount("tmpfs", mnt, "tmpfs", 0, "size=380k") != 0) {
+  if (mount("tmpfs", mnt, "tmpfs", 0, "size=440k") != 0) {
     printf("# tmpfs: not mounted (%s): the file-size limit stands in\n", strerror(errno));
   } else {
     snprintf(out, sizeof out, "%s/full.h5", mnt);
@@ -1846,6 +1912,7 @@ int main(int argc, char **argv) {
       cmocka_unit_test(test_restart_after_reset),
       cmocka_unit_test(test_restart_after_remesh),
       cmocka_unit_test(test_reset_and_remesh_same_step),
+      cmocka_unit_test(test_flow_at_nodes),
       cmocka_unit_test(test_restart_set),
       cmocka_unit_test(test_spectrum),
       cmocka_unit_test(test_progress_eta),

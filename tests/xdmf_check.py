@@ -2,7 +2,7 @@
 """Reads a vesica run's FILE.xdmf with meshio and FILE.h5 with h5py (Debian's
 python3-meshio and python3-h5py: readers that share no code with vesica) and
 checks them against each other: the time series meshio sees (points,
-triangles, and phi at every snapshot time) is the file's snapshots (meshio's
+triangles, and phi and the flow at every snapshot time) is the file's snapshots (meshio's
 time series keeps the first time's points: the positions x of later times
 are read from the HDF5 file), every group and dataset of the HDF5 file has
 the attributes units and description, and the series' status documents its
@@ -52,6 +52,12 @@ def main():
                 fail(f"time {k}: no point data phi (has {sorted(pd)})")
             if not np.array_equal(pd["phi"], g["phi"][()]):
                 fail(f"time {k}: phi differs from /snapshots/{k}/phi")
+            # the flow at the nodes: from the second snapshot on, when held
+            if ("velocity" in g) != ("velocity" in pd):
+                fail(f"time {k}: velocity in the HDF5 file {'velocity' in g}, "
+                     f"in the XDMF file {'velocity' in pd}")
+            if "velocity" in g and not np.array_equal(pd["velocity"], g["velocity"][()]):
+                fail(f"time {k}: velocity differs from /snapshots/{k}/velocity")
     bare = []
 
     def described(name, obj):

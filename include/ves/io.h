@@ -142,13 +142,18 @@ ves_status ves_io_tsv_row(FILE *f, const ves_io_row *row, double A0);
 
 /* What was written with a snapshot besides y and phi. */
 typedef struct {
-  ves_sim_state state;  /* the integrator's state (t, step = state.nstep, ...) */
-  double wall_seconds;  /* wall time of the time loop at the snapshot */
-  int reconnections;    /* resets so far */
-  long rows;            /* series rows at the snapshot */
-  const double *y_prev; /* written with the snapshot when state.dt_prev > 0: y^{n-1}
-                           (2n, ves_sim_y_prev), dataset y_prev; never set by a read
-                           (ves_io_read_snapshot_prev reads it) */
+  ves_sim_state state;    /* the integrator's state (t, step = state.nstep, ...) */
+  double wall_seconds;    /* wall time of the time loop at the snapshot */
+  int reconnections;      /* resets so far */
+  long rows;              /* series rows at the snapshot */
+  const double *y_prev;   /* written with the snapshot when state.dt_prev > 0: y^{n-1}
+                             (2n, ves_sim_y_prev), dataset y_prev; never set by a read
+                             (ves_io_read_snapshot_prev reads it) */
+  const double *velocity; /* written when not NULL: the flow at the nodes (2n, R0 per t*:
+                             the material's velocity over the last step, at x), dataset
+                             velocity, an XDMF vector; for looking at only (not in the
+                             snapshot's checksum, not read by a restart); never set by a
+                             read (ves_io_read_snapshot_velocity reads it) */
 } ves_io_snapinfo;
 
 /* The header of an open file (owned by the handle). */
@@ -354,13 +359,19 @@ int ves_io_snapshot_mesh(const ves_io *io, int k, int *n, int *ntri);
 /* The triangles of remeshing k (3 ntri, ves_io_remesh_size). */
 ves_status ves_io_read_remesh_triangles(ves_io *io, int k, int *tri);
 
-/* ves_io_read_snapshot with buffers for nbuf nodes: VES_ERR_IO when the
- * snapshot's node count is not nbuf (ves_io_snapshot_nodes). */
 /* y^{n-1} of snapshot k (2 nbuf values; the predictor's state), present
  * exactly when the snapshot's state.dt_prev > 0. VES_ERR_IO when absent or of
  * another size. */
 ves_status ves_io_read_snapshot_prev(ves_io *io, int k, int nbuf, double *y_prev);
 
+/* The flow at the nodes of snapshot k (2 nbuf values, ves_io_snapinfo's
+ * velocity) into v. Returns 1 when read, 0 when the snapshot has none (the
+ * first one, a file from before 2026-12-05, a state without a last step),
+ * negative (a ves_status) on an error or another size. */
+int ves_io_read_snapshot_velocity(ves_io *io, int k, int nbuf, double *v);
+
+/* ves_io_read_snapshot with buffers for nbuf nodes: VES_ERR_IO when the
+ * snapshot's node count is not nbuf (ves_io_snapshot_nodes). */
 ves_status ves_io_read_snapshot_n(ves_io *io, int k, int nbuf, double *y, double *x, double *phi,
                                   ves_io_snapinfo *si);
 

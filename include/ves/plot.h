@@ -10,6 +10,9 @@
  *                           (its area and volume against the first
  *                           snapshot's, at every snapshot) and the volume
  *                           V/V0 against t*
+ *   <stem>_flow.png         the flow at the nodes as arrows over the nodes
+ *                           coloured by phi, at the snapshots' times (paper
+ *                           Fig. 5; each panel scaled to its fastest arrow)
  * gnuplot runs as a child process on a script written to a temporary file;
  * its exit status is checked and its messages returned in err. */
 #ifndef VES_PLOT_H
@@ -23,7 +26,7 @@
 #include "ves/quad.h"
 #include "ves/status.h"
 
-#define VES_PLOT_NFIG 3
+#define VES_PLOT_NFIG 4
 #define VES_PLOT_MAXTIMES 8 /* snapshot panels at most */
 
 /* The suffixes of the figures, in the order above ("energy", ...). */
@@ -58,12 +61,12 @@ typedef struct {
  * reader's error for an unreadable mesh. */
 ves_status ves_plot_interface(ves_io *io, ves_level_set *ls, unsigned char *ok);
 
-/* Write the three figures. VES_ERR_ARG for bad parameters (no rows or no
+/* Write the four figures. VES_ERR_ARG for bad parameters (no rows or no
  * snapshots in the file included: message in err); VES_ERR_IO when a
  * temporary file cannot be written, gnuplot fails (its exit status and
  * first message in err) or a figure is not a complete PNG (gnuplot exits 0
  * on a full disk). Figures are written as NAME.png.part and renamed into
- * place only when all three are complete; a failure leaves no .part file
+ * place only when all four are complete; a failure leaves no .part file
  * and the earlier figures unchanged. */
 ves_status ves_plot_write(ves_io *io, const ves_plot_params *par, char *err, size_t errlen);
 
