@@ -16,7 +16,7 @@ Usage: /usr/bin/python3 bench/fig6.py RUN.h5 [FIGDIR [NSHOT]]
   remeshings marked.
 Prints Markdown tables: the shape along the run (per snapshot: t*, step, nodes, E*, C0 R0, v,
 the length along the axis, the pieces of the inside on the axis, the number of pearls, their
-radii and the neck radii between them), and the remeshings (what each changed). Needs h5py and
+radii and the neck radii between them, the fastest node of the flow), and the remeshings (what each changed). Needs h5py and
 numpy (Debian python3-h5py) and gnuplot.
 
 The shape: phi = 0 on the snapshot's triangles (the mesh of the reference in use: /mesh or the
@@ -124,8 +124,8 @@ def main():
           f"{int(recon[-1]) if len(recon) else 0} resets")
     print()
     print("| t* | step | nodes | E* | C0 R0 | v | length (z extent) | pieces on the axis | pearls | "
-          "pearl radii (from the top) | neck radii |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|")
+          "pearl radii (from the top) | neck radii | max flow (R0 per t*) |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     shape = []
     for k in range(nsnap):
         g = f[f"snapshots/{k}"]
@@ -136,13 +136,17 @@ def main():
         pc = axis_pieces(x, phi, eps)
         a = st[k]
         vk = a["V"] / (4 * np.pi / 3 * (a["A"] / (4 * np.pi)) ** 1.5)
-        shape.append((k, ts[k], steps[k], len(x), a["E"], a["c0"], vk, z.max() - z.min(), pc, P, N))
+        # the fastest node of the flow over the last step (absent at t* = 0 and in files
+        # before 2026-12-05): how far from rest
+        vmax = (f"{np.hypot(*g['velocity'][()].T).max():.3g}" if "velocity" in g else "—")
+        shape.append((k, ts[k], steps[k], len(x), a["E"], a["c0"], vk, z.max() - z.min(), pc, P, N,
+                      vmax))
     rows = sorted(set(np.linspace(0, nsnap - 1, min(nsnap, 16)).round().astype(int)))
-    for k, tk, sk, n, Ek, ck, vk, L, pc, P, N in (shape[i] for i in rows):
+    for k, tk, sk, n, Ek, ck, vk, L, pc, P, N, vmax in (shape[i] for i in rows):
         pr = ", ".join(f"{r:.3f}" for _, r in P[::-1])
         nr = ", ".join(f"{r:.3f}" for _, r in N[::-1])
         print(f"| {tk:.4g} | {sk} | {n} | {Ek:.3f} | {ck:.3f} | {vk:.4f} | {L:.3f} | {pc} | {len(P)} | "
-              f"{pr} | {nr or '—'} |")
+              f"{pr} | {nr or '—'} | {vmax} |")
     # the remeshings
     print()
     if "remeshes" in f and int(f["remeshes"].attrs["count"]) > 0:
