@@ -16,6 +16,7 @@ const char *const ves_plot_figures[VES_PLOT_NFIG] = {"energy", "snapshots", "con
 #define PLOT_AUTO 4         /* automatic snapshot panels */
 #define PLOT_FLOOR 1e-17    /* drift values below this are drawn at it (log axis) */
 #define PLOT_PANEL 560      /* pixels per snapshot panel */
+#define PLOT_MIN_WIDTH 640  /* pixels at least (a tall box: room for the titles) */
 #define PLOT_INTERFACE 0.1  /* |phi| below this marks an interface node */
 #define PLOT_ARROW_ROWS 24  /* flow: cells of the arrow grid over the box's height */
 #define PLOT_ARROW_MIN 0.05 /* flow: arrows shorter than this x the longest are left out */
@@ -167,7 +168,7 @@ static ves_status fig_snapshots(FILE *f, ves_io *io, const ves_plot_params *p, c
   int cols = nsel <= 2 ? nsel : nsel <= 4 ? 2 : (nsel + 1) / 2, rows = (nsel + cols - 1) / cols;
   double ps = fmin(0.6, 0.35 * sqrt(1500.0 / n)); /* points shrink as nodes multiply */
   fprintf(f, "reset\nset terminal pngcairo size %d,%d font ',11'\n",
-          (int)(PLOT_PANEL * cols * LR / LZ) + 120, PLOT_PANEL * rows + 60);
+          (int)fmax(PLOT_PANEL * cols * LR / LZ + 120, PLOT_MIN_WIDTH), PLOT_PANEL * rows + 60);
   gp_output(f, p, 1);
   fprintf(f, "set multiplot layout %d,%d title ", rows, cols);
   char title[256];
@@ -278,14 +279,12 @@ static ves_status fig_flow(FILE *f, ves_io *io, const ves_plot_params *p, const 
   int cols = nsel <= 2 ? nsel : nsel <= 4 ? 2 : (nsel + 1) / 2, rows = (nsel + cols - 1) / cols;
   double ps = 0.6 * fmin(0.6, 0.35 * sqrt(1500.0 / n)); /* fainter: the arrows are the figure */
   fprintf(f, "reset\nset terminal pngcairo size %d,%d font ',11'\n",
-          (int)(PLOT_PANEL * cols * LR / LZ) + 120, PLOT_PANEL * rows + 60);
+          (int)fmax(PLOT_PANEL * cols * LR / LZ + 120, PLOT_MIN_WIDTH), PLOT_PANEL * rows + 60);
   gp_output(f, p, 3);
   fprintf(f, "set multiplot layout %d,%d title ", rows, cols);
   char title[256], stem[96];
   ves_plot_gp_escape(stem, sizeof stem, p->stem);
-  snprintf(title, sizeof title,
-           "%s: the flow at the nodes (arrows; the material at the nodes coloured by "
-           "{/Symbol f}; mirrored at r = 0)",
+  snprintf(title, sizeof title, "%s: flow at the nodes (arrows), {/Symbol f} (colour), mirrored",
            stem);
   ves_plot_gp_quote(f, title);
   fprintf(f,
@@ -296,13 +295,11 @@ static ves_status fig_flow(FILE *f, ves_io *io, const ves_plot_params *p, const 
           -LR, LR, -LZ, LZ);
   for (int j = 0; j < nsel; j++) {
     if (has[j] == 1)
-      fprintf(f, "set title 't* = %.4g: arrows up to |v| = %.3g R_0 per t* (0.9 of a cell)'\n",
-              ts[j], vmax[j]);
+      fprintf(f, "set title \"t* = %.4g\\narrows up to %.3g R_0 per t*\"\n", ts[j], vmax[j]);
     else if (has[j] == 2)
-      fprintf(f, "set title 't* = %.4g: at rest (v = 0 at every node)'\n", ts[j]);
+      fprintf(f, "set title \"t* = %.4g\\nat rest (v = 0)\"\n", ts[j]);
     else
-      fprintf(f, "set title 't* = %.4g: no flow recorded (the first snapshot, or an older file)'\n",
-              ts[j]);
+      fprintf(f, "set title \"t* = %.4g\\nno flow (first snapshot, or an older file)\"\n", ts[j]);
     fprintf(f, /* the points: fig_snapshots' datablocks (a reset keeps them) */
             "plot $snap%d using 1:2:3 with points pt 7 ps %.3f lc palette, "
             "$snap%d using (-$1):2:3 with points pt 7 ps %.3f lc palette",
