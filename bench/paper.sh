@@ -8,7 +8,7 @@
 #   PAPER_OUT   where the runs go (default results/paper; not in git)
 #   PAPER_JOBS  runs at a time (default 2: two lanes of one thread each, on
 #               the two cores; 1: one after the other). Lane 1: fig6, fig34,
-#               fig34_eps001, table1; lane 2: fig5left, fig5right, fig7 (balanced by their
+#               fig34_eps001, fig5left, table1; lane 2: fig5right, fig7 (balanced by their
 #               measured times at the default scale); each lane's output in
 #               OUT/laneN.log, then one sequential pass (every run done)
 #               draws the figures and writes bench/PAPER.md
@@ -56,7 +56,7 @@ if [ -z "$LANE" ] && [ "$PAPER_JOBS" -gt 1 ]; then
   AFTER_LANES=1 # the final pass runs nothing: what a lane did not finish stays so
 fi
 
-lane_of() { case "$1" in fig6|fig34|fig34_eps001|table1) echo 1;; *) echo 2;; esac; }
+lane_of() { case "$1" in fig6|fig34|fig34_eps001|fig5left|table1) echo 1;; *) echo 2;; esac; }
 want() {
   case "$1" in *"$PAPER_ONLY"*) ;; *) return 1;; esac
   [ -z "$LANE" ] || [ "$(lane_of "$1")" = "$LANE" ]
@@ -114,13 +114,27 @@ run fig34 problems/oblate.ini 0.08
 # with a PAPER_EPS, where fig34 itself runs at that eps.
 [ -z "$PAPER_EPS" ] && run fig34_eps001 problems/oblate.ini 0.01
 run fig5left problems/stomatocyte_discocyte.ini 0.04
-# Fig. 5 right at the default eps 0.04 to t* 2.5: there the upper tether's
-# bud reaches the wall (z = 3) at t* ~2.8 and the steps fail (RESULTS "The
-# prolate vesicle after the C0 jump"); at a PAPER_EPS the file's t_end.
-f5r=""
-[ -z "$PAPER_EPS" ] && f5r="--set time.t_end=2.5"
-# shellcheck disable=SC2086
-run fig5right problems/prolate_c0.ini 0.04 $f5r
+# Fig. 5 right to its end state: in a box 4.5 high (the file's 3 is reached
+# by the upper tether's bud at t* ~2.8, where the steps fail: RESULTS "The
+# prolate vesicle after the C0 jump") with a remeshing every 40 steps (the
+# tethers stay resolved), to t* 8 (at eps 0.04 the buds are absorbed into the
+# tethers by t* ~3.7 and E* falls 0.6 per t* at t* 8: RESULTS "Fig. 5 right
+# with remeshing in a taller box" and "... in make paper"), and factor_shrink 4 (the
+# bud phase's rejected attempts: "The halving remembered"). The keys of the
+# eps 0.01 run in RESULTS, so its file can be dropped into PAPER_OUT.
+run fig5right problems/prolate_c0.ini 0.04 --set geometry.box_z=4.5 --set remesh.every=40 \
+  --set time.t_end=8 --set time.factor_shrink=4
+# its shape along the run (bench/fig6.py: the body's and beads' radii, the
+# tethers' length, the fastest node of the flow; figure fig5right_pearls.png)
+fig5md=""
+if post fig5right && [ -f "$OUT/fig5right.done" ]; then
+  if /usr/bin/python3 bench/fig6.py "$OUT/fig5right.h5" "$FIG" > "$OUT/fig5right.md.part"; then
+    mv "$OUT/fig5right.md.part" "$OUT/fig5right.md"
+  else
+    echo "paper: fig5right: bench/fig6.py failed"; failed=1
+  fi
+fi
+[ -f "$OUT/fig5right.md" ] && fig5md=$OUT/fig5right.md
 # Fig. 6 at eps 0.04 (the file's; 0.08 cannot hold the pearls: C0 eps would be
 # 0.96), then bench/fig6.py: the nodes coloured by phi at six times, E*, C0 R0
 # and v against t*, the pearls' and necks' radii, the remeshings
@@ -198,15 +212,15 @@ lane_wall() { # the sum of the wall seconds of lane $1's finished runs
   echo "# The paper's results by \`make paper\`"
   echo
   echo "Written by bench/paper.sh from the runs in \`$OUT\` (PAPER_EPS=${PAPER_EPS:-per result})."
-  echo "Figures: bench/figures/paper/NAME_{energy,snapshots,constraints}.png. The"
+  echo "Figures: bench/figures/paper/NAME_{energy,snapshots,constraints,flow}.png. The"
   echo "columns are \`vesica info\` keys (dt growth: dt_largest / dt_first; wall s over"
   echo "restarts). What each result shows against the paper, and why ours differs"
   echo "where it does: bench/RESULTS.md (sections named below)."
   echo
-  echo "Not possible yet: Fig. 5 right has reached no resolved end state at any eps"
-  echo "(tethers grow to the walls at 0.04, and at 0.01 by t* ~2.8, where they are"
-  echo "under-resolved without remeshing: RESULTS \"The prolate C0 jump at eps 0.01"
-  echo "continued to t* 3.6\"); Fig. 6 (problems/pearling.ini) has been run"
+  echo "Not possible yet: Fig. 5 right at eps 0.01 has reached no end state (run by"
+  echo "hand in the taller box with remeshing to t* 2.80, where modes on the axis that a"
+  echo "remeshing brought into the tethers held dt* below ~0.002: RESULTS \"Fig. 5 right at"
+  echo "eps 0.01 ... to t* 2.80\"); Fig. 6 (problems/pearling.ini) has been run"
   echo "to t* 3 at eps 0.04, not to a settled end (RESULTS \"Fig. 6: deflation with rising"
   echo "C0, pearling (issue 18)\"), and at eps 0.01 (not in the default set) to t* 3"
   echo "(5.9 h: five pearls by t* 0.48, seven by 0.72, nine by 0.98, thirteen by 3, necks"
@@ -214,8 +228,8 @@ lane_wall() { # the sum of the wall seconds of lane $1's finished runs
   echo "the Fig. 3-4 figure is ours in the README's layout, not the paper's panels at its"
   echo "times."
   echo
-  echo "Run time: lane 1 (fig34, fig34_eps001, fig6, table1) $(lane_wall 1) s, lane 2 (fig5left,"
-  echo "fig5right, fig7) $(lane_wall 2) s: the sums of the runs' own wall seconds"
+  echo "Run time: lane 1 (fig34, fig34_eps001, fig6, fig5left, table1) $(lane_wall 1) s, lane 2"
+  echo "(fig5right, fig7) $(lane_wall 2) s: the sums of the runs' own wall seconds"
   echo "(\`vesica info\` wall_seconds, over restarts; table1 timed by bench/paper.sh). With"
   echo "PAPER_JOBS=2 (the default) the lanes run side by side, one thread each; this call"
   echo "took $wall s ($(date -u '+%Y-%m-%d %H:%M UTC'), $(getconf _NPROCESSORS_ONLN) cores; a call that finds"
@@ -224,6 +238,11 @@ lane_wall() { # the sum of the wall seconds of lane $1's finished runs
   echo "| run | eps | nodes (initial -> final) | steps | t* | E* initial | E* final | dt growth | resets | remeshings | max \|A/A0-1\| | max \|V/Vt-1\| | wall s |"
   echo "|---|---|---|---|---|---|---|---|---|---|---|---|---|"
   for n in $RUNS; do row $n; done
+  echo
+  echo "Fig. 5 right (bench/fig6.py; figures bench/figures/paper/fig5right_pearls.png, the"
+  echo "flow: fig5right_flow.png):"
+  echo
+  if [ -n "$fig5md" ]; then grep -v '^figure: ' "$fig5md"; else echo "not run"; fi
   echo
   echo "Fig. 6 (bench/fig6.py; figure bench/figures/paper/fig6_epsE.png):"
   echo
@@ -246,7 +265,7 @@ lane_wall() { # the sum of the wall seconds of lane $1's finished runs
   echo "| Fig. 3-4 (oblate relaxation) | E* decreases monotonically to the equilibrium; dt grows ~2048x over the run; 6,124 nodes at eps 0.01 | run fig34 above, and fig34_eps001 at the paper's eps (its E* at t* 4 against the sharp equilibrium 7.652042: RESULTS \"The stabilization on by default\") |"
   echo "| Table 1 (VTI vs forward Euler) | VTI stable at dt* 1e-2..1e-4 with E*(t2) 9.243/9.240/9.239; FE needs dt* 1e-5 | $( [ -f "$OUT/table1.txt.done" ] && echo "$OUT/table1.txt" || echo "not run") ; at eps 0.01 RESULTS \"The paper's Table 1\" |"
   echo "| Fig. 5 left (stomatocyte -> discocyte) | a C0 pulse pushes the stomatocyte past the barrier into a discocyte | RESULTS \"The two Fig. 5 runs with drift damping\" (eps 0.04: a discocyte with damping and resets) |"
-  echo "| Fig. 5 right (prolate, C0 R0 = 10) | two dissimilar spheres joined by a narrow neck | no end state at eps 0.04: a central sphere pulls a tether up and down; run fig5right above stops at t* 2.5 by default, before the upper bud reaches the wall (t* ~2.8); RESULTS \"The prolate vesicle after the C0 jump\". At eps 0.01 (not in the default set; 2.74 h to t* 3.6): a sphere of radius 0.925 with two beaded tethers to the walls, the sharp model's preferred state (E* 428.9 at t* 2.9 against 426.7 for sphere + tube, 471.8 for two spheres), under-resolved in the tethers from t* ~1.5; RESULTS \"The prolate C0 jump at eps 0.01 continued to t* 3.6\" |"
+  echo "| Fig. 5 right (prolate, C0 R0 = 10) | two dissimilar spheres joined by a narrow neck | run fig5right above (eps $(key geometry.epsilon fig5right), a box 4.5 high, a remeshing every 40 steps; its shape in the Fig. 5 right table): a sphere with a tether up and down, the buds that led them absorbed, E* $(key energy_final fig5right) at t* $(key t_final fig5right): the sharp model's preferred state (sphere + tube of radius 1/(2 C0) 426.7 against 471.8 for two spheres: bench/fig5_limit.py; the phase field at eps 0.04, C0 eps 0.4, lies below both); in the file's box 3 high the upper bud reaches the wall at t* ~2.8 and the steps fail (RESULTS \"The prolate vesicle after the C0 jump\"). At eps 0.01 (not in the default set): the same sphere (radius 0.924) with beaded tethers, 13 beads on necks of 0.027-0.045 by t* 2.8, E* 428.8 (RESULTS \"Fig. 5 right at eps 0.01 ... to t* 2.80\") |"
   echo "| Fig. 6 (pearling: v 0.9 -> 0.55, C0 R0 -> 12, four remeshings, 12,650 nodes) | elongation and pearling | the Fig. 6 tables above (bench/fig6.py; RESULTS \"Fig. 6: deflation with rising C0, pearling (issue 18)\") |"
   echo "| Fig. 7 (deflation at three rates) | E* peaks at the end of deflation; the faster the rate, the further from equilibrium at that instant (shape and E*); all reach the same equilibrium shape D by t* ~ 1 | E* peaks at each ramp's end (within the step crossing it), fast / medium / slow 40.5 / 31.8 / 22.0 at eps 0.08, 61.8 / 31.5 / 16.4 at 0.04; the shapes at the maxima ordered as the paper's A, B, C (distance from the final shape 0.13 / 0.088 / 0.028 R0 at eps 0.08, 0.19 / 0.15 / 0.064 at 0.04); one final shape, a discocyte (the three within 3e-4 R0), 6e-3 R0 from the sharp discocyte at eps 0.04 (0.06 at 0.08); but not by t* ~ 1: E* still falls at t* 6 (0.1 per t* at eps 0.08, 0.03 at 0.04): most of the peak is the interface profile compressed with the fluid, which relaxes at a rate set by the penalty viscosity lambda (fast rate at eps 0.08, t* 1.5: E* 12.7 / 14.5 / 21.9 at lambda/mu 10 / 100 / 1000, the interface within 8e-3 R0; the paper does not give its lambda) (tables above; figures fig7_eps0.08.png, fig7_eps0.04.png; RESULTS \"Fig. 7: deflation at three rates\") |"
 } > "$MD.part" && mv "$MD.part" "$MD"
