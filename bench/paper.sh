@@ -124,29 +124,28 @@ run fig5left problems/stomatocyte_discocyte.ini 0.04
 # eps 0.01 run in RESULTS, so its file can be dropped into PAPER_OUT.
 run fig5right problems/prolate_c0.ini 0.04 --set geometry.box_z=4.5 --set remesh.every=40 \
   --set time.t_end=8 --set time.factor_shrink=4
+# shape_md NAME: bench/fig6.py's tables of finished run NAME into OUT/NAME.md
+# (its figure into FIG), in the final pass
+shape_md() {
+  if post "$1" && [ -f "$OUT/$1.done" ]; then
+    if /usr/bin/python3 bench/fig6.py "$OUT/$1.h5" "$FIG" > "$OUT/$1.md.part"; then
+      mv "$OUT/$1.md.part" "$OUT/$1.md"
+    else
+      echo "paper: $1: bench/fig6.py failed"; failed=1
+    fi
+  fi
+}
 # its shape along the run (bench/fig6.py: the body's and beads' radii, the
 # tethers' length, the fastest node of the flow; figure fig5right_pearls.png)
+shape_md fig5right
 fig5md=""
-if post fig5right && [ -f "$OUT/fig5right.done" ]; then
-  if /usr/bin/python3 bench/fig6.py "$OUT/fig5right.h5" "$FIG" > "$OUT/fig5right.md.part"; then
-    mv "$OUT/fig5right.md.part" "$OUT/fig5right.md"
-  else
-    echo "paper: fig5right: bench/fig6.py failed"; failed=1
-  fi
-fi
 [ -f "$OUT/fig5right.md" ] && fig5md=$OUT/fig5right.md
 # Fig. 6 at eps 0.04 (the file's; 0.08 cannot hold the pearls: C0 eps would be
 # 0.96), then bench/fig6.py: the nodes coloured by phi at six times, E*, C0 R0
 # and v against t*, the pearls' and necks' radii, the remeshings
 run fig6 problems/pearling.ini 0.04
+shape_md fig6
 fig6md=""
-if post fig6 && [ -f "$OUT/fig6.done" ]; then
-  if /usr/bin/python3 bench/fig6.py "$OUT/fig6.h5" "$FIG" > "$OUT/fig6.md.part"; then
-    mv "$OUT/fig6.md.part" "$OUT/fig6.md"
-  else
-    echo "paper: fig6: bench/fig6.py failed"; failed=1
-  fi
-fi
 [ -f "$OUT/fig6.md" ] && fig6md=$OUT/fig6.md
 for r in fast medium slow; do
   # shellcheck disable=SC2086

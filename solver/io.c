@@ -1315,32 +1315,30 @@ ves_status ves_io_read_snapshot_n(ves_io *io, int k, int nbuf, double *y, double
   return st;
 }
 
-ves_status ves_io_read_snapshot_prev(ves_io *io, int k, int nbuf, double *y_prev) {
-  VES_CHECK(io && k >= 0 && k < io->nsnap && nbuf > 0 && y_prev, VES_ERR_ARG);
-  char name[48];
-  snprintf(name, sizeof name, "snapshots/%d", k);
-  hid_t g = H5Gopen2(io->file, name, H5P_DEFAULT);
-  if (g < 0) return VES_ERR_IO;
-  ves_status st = H5Lexists(g, "y_prev", H5P_DEFAULT) > 0
-                      ? dset_read(g, "y_prev", H5T_NATIVE_DOUBLE, 2 * (hsize_t)nbuf, y_prev)
-                      : VES_ERR_IO;
-  H5Gclose(g);
-  return st;
-}
-
-int ves_io_read_snapshot_velocity(ves_io *io, int k, int nbuf, double *v) {
-  VES_CHECK(io && k >= 0 && k < io->nsnap && nbuf > 0 && v, VES_ERR_ARG);
+/* A dataset of snapshot k that not every snapshot holds (2 nbuf values):
+ * 1 read, 0 absent, negative (a ves_status) on an error or another size. */
+static int snapshot_optional(ves_io *io, int k, const char *dset, int nbuf, double *out) {
+  VES_CHECK(io && k >= 0 && k < io->nsnap && nbuf > 0 && out, VES_ERR_ARG);
   char name[48];
   snprintf(name, sizeof name, "snapshots/%d", k);
   hid_t g = H5Gopen2(io->file, name, H5P_DEFAULT);
   if (g < 0) return VES_ERR_IO;
   int r = 0;
-  if (H5Lexists(g, "velocity", H5P_DEFAULT) > 0) {
-    ves_status st = dset_read(g, "velocity", H5T_NATIVE_DOUBLE, 2 * (hsize_t)nbuf, v);
+  if (H5Lexists(g, dset, H5P_DEFAULT) > 0) {
+    ves_status st = dset_read(g, dset, H5T_NATIVE_DOUBLE, 2 * (hsize_t)nbuf, out);
     r = st == VES_OK ? 1 : (int)st;
   }
   H5Gclose(g);
   return r;
+}
+
+ves_status ves_io_read_snapshot_prev(ves_io *io, int k, int nbuf, double *y_prev) {
+  const int r = snapshot_optional(io, k, "y_prev", nbuf, y_prev);
+  return r == 1 ? VES_OK : r == 0 ? VES_ERR_IO : (ves_status)r;
+}
+
+int ves_io_read_snapshot_velocity(ves_io *io, int k, int nbuf, double *v) {
+  return snapshot_optional(io, k, "velocity", nbuf, v);
 }
 
 ves_status ves_io_read_mesh(ves_io *io, double *X, int *tri) {

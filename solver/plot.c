@@ -134,6 +134,17 @@ static void fig_energy(FILE *f, const ves_plot_params *p, const ves_io_info *in,
           "unset multiplot\n");
 }
 
+/* The axes of the node panels (snapshots, flow): the meridian plane
+ * mirrored, [-LR, LR] x [-LZ, LZ] at equal scale, phi's palette. */
+static void panel_axes(FILE *f, double LR, double LZ) {
+  fprintf(f,
+          "\nset size ratio -1\nset xrange [%g:%g]\nset yrange [%g:%g]\n"
+          "set palette defined (-1 '#3b4cc0', 0 '#dddddd', 1 '#b40426')\nset cbrange [-1:1]\n"
+          "set cblabel '{/Symbol f}'\nset xlabel 'r / R_0'\nset ylabel 'z / R_0'\n"
+          "unset key\n",
+          -LR, LR, -LZ, LZ);
+}
+
 /* Node snapshots coloured by phi, mirrored across the axis. */
 static ves_status fig_snapshots(FILE *f, ves_io *io, const ves_plot_params *p, const int *sel,
                                 int nsel) {
@@ -179,12 +190,7 @@ static ves_status fig_snapshots(FILE *f, ves_io *io, const ves_plot_params *p, c
       in->format_version >= 2 ? "material at the nodes, y(X_a, t)," : "nodal coefficients y^a(t)",
       n);
   ves_plot_gp_quote(f, title);
-  fprintf(f,
-          "\nset size ratio -1\nset xrange [%g:%g]\nset yrange [%g:%g]\n"
-          "set palette defined (-1 '#3b4cc0', 0 '#dddddd', 1 '#b40426')\nset cbrange [-1:1]\n"
-          "set cblabel '{/Symbol f}'\nset xlabel 'r / R_0'\nset ylabel 'z / R_0'\n"
-          "unset key\n",
-          -LR, LR, -LZ, LZ);
+  panel_axes(f, LR, LZ);
   for (int j = 0; j < nsel; j++) {
     if (j == 0)
       fprintf(f, "set title 't* = %.4g'\n", ts[j]);
@@ -287,12 +293,7 @@ static ves_status fig_flow(FILE *f, ves_io *io, const ves_plot_params *p, const 
   snprintf(title, sizeof title, "%s: flow at the nodes (arrows), {/Symbol f} (colour), mirrored",
            stem);
   ves_plot_gp_quote(f, title);
-  fprintf(f,
-          "\nset size ratio -1\nset xrange [%g:%g]\nset yrange [%g:%g]\n"
-          "set palette defined (-1 '#3b4cc0', 0 '#dddddd', 1 '#b40426')\nset cbrange [-1:1]\n"
-          "set cblabel '{/Symbol f}'\nset xlabel 'r / R_0'\nset ylabel 'z / R_0'\n"
-          "unset key\n",
-          -LR, LR, -LZ, LZ);
+  panel_axes(f, LR, LZ);
   for (int j = 0; j < nsel; j++) {
     if (has[j] == 1)
       fprintf(f, "set title \"t* = %.4g\\narrows up to %.3g R_0 per t*\"\n", ts[j], vmax[j]);
