@@ -570,6 +570,10 @@ ves_status ves_shape_band_nodes(const ves_shape *s, double h, double halfwidth, 
       if (X[0] < 0) continue;
       /* keep only nodes at their layer's distance (not closer to another branch) */
       if (fabs(fabs(ves_shape_distance(s, X)) - fabs(dj)) > 0.25 * h) continue;
+      /* a layer that runs along the axis (inside a neck or tether thinner
+       * than the band): a node within dl/2 of it goes onto it, so no node
+       * sits a fraction of a spacing from its mirrored ghost */
+      if (fl == 0 && X[0] < 0.5 * dl) X[0] = 0.0, fl = VES_NODE_AXIS;
       if (cnt == cap) {
         cap = cap ? 2 * cap : 4096;
         double *nx = realloc(xs, 2 * (size_t)cap * sizeof *nx);

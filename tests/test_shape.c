@@ -292,6 +292,68 @@ static void test_band_nodes(void **state) {
   ves_shape_destroy(&s);
 }
 
+/* Arc from angle t0 to t1 (n points, the last excluded) of the circle of
+ * radius rad about (cx, cz), appended to pts at *k. */
+static void arc_points(double *pts, int *k, double cx, double cz, double rad, double t0, double t1,
+                       int n) {
+  for (int i = 0; i < n; i++) {
+    const double t = t0 + (t1 - t0) * i / n;
+    pts[2 * *k] = cx + rad * cos(t), pts[2 * *k + 1] = cz + rad * sin(t), ++*k;
+  }
+}
+
+/* A tether thinner than the band (issue 18, session 33: the remeshed Fig. 5
+ * right run at eps 0.01): a sphere of radius 0.8 with a tube of radius
+ * 0.036 up to a bead of radius 0.12, joined by fillets of radius 0.06 (>
+ * the band's half-width: no fold), at its own scale; h = 0.005, half-width
+ * 0.04 (eps 0.01). The tube's eighth inner layer runs along the axis at r =
+ * 0.036 - 8 dl = 0.0014 < dl/2: those nodes go onto the axis (flag AXIS, r
+ * exactly 0), so no band node lies within dl/2 of the axis off it (without
+ * the snap 108 do here, the nearest at r 0.0004 from its ghost 0.0008 away;
+ * in a run of such a tether, `vesica spectrum` found a mode of -705 per t*
+ * on them, axis share 0.88, material share 0.035, gone with the snap:
+ * bench/RESULTS.md, session 33). */
+static void test_band_nodes_tether(void **state) {
+  (void)state;
+  enum { NA = 300, NF = 150, NT = 300, NB = 1200 };
+  const double R = 0.8, a = 0.036, b = 0.12, zb = 1.5, f = 0.06;
+  const double zf = sqrt((R + f) * (R + f) - (a + f) * (a + f));      /* body fillet centre z */
+  const double zg = zb - sqrt((b + f) * (b + f) - (a + f) * (a + f)); /* bead fillet's */
+  static double pts[2 * (NA + 2 * NF + NT + NB + 1)];
+  int k = 0;
+  const double tb = atan2(zg - zb, a + f); /* the bead's tangent point with its fillet */
+  arc_points(pts, &k, 0.0, zb, b, M_PI / 2, tb, NA);
+  arc_points(pts, &k, a + f, zg, f, atan2(zb - zg, -(a + f)), M_PI, NF);
+  for (int i = 0; i < NT; i++) pts[2 * k] = a, pts[2 * k + 1] = zg + (zf - zg) * i / NT, k++;
+  arc_points(pts, &k, a + f, zf, f, M_PI, atan2(-zf, -(a + f)) + 2 * M_PI, NF);
+  arc_points(pts, &k, 0.0, 0.0, R, atan2(zf, a + f), -M_PI / 2, NB);
+  pts[0] = 0.0, pts[2 * k] = 0.0, pts[2 * k + 1] = -R, k++;
+  ves_shape_params p;
+  ves_shape_params_default(&p);
+  p.kind = VES_SHAPE_CURVE, p.npts = k, p.pts = pts, p.keep_scale = 1;
+  ves_shape *s = NULL;
+  assert_int_equal(ves_shape_create(&p, &s), VES_OK);
+  const double h = 0.005, dl = 0.5 * sqrt(3.0) * h;
+  int n = 0, *fl = NULL, near = 0, tube_axis = 0;
+  double *x = NULL, rmin = INFINITY;
+  assert_int_equal(ves_shape_band_nodes(s, h, 0.04, &n, &x, &fl), VES_OK);
+  for (int q = 0; q < n; q++) {
+    const double r = x[2 * q], z = x[2 * q + 1];
+    if (r > 0.0) rmin = fmin(rmin, r);
+    near += r > 0.0 && r < 0.5 * dl;
+    if (fl[q] & VES_NODE_AXIS) assert_true(r == 0.0);
+    tube_axis += (fl[q] & VES_NODE_AXIS) && z > zf && z < zg;
+  }
+  printf("# tether: %d band nodes, %d on the axis in the tube, nearest off-axis r %.4f (dl/2 "
+         "%.4f)\n",
+         n, tube_axis, rmin, 0.5 * dl);
+  assert_int_equal(near, 0);
+  /* one layer snapped along the tube: ~ its length (0.49) / h nodes */
+  assert_true(tube_axis > 0.8 * (zg - zf) / h && tube_axis < 1.2 * (zg - zf) / h);
+  free(x), free(fl);
+  ves_shape_destroy(&s);
+}
+
 /* A curve through 201 points of the v = 0.9 oblate spheroid reproduces the
  * spheroid: the spline interpolates to O(ds^4), ds ~ 0.016. */
 static void test_curve_points(void **state) {
@@ -372,7 +434,8 @@ int main(void) {
       cmocka_unit_test(test_distance_pruned),
       cmocka_unit_test(test_mode_perturbation), cmocka_unit_test(test_discocyte),
       cmocka_unit_test(test_sphere_energy),
-      cmocka_unit_test(test_band_nodes), cmocka_unit_test(test_curve_points),
+      cmocka_unit_test(test_band_nodes), cmocka_unit_test(test_band_nodes_tether),
+      cmocka_unit_test(test_curve_points),
       cmocka_unit_test(test_errors),
   };
   // clang-format on
