@@ -217,9 +217,9 @@ lane_wall() { # the sum of the wall seconds of lane $1's finished runs
   echo "where it does: bench/RESULTS.md (sections named below)."
   echo
   echo "Not possible yet: Fig. 5 right at eps 0.01 has reached no end state (run by"
-  echo "hand in the taller box with remeshing to t* 2.80, where modes on the axis that a"
-  echo "remeshing brought into the tethers held dt* below ~0.002: RESULTS \"Fig. 5 right at"
-  echo "eps 0.01 ... to t* 2.80\"); Fig. 6 (problems/pearling.ini) has been run"
+  echo "hand in the taller box with remeshing to t* ~2.9; from t* 2.68 to 2.80 modes on"
+  echo "the axis that a remeshing brought into the tethers held dt* below ~0.002, fixed"
+  echo "since: RESULTS \"Fig. 5 right at eps 0.01 ... to t* 2.80\"); Fig. 6 (problems/pearling.ini) has been run"
   echo "to t* 3 at eps 0.04, not to a settled end (RESULTS \"Fig. 6: deflation with rising"
   echo "C0, pearling (issue 18)\"), and at eps 0.01 (not in the default set) to t* 3"
   echo "(5.9 h: five pearls by t* 0.48, seven by 0.72, nine by 0.98, thirteen by 3, necks"
