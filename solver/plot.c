@@ -134,6 +134,19 @@ static void fig_energy(FILE *f, const ves_plot_params *p, const ves_io_info *in,
           "unset multiplot\n");
 }
 
+/* The box's half extents: the largest R and |Z| of the reference mesh's
+ * nodes (the walls). */
+static ves_status box_extent(ves_io *io, double *LR, double *LZ) {
+  const int n = ves_io_get_info(io)->n;
+  double *X = malloc(2 * (size_t)n * sizeof *X);
+  ves_status st = X ? ves_io_read_mesh(io, X, NULL) : VES_ERR_ALLOC;
+  *LR = 0, *LZ = 0;
+  for (int a = 0; st == VES_OK && a < n; a++)
+    *LR = fmax(*LR, X[2 * a]), *LZ = fmax(*LZ, fabs(X[2 * a + 1]));
+  free(X);
+  return st;
+}
+
 /* The axes of the node panels (snapshots, flow): the meridian plane
  * mirrored, [-LR, LR] x [-LZ, LZ] at equal scale, phi's palette. */
 static void panel_axes(FILE *f, double LR, double LZ) {
@@ -153,11 +166,8 @@ static ves_status fig_snapshots(FILE *f, ves_io *io, const ves_plot_params *p, c
   for (int j = 0; j < nsel; j++)
     if (ves_io_snapshot_nodes(io, sel[j]) > nmax) nmax = ves_io_snapshot_nodes(io, sel[j]);
   double *y = malloc(2 * (size_t)nmax * sizeof *y), *phi = malloc((size_t)nmax * sizeof *phi);
-  double *X = malloc(2 * (size_t)n * sizeof *X);
-  ves_status st = y && phi && X ? ves_io_read_mesh(io, X, NULL) : VES_ERR_ALLOC;
   double LR = 0, LZ = 0, ts[VES_PLOT_MAXTIMES];
-  for (int a = 0; st == VES_OK && a < n; a++)
-    LR = fmax(LR, X[2 * a]), LZ = fmax(LZ, fabs(X[2 * a + 1]));
+  ves_status st = y && phi ? box_extent(io, &LR, &LZ) : VES_ERR_ALLOC;
   for (int j = 0; j < nsel && st == VES_OK; j++) {
     ves_io_snapinfo si;
     n = ves_io_snapshot_nodes(io, sel[j]);
@@ -174,7 +184,7 @@ static ves_status fig_snapshots(FILE *f, ves_io *io, const ves_plot_params *p, c
       fprintf(f, "EOD\n");
     }
   }
-  free(y), free(phi), free(X);
+  free(y), free(phi);
   VES_CALL(st);
   int cols = nsel <= 2 ? nsel : nsel <= 4 ? 2 : (nsel + 1) / 2, rows = (nsel + cols - 1) / cols;
   double ps = fmin(0.6, 0.35 * sqrt(1500.0 / n)); /* points shrink as nodes multiply */
@@ -230,13 +240,10 @@ static ves_status fig_flow(FILE *f, ves_io *io, const ves_plot_params *p, const 
   for (int j = 0; j < nsel; j++)
     if (ves_io_snapshot_nodes(io, sel[j]) > nmax) nmax = ves_io_snapshot_nodes(io, sel[j]);
   double *x = malloc(2 * (size_t)nmax * sizeof *x), *v = malloc(2 * (size_t)nmax * sizeof *v);
-  double *X = malloc(2 * (size_t)n * sizeof *X);
   int *pick = NULL;
-  ves_status st = x && v && X ? ves_io_read_mesh(io, X, NULL) : VES_ERR_ALLOC;
   double LR = 0, LZ = 0, ts[VES_PLOT_MAXTIMES], vmax[VES_PLOT_MAXTIMES];
+  ves_status st = x && v ? box_extent(io, &LR, &LZ) : VES_ERR_ALLOC;
   int has[VES_PLOT_MAXTIMES];
-  for (int a = 0; st == VES_OK && a < n; a++)
-    LR = fmax(LR, X[2 * a]), LZ = fmax(LZ, fabs(X[2 * a + 1]));
   const double cell = 2 * LZ / PLOT_ARROW_ROWS;
   const int nr = st == VES_OK ? (int)ceil(LR / cell) : 0, nc = nr * PLOT_ARROW_ROWS;
   if (st == VES_OK && !(pick = malloc((size_t)(nc > 0 ? nc : 1) * sizeof *pick)))
@@ -280,7 +287,7 @@ static ves_status fig_flow(FILE *f, ves_io *io, const ves_plot_params *p, const 
     }
     fprintf(f, "EOD\n");
   }
-  free(x), free(v), free(X), free(pick);
+  free(x), free(v), free(pick);
   VES_CALL(st);
   int cols = nsel <= 2 ? nsel : nsel <= 4 ? 2 : (nsel + 1) / 2, rows = (nsel + cols - 1) / cols;
   double ps = 0.6 * fmin(0.6, 0.35 * sqrt(1500.0 / n)); /* fainter: the arrows are the figure */
