@@ -60,6 +60,10 @@ int cli_build(run_ctx *r) {
     fprintf(stderr, "vesica run: %s: cannot start the time loop: %s\n", r->label, cli_why(st));
     return cli_exit_for(st);
   }
+  if ((st = ves_sim_set_phi0_coefficients(r->sim, r->setup->phi0c)) != VES_OK) {
+    fprintf(stderr, "vesica run: %s: cannot start the time loop: %s\n", r->label, cli_why(st));
+    return cli_exit_for(st);
+  }
   if (p.remesh) { /* r->cfg outlives the simulation */
     if ((st = ves_sim_set_remesh(r->sim, &r->cfg, &p.remesh_policy)) != VES_OK) {
       fprintf(stderr, "vesica run: %s: [remesh]: %s\n", r->label, cli_why(st));

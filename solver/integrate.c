@@ -88,6 +88,9 @@ struct ves_sim {
                                       dropped at a reset) */
   double *node_phi;                /* n: phi of the material at those nodes */
   int node_phi_ok;                 /* node_phi holds the current reference's values */
+  double *coef;                    /* n: nodal coefficients of the model's phi0 when known
+                                      (the creation model's, ves_sim_set_phi0_coefficients;
+                                      a remeshing's), NULL after a reset */
   long reset_step;                 /* the step of the last reset (0: none) */
   ves_remesh *mesh;                /* the last remeshing's reference (owned; NULL if none
                                       or a reset came after it) */
@@ -144,7 +147,7 @@ void ves_sim_destroy(ves_sim **s) {
   ves_reconnect_destroy(&p->ref); /* after the step problem and backend built on it */
   ves_remesh_destroy(&p->mesh);
   ves_quad_destroy(&p->at_nodes);
-  free(p->node_phi);
+  free(p->node_phi), free(p->coef);
   free(p->y);
   free(p->ynew);
   free(p->x), free(p->yprev);
@@ -290,6 +293,8 @@ static ves_status switch_reference(ves_sim *s, ves_reconnect *nr, const ves_step
   memcpy(s->y, y, 2 * (size_t)s->n * sizeof *s->y);
   s->E = E, s->A = A, s->V = V;
   ves_quad_destroy(&s->at_nodes); /* built on the old nodes */
+  free(s->coef);                  /* a reset's model has point data only */
+  s->coef = NULL;
   return VES_OK;
 }
 
@@ -451,6 +456,9 @@ static ves_status switch_remesh(ves_sim *s, ves_remesh *nm, double V_target) {
   ves_quad_destroy(&s->at_nodes); /* built on the old nodes */
   free(s->node_phi);
   s->node_phi = NULL, s->node_phi_ok = 0;
+  free(s->coef); /* the remeshing's projected phi0 (NULL if out of memory: refitted) */
+  if ((s->coef = malloc((size_t)n * sizeof *s->coef)))
+    memcpy(s->coef, ves_remesh_phi0c(nm), (size_t)n * sizeof *s->coef);
   s->since = 0, s->reset_step = s->nstep; /* a new reference */
   s->fresh_next = 1;
   return VES_OK;
@@ -830,11 +838,15 @@ static ves_status node_points(ves_sim *s) {
   return st;
 }
 
-/* phi at the reference's nodes into s->node_phi: the L2 projection of the
- * model's point values of phi0 onto the reference's basis
- * (ves_project_l2, as the setup fits phi0), evaluated at the nodes.
- * On the creation model this is the setup's field again; after a reset the
- * pushed-forward one (the model has no nodal coefficients then). */
+/* phi at the reference's nodes into s->node_phi: the model's nodal
+ * coefficients of phi0 evaluated at the nodes when they are known (the
+ * creation model's, a remeshing's), else (after a reset: the model has the
+ * pushed-forward point values only) the L2 projection of the model's point
+ * values of phi0 onto the reference's basis (ves_project_l2, as the setup
+ * fits phi0), evaluated there. The projection of a field that lies in the
+ * basis gives its coefficients back to the fit's tolerance (1e-12): before,
+ * the first snapshot of every run refitted the setup's coefficients so, a
+ * second L2 projection of ~2.5 s at eps 0.01 (bench/RESULTS.md, session 34). */
 static ves_status node_phi_fit(ves_sim *s) {
   const ves_quad *q = ves_model_quad(s->model);
   const int n = s->n;
@@ -842,6 +854,15 @@ static ves_status node_phi_fit(ves_sim *s) {
   if (st != VES_OK) return st;
   if (!s->node_phi && !(s->node_phi = malloc((size_t)n * sizeof *s->node_phi)))
     return VES_ERR_ALLOC;
+  if (s->coef) {
+    double *fld = malloc(6 * (size_t)n * sizeof *fld);
+    if (!fld) return VES_ERR_ALLOC;
+    ves_quad_field(s->at_nodes, s->coef, 0, fld);
+    for (int a = 0; a < n; a++) s->node_phi[a] = fld[6 * (size_t)a];
+    free(fld);
+    s->node_phi_ok = 1;
+    return VES_OK;
+  }
   double *pd = malloc(6 * (size_t)q->nq * sizeof *pd);
   double *fld = malloc(6 * (size_t)n * sizeof *fld);
   double *c = malloc((size_t)n * sizeof *c);
@@ -860,6 +881,15 @@ static ves_status node_phi_fit(ves_sim *s) {
   }
   free(pd), free(fld), free(c);
   return st;
+}
+
+ves_status ves_sim_set_phi0_coefficients(ves_sim *s, const double *phi0c) {
+  VES_CHECK(s && phi0c && !s->ref && !s->mesh, VES_ERR_ARG);
+  for (int a = 0; a < s->n; a++) VES_CHECK(isfinite(phi0c[a]), VES_ERR_ARG);
+  if (!s->coef && !(s->coef = malloc((size_t)s->n * sizeof *s->coef))) return VES_ERR_ALLOC;
+  memcpy(s->coef, phi0c, (size_t)s->n * sizeof *s->coef);
+  s->node_phi_ok = 0; /* evaluated from them at the next need */
+  return VES_OK;
 }
 
 ves_status ves_sim_node_material(ves_sim *s, double *x, double *phi) {

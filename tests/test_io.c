@@ -509,7 +509,8 @@ static ves_setup *tiny_setup(int bump) {
  *    1e-3 (the least-squares fit at h = 0.7 eps: measured 2.9e-4, 2.2e-4 at
  *    the wall nodes, moved 1e-3 h inwards), and against the setup's own
  *    field sum_b p_b(X_a) phi0c_b to 1e-10 (a refit of that field gives
- *    back phi0c to the projection's 1e-12);
+ *    back phi0c to the projection's 1e-12); with those coefficients given
+ *    (ves_sim_set_phi0_coefficients), that field itself;
  *  - after 2 steps: phi bit for bit the same (no reset: the same material),
  *    x moved, axis and walls as above;
  *  - a reset after 2 steps with nodes at y(X_a): x as after the same 2
@@ -575,6 +576,28 @@ static void test_node_material(void **state) {
   assert_true(moved > 1e-6);
   ves_sim_destroy(&sim);
 
+  /* with the setup's coefficients given (as vesica run does): phi is their
+   * field at the nodes, bit for bit (no refit), within the refit's 1e-12 of
+   * the refitted values above (bound 1e-10, as efit); refused when NULL,
+   * non-finite, or after a reset (below) */
+  assert_int_equal(ves_sim_create(s->model, bk, &bo, &ip, &sim), VES_OK);
+  assert_int_equal(ves_sim_set_phi0_coefficients(NULL, s->phi0c), VES_ERR_ARG);
+  assert_int_equal(ves_sim_set_phi0_coefficients(sim, NULL), VES_ERR_ARG);
+  const double keep = s->phi0c[n / 2];
+  s->phi0c[n / 2] = NAN;
+  assert_int_equal(ves_sim_set_phi0_coefficients(sim, s->phi0c), VES_ERR_ARG);
+  s->phi0c[n / 2] = keep;
+  assert_int_equal(ves_sim_set_phi0_coefficients(sim, s->phi0c), VES_OK);
+  assert_int_equal(ves_sim_node_material(sim, NULL, phi2), VES_OK);
+  double dref = 0;
+  for (int a = 0; a < n; a++) {
+    assert_true(phi2[a] == f[6 * a]);
+    dref = fmax(dref, fabs(phi2[a] - phi[a]));
+  }
+  printf("# with the setup's coefficients: max |phi - phi(refit)| = %.1e\n", dref);
+  assert_true(dref < 1e-10);
+  ves_sim_destroy(&sim);
+
   /* a reset after 2 steps: x (against x2, the same 2 steps without a reset)
    * and phi (carried or refitted) */
   for (int mode = 0; mode < 2; mode++) {
@@ -583,6 +606,7 @@ static void test_node_material(void **state) {
     assert_int_equal(ves_sim_create(s->model, bk, &bo, &ip, &sim), VES_OK);
     for (int i = 0; i < 2; i++) assert_int_equal(ves_sim_step(sim, &rep), VES_OK);
     assert_int_equal(ves_sim_reconnections(sim), 1);
+    assert_int_equal(ves_sim_set_phi0_coefficients(sim, s->phi0c), VES_ERR_ARG); /* a reset's */
     double *phir = mode ? phi2 : x; /* x is free scratch here (2n >= n) */
     assert_int_equal(ves_sim_node_material(sim, f, phir), VES_OK);
     double dx = 0, dphi = 0;

@@ -228,17 +228,29 @@ void ves_sim_initial(const ves_sim *s, double *E, double *A, double *V); /* at t
  *           interpolate; near a squeezed axis the two part by many spacings,
  *           bench/RESULTS.md); wall nodes at y^a, axis nodes at r = 0
  *   phi[n]  (may be NULL) the phase field it carries: phi0 of the reference
- *           at X_a, from the L2 fit of the model's point values of phi0 onto
- *           the reference's basis (on the creation model, the setup's field);
+ *           at X_a, the model's nodal coefficients of phi0 evaluated there
+ *           when they are known (the creation model's, given by
+ *           ves_sim_set_phi0_coefficients; a remeshing's), else the L2 fit
+ *           of the model's point values of phi0 onto the reference's basis;
  *           after a reset with nodes at y(X_a) the values are carried over
  *           (the same material), after one at y^a refitted on the new
  *           reference
  * The first call after a reset builds a point set at the nodes with its
- * tables (~n/nq of the setup's table build) and, for phi, the fit (a sparse
- * factorization); later calls evaluate only. VES_ERR_ARG, VES_ERR_ALLOC, or
- * the errors of ves_quad_tables and ves_project_l2; the simulation
- * state is never changed. */
+ * tables (~n/nq of the setup's table build) and, for phi without known
+ * coefficients, the fit (a sparse factorization); later calls evaluate
+ * only. VES_ERR_ARG, VES_ERR_ALLOC, or the errors of ves_quad_tables and
+ * ves_project_l2; the simulation state is never changed. */
 ves_status ves_sim_node_material(ves_sim *s, double *x, double *phi);
+
+/* The nodal coefficients phi0c[n] of the creation model's phi0 (the ones
+ * given to ves_model_create: its point data is their field), copied: phi
+ * at the nodes (ves_sim_node_material, and the nodes a reset with
+ * reconnect_nodes = motion places) is then their value there instead of an
+ * L2 refit of the point data (the same field to the fit's 1e-12; the refit
+ * cost ~2.5 s at eps 0.01). A remeshing brings its own coefficients, a
+ * reset none. VES_ERR_ARG after a reset or remeshing (adopted ones
+ * included), or for a non-finite entry; VES_ERR_ALLOC. */
+ves_status ves_sim_set_phi0_coefficients(ves_sim *s, const double *phi0c);
 
 /* The motion that coefficients u[2n] (per node (r, z), a displacement or a
  * velocity field, fixed components included) give at the current
