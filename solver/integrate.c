@@ -88,9 +88,8 @@ struct ves_sim {
                                       dropped at a reset) */
   double *node_phi;                /* n: phi of the material at those nodes */
   int node_phi_ok;                 /* node_phi holds the current reference's values */
-  double *coef;                    /* n: nodal coefficients of the model's phi0 when known
-                                      (the creation model's, ves_sim_set_phi0_coefficients;
-                                      a remeshing's), NULL after a reset */
+  double *coef;                    /* n: nodal coefficients of the creation model's phi0
+                                      (ves_sim_set_phi0_coefficients; NULL: unknown) */
   long reset_step;                 /* the step of the last reset (0: none) */
   ves_remesh *mesh;                /* the last remeshing's reference (owned; NULL if none
                                       or a reset came after it) */
@@ -293,8 +292,6 @@ static ves_status switch_reference(ves_sim *s, ves_reconnect *nr, const ves_step
   memcpy(s->y, y, 2 * (size_t)s->n * sizeof *s->y);
   s->E = E, s->A = A, s->V = V;
   ves_quad_destroy(&s->at_nodes); /* built on the old nodes */
-  free(s->coef);                  /* a reset's model has point data only */
-  s->coef = NULL;
   return VES_OK;
 }
 
@@ -456,9 +453,6 @@ static ves_status switch_remesh(ves_sim *s, ves_remesh *nm, double V_target) {
   ves_quad_destroy(&s->at_nodes); /* built on the old nodes */
   free(s->node_phi);
   s->node_phi = NULL, s->node_phi_ok = 0;
-  free(s->coef); /* the remeshing's projected phi0 (NULL if out of memory: refitted) */
-  if ((s->coef = malloc((size_t)n * sizeof *s->coef)))
-    memcpy(s->coef, ves_remesh_phi0c(nm), (size_t)n * sizeof *s->coef);
   s->since = 0, s->reset_step = s->nstep; /* a new reference */
   s->fresh_next = 1;
   return VES_OK;
@@ -838,6 +832,15 @@ static ves_status node_points(ves_sim *s) {
   return st;
 }
 
+/* The nodal coefficients of the phi0 of the model in use when they are
+ * known: the remeshing's that made it (s->mesh is dropped at the next
+ * reset), or the creation model's before any reset or remeshing; NULL
+ * after a reset (its model has point values only). */
+static const double *known_coefficients(const ves_sim *s) {
+  if (s->mesh) return ves_remesh_phi0c(s->mesh);
+  return s->ref ? NULL : s->coef;
+}
+
 /* phi at the reference's nodes into s->node_phi: the model's nodal
  * coefficients of phi0 evaluated at the nodes when they are known (the
  * creation model's, a remeshing's), else (after a reset: the model has the
@@ -854,20 +857,12 @@ static ves_status node_phi_fit(ves_sim *s) {
   if (st != VES_OK) return st;
   if (!s->node_phi && !(s->node_phi = malloc((size_t)n * sizeof *s->node_phi)))
     return VES_ERR_ALLOC;
-  if (s->coef) {
-    double *fld = malloc(6 * (size_t)n * sizeof *fld);
-    if (!fld) return VES_ERR_ALLOC;
-    ves_quad_field(s->at_nodes, s->coef, 0, fld);
-    for (int a = 0; a < n; a++) s->node_phi[a] = fld[6 * (size_t)a];
-    free(fld);
-    s->node_phi_ok = 1;
-    return VES_OK;
-  }
-  double *pd = malloc(6 * (size_t)q->nq * sizeof *pd);
+  const double *known = known_coefficients(s);
+  double *pd = known ? NULL : malloc(6 * (size_t)q->nq * sizeof *pd);
+  double *c = known ? NULL : malloc((size_t)n * sizeof *c);
   double *fld = malloc(6 * (size_t)n * sizeof *fld);
-  double *c = malloc((size_t)n * sizeof *c);
-  st = pd && fld && c ? VES_OK : VES_ERR_ALLOC;
-  if (st == VES_OK) {
+  st = fld && (known || (pd && c)) ? VES_OK : VES_ERR_ALLOC;
+  if (st == VES_OK && !known) {
     ves_model_point_data(s->model, pd);
     for (int al = 0; al < q->nq; al++) pd[al] = pd[6 * (size_t)al]; /* phi0 row, in place */
     /* the setup's tolerance: the fit error far below the discretization's */
@@ -875,7 +870,7 @@ static ves_status node_phi_fit(ves_sim *s) {
     if (st == VES_MAXITER) st = VES_OK; /* the best iterate: ample for output */
   }
   if (st == VES_OK) {
-    ves_quad_field(s->at_nodes, c, 0, fld);
+    ves_quad_field(s->at_nodes, known ? known : c, 0, fld);
     for (int a = 0; a < n; a++) s->node_phi[a] = fld[6 * (size_t)a];
     s->node_phi_ok = 1;
   }
