@@ -15,12 +15,32 @@
  * permutation) at every size. The Hessian of F in u is then the identity at
  * the start, and LBFGS's unit step a Newton step. The wrapper ves_ldl
  * (MUMPS) that newton uses cannot serve: it offers A^{-1} v only, not the
- * half solves L^{-1} v, L^{-T} v that a change of variables needs. Until
+ * half solves L^{-1} v, L^{-T} v that a change of variables needs.
+ * Until
  * session 26 L was dense (LAPACK dpotrf, up to 12,000 variables, IC(0)
  * above): at 2.9k dofs a factor ~0.3 s and two O(n^2) triangular solves at
  * every evaluation (a read of the 67 MB factor each; dtrsv ~10% of the
  * profile); the sparse factor costs ~3% and cut the steps' CPU time by
  * 10-20% at equal gradient counts (bench/RESULTS.md, session 26).
+ * The constraint metric (session 35). At large dt M is often indefinite
+ * while its restriction to the constraints' tangent space is not: at the
+ * continuation's later stages of the robustness problem (dt* 100 to 1e4)
+ * M had one negative eigenvalue (-0.5 to -19 against a largest 1.8e6) and
+ * P M P (P the projector onto null(J)) none, its least 0.42-0.77. There
+ * the diagonal shift (~1e-3 diag(M), up to ~600 on the stiff entries)
+ * distorts every soft direction, and the last phase's L-BFGS paid for it
+ * (127 of 253 gradients at dt* 1e3). AUGLAG's subproblem has the Hessian M
+ * + rho J^T J, so before any shift the metric M + J^T S J is tried, s_i =
+ * tau mean(diag M) / |J_i|^2, tau = 1e-2, 1e-1, ..., 10, the least that
+ * factors; the rank-2 term fills a factor completely, so this one is dense
+ * (LAPACK, ves_chol_factor_dense) and tried up to NLB_DENSE_N unknowns only
+ * (8 n^2 bytes, ~n^3 / 3 flops: 0.25 s at 2.8k unknowns, where CHOLMOD's
+ * own factor is already 81% full; 6,000 is ~2 s and 290 MB). Where the
+ * reduced Hessian is itself indefinite (the oblate's x_start at dt* 1e3:
+ * 8 negative eigenvalues) no tau helps; the ladder stops when a larger tau
+ * leaves the failing pivot where it was, and the diagonal shifts follow.
+ * Measured (bench/RESULTS.md, session 35): dt* 1e3 253 -> 136 gradients,
+ * and the answer of test_backend's large step ~50x closer to Ipopt's.
  * Two phases: AUGLAG to the loose relative tolerance NLB_TOL1 (constraints
  * NLB_CTOL1) in the metric of the start, then a new factor where it ended and
  * AUGLAG to the requested tolerances (the Hessian far from the start is the
@@ -77,7 +97,12 @@
  * itself is admissible, the same step is solved
  * through easier ones: the objective's dt is lowered (ves_step_set_dt: y^n,
  * K and the constraint targets stay) by factors NLB_CONT_DOWN_FACTOR from
- * x_start until a solve converges (at most NLB_CONT_DOWN factors), then
+ * x_start until a solve converges (at most NLB_CONT_DOWN factors; a stage
+ * before the last is skipped, at the cost of its Hessian and one
+ * factorization, where M at x_start is not positive definite: there the
+ * reduced Hessian was indefinite too and no metric is exact, so L-BFGS
+ * crawls; measured at dt* 1e4 the stage at 100 took 120 gradients, the
+ * path through dt* 1, 10, 100 73), then
  * raised by NLB_CONT_FACTOR from each converged answer towards dt (the
  * multipliers scaled with dt, a tension times dt), that factor shrunk to its
  * square root after a failed stage, and the last stage is the step itself at
@@ -145,7 +170,12 @@
 #ifndef NLB_LAMBDA_RTOL
 #define NLB_LAMBDA_RTOL 1e-2 /* rebuild the Hessian at the model multipliers beyond this */
 #endif
-#define NLB_RHO0 10.0 /* AUGLAG's first penalty (NLopt auglag.c, from a feasible start) */
+#ifndef NLB_DENSE_N
+#define NLB_DENSE_N 6000 /* the dense constraint metric up to this many unknowns */
+#endif
+#define NLB_JT_TAU0 1e-2  /* ... its first tau (nlb_precondition) */
+#define NLB_JT_TAU_MAX 10 /* ... and its last */
+#define NLB_RHO0 10.0     /* AUGLAG's first penalty (NLopt auglag.c, from a feasible start) */
 #ifndef NLB_CSCALE
 #define NLB_CSCALE 10.0 /* constraint scale: |grad_u r_i| at the start */
 #endif
@@ -171,6 +201,10 @@ typedef struct {
   double *x;            /* n scratch: x(u) */
   double *g;            /* n scratch: grad f at x */
   double *J;            /* 2 n scratch Jacobian */
+  double *B;            /* 3 n scratch: the columns of one batched half solve */
+  double *uc;           /* n: the u of the constraints cached by the objective */
+  double rc[2];         /* ... their values r_i(uc) */
+  int cached;           /* 0 none, 1 the values, 2 also their gradients (in B + n) */
   double tgt[2];        /* constraint scales sigma_i (header comment) */
   double lam0[2];       /* multipliers folded into the objective (warm start) */
   int f_evals, g_evals; /* objective evaluations, with gradient */
@@ -179,6 +213,7 @@ typedef struct {
   int phases;           /* AUGLAG solves started (nlb_phase) */
   int domain_run;       /* consecutive domain errors */
   int gate;             /* the next phase is a step's direct solve: NLB_CONT_R applies */
+  int need_pd;          /* the next phase starts only where M is positive definite */
   int one_phase;        /* NLB_ONE_PHASE_R may make a first phase the last */
   int promoted;         /* ... and did, in this solve */
   ves_status reason;    /* why the solve was forced to stop (VES_OK: not) */
@@ -188,10 +223,13 @@ typedef struct {
   ves_backend_options opt;           /* copied options */
   int n, nnz;                        /* sizes the arrays are for */
   double *x, *g, *J, *u, *xs, *hval; /* scratch, u, start, Hessian values */
+  double *B, *uc;                    /* 3 n, n: the callbacks' cache (nlb_ctx) */
   int *hi, *hj;                      /* Hessian structure (lower triplets) */
   ves_ldl_ic *L;                     /* preconditioner: IC(0) on the Hessian pattern */
   ves_chol *C;                       /* or the exact sparse Cholesky factor (NULL: IC(0)) */
   double shift;                      /* the diagonal shift alpha of the last factorization */
+  double tau;                        /* ... or the weight of its dense J^T S J term (0: none) */
+  int dense_fail;                    /* the last factorization tried that term in vain */
   double rdiag;                      /* max_i |M_ii - K_ii| / K_ii of the last Hessian M */
   double *dg;                        /* 2 n scratch: diagonals */
   int pass;                          /* 0: M was the Hessian of the Lagrangian; 1: K */
@@ -232,11 +270,33 @@ static void nlb_x_of_u(nlb_ctx *c, const double *u) {
   for (int i = 0; i < c->n; i++) c->x[i] += c->xs[i];
 }
 
-/* F(u) = f(x(u)) / root^2 and grad_u F = L^{-1} grad f / root. */
+/* The constraints' values r_i = c_i / sigma_i at x = x(u) into c->rc, and
+ * with J (the Jacobian in x, 2 n) their gradients in u, root L^{-1} grad c_i
+ * / sigma_i, already in c->B + n (nlb_objective's batched solve): kept for
+ * nlb_constraints at the same u. */
+static void nlb_cache(nlb_ctx *c, const double *u, const double *cv, int with_grad) {
+  const size_t n = (size_t)c->n;
+  memcpy(c->uc, u, n * sizeof *u);
+  for (int i = 0; i < c->m; i++) {
+    c->rc[i] = cv[i] / c->tgt[i];
+    if (with_grad)
+      for (size_t j = 0; j < n; j++) c->B[(size_t)(i + 1) * n + j] *= c->root / c->tgt[i];
+  }
+  c->cached = with_grad ? 2 : 1;
+}
+
+/* F(u) = f(x(u)) / root^2 and grad_u F = L^{-1} grad f / root. With
+ * constraints, their values and gradients at the same point are computed
+ * here too and kept for nlb_constraints, which AUGLAG calls next at the same
+ * u: x(u) is then solved for once, and with the exact factor the gradient
+ * and the constraints' gradients go through one batched half solve (the
+ * factor read once instead of three times; the half solves were ~11% of a
+ * dt* 1e3 step, bench/RESULTS.md session 35). */
 static double nlb_objective(unsigned n, const double *u, double *grad, void *data) {
   nlb_ctx *c = data;
+  c->cached = 0;
   nlb_x_of_u(c, u);
-  double f = 0.0;
+  double f = 0.0, cv[2] = {0.0, 0.0};
   ves_status st = ves_step_eval_f(c->s, c->x, &f);
   c->f_evals++;
   if (grad) {
@@ -244,18 +304,16 @@ static double nlb_objective(unsigned n, const double *u, double *grad, void *dat
     if (st == VES_OK) st = ves_step_eval_grad(c->s, c->x, grad);
   } else {
     c->outer++;
-#ifdef NLB_TRACE
-    double cvt[2] = {0, 0};
-    if (st == VES_OK && c->m > 0) ves_step_eval_c(c->s, c->x, cvt);
-    fprintf(stderr, "nlopt outer %d: f %.15g  g_evals %d  c/sigma %.3e %.3e\n", c->outer, f,
-            c->g_evals, cvt[0] / c->tgt[0], c->m > 1 ? cvt[1] / c->tgt[1] : 0.0);
-#endif
   }
-  if (st == VES_OK && c->m > 0 && (c->lam0[0] != 0.0 || c->lam0[1] != 0.0)) {
-    /* f + lam0^T c (same minimizer on c = 0) */
-    double cv[2] = {0.0, 0.0};
+  if (st == VES_OK && c->m > 0) {
     st = ves_step_eval_c(c->s, c->x, cv);
     if (st == VES_OK && grad) st = ves_step_eval_jac(c->s, c->x, c->J);
+#ifdef NLB_TRACE
+    if (st == VES_OK && !grad)
+      fprintf(stderr, "nlopt outer %d: f %.15g  g_evals %d  c/sigma %.3e %.3e\n", c->outer, f,
+              c->g_evals, cv[0] / c->tgt[0], c->m > 1 ? cv[1] / c->tgt[1] : 0.0);
+#endif
+    /* f + lam0^T c (same minimizer on c = 0) */
     for (int i = 0; i < c->m && st == VES_OK; i++) {
       f += c->lam0[i] * cv[i];
       if (grad)
@@ -274,17 +332,33 @@ static double nlb_objective(unsigned n, const double *u, double *grad, void *dat
     return HUGE_VAL;
   }
   c->domain_run = 0;
+  if (grad && c->C && c->m > 0) { /* [grad, J^T] in one solve */
+    memcpy(c->B, grad, n * sizeof *grad);
+    memcpy(c->B + n, c->J, (size_t)c->m * n * sizeof *grad);
+    if (ves_chol_lsolve_cols(c->C, 1 + c->m, c->B) == VES_OK) {
+      for (unsigned i = 0; i < n; i++) grad[i] = c->B[i] / c->root;
+      nlb_cache(c, u, cv, 1);
+      return f / c->f_scale;
+    }
+  }
   if (grad) {
     nlb_lsolve(c->L, c->C, grad);
     for (unsigned i = 0; i < n; i++) grad[i] /= c->root;
   }
+  if (c->m > 0) nlb_cache(c, u, cv, 0);
   return f / c->f_scale;
 }
 
-/* r_i(u) = c_i(x(u)) / sigma_i, grad[i n + .] = L^{-1} grad c_i root / sigma_i. */
+/* r_i(u) = c_i(x(u)) / sigma_i, grad[i n + .] = L^{-1} grad c_i root / sigma_i;
+ * from the objective's cache at the same u when it holds what is asked. */
 static void nlb_constraints(unsigned m, double *r, unsigned n, const double *u, double *grad,
                             void *data) {
   nlb_ctx *c = data;
+  if (c->cached >= (grad ? 2 : 1) && memcmp(u, c->uc, n * sizeof *u) == 0) {
+    for (unsigned i = 0; i < m; i++) r[i] = c->rc[i];
+    if (grad) memcpy(grad, c->B + n, (size_t)m * n * sizeof *grad);
+    return;
+  }
   nlb_x_of_u(c, u);
   ves_status st = ves_step_eval_c(c->s, c->x, r);
   if (st == VES_OK && grad) st = ves_step_eval_jac(c->s, c->x, grad);
@@ -319,10 +393,10 @@ static void nlb_constraints(unsigned m, double *r, unsigned n, const double *u, 
 
 static void nlb_free_arrays(nlb_state *st) {
   free(st->x), free(st->g), free(st->J), free(st->u), free(st->xs), free(st->hval);
-  free(st->hi), free(st->hj), free(st->dg);
+  free(st->hi), free(st->hj), free(st->dg), free(st->B), free(st->uc);
   ves_chol_destroy(&st->C);
   st->x = st->g = st->J = st->u = st->xs = st->hval = NULL;
-  st->hi = st->hj = NULL, st->dg = NULL;
+  st->hi = st->hj = NULL, st->dg = st->B = st->uc = NULL;
   ves_ldl_ic_destroy(&st->L);
   st->n = 0, st->nnz = 0;
 }
@@ -339,8 +413,9 @@ static ves_status nlb_alloc(nlb_state *st, ves_step *s) {
   st->xs = malloc(N * sizeof(double)), st->hval = malloc(Z * sizeof(double));
   st->hi = malloc(Z * sizeof(int)), st->hj = malloc(Z * sizeof(int));
   st->dg = malloc(2 * N * sizeof(double));
+  st->B = malloc(3 * N * sizeof(double)), st->uc = malloc(N * sizeof(double));
   if (!st->x || !st->g || !st->J || !st->u || !st->xs || !st->hval || !st->hi || !st->hj ||
-      !st->dg) {
+      !st->dg || !st->B || !st->uc) {
     nlb_free_arrays(st);
     return VES_ERR_ALLOC;
   }
@@ -398,11 +473,50 @@ static double nlb_rdiag(nlb_state *st, const double *K) {
   return r;
 }
 
+/* G G^T = M + sum_i s_i J_i J_i^T, s_i = tau mean(diag M) / |J_i|^2, for tau
+ * = NLB_JT_TAU0, 10 NLB_JT_TAU0, ... NLB_JT_TAU_MAX: the least tau that
+ * makes it positive definite, densely (ves_chol_factor_dense). Stops early
+ * when a larger tau leaves the failing pivot where it was: the negative
+ * curvature is then not along J (the reduced Hessian itself is indefinite),
+ * and no tau will do. */
+static ves_status nlb_dense_metric(nlb_state *st, int m, const double *J) {
+  double dm = 0.0, sc[2] = {0.0, 0.0};
+  for (int k = 0; k < st->nnz; k++)
+    if (st->hi[k] == st->hj[k]) dm += st->hval[k];
+  dm /= st->n;
+  for (int i = 0; i < m; i++) {
+    double nn = 0.0;
+    for (int j = 0; j < st->n; j++) nn += J[(size_t)i * st->n + j] * J[(size_t)i * st->n + j];
+    if (!(nn > 0.0 && dm > 0.0)) return VES_ERR_SINGULAR;
+    sc[i] = dm / nn;
+  }
+  int last = -1;
+  for (double tau = NLB_JT_TAU0; tau <= NLB_JT_TAU_MAX; tau *= 10.0) {
+    const double sw[2] = {tau * sc[0], tau * sc[1]};
+    int fail = 0;
+    ves_status rc = ves_chol_factor_dense(st->C, st->hval, m, J, sw, &fail);
+#ifdef NLB_TRACE
+    fprintf(stderr, "nlopt dense metric: tau %g -> %s (column %d)\n", tau, ves_status_str(rc),
+            fail);
+#endif
+    if (rc == VES_OK) {
+      st->tau = tau;
+      return VES_OK;
+    }
+    if (rc != VES_ERR_SINGULAR || fail == last) return rc;
+    last = fail;
+  }
+  return VES_ERR_SINGULAR;
+}
+
 /* Factor the preconditioner at x (header comment): M = Hessian of the
  * Lagrangian, or K if that has a non-positive diagonal entry; the exact
- * sparse Cholesky factor when st->C exists, else IC(0). */
+ * sparse Cholesky factor when st->C exists, else IC(0). With constraints
+ * (J: their m gradients at x) and an indefinite M, first the dense metric
+ * M + J^T S J (nlb_dense_metric) up to NLB_DENSE_N unknowns and when
+ * dense (else it is not tried), then the diagonal shifts. */
 static ves_status nlb_precondition(nlb_state *st, ves_step *s, const double *x,
-                                   const double *lambda) {
+                                   const double *lambda, int m, const double *J, int dense) {
   ves_ldl_ic *L = st->L;
   const double *K = ves_step_K(s);
   VES_CHECK(K != NULL, VES_ERR_ARG);
@@ -411,6 +525,19 @@ static ves_status nlb_precondition(nlb_state *st, ves_step *s, const double *x,
 #ifdef NLB_TRACE
   fprintf(stderr, "nlopt precondition: max |diag(M - K)| / diag(K) = %.3e\n", st->rdiag);
 #endif
+  /* a step's direct solve that goes to the continuation needs no factor */
+  if (st->ctx.gate && st->rdiag > NLB_CONT_R) return VES_ERR_DOMAIN;
+  if (st->ctx.need_pd) { /* a stage of the search down: M itself or nothing */
+    st->ctx.need_pd = 0;
+    if (!st->C || ves_chol_factor(st->C, st->hval, 0.0) != VES_OK) {
+#ifdef NLB_TRACE
+      fprintf(stderr, "nlopt precondition: not positive definite, stage skipped\n");
+#endif
+      return VES_ERR_DOMAIN;
+    }
+    st->shift = 0.0, st->tau = 0.0, st->pass = 0, st->dense_fail = 0;
+    return VES_OK;
+  }
   for (int pass = 0; pass < 2; pass++) {
     const double *v = pass == 0 ? st->hval : K;
     ves_ldl_ic_set(L, v);
@@ -422,11 +549,21 @@ static ves_status nlb_precondition(nlb_state *st, ves_step *s, const double *x,
 #endif
     if (!posdiag) continue;
     double alpha = 0.0;
+    st->tau = 0.0, st->dense_fail = 0;
     for (int t = 0; t < NLB_IC_SHIFTS; t++, alpha = alpha == 0.0 ? 1e-3 : 10.0 * alpha) {
       if (st->C ? ves_chol_factor(st->C, v, alpha) == VES_OK
                 : ves_ldl_ic_factor(L, alpha) == VES_OK) {
         st->shift = alpha, st->pass = pass;
         return VES_OK;
+      }
+      if (t == 0 && pass == 0 && dense && st->C && m > 0 && st->n <= NLB_DENSE_N) {
+        ves_status rc = nlb_dense_metric(st, m, J);
+        if (rc == VES_OK) {
+          st->shift = 0.0, st->pass = pass;
+          return VES_OK;
+        }
+        if (rc != VES_ERR_SINGULAR) return rc;
+        st->dense_fail = 1;
       }
     }
   }
@@ -506,9 +643,14 @@ static ves_status nlb_start(nlb_state *st, ves_step *s, const double *x, const d
   for (int pass = 0; pass < 2 && rc == VES_OK; pass++) {
     rc = ves_step_eval_grad(s, x, st->g);
     if (rc == VES_OK && m > 0) rc = ves_step_eval_jac(s, x, st->J);
-    if (rc == VES_OK) rc = nlb_precondition(st, s, x, m > 0 ? lam_m : NULL);
+    if (rc == VES_OK) {
+      const int probe = c->gate || c->need_pd; /* may stop at the Hessian */
+      /* at the same x with other multipliers: no second try of a dense
+       * metric that failed (its reduced Hessian was indefinite) */
+      rc = nlb_precondition(st, s, x, m > 0 ? lam_m : NULL, m, st->J, pass == 0 || !st->dense_fail);
+      if (rc == VES_OK || (rc == VES_ERR_DOMAIN && probe)) c->g_evals++, c->h_evals++;
+    }
     if (rc != VES_OK) break;
-    c->g_evals++, c->h_evals++;
     nlb_lsolve(st->L, st->C, st->g); /* the gradient in u at root = 1 */
     for (int i = 0; i < m; i++) nlb_lsolve(st->L, st->C, st->J + (size_t)i * n);
     *have_qp = m > 0 && st->C != NULL; /* an estimate, also from a shifted factor */
@@ -603,9 +745,10 @@ static ves_status nlb_phase(nlb_state *st, ves_step *s, double *x, double *lambd
   if (!*last) tol = NLB_TOL1, ctol_rel = NLB_CTOL1;
 #ifdef NLB_TRACE
   fprintf(stderr,
-          "nlopt start: tol %g lambda in %.6e %.6e  qp %.6e %.6e (have %d, pass %d, shift %g)\n",
+          "nlopt start: tol %g lambda in %.6e %.6e  qp %.6e %.6e (have %d, pass %d, shift %g, "
+          "tau %g)\n",
           tol, m > 0 ? lambda[0] : 0.0, m > 1 ? lambda[1] : 0.0, lam_qp[0], lam_qp[1], have_qp,
-          st->pass, st->shift);
+          st->pass, st->shift, st->tau);
 #endif
   double ctol[2];
   nlb_scales(st, x, lambda, tgt, tol, ctol_rel, lam_qp, have_qp, ctol);
@@ -624,6 +767,7 @@ static ves_status nlb_phase(nlb_state *st, ves_step *s, double *x, double *lambd
     goto done;
   }
   c->opt = opt;
+  c->cached = 0; /* a new factor, root and scales */
   if (nlopt_set_ftol_rel(local, 0.0) < 0 || nlopt_set_xtol_rel(local, tol) < 0 ||
       nlopt_set_local_optimizer(opt, local) < 0 ||
       nlopt_set_min_objective(opt, nlb_objective, c) < 0 || nlopt_set_ftol_rel(opt, 0.0) < 0 ||
@@ -717,7 +861,9 @@ static ves_status nlb_continue(nlb_state *st, ves_step *s, double *x, double lam
     memcpy(xk, xs, (size_t)n * sizeof *xk);
     lk[0] = lam_in[0] * dk / dt, lk[1] = lam_in[1] * dk / dt; /* lambda ~ dt (tension) */
     if ((out = ves_step_set_dt(s, dk)) != VES_OK) break;
+    st->ctx.need_pd = j < NLB_CONT_DOWN; /* the last one: whatever M is */
     ves_status e = nlb_direct(st, s, xk, lk, tgt, NLB_TOL1, NLB_CTOL1, 0, gS, r, viol);
+    st->ctx.need_pd = 0;
 #ifdef NLB_TRACE
     fprintf(stderr, "nlopt continuation down: dt %g from x_start: %s (%d gradients so far)\n", dk,
             ves_status_str(e), st->ctx.g_evals);
@@ -783,6 +929,8 @@ static ves_status nlb_solve(void *state, ves_step *s, double *x, double *lambda,
                  .x = st->x,
                  .g = st->g,
                  .J = st->J,
+                 .B = st->B,
+                 .uc = st->uc,
                  .reason = VES_OK};
   double tgt[2];
   VES_CHECK(ves_step_get_targets(s, tgt) == m, VES_ERR_INTERNAL);

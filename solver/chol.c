@@ -3,11 +3,18 @@
  * column matrix with sorted rows; map[k] is the slot of triplet k, so each
  * factorization only sums the values into A->x. CHOLMOD's own ordering
  * (AMD, METIS when AMD's fill is poor) and supernodal/simplicial choice are
- * kept; final_ll asks for L L^T in both, which the half solves need. */
+ * kept; final_ll asks for L L^T in both, which the half solves need.
+ * The dense variant (ves_chol_factor_dense) factors M + sum s_i w_i w_i^T
+ * with LAPACK's dpotrf on an n x n column-major array: a dense rank-m term
+ * would fill the sparse factor completely, and no sparse route reaches it
+ * when M itself is indefinite (an update needs a positive definite factor to
+ * start from). The half solves then go to BLAS's dtrsv / dtrsm. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include <cblas.h>
+#include <lapacke.h>
 #include <suitesparse/cholmod.h>
 
 #include "ves/chol.h"
@@ -21,8 +28,11 @@ struct ves_chol {
   cholmod_dense *X;  /* solve2's result (reused) */
   cholmod_dense *Y;  /* solve2's workspace */
   cholmod_dense *E;  /* solve2's workspace */
-  double *w;         /* n: the permuted vector */
-  int factored;      /* the last ves_chol_factor succeeded */
+  double *w;         /* n wcols: the permuted vectors */
+  int wcols;         /* columns w holds */
+  double *D;         /* n n column-major: the dense factor (ves_chol_factor_dense) */
+  int dense;         /* the factor in use is D, not L */
+  int factored;      /* the last factorization succeeded */
   int started;       /* cholmod_start was called */
 };
 
@@ -37,7 +47,7 @@ void ves_chol_destroy(ves_chol **f) {
     cholmod_free_sparse(&F->A, &F->c);
     cholmod_finish(&F->c);
   }
-  free(F->map), free(F->w);
+  free(F->map), free(F->w), free(F->D);
   free(F);
   *f = NULL;
 }
@@ -104,6 +114,7 @@ ves_status ves_chol_create(int n, int nnz, const int *irow, const int *jcol, ves
   F->n = n, F->nnz = nnz;
   F->map = malloc((size_t)(nnz > 0 ? nnz : 1) * sizeof(int));
   F->w = malloc((size_t)n * sizeof(double));
+  F->wcols = 1;
   ves_status rc = VES_ERR_ALLOC;
   if (!F->map || !F->w) goto fail;
   if (!cholmod_start(&F->c)) {
@@ -113,6 +124,11 @@ ves_status ves_chol_create(int n, int nnz, const int *irow, const int *jcol, ves
   F->started = 1;
   F->c.print = 0;    /* no messages: the status says it */
   F->c.final_ll = 1; /* L L^T also from a simplicial factorization */
+  /* A failed factorization's partial factor is never used: without this,
+   * CHOLMOD refactors the failing supernode so that L(:,1:minor) is valid,
+   * which doubled the cost of a late failure (the nlopt backend's shifts:
+   * 0.27 s against 0.14 s at 2.8k unknowns, bench/RESULTS.md session 35). */
+  F->c.quick_return_if_not_posdef = 1;
   if ((rc = chol_pattern(F, irow, jcol)) != VES_OK) goto fail;
   F->L = cholmod_analyze(F->A, &F->c);
   if (!F->L) {
@@ -126,17 +142,24 @@ fail:
   return rc;
 }
 
-ves_status ves_chol_factor(ves_chol *f, const double *val, double alpha) {
-  VES_CHECK(f && (f->nnz == 0 || val) && alpha >= 0.0 && isfinite(alpha), VES_ERR_ARG);
-  f->factored = 0;
+/* The triplets val summed into A->x, the diagonal times 1 + alpha; 0 if a
+ * diagonal entry is not finite. */
+static int chol_values(ves_chol *f, const double *val, double alpha) {
   double *x = f->A->x;
   const int *Ap = f->A->p;
   memset(x, 0, (size_t)Ap[f->n] * sizeof(double));
   for (int k = 0; k < f->nnz; k++) x[f->map[k]] += val[k];
   for (int j = 0; j < f->n; j++) {
     x[Ap[j]] *= 1.0 + alpha; /* the diagonal: a column's first slot */
-    if (!isfinite(x[Ap[j]])) return VES_ERR_SINGULAR;
+    if (!isfinite(x[Ap[j]])) return 0;
   }
+  return 1;
+}
+
+ves_status ves_chol_factor(ves_chol *f, const double *val, double alpha) {
+  VES_CHECK(f && (f->nnz == 0 || val) && alpha >= 0.0 && isfinite(alpha), VES_ERR_ARG);
+  f->factored = 0, f->dense = 0;
+  if (!chol_values(f, val, alpha)) return VES_ERR_SINGULAR;
   if (!cholmod_factorize(f->A, f->L, &f->c))
     return f->c.status == CHOLMOD_OUT_OF_MEMORY ? VES_ERR_ALLOC : VES_ERR_SOLVER;
   if (f->c.status == CHOLMOD_NOT_POSDEF || f->L->minor < f->L->n) return VES_ERR_SINGULAR;
@@ -145,37 +168,89 @@ ves_status ves_chol_factor(ves_chol *f, const double *val, double alpha) {
   return VES_OK;
 }
 
-/* v = L^{-1} v (sys CHOLMOD_L) or L^{-T} v (CHOLMOD_Lt), through solve2's
- * reused workspaces. */
-static ves_status chol_tri(ves_chol *f, int sys, double *v) {
+ves_status ves_chol_factor_dense(ves_chol *f, const double *val, int m, const double *w,
+                                 const double *s, int *fail) {
+  VES_CHECK(f && (f->nnz == 0 || val) && m >= 0 && (m == 0 || (w && s)), VES_ERR_ARG);
+  for (int i = 0; i < m; i++) VES_CHECK(s[i] >= 0.0 && isfinite(s[i]), VES_ERR_ARG);
+  const size_t n = (size_t)f->n;
+  f->factored = 0, f->dense = 0;
+  if (fail) *fail = 0;
+  if (!f->D && !(f->D = malloc(n * n * sizeof(double)))) return VES_ERR_ALLOC;
+  if (!chol_values(f, val, 0.0)) return VES_ERR_SINGULAR;
+  double *D = f->D;
+  const double *x = f->A->x;
+  const int *Ap = f->A->p, *Ai = f->A->i;
+  for (size_t j = 0; j < n; j++) { /* the lower triangle of column j */
+    memset(D + j * n + j, 0, (n - j) * sizeof(double));
+    for (int p = Ap[j]; p < Ap[j + 1]; p++) D[j * n + (size_t)Ai[p]] = x[p];
+  }
+  for (int i = 0; i < m; i++)
+    cblas_dsyr(CblasColMajor, CblasLower, (int)n, s[i], w + (size_t)i * n, 1, D, (int)n);
+  for (size_t j = 0; j < n; j++)
+    if (!isfinite(D[j * n + j])) return VES_ERR_SINGULAR;
+  const lapack_int info = LAPACKE_dpotrf(LAPACK_COL_MAJOR, 'L', (lapack_int)n, D, (lapack_int)n);
+  if (info > 0) {
+    if (fail) *fail = (int)info;
+    return VES_ERR_SINGULAR;
+  }
+  if (info < 0) return VES_ERR_SOLVER;
+  f->factored = 1, f->dense = 1;
+  return VES_OK;
+}
+
+/* v = L^{-1} v (sys CHOLMOD_L) or L^{-T} v (CHOLMOD_Lt) for the k columns
+ * of v (n k, column-major), through solve2's reused workspaces: the factor is
+ * read once for all k. */
+static ves_status chol_tri(ves_chol *f, int sys, int k, double *v) {
   cholmod_dense B = {.nrow = (size_t)f->n,
-                     .ncol = 1,
-                     .nzmax = (size_t)f->n,
+                     .ncol = (size_t)k,
+                     .nzmax = (size_t)f->n * (size_t)k,
                      .d = (size_t)f->n,
                      .x = v,
                      .z = NULL,
                      .xtype = CHOLMOD_REAL,
                      .dtype = CHOLMOD_DOUBLE};
   if (!cholmod_solve2(sys, f->L, &B, NULL, &f->X, NULL, &f->Y, &f->E, &f->c)) return VES_ERR_SOLVER;
-  memcpy(v, f->X->x, (size_t)f->n * sizeof(double));
+  memcpy(v, f->X->x, (size_t)f->n * (size_t)k * sizeof(double));
   return VES_OK;
 }
 
-/* G^{-1} v = L^{-1} P v, (P v)_i = v_{Perm[i]}. */
-ves_status ves_chol_lsolve(ves_chol *f, double *v) {
-  VES_CHECK(f && f->factored && v, VES_ERR_ARG);
+/* G^{-1} v = L^{-1} P v, (P v)_i = v_{Perm[i]}, column by column. */
+ves_status ves_chol_lsolve_cols(ves_chol *f, int k, double *v) {
+  VES_CHECK(f && f->factored && v && k >= 1, VES_ERR_ARG);
+  const size_t n = (size_t)f->n;
+  if (k > f->wcols) {
+    double *w = realloc(f->w, n * (size_t)k * sizeof(double));
+    if (!w) return VES_ERR_ALLOC;
+    f->w = w, f->wcols = k;
+  }
+  if (f->dense) {
+    if (k == 1)
+      cblas_dtrsv(CblasColMajor, CblasLower, CblasNoTrans, CblasNonUnit, f->n, f->D, f->n, v, 1);
+    else
+      cblas_dtrsm(CblasColMajor, CblasLeft, CblasLower, CblasNoTrans, CblasNonUnit, f->n, k, 1.0,
+                  f->D, f->n, v, f->n);
+    return VES_OK;
+  }
   const int *perm = f->L->Perm;
-  for (int i = 0; i < f->n; i++) f->w[i] = v[perm[i]];
-  VES_CALL(chol_tri(f, CHOLMOD_L, f->w));
-  memcpy(v, f->w, (size_t)f->n * sizeof(double));
+  for (int c = 0; c < k; c++)
+    for (size_t i = 0; i < n; i++) f->w[c * n + i] = v[c * n + (size_t)perm[i]];
+  VES_CALL(chol_tri(f, CHOLMOD_L, k, f->w));
+  memcpy(v, f->w, n * (size_t)k * sizeof(double));
   return VES_OK;
 }
+
+ves_status ves_chol_lsolve(ves_chol *f, double *v) { return ves_chol_lsolve_cols(f, 1, v); }
 
 /* G^{-T} v = P^T L^{-T} v. */
 ves_status ves_chol_ltsolve(ves_chol *f, double *v) {
   VES_CHECK(f && f->factored && v, VES_ERR_ARG);
+  if (f->dense) {
+    cblas_dtrsv(CblasColMajor, CblasLower, CblasTrans, CblasNonUnit, f->n, f->D, f->n, v, 1);
+    return VES_OK;
+  }
   const int *perm = f->L->Perm;
-  VES_CALL(chol_tri(f, CHOLMOD_Lt, v));
+  VES_CALL(chol_tri(f, CHOLMOD_Lt, 1, v));
   memcpy(f->w, v, (size_t)f->n * sizeof(double));
   for (int i = 0; i < f->n; i++) v[perm[i]] = f->w[i];
   return VES_OK;
@@ -183,7 +258,13 @@ ves_status ves_chol_ltsolve(ves_chol *f, double *v) {
 
 size_t ves_chol_factor_entries(const ves_chol *f) {
   if (!f || !f->factored) return 0;
+  if (f->dense) return (size_t)f->n * ((size_t)f->n + 1) / 2;
   const cholmod_factor *L = f->L;
   if (L->is_super) return L->xsize;
   return L->nzmax;
+}
+
+double ves_chol_fill(const ves_chol *f) {
+  if (!f) return 0.0;
+  return f->c.lnz / (0.5 * f->n * (f->n + 1.0));
 }

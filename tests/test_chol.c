@@ -168,6 +168,159 @@ static void test_chol_singular(void **state) {
   ves_chol_destroy(&F);
 }
 
+/* y = (M + sum_i s_i w_i w_i^T) x, M by its lower triplets. */
+static void rank_matvec(int n, int nnz, const int *ir, const int *jc, const double *v, int m,
+                        const double *w, const double *sw, const double *x, double *y) {
+  lower_matvec(n, nnz, ir, jc, v, 0.0, x, y);
+  for (int i = 0; i < m; i++) {
+    double d = 0.0;
+    for (int j = 0; j < n; j++) d += w[(size_t)i * n + j] * x[j];
+    for (int j = 0; j < n; j++) y[j] += sw[i] * d * w[(size_t)i * n + j];
+  }
+}
+
+/* The dense variant: a random Gershgorin-bounded SPD matrix A (as in
+ * test_chol_random) with two diagonal entries lowered by beta, so M has (by
+ * interlacing) at most two negative eigenvalues, which the rank-2 term
+ * s (w_1 w_1^T + w_2 w_2^T), w_i = e_{k_i} + 0.01 (random), removes (with
+ * noise eps the negative curvature left orthogonal to w_i is ~ beta eps^2 N
+ * / 18 against A's ~ 1: 0.03 here, 3 at eps 0.1). The
+ * factor of M + S is checked as the sparse ones are; its half solves then
+ * serve until a sparse factorization replaces it. */
+static void test_chol_dense(void **state) {
+  (void)state;
+  enum { N = 60, MAXNZ = N * (N + 1) / 2 };
+  uint64_t seed = 13;
+  static int ir[MAXNZ], jc[MAXNZ];
+  static double v[MAXNZ], R[N], w[2 * N];
+  int nnz = 0;
+  for (int i = 0; i < N; i++)
+    for (int j = 0; j < i; j++)
+      if (urand(&seed) < 0.2) {
+        ir[nnz] = i, jc[nnz] = j, v[nnz] = 2 * urand(&seed) - 1;
+        R[i] += fabs(v[nnz]), R[j] += fabs(v[nnz]);
+        nnz++;
+      }
+  const int k1 = 7, k2 = 41;
+  const double beta = 100.0;
+  int d1 = -1, d2 = -1;
+  for (int i = 0; i < N; i++) {
+    ir[nnz] = jc[nnz] = i, v[nnz] = R[i] + 1.0 + urand(&seed);
+    if (i == k1) d1 = nnz;
+    if (i == k2) d2 = nnz;
+    nnz++;
+  }
+  v[d1] -= beta, v[d2] -= beta; /* M = A - beta (e_k1 e_k1^T + e_k2 e_k2^T) */
+  for (int j = 0; j < 2 * N; j++) w[j] = 0.01 * (2 * urand(&seed) - 1);
+  w[k1] += 1.0, w[N + k2] += 1.0;
+  ves_chol *F = NULL;
+  assert_int_equal(ves_chol_create(N, nnz, ir, jc, &F), VES_OK);
+  /* the sparse factor of M fails, and so does the dense one without S */
+  assert_int_equal(ves_chol_factor(F, v, 0.0), VES_ERR_SINGULAR);
+  const double s0[2] = {0.0, 0.0}, s1[2] = {10 * beta, 10 * beta};
+  int fail = 0;
+  assert_int_equal(ves_chol_factor_dense(F, v, 2, w, s0, &fail), VES_ERR_SINGULAR);
+  assert_true(fail >= 1 && fail <= N);
+  double x[N];
+  for (int i = 0; i < N; i++) x[i] = 1.0;
+  assert_int_equal(ves_chol_lsolve(F, x), VES_ERR_ARG);
+  assert_int_equal(ves_chol_factor_entries(F), 0);
+  /* one term cures one of the two negative directions only */
+  assert_int_equal(ves_chol_factor_dense(F, v, 1, w, s1, &fail), VES_ERR_SINGULAR);
+  assert_int_equal(ves_chol_factor_dense(F, v, 2, w, s1, &fail), VES_OK);
+  assert_int_equal(fail, 0);
+  assert_int_equal(ves_chol_factor_entries(F), (size_t)N * (N + 1) / 2);
+  /* the checks of check_factor on M + S: y = G^{-T} G^{-1} a solves
+   * (M + S) y = a backward stably, |(M + S) y - a| <= c N u |M + S| |y| (c
+   * = 4; the row sums of |M| and |S| bound |M + S|), and the two half solves
+   * are transposes */
+  double a[N], y[N], z[N], ga[N], b[N], gb[N];
+  for (int i = 0; i < N; i++) a[i] = 2 * urand(&seed) - 1, b[i] = 2 * urand(&seed) - 1;
+  memcpy(y, a, sizeof y);
+  assert_int_equal(ves_chol_lsolve(F, y), VES_OK);
+  memcpy(ga, y, sizeof y);
+  assert_int_equal(ves_chol_ltsolve(F, y), VES_OK);
+  rank_matvec(N, nnz, ir, jc, v, 2, w, s1, y, z);
+  double res = 0.0, s1d = 0.0, s2d = 0.0, m1 = 0.0, m2 = 0.0;
+  double ymax = 0.0, nrm = 0.0, rs[N] = {0}, wsum[2] = {0.0, 0.0};
+  for (int i = 0; i < N; i++) res = fmax(res, fabs(z[i] - a[i])), ymax = fmax(ymax, fabs(y[i]));
+  for (int k = 0; k < nnz; k++) {
+    rs[ir[k]] += fabs(v[k]);
+    if (ir[k] != jc[k]) rs[jc[k]] += fabs(v[k]);
+  }
+  for (int t = 0; t < 2; t++)
+    for (int j = 0; j < N; j++) wsum[t] += fabs(w[t * N + j]);
+  for (int i = 0; i < N; i++)
+    nrm = fmax(nrm, rs[i] + s1[0] * fabs(w[i]) * wsum[0] + s1[1] * fabs(w[N + i]) * wsum[1]);
+  memcpy(gb, b, sizeof gb);
+  assert_int_equal(ves_chol_ltsolve(F, gb), VES_OK);
+  for (int i = 0; i < N; i++) {
+    s1d += ga[i] * b[i], s2d += a[i] * gb[i];
+    m1 += fabs(ga[i] * b[i]), m2 += fabs(a[i] * gb[i]);
+  }
+  printf("# dense n %d: |(M + S) G^-T G^-1 a - a| = %.2e of |M + S| |y| = %.2e,"
+         " <G^-1 a, b> - <a, G^-T b> = %.2e\n",
+         N, res, nrm * ymax, fabs(s1d - s2d));
+  assert_true(res <= 4 * N * U * nrm * ymax);
+  assert_true(fabs(s1d - s2d) <= 4 * N * U * fmax(m1, m2));
+  /* a sparse factorization replaces the dense one (of A itself: cond <=
+   * 1e3 is loose for a Gershgorin-bounded A with diagonal excess >= 1) */
+  v[d1] += beta, v[d2] += beta;
+  assert_int_equal(ves_chol_factor(F, v, 0.0), VES_OK);
+  check_factor(F, N, nnz, ir, jc, v, 0.0, 1e3, &seed);
+  ves_chol_destroy(&F);
+}
+
+/* lsolve_cols: k columns at once equal k single solves (to rounding: the
+ * batched kernels sum in another order), for a sparse and a dense factor;
+ * the fill of the grid's factor is far from dense, the random one's is not
+ * above 1. */
+static void test_chol_cols(void **state) {
+  (void)state;
+  enum { G = 24, N = G * G, NZ = N + 2 * G * (G - 1), K = 3 };
+  static int ir[NZ], jc[NZ];
+  static double v[NZ], V[K * N], X[K * N], w[N];
+  int nnz = 0;
+  for (int i = 0; i < N; i++) {
+    ir[nnz] = jc[nnz] = i, v[nnz++] = 4.1;
+    if (i % G > 0) ir[nnz] = i, jc[nnz] = i - 1, v[nnz++] = -1.0;
+    if (i >= G) ir[nnz] = i, jc[nnz] = i - G, v[nnz++] = -1.0;
+  }
+  uint64_t seed = 17;
+  for (int j = 0; j < K * N; j++) V[j] = 2 * urand(&seed) - 1;
+  for (int j = 0; j < N; j++) w[j] = urand(&seed);
+  ves_chol *F = NULL;
+  assert_int_equal(ves_chol_create(N, nnz, ir, jc, &F), VES_OK);
+  const double fill = ves_chol_fill(F);
+  printf("# grid %d: fill %.3f\n", N, fill);
+  assert_true(fill > 0.0 && fill < 0.25);
+  assert_true(ves_chol_fill(NULL) == 0.0);
+  const double sw = 1.0;
+  for (int dense = 0; dense < 2; dense++) {
+    if (dense)
+      assert_int_equal(ves_chol_factor_dense(F, v, 1, w, &sw, NULL), VES_OK);
+    else
+      assert_int_equal(ves_chol_factor(F, v, 0.0), VES_OK);
+    memcpy(X, V, sizeof X);
+    assert_int_equal(ves_chol_lsolve_cols(F, K, X), VES_OK);
+    double d = 0.0, mx = 0.0;
+    for (int c = 0; c < K; c++) {
+      double y[N];
+      memcpy(y, V + c * N, sizeof y);
+      assert_int_equal(ves_chol_lsolve(F, y), VES_OK);
+      for (int i = 0; i < N; i++) d = fmax(d, fabs(y[i] - X[c * N + i])), mx = fmax(mx, fabs(y[i]));
+    }
+    printf("# %s: k columns against k solves: %.2e of %.2e\n", dense ? "dense" : "sparse", d, mx);
+    /* two backward stable solves of the same system: their difference is
+     * within the condition number (<= 8.1 / 0.1 + N for the dense w w^T)
+     * times u of the answer */
+    assert_true(d <= 4 * (81.0 + N) * U * mx);
+  }
+  assert_int_equal(ves_chol_lsolve_cols(F, 0, X), VES_ERR_ARG);
+  assert_int_equal(ves_chol_lsolve_cols(NULL, 1, X), VES_ERR_ARG);
+  ves_chol_destroy(&F);
+}
+
 static void test_chol_errors(void **state) {
   (void)state;
   int ir[2] = {0, 1}, jc[2] = {0, 0}, up[2] = {0, 1}, big[2] = {0, 2}, neg[2] = {0, -1};
@@ -186,6 +339,22 @@ static void test_chol_errors(void **state) {
   assert_int_equal(ves_chol_lsolve(NULL, NULL), VES_ERR_ARG);
   assert_int_equal(ves_chol_ltsolve(NULL, NULL), VES_ERR_ARG);
   assert_int_equal(ves_chol_factor_entries(NULL), 0);
+  {
+    double val[2] = {1.0, 0.0}, ww[2] = {1.0, 0.0}, sneg = -1.0, snan = NAN, sok = 1.0;
+    assert_int_equal(ves_chol_create(2, 2, ir, jc, &F), VES_OK);
+    assert_int_equal(ves_chol_factor_dense(NULL, val, 1, ww, &sok, NULL), VES_ERR_ARG);
+    assert_int_equal(ves_chol_factor_dense(F, NULL, 1, ww, &sok, NULL), VES_ERR_ARG);
+    assert_int_equal(ves_chol_factor_dense(F, val, -1, ww, &sok, NULL), VES_ERR_ARG);
+    assert_int_equal(ves_chol_factor_dense(F, val, 1, NULL, &sok, NULL), VES_ERR_ARG);
+    assert_int_equal(ves_chol_factor_dense(F, val, 1, ww, NULL, NULL), VES_ERR_ARG);
+    assert_int_equal(ves_chol_factor_dense(F, val, 1, ww, &sneg, NULL), VES_ERR_ARG);
+    assert_int_equal(ves_chol_factor_dense(F, val, 1, ww, &snan, NULL), VES_ERR_ARG);
+    /* [1 0; 0 0] + 0: the second pivot fails */
+    int fail = 0;
+    assert_int_equal(ves_chol_factor_dense(F, val, 0, NULL, NULL, &fail), VES_ERR_SINGULAR);
+    assert_int_equal(fail, 2);
+    ves_chol_destroy(&F);
+  }
   /* the diagonal alone: M = 0 is not positive definite */
   assert_int_equal(ves_chol_create(2, 0, NULL, NULL, &F), VES_OK);
   assert_int_equal(ves_chol_factor(F, NULL, 0.0), VES_ERR_SINGULAR);
@@ -197,10 +366,9 @@ static void test_chol_errors(void **state) {
 
 int main(void) {
   const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_chol_random),
-      cmocka_unit_test(test_chol_grid),
-      cmocka_unit_test(test_chol_singular),
-      cmocka_unit_test(test_chol_errors),
+      cmocka_unit_test(test_chol_random),   cmocka_unit_test(test_chol_grid),
+      cmocka_unit_test(test_chol_singular), cmocka_unit_test(test_chol_dense),
+      cmocka_unit_test(test_chol_cols),     cmocka_unit_test(test_chol_errors),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
