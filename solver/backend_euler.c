@@ -108,4 +108,5 @@ static ves_status euler_solve(void *state, ves_step *s, double *x, double *lambd
   return VES_OK;
 }
 
-const ves_backend_type ves_backend_euler = {"euler", euler_create, euler_solve, euler_destroy, 1};
+const ves_backend_type ves_backend_euler = {"euler", euler_create, euler_solve, euler_destroy, 1,
+                                            0};

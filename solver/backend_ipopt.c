@@ -376,4 +376,5 @@ static ves_status ipopt_solve(void *state, ves_step *s, double *x, double *lambd
   return out;
 }
 
-const ves_backend_type ves_backend_ipopt = {"ipopt", ipopt_create, ipopt_solve, ipopt_destroy, 0};
+const ves_backend_type ves_backend_ipopt = {"ipopt", ipopt_create, ipopt_solve, ipopt_destroy, 0,
+                                            0};

@@ -657,5 +657,5 @@ static ves_status newton_solve(void *state, ves_step *s, double *x, double *lamb
   return result;
 }
 
-const ves_backend_type ves_backend_newton = {"newton", newton_create, newton_solve, newton_destroy,
-                                             0};
+const ves_backend_type ves_backend_newton = {
+    "newton", newton_create, newton_solve, newton_destroy, 0, 0};

@@ -985,4 +985,4 @@ static ves_status nlb_solve(void *state, ves_step *s, double *x, double *lambda,
   return out;
 }
 
-const ves_backend_type ves_backend_nlopt = {"nlopt", nlb_create, nlb_solve, nlb_destroy, 0};
+const ves_backend_type ves_backend_nlopt = {"nlopt", nlb_create, nlb_solve, nlb_destroy, 0, 1};

@@ -93,7 +93,7 @@ static const key_spec KEYS[] = {
     {"time", "growth_max", KEY_DOUBLE, OFF(growth_max), "2", 1, 100, NULL,
      "largest factor between consecutive steps"},
     {"time", "iter_target", KEY_INT, OFF(iter_target), "8", 1, 10000, NULL,
-     "above this many solver iterations dt is not grown"},
+     "above this many solver iterations (nlopt: Hessians) dt is not grown"},
     {"time", "factor_target", KEY_INT, OFF(factor_target), "2", 0, 10000, NULL,
      "above this many KKT factorizations in a step (newton with freeze_hessian >= 1: matrix "
      "builds and inertia corrections) dt is not grown; 0: no such rule"},

@@ -14,7 +14,10 @@
  *
  * Adaptivity (paper Sec. 4, Fig. 4): dt_next = dt * clamp(dE_target / |dE|,
  * 1/2, growth_max), not grown when the backend needed more than iter_target
- * iterations or (factor_target > 0, a frozen Hessian) more than
+ * iterations (for nlopt, Hessians: ves_backend_type.hard_by_hessians; by
+ * its AUGLAG iterations, 11-18 a step, it never grew dt past 20 on the
+ * oblate at dt* 10-1e3, where newton's 4-8 grew it to 1e3) or
+ * (factor_target > 0, a frozen Hessian) more than
  * factor_target KKT factorizations (newton's matrix builds with their
  * inertia corrections: the chord needed fresh matrices, the sign that a
  * larger step will need more; bench/RESULTS.md, session 20; with
@@ -669,7 +672,8 @@ static void accept(ves_sim *s, double dt, double E, double A, double V, const do
   rep->E = E / ves_model_get_k(s->model), rep->A = A, rep->V = V;
   rep->lambda[0] = lam[0], rep->lambda[1] = lam[1];
   rep->c0 = s->c0, rep->V_target = Vt, rep->retries = retries, rep->solve_status = VES_OK;
-  next_dt(s, dt, dE, rep->stats.iterations, rep->stats.factorizations, retries);
+  next_dt(s, dt, dE, s->backend->hard_by_hessians ? rep->stats.h_evals : rep->stats.iterations,
+          rep->stats.factorizations, retries);
 }
 
 /* Book a rejected attempt at dt (status st) into rep and the controller's

@@ -189,6 +189,46 @@ static void test_factor_rule(void **state) {
   ves_setup_destroy(&s);
 }
 
+/* The iteration rule for nlopt counts its Hessians, not its (AUGLAG)
+ * iterations (ves_backend_type.hard_by_hessians): with dE_target far above
+ * the steps' dE and dt_max, t_end far away, every accepted step's next dt
+ * is 2 dt (growth_max) when the step needed at most iter_target Hessians
+ * and dt when more, whatever its iteration count. Asserted on each of 10
+ * steps from dt* 1e-3 with iter_target 2 (measured: steps 1-7 1-2
+ * iterations and 1-2 Hessians, step 8 3 and 3, steps 9-10 5-6 and 2), with
+ * at least one step that needed more iterations than iter_target but not
+ * more Hessians (where the rule by iterations would have held dt) and one
+ * that needed more Hessians. */
+static void test_nlopt_hessian_rule(void **state) {
+  (void)state;
+  ves_setup *s = small_setup();
+  ves_integrate_params ip;
+  ves_integrate_params_default(&ip);
+  ip.t_end = 1e6, ip.dt_initial = 1e-3, ip.dt_max = 1e6, ip.dE_target = 10;
+  ip.iter_target = 2, ip.factor_target = 0, ip.factor_shrink = 0;
+  ves_sim *sim = make_sim(s, "nlopt", &ip);
+  ves_step_report rep;
+  int by_iter = 0, by_hess = 0;
+  for (int k = 0; k < 10; k++) {
+    assert_int_equal(ves_sim_step(sim, &rep), VES_OK);
+    assert_int_equal(rep.retries, 0);
+    const double next = ves_sim_dt(sim);
+    printf("# nlopt step %d: dt* %.4g, %d iterations, %d Hessians, next dt* %.4g\n", k + 1, rep.dt,
+           rep.stats.iterations, rep.stats.h_evals, next);
+    if (rep.stats.h_evals <= ip.iter_target) {
+      assert_true(next == 2 * rep.dt); /* exact: growth_max 2 */
+      if (rep.stats.iterations > ip.iter_target) by_iter++;
+    } else {
+      assert_true(next == rep.dt);
+      by_hess++;
+    }
+  }
+  assert_true(by_iter > 0); /* the old rule would have held these */
+  assert_true(by_hess > 0);
+  ves_sim_destroy(&sim);
+  ves_setup_destroy(&s);
+}
+
 /* Near equilibrium without constraints (as problems/mode2.ini): the step's
  * objective (1/2) d^T K d + dt E is ~dt 2 pi while its decrease per Newton
  * iteration falls below the rounding of E, so a strict Armijo test rejected
@@ -697,6 +737,7 @@ int main(void) {
       cmocka_unit_test(test_reconnect_off),       cmocka_unit_test(test_relaxation),
       cmocka_unit_test(test_near_equilibrium),    cmocka_unit_test(test_euler_adaptive),
       cmocka_unit_test(test_freeze_across_steps), cmocka_unit_test(test_factor_rule),
+      cmocka_unit_test(test_nlopt_hessian_rule),
       cmocka_unit_test(test_protocols),
       cmocka_unit_test(test_c0_ramp), cmocka_unit_test(test_volume_ramp_end),             cmocka_unit_test(test_c0_switch_restarts_dt),
       cmocka_unit_test(test_failure_keeps_state), cmocka_unit_test(test_reconnect_every),

@@ -53,8 +53,13 @@ typedef struct {
    * on failure (the integrator then halves dt). */
   ves_status (*solve)(void *state, ves_step *s, double *x, double *lambda, ves_backend_stats *st);
   void (*destroy)(void **state);
-  int ignores_start; /* 1: solve computes x from x0 whatever x holds (the explicit euler
-                        step): the integrator's predictor is not evaluated for it */
+  int ignores_start;    /* 1: solve computes x from x0 whatever x holds (the explicit euler
+                           step): the integrator's predictor is not evaluated for it */
+  int hard_by_hessians; /* 1: the step controller's iteration rule (time.iter_target)
+                           counts the solve's Hessians, not its iterations: nlopt's
+                           iterations are AUGLAG's outer ones, 10-20 a step where
+                           newton needs 4-8, and each of its Hessians a metric for
+                           a whole L-BFGS phase, its Newton-like unit */
 } ves_backend_type;
 
 /* The defaults: ves_backend_options_from_config of ves_config_default. */
