@@ -15,8 +15,7 @@
  * permutation) at every size. The Hessian of F in u is then the identity at
  * the start, and LBFGS's unit step a Newton step. The wrapper ves_ldl
  * (MUMPS) that newton uses cannot serve: it offers A^{-1} v only, not the
- * half solves L^{-1} v, L^{-T} v that a change of variables needs.
- * Until
+ * half solves L^{-1} v, L^{-T} v that a change of variables needs. Until
  * session 26 L was dense (LAPACK dpotrf, up to 12,000 variables, IC(0)
  * above): at 2.9k dofs a factor ~0.3 s and two O(n^2) triangular solves at
  * every evaluation (a read of the 67 MB factor each; dtrsv ~10% of the
@@ -39,7 +38,7 @@
  * reduced Hessian is itself indefinite (the oblate's x_start at dt* 1e3:
  * 8 negative eigenvalues) no tau helps; the ladder stops when a larger tau
  * leaves the failing pivot where it was, and the diagonal shifts follow.
- * Measured (bench/RESULTS.md, session 35): dt* 1e3 253 -> 136 gradients,
+ * Measured (bench/RESULTS.md, session 35): dt* 1e3 237 -> 136 gradients,
  * and the answer of test_backend's large step ~50x closer to Ipopt's.
  * Two phases: AUGLAG to the loose relative tolerance NLB_TOL1 (constraints
  * NLB_CTOL1) in the metric of the start, then a new factor where it ended and
@@ -513,8 +512,8 @@ static ves_status nlb_dense_metric(nlb_state *st, int m, const double *J) {
  * Lagrangian, or K if that has a non-positive diagonal entry; the exact
  * sparse Cholesky factor when st->C exists, else IC(0). With constraints
  * (J: their m gradients at x) and an indefinite M, first the dense metric
- * M + J^T S J (nlb_dense_metric) up to NLB_DENSE_N unknowns and when
- * dense (else it is not tried), then the diagonal shifts. */
+ * M + J^T S J (nlb_dense_metric; up to NLB_DENSE_N unknowns, and not when
+ * dense is 0), then the diagonal shifts. */
 static ves_status nlb_precondition(nlb_state *st, ves_step *s, const double *x,
                                    const double *lambda, int m, const double *J, int dense) {
   ves_ldl_ic *L = st->L;
@@ -527,9 +526,9 @@ static ves_status nlb_precondition(nlb_state *st, ves_step *s, const double *x,
 #endif
   /* a step's direct solve that goes to the continuation needs no factor */
   if (st->ctx.gate && st->rdiag > NLB_CONT_R) return VES_ERR_DOMAIN;
-  if (st->ctx.need_pd) { /* a stage of the search down: M itself or nothing */
+  if (st->ctx.need_pd && st->C) { /* a stage of the search down: M itself or nothing */
     st->ctx.need_pd = 0;
-    if (!st->C || ves_chol_factor(st->C, st->hval, 0.0) != VES_OK) {
+    if (ves_chol_factor(st->C, st->hval, 0.0) != VES_OK) {
 #ifdef NLB_TRACE
       fprintf(stderr, "nlopt precondition: not positive definite, stage skipped\n");
 #endif

@@ -218,12 +218,6 @@ static ves_status chol_tri(ves_chol *f, int sys, int k, double *v) {
 /* G^{-1} v = L^{-1} P v, (P v)_i = v_{Perm[i]}, column by column. */
 ves_status ves_chol_lsolve_cols(ves_chol *f, int k, double *v) {
   VES_CHECK(f && f->factored && v && k >= 1, VES_ERR_ARG);
-  const size_t n = (size_t)f->n;
-  if (k > f->wcols) {
-    double *w = realloc(f->w, n * (size_t)k * sizeof(double));
-    if (!w) return VES_ERR_ALLOC;
-    f->w = w, f->wcols = k;
-  }
   if (f->dense) {
     if (k == 1)
       cblas_dtrsv(CblasColMajor, CblasLower, CblasNoTrans, CblasNonUnit, f->n, f->D, f->n, v, 1);
@@ -231,6 +225,12 @@ ves_status ves_chol_lsolve_cols(ves_chol *f, int k, double *v) {
       cblas_dtrsm(CblasColMajor, CblasLeft, CblasLower, CblasNoTrans, CblasNonUnit, f->n, k, 1.0,
                   f->D, f->n, v, f->n);
     return VES_OK;
+  }
+  const size_t n = (size_t)f->n;
+  if (k > f->wcols) {
+    double *w = realloc(f->w, n * (size_t)k * sizeof(double));
+    if (!w) return VES_ERR_ALLOC;
+    f->w = w, f->wcols = k;
   }
   const int *perm = f->L->Perm;
   for (int c = 0; c < k; c++)

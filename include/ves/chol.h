@@ -39,8 +39,9 @@ ves_status ves_chol_factor(ves_chol *f, const double *val, double alpha);
 ves_status ves_chol_factor_dense(ves_chol *f, const double *val, int m, const double *w,
                                  const double *s, int *fail);
 
-/* v = G^{-1} v and v = G^{-T} v, in place (n entries); need a successful
- * ves_chol_factor. Return VES_OK or VES_ERR_ARG (no factor), VES_ERR_SOLVER. */
+/* v = G^{-1} v and v = G^{-T} v, in place (n entries), with the factor of
+ * the last successful ves_chol_factor or ves_chol_factor_dense. Return
+ * VES_OK or VES_ERR_ARG (no factor), VES_ERR_SOLVER. */
 ves_status ves_chol_lsolve(ves_chol *f, double *v);
 ves_status ves_chol_ltsolve(ves_chol *f, double *v);
 
