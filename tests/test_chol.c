@@ -67,9 +67,26 @@ static void check_factor(ves_chol *F, int n, int nnz, const int *ir, const int *
   free(a), free(b), free(y), free(z), free(ga), free(gb);
 }
 
-/* A random sparse SPD matrix (Gershgorin-bounded: off-diagonal entries in
- * [-1, 1] on ~ 30% of the pairs, diagonal = row sum of |offdiag| + 1 +
- * U[0, 1]), its lower triplets with one entry split in two: the factor's
+/* A random sparse SPD matrix of order n by its lower triplets
+ * (Gershgorin-bounded: off-diagonal entries in [-1, 1] on ~ density of the
+ * pairs, then the diagonal, entry nnz - n + i, = row sum of |offdiag| + 1 +
+ * U[0, 1]); R[n] (zeroed here) gets the row sums of |offdiag|. Returns nnz. */
+static int random_gershgorin(int n, double density, uint64_t *seed, int *ir, int *jc, double *v,
+                             double *R) {
+  int nnz = 0;
+  memset(R, 0, (size_t)n * sizeof *R);
+  for (int i = 0; i < n; i++)
+    for (int j = 0; j < i; j++)
+      if (urand(seed) < density) {
+        ir[nnz] = i, jc[nnz] = j, v[nnz] = 2 * urand(seed) - 1;
+        R[i] += fabs(v[nnz]), R[j] += fabs(v[nnz]);
+        nnz++;
+      }
+  for (int i = 0; i < n; i++) ir[nnz] = jc[nnz] = i, v[nnz++] = R[i] + 1.0 + urand(seed);
+  return nnz;
+}
+
+/* random_gershgorin at density 0.3, one entry split in two: the factor's
  * checks, then the shifted factor's. */
 static void test_chol_random(void **state) {
   (void)state;
@@ -77,18 +94,10 @@ static void test_chol_random(void **state) {
   uint64_t seed = 7;
   static int ir[MAXNZ], jc[MAXNZ];
   static double v[MAXNZ], R[N];
-  int nnz = 0;
-  for (int i = 0; i < N; i++)
-    for (int j = 0; j < i; j++)
-      if (urand(&seed) < 0.3) {
-        ir[nnz] = i, jc[nnz] = j, v[nnz] = 2 * urand(&seed) - 1;
-        R[i] += fabs(v[nnz]), R[j] += fabs(v[nnz]);
-        nnz++;
-      }
+  int nnz = random_gershgorin(N, 0.3, &seed, ir, jc, v, R);
   double lo = INFINITY, hi = 0.0;
   for (int i = 0; i < N; i++) {
-    const double d = R[i] + 1.0 + urand(&seed);
-    ir[nnz] = jc[nnz] = i, v[nnz++] = d;
+    const double d = v[nnz - N + i];
     lo = fmin(lo, d - R[i]), hi = fmax(hi, d + R[i]);
   }
   /* split an off-diagonal entry in two triplets: duplicates are summed */
@@ -179,37 +188,23 @@ static void rank_matvec(int n, int nnz, const int *ir, const int *jc, const doub
   }
 }
 
-/* The dense variant: a random Gershgorin-bounded SPD matrix A (as in
- * test_chol_random) with two diagonal entries lowered by beta, so M has (by
- * interlacing) at most two negative eigenvalues, which the rank-2 term
- * s (w_1 w_1^T + w_2 w_2^T), w_i = e_{k_i} + 0.01 (random), removes (with
- * noise eps the negative curvature left orthogonal to w_i is ~ beta eps^2 N
- * / 18 against A's ~ 1: 0.03 here, 3 at eps 0.1). The
- * factor of M + S is checked as the sparse ones are; its half solves then
- * serve until a sparse factorization replaces it. */
+/* The dense variant: a random Gershgorin-bounded SPD matrix A
+ * (random_gershgorin at density 0.2) with two diagonal entries lowered by
+ * beta, so M has (by interlacing) at most two negative eigenvalues, which
+ * the rank-2 term s (w_1 w_1^T + w_2 w_2^T), w_i = e_{k_i} + 0.01 (random),
+ * removes (with noise eps the negative curvature left orthogonal to w_i is
+ * ~ beta eps^2 N / 18 against A's ~ 1: 0.03 here, 3 at eps 0.1). The factor
+ * of M + S is checked as the sparse ones are; its half solves then serve
+ * until a sparse factorization replaces it. */
 static void test_chol_dense(void **state) {
   (void)state;
   enum { N = 60, MAXNZ = N * (N + 1) / 2 };
   uint64_t seed = 13;
   static int ir[MAXNZ], jc[MAXNZ];
   static double v[MAXNZ], R[N], w[2 * N];
-  int nnz = 0;
-  for (int i = 0; i < N; i++)
-    for (int j = 0; j < i; j++)
-      if (urand(&seed) < 0.2) {
-        ir[nnz] = i, jc[nnz] = j, v[nnz] = 2 * urand(&seed) - 1;
-        R[i] += fabs(v[nnz]), R[j] += fabs(v[nnz]);
-        nnz++;
-      }
-  const int k1 = 7, k2 = 41;
+  const int nnz = random_gershgorin(N, 0.2, &seed, ir, jc, v, R);
+  const int k1 = 7, k2 = 41, d1 = nnz - N + k1, d2 = nnz - N + k2; /* their diagonal slots */
   const double beta = 100.0;
-  int d1 = -1, d2 = -1;
-  for (int i = 0; i < N; i++) {
-    ir[nnz] = jc[nnz] = i, v[nnz] = R[i] + 1.0 + urand(&seed);
-    if (i == k1) d1 = nnz;
-    if (i == k2) d2 = nnz;
-    nnz++;
-  }
   v[d1] -= beta, v[d2] -= beta; /* M = A - beta (e_k1 e_k1^T + e_k2 e_k2^T) */
   for (int j = 0; j < 2 * N; j++) w[j] = 0.01 * (2 * urand(&seed) - 1);
   w[k1] += 1.0, w[N + k2] += 1.0;
