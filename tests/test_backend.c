@@ -383,10 +383,16 @@ static void test_nlopt_small_step(void **state) {
  * small step's beside dt Hess E, and the shift left the soft directions of
  * E (tangential motions) ~1e2 x looser in position than L-BFGS's test
  * suggests. With the constraint metric M + J^T S J (backend_nlopt.c,
- * session 35), exact on the tangent space: 7.8e-8 of the displacement,
- * multipliers to 1e-8; built without it (-DNLB_DENSE_N=0) 1.8e-6.
- * Asserted: 1e-6 of the displacement (13x the measurement: a constraint
- * metric that stops being used fails here), multipliers to 1e-6 as above.
+ * session 35): 7.8e-8 of the displacement on the machine of session 35,
+ * but 9.1e-7 on another (OpenBLAS SkylakeX kernels; 8.2e-7 with Haswell's)
+ * and 1.02e-6 on CI's, where built without the metric (-DNLB_DENSE_N=0)
+ * it gave 1.8e-6 and 5.6e-7: the metric changes the cost (gradients), not
+ * the accuracy, which the stopping rule sets. The last stage ends on
+ * AUGLAG's outer xtol, sqrt(tol) = 3.2e-5 of u, with the KKT residual at
+ * 5e-8 of its start (NLB_TRACE), not at tol's 1e-9; the multipliers agree
+ * to 1e-7. Asserted: 1e-5 of the displacement (10x the spread of the
+ * measurements across machines; 1e-7 of max |y|, inside the issue's 1e-6
+ * agreement of all backends), multipliers to 1e-6 as above.
  * The
  * continuation shows in the Hessians (each stage factors at least twice; a
  * direct solve builds 2-4). */
@@ -397,7 +403,7 @@ static void test_nlopt_large_step(void **state) {
       "geometry.band=2",       "geometry.h_band=0.7",      "geometry.h_far=0.3",
       "shape.type=spheroid",   "shape.reduced_volume=0.9", "shape.orientation=oblate"};
   ves_backend_stats nl;
-  nlopt_against("ipopt", 9, set, 1e4, 1e-6, &nl);
+  nlopt_against("ipopt", 9, set, 1e4, 1e-5, &nl);
   assert_true(nl.h_evals > 4);
 }
 
