@@ -149,9 +149,13 @@ static int measure(const ves_config *cfg, ves_setup *s, int nsteps, row *r) {
     goto done;
   }
   ves_step_x0(step, x0);
-  for (int i = 0; i < NREP; i++) { /* the step's matrix: K(y^n) + dt Hess E + ..., one assembly */
+  ves_problem_params pp; /* as vesica run maps the problem file (the backend: newton) */
+  ves_problem_params_from_config(cfg, &pp);
+  for (int i = 0; i < NREP; i++) { /* the step's matrix: K(y^n) + dt Hess E + ..., one assembly,
+                                      in the precision newton forms it in (step.h) */
     double t0 = now();
-    st = ves_step_eval_hess(step, x0, 1.0, lambda, H);
+    st = pp.bopt.factor_single ? ves_step_eval_hess_single(step, x0, 1.0, lambda, H)
+                               : ves_step_eval_hess(step, x0, 1.0, lambda, H);
     t[i] = now() - t0;
     if (st != VES_OK) {
       rc = fail("ves_step_eval_hess", st);
@@ -163,8 +167,6 @@ static int measure(const ves_config *cfg, ves_setup *s, int nsteps, row *r) {
     rc = fail("ves_step_eval_jac", st);
     goto done;
   }
-  ves_problem_params pp; /* as vesica run maps the problem file (the backend: newton) */
-  ves_problem_params_from_config(cfg, &pp);
   double t0 = now();
   st = kkt_create(step, pp.bopt.factor_single, &k); /* structure and the MUMPS analysis */
   r->analysis = now() - t0;

@@ -211,7 +211,9 @@ static ves_status assemble_factor(newton_state *w, ves_step *s, const double *x,
                                   int ncon, ves_backend_stats *stt) {
   double *H = w->kkt.val; /* the first nh values */
   w->have_factor = 0;     /* the values are overwritten from here on */
-  VES_CALL(ves_step_eval_hess(s, x, 1.0, lam, H));
+  /* a matrix factored in single precision is formed in it (step.h) */
+  VES_CALL(w->opt.factor_single ? ves_step_eval_hess_single(s, x, 1.0, lam, H)
+                                : ves_step_eval_hess(s, x, 1.0, lam, H));
   stt->h_evals++;
   w->noise = ves_step_hess_floor(s, x, H, w->xt); /* the residual's floor, w->xt scratch */
   kkt_fill_rows(&w->kkt, w->J, ncon);

@@ -207,18 +207,18 @@ ves_status ves_model_hessian(ves_model *m, const double *y, double cE, double cA
   VES_CHECK(m && y && blk, VES_ERR_ARG);
   double fac[3];
   model_functional_factors(m, cE, cA, cV, fac);
-  VES_CALL(model_assemble(m, ASM_HESS, fac, NULL, y, blk));
+  VES_CALL(model_assemble(m, ASM_HESS, fac, NULL, 0, y, blk));
   if (m->sblk && cE != 0) add_rz(m, cE, m->sblk, 2, blk); /* + cE Hess E_s */
   return VES_OK;
 }
 
 ves_status ves_model_hessian_step(ves_model *m, const double *y, const double *qn, double cE,
-                                  double cA, double cV, double cK, double *blk) {
+                                  double cA, double cV, double cK, int single, double *blk) {
   VES_CHECK(m && y && qn && blk && isfinite(cK), VES_ERR_ARG);
   double fac[3];
   model_functional_factors(m, cE, cA, cV, fac);
   const step_ref sr = {qn, cK};
-  VES_CALL(model_assemble(m, ASM_HESS, fac, &sr, y, blk));
+  VES_CALL(model_assemble(m, ASM_HESS, fac, &sr, single, y, blk));
   if (m->sblk && cE != 0) add_rz(m, cE, m->sblk, 2, blk); /* + cE Hess E_s */
   if (m->dblk && cK != 0) add_rz(m, cK, m->dblk, 4, blk); /* + cK S: the drift damping */
   return VES_OK;
@@ -229,7 +229,7 @@ const double *ves_model_drift_blocks(const ves_model *m) { return m ? m->dblk : 
 ves_status ves_model_dissipation(ves_model *m, const double *y, double *blk) {
   VES_CHECK(m && y && blk, VES_ERR_ARG);
   const double fac[3] = {0, 0, 0};
-  VES_CALL(model_assemble(m, ASM_DISS, fac, NULL, y, blk));
+  VES_CALL(model_assemble(m, ASM_DISS, fac, NULL, 0, y, blk));
   if (m->dblk) add_rz(m, 1.0, m->dblk, 4, blk); /* K + S: the drift damping */
   return VES_OK;
 }

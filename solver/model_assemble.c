@@ -11,7 +11,11 @@
  * points' B stacked, K = 36 / 30 deep; one BLAS thread per triangle, the
  * triangles in parallel; the symmetric rr and zz parts by panels over one
  * triangle only), and each lower block is added to the pattern
- * once, not once per point (~6x fewer scattered updates). The triangles
+ * once, not once per point (~6x fewer scattered updates). The products run
+ * in double, or for a matrix factored in single precision (the newton
+ * backend's chord matrix: ves_step_eval_hess_single) in single precision,
+ * sgemm at twice dgemm's rate (model_asm_prec_impl.h holds the code of
+ * both); the points' local matrices and the pattern's sums stay double. The triangles
  * are visited in the order and by the slabs of model_threads.c: every
  * block and gradient entry receives its contributions in the same order for
  * any thread count, so results are bitwise the same for 1, 2, ... threads
@@ -240,133 +244,20 @@ static void scatter_grad(const folded *f, const int *owner, int k, double c, con
   }
 }
 
-/* The triangle's matrices B over its union, stacked point by point, and
- * their products with the local Hessians (workspace X, Y; nu x K
- * column-major: one contiguous column per row (p, k) of B, over the union
- * nodes j):
- *   Xr[(p nr + k) nu + j] = b_r(p, k; j),  Xz[(p nz + k) nu + j] = b_z(p, k; j)
- * (the folded table rows of map mp; zero where point p does not see node j),
- * Kr = NPT nr, Kz = NPT nz columns, and with cH_p = c_p d2e/dq2 at point p
- * split by the map into its rr, rz and zz parts,
- *   Yrr = Xr diag_p(cH_rr),  Yrz = Xz diag_p(cH_zr),  Yzz = Xz diag_p(cH_zz)
- * (axpys over the union, vectorized).
- * Hs holds the NPT local matrices (nl x nl each, c included). */
-#if defined(__GNUC__)
-__attribute__((always_inline))
-#endif
-static inline void
-triangle_xy_n(const local_map *mp, const int nr, const int nz, const folded f[NPT], const int *slot,
-              int nu, const double *Hs, double *X, double *Y) {
-  const int nl = mp->nl, Kr = NPT * nr, Kz = NPT * nz;
-  double *Xr = X, *Xz = X + (size_t)Kr * nu;
-  double *Yrr = Y, *Yrz = Y + (size_t)Kr * nu, *Yzz = Y + 2 * (size_t)Kr * nu;
-  memset(X, 0, (size_t)(Kr + Kz) * nu * sizeof *X);
-  for (int p = 0; p < NPT; p++) {
-    const folded *fp = f + p;
-    const int mu = fp->mu;
-    for (int v = 0; v < mu; v++) {
-      const int j = slot[fp->un[v]];
-      for (int k = 0; k < nr; k++) Xr[(size_t)(p * nr + k) * nu + j] = fp->Tr[mp->rr[k] * mu + v];
-      for (int k = 0; k < nz; k++) Xz[(size_t)(p * nz + k) * nu + j] = fp->Tz[mp->rz[k] * mu + v];
-    }
-  }
-  for (int p = 0; p < NPT; p++) {
-    const double *H = Hs + (size_t)p * nl * nl;
-    const double *xr = Xr + (size_t)p * nr * nu, *xz = Xz + (size_t)p * nz * nu;
-    for (int k = 0; k < nr; k++) { /* row (p, k) of Yrr and Yrz: axpys over the union */
-      double *yrr = Yrr + (size_t)(p * nr + k) * nu, *yrz = Yrz + (size_t)(p * nr + k) * nu;
-      for (int j = 0; j < nu; j++) yrr[j] = yrz[j] = 0.0;
-      for (int l = 0; l < nr; l++) {
-        const double h = H[mp->qr[k] * nl + mp->qr[l]], *x = xr + (size_t)l * nu;
-        OMP_SIMD
-        for (int j = 0; j < nu; j++) yrr[j] += h * x[j];
-      }
-      for (int l = 0; l < nz; l++) {
-        const double h = H[mp->qr[k] * nl + mp->qz[l]], *x = xz + (size_t)l * nu;
-        OMP_SIMD
-        for (int j = 0; j < nu; j++) yrz[j] += h * x[j];
-      }
-    }
-    for (int k = 0; k < nz; k++) {
-      double *yzz = Yzz + (size_t)(p * nz + k) * nu;
-      for (int j = 0; j < nu; j++) yzz[j] = 0.0;
-      for (int l = 0; l < nz; l++) {
-        const double h = H[mp->qz[k] * nl + mp->qz[l]], *x = xz + (size_t)l * nu;
-        OMP_SIMD
-        for (int j = 0; j < nu; j++) yzz[j] += h * x[j];
-      }
-    }
-  }
-}
-
-/* triangle_xy_n with the map's sizes as constants (the small products
- * unrolled). */
-static void triangle_xy(const local_map *mp, const folded f[NPT], const int *slot, int nu,
-                        const double *Hs, double *X, double *Y) {
-  if (mp->nr == 6 && mp->nz == 5)
-    triangle_xy_n(mp, 6, 5, f, slot, nu, Hs, X, Y);
-  else if (mp->nr == 3 && mp->nz == 2)
-    triangle_xy_n(mp, 3, 2, f, slot, nu, Hs, X, Y);
-  else
-    triangle_xy_n(mp, mp->nr, mp->nz, f, slot, nu, Hs, X, Y);
-}
-
-/* Add the owned rows of the triangle's block matrix to the pattern: block
- * (U[i], U[j]), j <= i, with entries (rr, rz, zr, zz) =
- * (Mrr[j + i nu], Mrz[i + j nu], Mrz[j + i nu], Mzz[j + i nu]) (Mrr and Mzz
- * are symmetric: column i is read, rows j <= i, the triangle upper_product
- * forms), by one forward walk along the pattern row of U[i] (ascending, as
- * U is). Pairs of the union that share no point
- * are not in the pattern; their sums are exactly zero (X is zero where a
- * point does not see the node) and are skipped. */
-static void triangle_scatter(const ves_model *m, const int *U, int nu, int k, const double *M,
-                             double *blk) {
-  const ves_pattern *pat = m->pat;
-  const double *Mrr = M, *Mrz = M + (size_t)nu * nu, *Mzz = M + 2 * (size_t)nu * nu;
-  for (int i = 0; i < nu; i++) {
-    const int a = U[i];
-    if (m->owner[a] != k) continue;
-    const double *crr = Mrr + (size_t)i * nu, *czr = Mrz + (size_t)i * nu,
-                 *czz = Mzz + (size_t)i * nu;
-    int lo = pat->ptr[a], hi = pat->ptr[a + 1] - 1;
-    while (lo < hi) { /* first column >= U[0] in row a */
-      int mid = (lo + hi) / 2;
-      if (pat->col[mid] < U[0])
-        lo = mid + 1;
-      else
-        hi = mid;
-    }
-    for (int j = 0, t = lo; j <= i; j++) {
-      const int b = U[j];
-      while (pat->col[t] < b) t++; /* the diagonal (a, a) ends the walk */
-      const double rz = Mrz[i + (size_t)j * nu];
-      if (pat->col[t] != b) {
-        assert(crr[j] == 0 && rz == 0 && czr[j] == 0 && czz[j] == 0);
-        continue;
-      }
-      double *dst = blk + 4 * (size_t)t;
-      dst[0] += crr[j], dst[1] += rz, dst[2] += czr[j], dst[3] += czz[j];
-    }
-  }
-}
-
-/* The upper triangle (rows i <= column j, column-major, leading dimension
- * nu) of the symmetric M = X Y^T (X, Y: nu x K, column-major), by
- * ASM_PANELS column panels, panel c its columns [c0, c1) over rows [0, c1):
- * (P + 1) / 2P of the full product's flops (5/8 for 4 panels). Entries
- * below the diagonal are partly left unset: triangle_scatter reads Mrr and
- * Mzz only at rows <= column. Each entry is the same dot product over K
- * as in the full product (the Hessian measured bitwise the same:
- * bench/RESULTS.md, session 23). */
-static void upper_product(int nu, int K, const double *X, const double *Y, double *M) {
-  for (int c = 0; c < ASM_PANELS; c++) {
-    const int c0 = c * nu / ASM_PANELS, c1 = (c + 1) * nu / ASM_PANELS;
-    if (c1 > c0) /* M[0:c1, c0:c1] = X[0:c1, :] Y[c0:c1, :]^T */
-      cblas_dgemm(CblasColMajor, CblasNoTrans, CblasTrans, c1, c1 - c0, K, 1.0, X, nu, Y + c0, nu,
-                  0.0, M + (size_t)c0 * nu, nu);
-  }
-}
-
+#define ASM_REAL double
+#define ASM_SFX(name) name##_d
+#define ASM_GEMM cblas_dgemm
+#include "model_asm_prec_impl.h"
+#undef ASM_REAL
+#undef ASM_SFX
+#undef ASM_GEMM
+#define ASM_REAL float
+#define ASM_SFX(name) name##_s
+#define ASM_GEMM cblas_sgemm
+#include "model_asm_prec_impl.h"
+#undef ASM_REAL
+#undef ASM_SFX
+#undef ASM_GEMM
 /* D = d2 diss / dqdot2 at point al of y^n (without 2 pi w). */
 static ves_status step_ref_dissip(const ves_model *m, const step_ref *sr, int al, double *D) {
   double qa[VES_NQ] = {0};
@@ -379,10 +270,11 @@ static ves_status step_ref_dissip(const ves_model *m, const step_ref *sr, int al
  * matrix sum_p B_p^T cH_p B_p over its union as three products
  *   Mrr = Xr Yrr^T,  Mrz = Xr Yrz^T,  Mzz = Xz Yzz^T   (triangle_xy)
  * by the BLAS (one thread: the caller runs the triangles in parallel; of
- * the symmetric Mrr and Mzz only the triangle the scatter reads), and its
- * owned rows into blk. */
+ * the symmetric Mrr and Mzz only the triangle the scatter reads), in single
+ * precision when single is set (model_asm_prec_impl.h), and its owned rows
+ * into blk. */
 static ves_status triangle_blocks(const ves_model *m, model_ws *w, asm_kind kind,
-                                  const double fac[3], const step_ref *sr, int t, int k,
+                                  const double fac[3], const step_ref *sr, int single, int t, int k,
                                   const double *y, double *blk) {
   const local_map *mp = kind == ASM_HESS ? &MAP_Q : &MAP_QD;
   const int nl = mp->nl;
@@ -422,23 +314,17 @@ static ves_status triangle_blocks(const ves_model *m, model_ws *w, asm_kind kind
     }
     for (int i = 0; i < nl * nl; i++) Hp[i] *= c;
   }
-  triangle_xy(mp, f, w->slot, nu, Hs, w->X, w->Y);
-  const int Kr = NPT * mp->nr, Kz = NPT * mp->nz;
-  const double *Xr = w->X, *Xz = w->X + (size_t)Kr * nu;
-  const double *Yrr = w->Y, *Yrz = w->Y + (size_t)Kr * nu, *Yzz = w->Y + 2 * (size_t)Kr * nu;
-  double *M = w->M;
-  upper_product(nu, Kr, Xr, Yrr, M); /* Mrr = Xr Yrr^T, upper triangle */
-  cblas_dgemm(CblasColMajor, CblasNoTrans, CblasTrans, nu, nu, Kr, 1.0, Xr, nu, Yrz, nu, 0.0,
-              M + (size_t)nu * nu, nu);                    /* Mrz = Xr Yrz^T */
-  upper_product(nu, Kz, Xz, Yzz, M + 2 * (size_t)nu * nu); /* Mzz = Xz Yzz^T, upper triangle */
-  triangle_scatter(m, U, nu, k, M, blk);
+  if (single)
+    triangle_products_s(m, w, mp, f, U, nu, Hs, k, blk);
+  else
+    triangle_products_d(m, w, mp, f, U, nu, Hs, k, blk);
   return VES_OK;
 }
 
 /* blk = sum over the triangles of their block matrices (kind, fac as in
  * triangle_blocks), the slabs shared out over the threads. */
 ves_status model_assemble(ves_model *m, asm_kind kind, const double fac[3], const step_ref *sr,
-                          const double *y, double *blk) {
+                          int single, const double *y, double *blk) {
   const ves_pattern *pat = m->pat;
   ves_status st[64];
   memset(blk, 0, 4 * (size_t)pat->ptr[pat->n] * sizeof *blk);
@@ -454,7 +340,7 @@ ves_status model_assemble(ves_model *m, asm_kind kind, const double fac[3], cons
       for (int it = 0; it < m->q->ntri && st[k] == VES_OK; it++) {
         const int t = m->torder[it];
         if (m->tlo[t] <= k && k <= m->thi[t])
-          st[k] = triangle_blocks(m, w, kind, fac, sr, t, k, y, blk);
+          st[k] = triangle_blocks(m, w, kind, fac, sr, single, t, k, y, blk);
       }
   }
   if (blas_threads != 1) openblas_set_num_threads(blas_threads);

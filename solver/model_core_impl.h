@@ -126,9 +126,10 @@ int model_triangle_union(const ves_model *m, model_ws *w, int t, folded f[NPT], 
 
 /* model_assemble.c: blk = sum over the triangles of their block matrices:
  * the Hessian of fac[0] E + fac[1] A + fac[2] V (+ cK K(y^n) with sr), or
- * K(y) (ASM_DISS), the slabs shared out over the threads. */
+ * K(y) (ASM_DISS), the slabs shared out over the threads; single != 0: each
+ * triangle's products in single precision (blk is summed in double). */
 ves_status model_assemble(ves_model *m, asm_kind kind, const double fac[3], const step_ref *sr,
-                          const double *y, double *blk);
+                          int single, const double *y, double *blk);
 
 /* model_assemble.c: ves_model_eval and ves_model_eval_step (values and
  * gradients, the totals summed in point order). */

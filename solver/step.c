@@ -253,9 +253,10 @@ void ves_step_hess_structure(const ves_step *s, int *irow, int *jcol) {
   if (jcol) memcpy(jcol, s->pat->jcol, (size_t)s->pat->nnz * sizeof *jcol);
 }
 
-/* val = sigma_f (K + dt Hess E) + lambda_A Hess A + lambda_V Hess V. */
-ves_status ves_step_eval_hess(ves_step *s, const double *x, double sigma_f, const double *lambda,
-                              double *val) {
+/* val = sigma_f (K + dt Hess E) + lambda_A Hess A + lambda_V Hess V, the
+ * triangles' products in single precision when single is set. */
+static ves_status eval_hess(ves_step *s, const double *x, double sigma_f, const double *lambda,
+                            int single, double *val) {
   STEP_READY(s, x);
   VES_CHECK(val && (lambda || s->ncon == 0), VES_ERR_ARG);
   double lA = 0, lV = 0;
@@ -264,9 +265,20 @@ ves_status ves_step_eval_hess(ves_step *s, const double *x, double sigma_f, cons
   if (s->par.hold_volume) lV = lambda[k++];
   ves_step_expand(s, x, s->y);
   /* sigma_f K(y^n) summed per point into the one assembly */
-  VES_CALL(ves_model_hessian_step(s->m, s->y, s->qn, sigma_f * s->par.dt, lA, lV, sigma_f, s->blk));
+  VES_CALL(ves_model_hessian_step(s->m, s->y, s->qn, sigma_f * s->par.dt, lA, lV, sigma_f, single,
+                                  s->blk));
   ves_pattern_extract(s->pat, s->blk, val);
   return VES_OK;
+}
+
+ves_status ves_step_eval_hess(ves_step *s, const double *x, double sigma_f, const double *lambda,
+                              double *val) {
+  return eval_hess(s, x, sigma_f, lambda, 0, val);
+}
+
+ves_status ves_step_eval_hess_single(ves_step *s, const double *x, double sigma_f,
+                                     const double *lambda, double *val) {
+  return eval_hess(s, x, sigma_f, lambda, 1, val);
 }
 
 double ves_step_hess_floor(const ves_step *s, const double *x, const double *val, double *acc) {

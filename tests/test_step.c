@@ -294,6 +294,45 @@ static void test_hessian_fd(void **state) {
   free(x), free(v), free(xp), free(gp), free(gm), free(J), free(H), free(Hv);
 }
 
+/* ves_step_eval_hess_single against ves_step_eval_hess at the perturbed x of
+ * test_hessian_fd, sigma_f 1 and 0: each triangle's block entry is a sum of
+ * K <= 36 float products of float-rounded factors, so its error is at most
+ * (K + 2) u_s ~ 2.3e-6 of the sum of the terms' absolute values, which the
+ * sums over triangles (in double) carry over. Measured: the largest entry
+ * difference 6.7e-8 (sigma_f 1) and 3.0e-8 (0) of max |H|, Hv to 4.0e-8
+ * and 1.9e-8 of |Hv|. Asserted: 1e-5 of max |H| entrywise and of |Hv|_inf
+ * (the 2.3e-6 bound with room for rows whose terms cancel; a wrong entry
+ * would be off by O(1)), and at least one entry must differ (the path is
+ * single precision). */
+static void test_hessian_single(void **state) {
+  (void)state;
+  const int nv = P->nv, nnz = ves_step_hess_nnz(P->s);
+  set_step(1.0, 1, 1);
+  double *x = xmalloc(nv), *v = xmalloc(nv), *Hd = xmalloc(nnz), *Hs = xmalloc(nnz),
+         *yd = xmalloc(nv), *ys = xmalloc(nv);
+  perturbed_x(0.05, x);
+  uint64_t rng = 0x9E3779B97F4A7C15ULL;
+  for (int j = 0; j < nv; j++) v[j] = 2 * urand(&rng) - 1;
+  const double lam[2] = {0.3, -0.5};
+  const ves_pattern *pat = ves_model_pattern(P->m);
+  for (int sf = 1; sf >= 0; sf--) {
+    assert_int_equal(ves_step_eval_hess(P->s, x, sf, lam, Hd), VES_OK);
+    assert_int_equal(ves_step_eval_hess_single(P->s, x, sf, lam, Hs), VES_OK);
+    double hmax = 0, dmax = 0, ymax = 0, dy = 0;
+    for (int t = 0; t < nnz; t++)
+      hmax = fmax(hmax, fabs(Hd[t])), dmax = fmax(dmax, fabs(Hs[t] - Hd[t]));
+    ves_pattern_symv(pat, Hd, v, yd);
+    ves_pattern_symv(pat, Hs, v, ys);
+    for (int j = 0; j < nv; j++) ymax = fmax(ymax, fabs(yd[j])), dy = fmax(dy, fabs(ys[j] - yd[j]));
+    printf("# single precision products (sigma_f = %d): max |Hs - H| = %.2e of max |H| = %.3e; "
+           "|Hs v - H v| = %.2e of |Hv|\n",
+           sf, dmax / hmax, hmax, dy / ymax);
+    assert_true(hmax > 0 && dmax > 0 && dmax <= 1e-5 * hmax);
+    assert_true(dy <= 1e-5 * ymax);
+  }
+  free(x), free(v), free(Hd), free(Hs), free(yd), free(ys);
+}
+
 static void eav(const double *x, double *E, double *A, double *V);
 
 /* The cache is keyed by content: values at x, then at x changed in place
@@ -627,7 +666,7 @@ int main(void) {
   // clang-format off
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_at_x0),       cmocka_unit_test(test_gradient_jacobian_fd),
-      cmocka_unit_test(test_hessian_fd),  cmocka_unit_test(test_cache),
+      cmocka_unit_test(test_hessian_fd), cmocka_unit_test(test_hessian_single),  cmocka_unit_test(test_cache),
       cmocka_unit_test(test_newton_step), cmocka_unit_test(test_euler_limit),
       cmocka_unit_test(test_errors),      cmocka_unit_test(test_set_dt),
   };

@@ -112,14 +112,19 @@ ves_status ves_model_dissipation(ves_model *m, const double *y, double *blk);
  * K here without the drift damping S (ves_model_drift_blocks; constant).
  * ves_model_hessian_step is ves_model_hessian + cK K(y^n) (with S), the two
  * summed per point before the one assembly. Agree with the assembled
- * ves_model_dissipation to rounding. */
+ * ves_model_dissipation to rounding. single != 0: each triangle's block
+ * matrix is formed in single precision (its products by sgemm; the points'
+ * local matrices and the sums over the triangles stay double), for a matrix
+ * that is factored in single precision anyway: entries to ~1e-6 of the
+ * terms summed into them (float rounding of the 36-42 term products), ~1.5x
+ * faster (bench/RESULTS.md, session 36). */
 ves_status ves_model_dissipation_ref(ves_model *m, const double *y, double *qn);
 size_t ves_model_dissipation_ref_size(const ves_model *m); /* doubles in qn: 5 nq */
 ves_status ves_model_eval_step(ves_model *m, const double *y, int which, const double *qn,
                                double cE, double *E, double *A, double *V, double *Dv, double *gF,
                                double *gA, double *gV);
 ves_status ves_model_hessian_step(ves_model *m, const double *y, const double *qn, double cE,
-                                  double cA, double cV, double cK, double *blk);
+                                  double cA, double cV, double cK, int single, double *blk);
 
 /* The block values (4 ptr[n]) of the drift damping S in the pattern, or NULL
  * when it is off (ves_model_params.drift = 0). Owned by the model. */

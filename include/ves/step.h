@@ -81,6 +81,13 @@ int ves_step_hess_nnz(const ves_step *s);
 void ves_step_hess_structure(const ves_step *s, int *irow, int *jcol);
 ves_status ves_step_eval_hess(ves_step *s, const double *x, double sigma_f, const double *lambda,
                               double *val);
+/* As ves_step_eval_hess, each triangle's block matrix formed in single
+ * precision (ves_model_hessian_step's single): for a matrix factored in
+ * single precision, whose solves are refined against these values (the
+ * newton backend's chord matrix; ~1e-6 of the terms' size, where the float
+ * factorization itself perturbs by ~1e-7-1e-5). */
+ves_status ves_step_eval_hess_single(ves_step *s, const double *x, double sigma_f,
+                                     const double *lambda, double *val);
 /* The rounding floor of a first-order residual with Hessian values val
  * (hess_nnz, the structure above, the lower triangle standing for both) at
  * x: eps_mach max_i sum_j |H_ij x_j|. x holds absolute positions to
