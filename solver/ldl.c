@@ -25,6 +25,9 @@
 #define LDL_GMRES_M 20           /* single precision: Krylov vectors of the refinement */
 #define LDL_GMRES_MAX 60         /* ... and its iterations before the double fallback */
 #define LDL_MATVEC_CHUNKS 4      /* the residual's products: fixed chunks of the triplets */
+#ifndef LDL_SINGLE_PIVOT
+#define LDL_SINGLE_PIVOT 0.0 /* single precision LDL^T: MUMPS's CNTL(1), no numerical pivoting */
+#endif
 
 struct ves_ldl {
   int single;                      /* 1: the factors in single precision (SMUMPS), solves refined */
@@ -154,6 +157,17 @@ static ves_status mumps_setup(ves_ldl *f) {
     f->ICNTL(6) = 0;
     f->ICNTL(12) = 1;
   }
+  /* single precision LDL^T without numerical pivoting (CNTL(1) = 0 instead
+   * of 0.01): the KKT matrices are K/dt + Hess E (positive definite on the
+   * constraints' null space, mostly positive definite) bordered by the two
+   * dense constraint rows, which the ordering puts last, where their pivots
+   * are the Schur complement -J H^-1 J^T. Without the pivot searches the
+   * factorization of the eps 0.02 KKT matrix took 0.77 s against 0.97 s
+   * (bench/RESULTS.md, session 36); the inertia is still the pivots' signs
+   * (Sylvester), and a factorization that meets a zero pivot, or whose
+   * solve cannot be refined against the double values, is redone in double
+   * precision, with pivoting (to_double). */
+  if (!f->spd && f->single) f->sid.cntl[0] = (float)LDL_SINGLE_PIVOT;
   ID_SET(f, n, f->n);
   ID_SET(f, nnz, f->nnz);
   ID_SET(f, nz, f->nnz); /* the deprecated 32-bit count, kept consistent */

@@ -279,6 +279,29 @@ static void test_ldl_single_gmres(void **state) {
   ves_ldl_destroy(&f);
 }
 
+/* Single precision LDL^T runs without numerical pivoting (ldl.c,
+ * LDL_SINGLE_PIVOT): [0 1; 1 0] meets a zero pivot in any order, so the
+ * single factorization fails and is redone in double precision, which
+ * pivots (a 2 x 2 pivot): one fallback, one negative pivot (the
+ * eigenvalues are +-1), and x = (3, 2) for b = (2, 3), exact in double. */
+static void test_ldl_single_zero_pivot(void **state) {
+  (void)state;
+  int ir[3] = {0, 1, 1}, jc[3] = {0, 0, 1};
+  double v[3] = {0.0, 1.0, 0.0}, x[2] = {2.0, 3.0};
+  ves_ldl *f = NULL;
+  assert_int_equal(ves_ldl_create_prec(2, 3, ir, jc, 0, 1, &f), VES_OK);
+  assert_int_equal(ves_ldl_factor(f, v), VES_OK);
+  ves_ldl_info info;
+  ves_ldl_get_info(f, &info);
+  printf("# single [0 1; 1 0]: %d fallbacks, %d negative pivots\n", info.fallbacks,
+         info.neg_pivots);
+  assert_int_equal(info.fallbacks, 1);
+  assert_int_equal(info.neg_pivots, 1);
+  assert_int_equal(ves_ldl_solve(f, x), VES_OK);
+  assert_true(fabs(x[0] - 3.0) <= 1e-15 && fabs(x[1] - 2.0) <= 1e-15);
+  ves_ldl_destroy(&f);
+}
+
 /* A = Q diag(lam) Q^T (Q a product of 4 random Householder reflections),
  * N = 80, whose first nsmall eigenvalues are +-[1e-8, 1e-7] and the others
  * in [1, 2]: rounding A's O(1) entries to float moves the small ones by
@@ -645,7 +668,7 @@ int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_ldl_spd_vs_lapack), cmocka_unit_test(test_ldl_kkt),
       cmocka_unit_test(test_ldl_single_kkt), cmocka_unit_test(test_ldl_single_solve_tol),
-      cmocka_unit_test(test_ldl_single_gmres),
+      cmocka_unit_test(test_ldl_single_gmres), cmocka_unit_test(test_ldl_single_zero_pivot),
       cmocka_unit_test(test_ldl_single_restart),
       cmocka_unit_test(test_ldl_single_solve_fallback),
       cmocka_unit_test(test_ldl_single_fallback),
