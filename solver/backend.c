@@ -9,6 +9,7 @@ void ves_backend_options_from_config(const ves_config *cfg, ves_backend_options 
   opt->ctol = cfg->ctol;
   opt->max_iter = cfg->max_iter;
   opt->max_builds = cfg->max_builds;
+  opt->max_correction = cfg->max_correction;
   opt->freeze_hessian = cfg->freeze_hessian;
   opt->factor_single = strcmp(cfg->factor_precision, "double") != 0;
   opt->verbose = 0;

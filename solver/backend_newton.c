@@ -84,6 +84,25 @@
  * robustness studies set 0 explicitly: their single large steps are meant
  * to run long (dt* 100: 30 builds).
  *
+ * Correction limit (opt->max_correction, [solver] max_correction; 0, the
+ * default, = none): a matrix whose ladder would go beyond this delta
+ * returns VES_MAXITER before factorizing that rung, and the integrator
+ * retries at dt/2. The correction measures how far the step is beyond the
+ * time of its fastest unstable mode: H + delta K is positive definite (on
+ * the constraints' null space) once delta > -(1 + dt mu_min), mu_min the
+ * most negative eigenvalue of Hess E against K, so delta ~ 10 means dt ~
+ * 10x that time, and a chord on (1 + delta) K + dt Hess E contracts the
+ * viscous modes by only ~delta/(1 + delta) an iteration. Traced in the
+ * prolate C0 run at eps 0.01 (NEWTON_TRACE, session 37): the attempt at
+ * dt* 0.041 that was retried (step 19) needed delta 100 at the predictor
+ * (20 extra negative pivots at 0, 7 at 10) and then 3.3e3, 1.1e3, 370;
+ * the accepted steps before it (17, 18: 72 and 96 s) needed up to 33 and
+ * 11 in 20 factorizations each, against one matrix at delta 0 for the
+ * steps at dt* 0.02 before them. Off by default: near rest large steps
+ * meet the spurious modes above (5-50 negative directions at dt* ~0.8)
+ * and still converge in a few builds, and the robustness studies' single
+ * steps at dt* 100 are meant to run long.
+ *
  * Convergence (both):
  *   |g + J^T lam|_inf <= max(tol * S, N),  S = max(|g(x_start)|_inf, |J^T lam|_inf),
  *   |c_i| <= ctol * target_i  (A0, V_target),
@@ -95,9 +114,17 @@
  * (the viscous term vanishes), and the tension term J^T lam balances it at the
  * solution; relative to S the criterion means the same for any dt (an
  * absolute floor max(1, .) would make small steps converge vacuously). S = 1
- * when both vanish (an equilibrium without tension). */
+ * when both vanish (an equilibrium without tension).
+ *
+ * Built with -DNEWTON_TRACE (make OPT="-O2 -g -DNEWTON_TRACE") the solve
+ * prints each iteration (residual / S, violation, fresh matrix, step
+ * length, acceleration, second-order correction) and each factorization's
+ * rung (delta, negative pivots) to stderr. */
 #include <float.h>
 #include <math.h>
+#ifdef NEWTON_TRACE
+#include <stdio.h>
+#endif
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
@@ -226,13 +253,19 @@ static ves_status assemble_factor(newton_state *w, ves_step *s, const double *x,
    * needing delta 1..10 after one that needed 1..10) */
   double delta = w->delta_build / 3 >= NEWTON_DELTA0 ? w->delta_build / 3 : 0, in = 0;
   while (delta <= NEWTON_DELTA_MAX) {
-    if (delta != in) { /* H + delta K: the difference to the last rung added */
+    if (w->opt.max_correction > 0 && delta > w->opt.max_correction)
+      return VES_MAXITER; /* a step far beyond its unstable modes' time (the header) */
+    if (delta != in) {    /* H + delta K: the difference to the last rung added */
       if (!K && !(K = ves_step_K(s))) return VES_ERR_ALLOC;
       for (int t = 0; t < w->kkt.nh; t++) H[t] += (delta - in) * K[t];
       in = delta;
     }
     ves_status st = kkt_factor(&w->kkt);
     stt->factorizations++;
+#ifdef NEWTON_TRACE
+    fprintf(stderr, "newton   factor delta %.1e: %s, %d negative pivots\n", delta,
+            ves_status_str(st), w->kkt.neg);
+#endif
     if (st == VES_OK && w->kkt.neg == KKT_NROWS) {
       if (delta > 0) w->delta_last = delta;
       w->delta_build = delta;
@@ -642,6 +675,11 @@ static ves_status newton_solve(void *state, ves_step *s, double *x, double *lamb
       result = VES_ERR_NOCONV;
       break;
     }
+#ifdef NEWTON_TRACE
+    fprintf(
+        stderr, "newton it %2d dt %.3e res/S %.3e viol %.1e built %d h %d a %.3g accel %d soc %d\n",
+        stt->iterations, par->dt, res / scale, viol, built_now, stt->h_evals, a, accel, used_soc);
+#endif
     if (a < 1) fresh = 1; /* the step had to be cut: a frozen matrix is stale */
     memcpy(x, w->xt, (size_t)nv * sizeof *x);
     for (int i = 0; i < ncon; i++) lam[i] += (used_soc ? 1.0 : a) * dlam[i];

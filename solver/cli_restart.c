@@ -17,10 +17,16 @@
  * between steps (time.growth_max, the same kind of knob: session 34), and
  * where the run ends; the rest defines the setup, the physics or the
  * protocol the stored steps followed. */
-static const char *const RESTART_KEYS[] = {
-    "solver.tol",         "solver.ctol",           "solver.max_iter",
-    "solver.max_builds",  "solver.freeze_hessian", "solver.factor_precision",
-    "time.factor_shrink", "time.growth_max",       "time.t_end"};
+static const char *const RESTART_KEYS[] = {"solver.tol",
+                                           "solver.ctol",
+                                           "solver.max_iter",
+                                           "solver.max_builds",
+                                           "solver.max_correction",
+                                           "solver.freeze_hessian",
+                                           "solver.factor_precision",
+                                           "time.factor_shrink",
+                                           "time.growth_max",
+                                           "time.t_end"};
 
 void cli_restart_keys_print(FILE *f, int col, int indent, int width, const char *tail) {
   const size_t nk = sizeof RESTART_KEYS / sizeof RESTART_KEYS[0];

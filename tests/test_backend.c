@@ -526,6 +526,56 @@ static void test_huge_dt(void **state) {
   assert_int_equal(ves_step_set(FX.step, FX.yn, &FX.par), VES_OK);
 }
 
+/* The correction limit ([solver] max_correction, backend_newton.c): at the
+ * first dt* of 1, 10, 100, 1e3 whose first matrix needs a correction of at
+ * least 1e-2 K (>= 3 factorizations on the ladder 0, 1e-3, 1e-2, ...), a
+ * limit of 5e-3 gives the attempt up before factorizing the rung 1e-2:
+ * VES_MAXITER after exactly 2 factorizations and no iteration, x still x0;
+ * a limit above the ladder's end (1e6) changes nothing (the same count). */
+static void test_correction_limit(void **state) {
+  (void)state;
+  const ves_backend_type *b = ves_backend_find("newton");
+  double *x = malloc((size_t)FX.nvar * sizeof(double));
+  assert_non_null(x);
+  const double dts[] = {1, 10, 100, 1e3};
+  int found = 0;
+  for (int k = 0; k < 4 && !found; k++) {
+    ves_step_params par = FX.par;
+    par.dt = dts[k];
+    par.fresh = 1; /* no inertia hint carried between the solves */
+    assert_int_equal(ves_step_set(FX.step, FX.yn, &par), VES_OK);
+    const double limits[] = {0, 5e-3, 1e6};
+    ves_backend_stats s[3] = {{0}};
+    ves_status st[3];
+    for (int j = 0; j < 3; j++) {
+      ves_backend_options opt;
+      ves_backend_options_default(&opt);
+      opt.max_iter = 1;
+      opt.max_correction = limits[j];
+      void *ns = NULL;
+      assert_int_equal(b->create(&opt, FX.step, &ns), VES_OK);
+      double lam[2] = {0, 0};
+      memcpy(x, FX.x0, (size_t)FX.nvar * sizeof(double));
+      st[j] = b->solve(ns, FX.step, x, lam, &s[j]);
+      b->destroy(&ns);
+      if (j == 0 && s[0].factorizations < 3) break;
+      if (j == 1) assert_true(memcmp(x, FX.x0, (size_t)FX.nvar * sizeof(double)) == 0);
+      found = j == 2;
+    }
+    if (!found) continue;
+    printf("# dt* %g: %d factorizations, with max_correction 5e-3 %d (%s)\n", dts[k],
+           s[0].factorizations, s[1].factorizations, ves_status_str(st[1]));
+    assert_int_equal(st[1], VES_MAXITER);
+    assert_int_equal(s[1].factorizations, 2);
+    assert_int_equal(s[1].iterations, 0);
+    assert_int_equal(st[2], st[0]);
+    assert_int_equal(s[2].factorizations, s[0].factorizations);
+  }
+  assert_true(found);
+  free(x);
+  assert_int_equal(ves_step_set(FX.step, FX.yn, &FX.par), VES_OK);
+}
+
 /* One solve of the fixture's step from x0 with lambda 0 (test_inertia_hint). */
 static void hint_solve(const ves_backend_type *b, void *ns, double *x, ves_backend_stats *stats) {
   double lam[2] = {0, 0};
@@ -718,6 +768,7 @@ int main(void) {
       cmocka_unit_test(test_nlopt_matches_ipopt),
       cmocka_unit_test(test_conformance),     cmocka_unit_test(test_domain_start),
       cmocka_unit_test(test_huge_dt),         cmocka_unit_test(test_inertia_hint),
+      cmocka_unit_test(test_correction_limit),
       cmocka_unit_test(test_bad_arguments),
       cmocka_unit_test(test_singular_kkt),
   };

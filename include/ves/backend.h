@@ -17,17 +17,20 @@
  * defaults are the problem file's [solver] keys (config.c's table of keys,
  * the one source: vesica keys lists them). */
 typedef struct {
-  double tol;         /* optimality / KKT residual tolerance (relative; [solver] tol) */
-  double ctol;        /* constraint violation tolerance, relative to A0, V ([solver] ctol) */
-  int max_iter;       /* iteration limit per step ([solver] max_iter) */
-  int max_builds;     /* newton with a frozen Hessian: matrix builds per step, then
-                         VES_MAXITER ([solver] max_builds; 0 = no limit) */
-  int freeze_hessian; /* newton: 0 = a fresh Hessian every iteration; 1 = assembled
-                         once per step, rebuilt when the chord stalls (paper);
-                         2 = also kept across steps (backend_newton.c) */
-  int factor_single;  /* newton, euler: the KKT factorization in single precision, each
-                         solve refined in double (ldl.h; [solver] factor_precision) */
-  int verbose;        /* 0 quiet; > 0 lets the solver print (ipopt print_level) */
+  double tol;            /* optimality / KKT residual tolerance (relative; [solver] tol) */
+  double ctol;           /* constraint violation tolerance, relative to A0, V ([solver] ctol) */
+  int max_iter;          /* iteration limit per step ([solver] max_iter) */
+  int max_builds;        /* newton with a frozen Hessian: matrix builds per step, then
+                            VES_MAXITER ([solver] max_builds; 0 = no limit) */
+  double max_correction; /* newton: the largest inertia correction delta (H + delta K)
+                            a matrix may need, then VES_MAXITER ([solver]
+                            max_correction; 0 = no limit) */
+  int freeze_hessian;    /* newton: 0 = a fresh Hessian every iteration; 1 = assembled
+                            once per step, rebuilt when the chord stalls (paper);
+                            2 = also kept across steps (backend_newton.c) */
+  int factor_single;     /* newton, euler: the KKT factorization in single precision, each
+                            solve refined in double (ldl.h; [solver] factor_precision) */
+  int verbose;           /* 0 quiet; > 0 lets the solver print (ipopt print_level) */
 } ves_backend_options;
 
 /* Statistics of one solve, the same for every backend. */

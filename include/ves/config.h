@@ -72,6 +72,7 @@ typedef struct {
   double tol, ctol;                      /* optimality and constraint tolerances */
   int max_iter;                          /* iterations per attempt of a step (then dt/2) */
   int max_builds;                        /* newton: matrix builds per attempt (0: no limit) */
+  double max_correction;                 /* newton: largest inertia correction (0: no limit) */
   int freeze_hessian;                    /* newton: Hessian once per step */
   char factor_precision[VES_CONFIG_STR]; /* newton, euler: single | double */
   double drift_damping;                  /* alpha of the drift damping (model.h), 0: off */
