@@ -14,8 +14,10 @@
 /* The keys a restart may change: how each step is solved, the controller's
  * halving after a hard step (time.factor_shrink: a cost knob for the bud
  * phase of a long run, bench/RESULTS.md session 24) and its largest growth
- * between steps (time.growth_max, the same kind of knob: session 34), and
- * where the run ends; the rest defines the setup, the physics or the
+ * between steps (time.growth_max, the same kind of knob: session 34), its
+ * rules that hold dt after a step of many iterations or factorizations
+ * (time.iter_target, time.factor_target: session 37), and where the run
+ * ends; the rest defines the setup, the physics or the
  * protocol the stored steps followed. */
 static const char *const RESTART_KEYS[] = {"solver.tol",
                                            "solver.ctol",
@@ -26,6 +28,8 @@ static const char *const RESTART_KEYS[] = {"solver.tol",
                                            "solver.factor_precision",
                                            "time.factor_shrink",
                                            "time.growth_max",
+                                           "time.iter_target",
+                                           "time.factor_target",
                                            "time.t_end"};
 
 void cli_restart_keys_print(FILE *f, int col, int indent, int width, const char *tail) {
