@@ -118,10 +118,10 @@ static void report_step(const run_ctx *r, const ves_step_report *rep, const loop
             tty ? "\r" : "", rep->step, rep->t, r->cfg.t_end, rep->dt, rep->E,
             rep->stats.iterations, eta, tty ? "   " : "\n");
   }
-  if (rep->retries && !r->quiet) /* the cost of the rejected attempts, and why */
+  if (rep->retries && !r->quiet) /* why the last attempt failed, and what they all cost */
     fprintf(stderr,
-            "%sstep %ld: %d attempt(s) rejected from dt* %.3g (last: %s; %d iterations, %d "
-            "Hessians, %.1f s), accepted at dt* %.3g\n",
+            "%sstep %ld: %d attempt(s) rejected from dt* %.3g (last: %s; in all %d iterations, "
+            "%d Hessians, %.1f s), accepted at dt* %.3g\n",
             tty ? "\n" : "", rep->step, rep->retries, rep->reject_dt,
             ves_status_str(rep->reject_status), rep->rejected.iterations, rep->rejected.h_evals,
             rep->rejected.seconds, rep->dt);
