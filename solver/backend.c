@@ -25,6 +25,21 @@ void ves_backend_options_default(ves_backend_options *opt) {
   ves_backend_options_from_config(&cfg, opt);
 }
 
+const char *ves_backend_limit_key(int limit) {
+  switch (limit) {
+  case VES_LIMIT_ITER:
+    return "solver.max_iter";
+  case VES_LIMIT_BUILDS:
+    return "solver.max_builds";
+  case VES_LIMIT_CORRECTION:
+    return "solver.max_correction";
+  case VES_LIMIT_TIME:
+    return "nlopt's time budget";
+  default:
+    return "";
+  }
+}
+
 static const ves_backend_type *const TABLE[] = {&ves_backend_ipopt, &ves_backend_nlopt,
                                                 &ves_backend_newton, &ves_backend_euler};
 

@@ -372,6 +372,7 @@ static ves_status ipopt_solve(void *state, ves_step *s, double *x, double *lambd
     stats->violation = viol;
     stats->seconds = ves_wall_seconds() - t0;
     stats->solver_status = (int)ars;
+    stats->limit = out == VES_MAXITER ? VES_LIMIT_ITER : VES_LIMIT_NONE;
   }
   return out;
 }

@@ -253,9 +253,11 @@ static ves_status assemble_factor(newton_state *w, ves_step *s, const double *x,
    * needing delta 1..10 after one that needed 1..10) */
   double delta = w->delta_build / 3 >= NEWTON_DELTA0 ? w->delta_build / 3 : 0, in = 0;
   while (delta <= NEWTON_DELTA_MAX) {
-    if (w->opt.max_correction > 0 && delta > w->opt.max_correction)
-      return VES_MAXITER; /* a step far beyond its unstable modes' time (the header) */
-    if (delta != in) {    /* H + delta K: the difference to the last rung added */
+    if (w->opt.max_correction > 0 && delta > w->opt.max_correction) {
+      stt->limit = VES_LIMIT_CORRECTION; /* a step far beyond its unstable modes' time */
+      return VES_MAXITER;
+    }
+    if (delta != in) { /* H + delta K: the difference to the last rung added */
       if (!K && !(K = ves_step_K(s))) return VES_ERR_ALLOC;
       for (int t = 0; t < w->kkt.nh; t++) H[t] += (delta - in) * K[t];
       in = delta;
@@ -583,7 +585,7 @@ static ves_status newton_solve(void *state, ves_step *s, double *x, double *lamb
       break;
     }
     if (stt->iterations >= w->opt.max_iter) {
-      result = VES_MAXITER;
+      result = VES_MAXITER, stt->limit = VES_LIMIT_ITER;
       break;
     }
     /* the chord stalls: the residual has not halved over the window (since the
@@ -594,7 +596,7 @@ static ves_status newton_solve(void *state, ves_step *s, double *x, double *lamb
     int built_now = 0;
     if (w->opt.freeze_hessian && fresh && w->opt.max_builds > 0 &&
         stt->h_evals >= w->opt.max_builds) { /* a damped attempt that wanders: give it up */
-      result = VES_MAXITER;
+      result = VES_MAXITER, stt->limit = VES_LIMIT_BUILDS;
       break;
     }
     if (fresh || !w->opt.freeze_hessian) {

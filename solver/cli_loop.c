@@ -118,13 +118,17 @@ static void report_step(const run_ctx *r, const ves_step_report *rep, const loop
             tty ? "\r" : "", rep->step, rep->t, r->cfg.t_end, rep->dt, rep->E,
             rep->stats.iterations, eta, tty ? "   " : "\n");
   }
-  if (rep->retries && !r->quiet) /* why the last attempt failed, and what they all cost */
+  if (rep->retries && !r->quiet) { /* why the last attempt failed, and what they all cost */
+    const char *key =
+        rep->reject_status == VES_MAXITER ? ves_backend_limit_key(rep->rejected.limit) : "";
     fprintf(stderr,
-            "%sstep %ld: %d attempt(s) rejected from dt* %.3g (last: %s; in all %d iterations, "
-            "%d Hessians, %.1f s), accepted at dt* %.3g\n",
+            "%sstep %ld: %d attempt(s) rejected from dt* %.3g (last: %s%s%s%s; in all %d "
+            "iterations, %d Hessians, %d factorizations, %.1f s), accepted at dt* %.3g\n",
             tty ? "\n" : "", rep->step, rep->retries, rep->reject_dt,
-            ves_status_str(rep->reject_status), rep->rejected.iterations, rep->rejected.h_evals,
+            ves_status_str(rep->reject_status), *key ? " (" : "", key, *key ? ")" : "",
+            rep->rejected.iterations, rep->rejected.h_evals, rep->rejected.factorizations,
             rep->rejected.seconds, rep->dt);
+  }
   if (rep->reconnected && !r->quiet)
     fprintf(stderr,
             "%sstep %ld: reference reset #%d (max cond F %.3g, min det F %.3g, max "

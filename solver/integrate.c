@@ -687,8 +687,10 @@ static void reject(ves_sim *s, double dt, ves_status st, int retries, ves_step_r
   rep->reject_status = st;
   rep->rejected.iterations += rep->stats.iterations, rep->rejected.f_evals += rep->stats.f_evals;
   rep->rejected.g_evals += rep->stats.g_evals, rep->rejected.h_evals += rep->stats.h_evals;
+  rep->rejected.factorizations += rep->stats.factorizations;
   rep->rejected.seconds += rep->stats.seconds, rep->rejected.violation = rep->stats.violation;
   rep->rejected.solver_status = rep->stats.solver_status;
+  rep->rejected.limit = rep->stats.limit;
 }
 
 /* One accepted step: attempts at dt, dt/2, ... until one is accepted. Still

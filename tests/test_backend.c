@@ -518,6 +518,7 @@ static void test_huge_dt(void **state) {
       st = run_backend(b, &opt, x, lambda2, &capped);
       print_stats("newton, max_builds 1", st, &capped);
       assert_int_equal(st, VES_MAXITER);
+      assert_int_equal(capped.limit, VES_LIMIT_BUILDS); /* the limit named (the retry line) */
       assert_int_equal(capped.h_evals, 1);
       assert_true(capped.iterations < stats.iterations);
     }
@@ -566,6 +567,7 @@ static void test_correction_limit(void **state) {
     printf("# dt* %g: %d factorizations, with max_correction 5e-3 %d (%s)\n", dts[k],
            s[0].factorizations, s[1].factorizations, ves_status_str(st[1]));
     assert_int_equal(st[1], VES_MAXITER);
+    assert_int_equal(s[1].limit, VES_LIMIT_CORRECTION);
     assert_int_equal(s[1].factorizations, 2);
     assert_int_equal(s[1].iterations, 0);
     assert_int_equal(st[2], st[0]);

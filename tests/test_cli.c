@@ -1192,6 +1192,7 @@ static void test_progress_eta(void **state) {
   if (!e) fail_msg("no line for the rejected attempts:\n%s", r.err);
   printf("# euler: %.*s\n", (int)strcspn(e, "\n"), e);
   assert_non_null(strstr(e, "(last: step rejected; in all "));
+  assert_non_null(strstr(e, " factorizations, ")); /* each rung of a ladder is one */
   unlink(ini), unlink(out);
   tmp_path(out, sizeof out, "eta.xdmf"), unlink(out);
 }

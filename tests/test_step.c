@@ -647,6 +647,8 @@ static void test_errors(void **state) {
   assert_int_equal(nb->solve(st, s, x, lam, NULL), VES_ERR_ARG);
   assert_int_equal(nb->solve(st, s, x, lam, &bs), VES_MAXITER);
   assert_int_equal(bs.iterations, 1);
+  assert_int_equal(bs.limit, VES_LIMIT_ITER);
+  assert_string_equal(ves_backend_limit_key(bs.limit), "solver.max_iter");
   /* a start outside the domain */
   for (int j = 0; j < nv; j++) x[j] = -x[j];
   assert_int_equal(nb->solve(st, s, x, lam, &bs), VES_ERR_DOMAIN);

@@ -43,7 +43,21 @@ typedef struct {
   double violation;   /* final max |c_i| / target_i */
   double seconds;     /* wall time */
   int solver_status;  /* the backend's own code (Ipopt ApplicationReturnStatus, nlopt_result) */
+  int limit;          /* a VES_MAXITER return: the limit that ended the solve (ves_backend_limit) */
 } ves_backend_stats;
+
+/* Which limit ended a solve that returned VES_MAXITER (ves_backend_stats.limit),
+ * each a problem-file key: the retry line names it. */
+typedef enum {
+  VES_LIMIT_NONE = 0,   /* the solve did not stop at a limit */
+  VES_LIMIT_ITER,       /* [solver] max_iter (Ipopt's max_iter, nlopt's evaluation budget) */
+  VES_LIMIT_BUILDS,     /* [solver] max_builds (newton with a frozen Hessian) */
+  VES_LIMIT_CORRECTION, /* [solver] max_correction (newton) */
+  VES_LIMIT_TIME        /* nlopt's time budget */
+} ves_backend_limit;
+
+/* The problem-file key of a limit ("solver.max_iter", ...; "" for VES_LIMIT_NONE). */
+const char *ves_backend_limit_key(int limit);
 
 typedef struct {
   const char *name;
