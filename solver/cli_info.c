@@ -25,7 +25,8 @@ static void usage_info(FILE *f) {
              "  area_drift_max (max |A/A0 - 1|), volume_drift_max (max |V/V_target - 1|),\n"
              "  reduced_volume_initial, reduced_volume_final, dt_first, dt_largest, retries,\n"
              "  reconnections, newton_iterations (the backend's iterations in all: Newton steps,\n"
-             "  Ipopt iterations, ...), hessian_evaluations, wall_seconds (time loop, over\n"
+             "  Ipopt iterations, ...), hessian_evaluations, kkt_factorizations (newton and\n"
+             "  euler; not in files written before 2026-12-05), wall_seconds (time loop, over\n"
              "  restarts), setup_seconds;\n"
              "  interface_area, interface_volume, interface_reduced_volume and\n"
              "  node_triangles_inverted, each _initial (first snapshot) and _final (last): the\n"
@@ -103,6 +104,7 @@ static void print_summary(const char *path, ves_io *io, const ves_config *cfg,
   printf("dt_first = %.6g\ndt_largest = %.6g\n", u->dt_first, u->dt_largest);
   printf("retries = %.0f\nreconnections = %.0f\n", u->retries, u->reconnections);
   printf("newton_iterations = %.0f\nhessian_evaluations = %.0f\n", u->iterations, u->h_evals);
+  if (u->factorizations >= 0) printf("kkt_factorizations = %.0f\n", u->factorizations);
   printf("wall_seconds = %.3f\nsetup_seconds = %.3f\n", u->wall_seconds, in->setup_seconds);
 }
 

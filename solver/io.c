@@ -70,6 +70,7 @@ static const series_spec SERIES[] = {
     {"retries", COL_INT, ROW(retries), "1", "rejected attempts before the accepted one (each at dt/2)", 14, V_, "retries", "%d"},
     {"status", COL_INT, ROW(status), "1", STATUS_DOC_, 0, TSV_NONE, NULL, NULL},
     {"reconnections", COL_INT, ROW(reconnections), "1", "resets of the reference configuration so far", 15, V_, "resets", "%d"},
+    {"factorizations", COL_INT, ROW(factorizations), "1", "KKT factorizations of the accepted attempt, each rung of an inertia correction one (newton, euler; 0 for ipopt and nlopt, which do not report theirs); absent in files written before 2026-12-05 (read as -1)", 18, V_, "factorizations", "%d"},
     {"step", COL_LONG, ROW(step), "1", "accepted step number (row i holds step i + 1; written last: a row is complete once its step is)", 1, V_, "step", "%ld"},
     /* the text only */
     {"rejected_iterations", COL_INT, ROW(rejected_iterations), "1", "iterations of the attempts rejected before the accepted one", 16, V_, "rejected_iterations", "%d"},
@@ -80,6 +81,12 @@ static const series_spec SERIES[] = {
 #define NTSV_ONLY 2
 #define NCOLS ((int)(sizeof SERIES / sizeof SERIES[0]))
 #define NSERIES (NCOLS - NTSV_ONLY) /* columns in the file */
+
+/* A column added to format_version 2 after its first files were written: an
+ * older file lacks it (its handle -1 once opened), and appends,
+ * truncations, checksums and salvaged copies pass it by; ves_io_read_series
+ * reads it as -1. */
+static int col_optional(int i) { return !strcmp(SERIES[i].name, "factorizations"); }
 
 struct ves_io {
   hid_t file;               /* the HDF5 file */
@@ -367,10 +374,12 @@ static ves_status col_read(hid_t d, col_type t, hsize_t from, hsize_t m, void *b
 }
 
 /* The series checksum continued over m rows held column by column in
- * col[NSERIES]: row by row, each row's values in the order of SERIES. */
+ * col[NSERIES]: row by row, each row's values in the order of SERIES (a
+ * column the file lacks, col[i] NULL, passed by). */
 static uint64_t rows_sum(uint64_t h, void *const *col, long m) {
   for (long r = 0; r < m; r++)
     for (int i = 0; i < NSERIES; i++) {
+      if (!col[i]) continue;
       const size_t sz = col_size(SERIES[i].type);
       h = fnv(h, (const char *)col[i] + (size_t)r * sz, sz);
     }
@@ -383,6 +392,7 @@ static ves_status cols_read(hid_t const *series, long rows, void **col) {
   ves_status st = VES_OK;
   for (int i = 0; i < NSERIES; i++) col[i] = NULL;
   for (int i = 0; i < NSERIES && st == VES_OK; i++) {
+    if (series[i] < 0) continue; /* an optional column the file lacks */
     col[i] = malloc((size_t)(rows > 0 ? rows : 1) * col_size(SERIES[i].type));
     st = !col[i] ? VES_ERR_ALLOC : col_read(series[i], SERIES[i].type, 0, (hsize_t)rows, col[i]);
   }
@@ -400,6 +410,7 @@ static ves_status series_sum(ves_io *io, long rows, uint64_t *out) {
   ves_status st = VES_OK;
   for (int i = 0; i < NSERIES; i++) col[i] = NULL;
   for (int i = 0; i < NSERIES && st == VES_OK && m > 0; i++) {
+    if (io->series[i] < 0) continue; /* an optional column the file lacks */
     col[i] = malloc((size_t)m * col_size(SERIES[i].type));
     st = !col[i] ? VES_ERR_ALLOC
                  : col_read(io->series[i], SERIES[i].type, (hsize_t)from, (hsize_t)m, col[i]);
@@ -662,14 +673,17 @@ static ves_status status_codes(hid_t obj) {
   return e < 0 ? VES_ERR_IO : VES_OK;
 }
 
-/* The extendible series datasets (empty). */
-static ves_status create_series(ves_io *io) {
+/* The extendible series datasets (empty): every column, or with `like` the
+ * columns present there (like[i] >= 0: a salvaged copy keeps its source's
+ * columns, and so its checksums). */
+static ves_status create_series(ves_io *io, const hid_t *like) {
   hid_t g = H5Gcreate2(io->file, "series", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
   if (g < 0) return VES_ERR_IO;
   hsize_t zero = 0, unlim = H5S_UNLIMITED, chunk = IO_CHUNK;
   hid_t sp = H5Screate_simple(1, &zero, &unlim), dcpl = H5Pcreate(H5P_DATASET_CREATE);
   ves_status st = sp >= 0 && dcpl >= 0 && H5Pset_chunk(dcpl, 1, &chunk) >= 0 ? VES_OK : VES_ERR_IO;
   for (int i = 0; i < NSERIES && st == VES_OK; i++) {
+    if (like && like[i] < 0) continue;
     io->series[i] = H5Dcreate2(g, SERIES[i].name, col_file_type(SERIES[i].type), sp, H5P_DEFAULT,
                                dcpl, H5P_DEFAULT);
     if (io->series[i] < 0) st = VES_ERR_IO;
@@ -734,7 +748,7 @@ static ves_status write_header(ves_io *io, const ves_io_header *h) {
                   "snapshot_every steps, the last)");
   H5Gclose(s);
   VES_CALL(st);
-  VES_CALL(create_series(io));
+  VES_CALL(create_series(io, NULL));
   return H5Fflush(f, H5F_SCOPE_LOCAL) < 0 ? VES_ERR_IO : VES_OK;
 }
 
@@ -863,6 +877,7 @@ static ves_status read_header(ves_io *io) {
   for (int i = 0; i < NSERIES; i++) {
     char name[64];
     snprintf(name, sizeof name, "series/%s", SERIES[i].name);
+    if (col_optional(i) && H5Lexists(f, name, H5P_DEFAULT) == 0) continue; /* an older file */
     io->series[i] = H5Dopen2(f, name, H5P_DEFAULT);
     if (io->series[i] < 0 || !numeric_type_ok(io->series[i], 0)) return VES_ERR_CONFIG;
   }
@@ -946,6 +961,7 @@ const ves_io_info *ves_io_get_info(const ves_io *io) { return &io->info; }
 static ves_status append(ves_io *io, const ves_io_row *row) {
   for (int i = 0; i < NSERIES; i++) {
     hid_t d = io->series[i];
+    if (d < 0) continue; /* an optional column the file lacks */
     hsize_t len = dset_len(d), one = 1, next = len + 1;
     if (H5Dset_extent(d, &next) < 0) return VES_ERR_IO;
     hid_t fs = H5Dget_space(d), ms = H5Screate_simple(1, &one, NULL);
@@ -989,6 +1005,7 @@ void ves_io_row_from_step(const ves_step_report *rep, int reconnections, double 
                       .retries = rep->retries,
                       .status = rep->solve_status,
                       .reconnections = reconnections,
+                      .factorizations = rep->stats.factorizations,
                       .rejected_iterations = rep->rejected.iterations,
                       .rejected_seconds = rep->rejected.seconds};
 }
@@ -1038,6 +1055,7 @@ ves_status ves_io_tsv_row(FILE *f, const ves_io_row *row, double A0) {
 long ves_io_rows(const ves_io *io) {
   hsize_t rows = 0, one = 1;
   for (int i = 0; i < NSERIES; i++) {
+    if (io->series[i] < 0) continue; /* an optional column the file lacks ("t" never is) */
     hsize_t l = dset_len(io->series[i]);
     if (i == 0 || l < rows) rows = l;
   }
@@ -1061,6 +1079,7 @@ ves_status ves_io_truncate(ves_io *io, long rows) {
   hsize_t r = (hsize_t)rows;
   if (io->summed_rows > rows) io->summed_rows = 0, io->series_sum = FNV_START;
   for (int i = 0; i < NSERIES; i++) {
+    if (io->series[i] < 0) continue; /* an optional column the file lacks */
     if (dset_len(io->series[i]) < r) return VES_ERR_ARG;
     if (H5Dset_extent(io->series[i], &r) < 0) return VES_ERR_IO;
   }
@@ -1076,6 +1095,10 @@ ves_status ves_io_read_series(ves_io *io, const char *name, double *out) {
   VES_CHECK(i < NSERIES, VES_ERR_ARG);
   hsize_t rows = (hsize_t)ves_io_rows(io), zero = 0;
   if (rows == 0) return VES_OK;
+  if (io->series[i] < 0) { /* an optional column the file lacks */
+    for (hsize_t r = 0; r < rows; r++) out[r] = -1;
+    return VES_OK;
+  }
   hid_t fs = H5Dget_space(io->series[i]), ms = H5Screate_simple(1, &rows, NULL);
   herr_t e =
       fs < 0 || ms < 0 ? -1 : H5Sselect_hyperslab(fs, H5S_SELECT_SET, &zero, NULL, &rows, NULL);
@@ -1086,7 +1109,22 @@ ves_status ves_io_read_series(ves_io *io, const char *name, double *out) {
 }
 
 /* The summary's columns, read by name (ves_io_summarize). */
-enum { S_T, S_DT, S_E, S_A, S_V, S_VT, S_ITER, S_HEV, S_RETRIES, S_RECONN, S_WALL, S_C0, NSUM };
+enum {
+  S_T,
+  S_DT,
+  S_E,
+  S_A,
+  S_V,
+  S_VT,
+  S_ITER,
+  S_HEV,
+  S_RETRIES,
+  S_RECONN,
+  S_WALL,
+  S_C0,
+  S_FACT,
+  NSUM
+};
 static const char *const SUM_COLS[NSUM] = {"t",
                                            "dt",
                                            "E",
@@ -1098,7 +1136,8 @@ static const char *const SUM_COLS[NSUM] = {"t",
                                            "retries",
                                            "reconnections",
                                            "wall_seconds",
-                                           "c0"};
+                                           "c0",
+                                           "factorizations"};
 
 /* The statistics of the rows col[NSUM][R] into s (E0, A0, V0 the header's,
  * c0 the problem's initial C0). */
@@ -1120,6 +1159,8 @@ static void summarize(const ves_io_info *in, double c0, long R, double *const *c
     s->dt_largest = fmax(s->dt_largest, col[S_DT][i]);
     s->iterations += col[S_ITER][i], s->h_evals += col[S_HEV][i];
     s->retries += col[S_RETRIES][i];
+    if (col[S_FACT][i] < 0) s->factorizations = -1; /* not recorded: unknown */
+    if (s->factorizations >= 0) s->factorizations += col[S_FACT][i];
   }
   if (R > 0) {
     s->t_final = col[S_T][R - 1], s->E_final = E[R - 1];
@@ -1994,7 +2035,8 @@ static int snapshot_intact(ves_io *src, int k, ves_io_snapinfo *si, void **col, 
   ok = ok && snap_sum((long)n, y, x, phi, yp, si) == want && si->rows >= 0;
   if (g >= 0) H5Gclose(g);
   free(y), free(x), free(phi), free(yp);
-  for (int i = 0; i < NSERIES && ok; i++) ok = dset_len(src->series[i]) >= (hsize_t)si->rows;
+  for (int i = 0; i < NSERIES && ok; i++)
+    ok = src->series[i] < 0 || dset_len(src->series[i]) >= (hsize_t)si->rows;
   if (ok && cols_read(src->series, si->rows, col) != VES_OK) ok = 0;
   if (ok) rows_sum_ = rows_sum(FNV_START, col, si->rows);
   if (ok && rows_sum_ != want_rows) ok = 0;
@@ -2062,9 +2104,10 @@ static ves_status salvage_write(ves_io *src, const char *path, const char *out, 
   }
   if (st == VES_OK) {
     step = "the series";
-    st = create_series(dst);
+    st = create_series(dst, src->series);
   }
   for (int i = 0; i < NSERIES && st == VES_OK && si->rows > 0; i++) {
+    if (dst->series[i] < 0) continue; /* as in src: an optional column it lacks */
     hsize_t r = (hsize_t)si->rows;
     if (H5Dset_extent(dst->series[i], &r) < 0 ||
         H5Dwrite(dst->series[i], col_mem_type(SERIES[i].type), H5S_ALL, H5S_ALL, H5P_DEFAULT,

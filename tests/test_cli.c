@@ -1224,7 +1224,7 @@ static void test_series(void **state) {
   char err[256];
   assert_int_equal(ves_io_open(out, 0, &io, err, sizeof err), VES_OK);
   const long R = ves_io_rows(io);
-  double *t = series(io, "t"), *E = series(io, "E");
+  double *t = series(io, "t"), *E = series(io, "E"), *fac = series(io, "factorizations");
   FILE *f = fopen(tsv, "r");
   assert_non_null(f);
   char line[1024], head[1024] = "";
@@ -1242,23 +1242,25 @@ static void test_series(void **state) {
     assert_int_equal(sscanf(line, "%ld\t%lf\t%lf\t%lf", &step, &tt, &dt, &e), 4);
     assert_true(step == rows + 1 && rows < R);
     assert_true(fabs(tt / t[rows] - 1) <= 1e-8 && fabs(e / E[rows] - 1) <= 1e-8);
-    /* the last two columns: rejected_iterations > 0 exactly when retries > 0 */
+    /* rejected_iterations > 0 exactly when retries > 0; the factorizations
+     * (the last column) as in the file, and euler's one a solve at least */
     const char *c = line;
-    double v[17];
-    for (int k = 0; k < 17; k++) {
+    double v[18];
+    for (int k = 0; k < 18; k++) {
       v[k] = strtod(c, NULL);
       c = strchr(c, '\t');
-      if (k < 16) assert_non_null(c), c++;
+      if (k < 17) assert_non_null(c), c++;
     }
     assert_true((v[13] > 0) == (v[15] > 0));
+    assert_true(v[17] >= 1 && v[17] == fac[rows]);
     retried += v[13] > 0;
     rows++;
   }
   fclose(f);
   printf("# series: %d columns named, %d rows (file %ld), %d with retries\n", nhead, rows, R,
          retried);
-  assert_int_equal(nhead, 17);
-  assert_non_null(strstr(head, "\trejected_iterations\trejected_seconds\n"));
+  assert_int_equal(nhead, 18);
+  assert_non_null(strstr(head, "\trejected_iterations\trejected_seconds\tfactorizations\n"));
   assert_int_equal(rows, R);
   assert_true(retried > 0);
   /* vesica info --series N: the file's last N rows, step first, the values to the 12
@@ -1282,7 +1284,12 @@ static void test_series(void **state) {
   run(&r, "info", out, "--series", "-1", NULL);
   assert_int_equal(r.code, 2);
   assert_non_null(strstr(r.err, "not an integer"));
-  free(t), free(E);
+  /* the summary's count of factorizations: the column's sum */
+  double fsum = 0;
+  for (long k = 0; k < R; k++) fsum += fac[k];
+  run(&r, "info", out, NULL);
+  assert_true(key_value(r.out, "kkt_factorizations") == fsum);
+  free(t), free(E), free(fac);
   ves_io_close(&io);
   unlink(ini), unlink(out), unlink(tsv);
   tmp_path(out, sizeof out, "ser.xdmf"), unlink(out);

@@ -98,7 +98,8 @@ static ves_io_row row_of(long i) {
                   .wall_seconds = 0.5 * (i + 1),
                   .retries = (int)i % 2,
                   .status = 0,
-                  .reconnections = 0};
+                  .reconnections = 0,
+                  .factorizations = 1 + (int)i % 3};
   return r;
 }
 
@@ -136,7 +137,8 @@ static void check_rows(ves_io *io, long R) {
               {"lambda_V", offsetof(ves_io_row, lambda_V), 1, 0},
               {"iterations", offsetof(ves_io_row, iterations), 0, 0},
               {"violation", offsetof(ves_io_row, violation), 1, 0},
-              {"retries", offsetof(ves_io_row, retries), 0, 0}};
+              {"retries", offsetof(ves_io_row, retries), 0, 0},
+              {"factorizations", offsetof(ves_io_row, factorizations), 0, 0}};
   for (size_t c = 0; c < sizeof cols / sizeof cols[0]; c++) {
     assert_int_equal(ves_io_read_series(io, cols[c].name, v), VES_OK);
     for (long i = 0; i < R; i++) {
@@ -392,7 +394,7 @@ static void test_killed_writer(void **state) {
   h = H5Fopen(path, H5F_ACC_RDWR, H5P_DEFAULT);
   g = H5Gopen2(h, "series", H5P_DEFAULT);
   H5G_info_t gi;
-  assert_true(H5Gget_info(g, &gi) >= 0 && gi.nlinks == 20);
+  assert_true(H5Gget_info(g, &gi) >= 0 && gi.nlinks == 21);
   for (hsize_t i = 0; i < gi.nlinks; i++) {
     char name[64];
     assert_true(H5Lget_name_by_idx(g, ".", H5_INDEX_NAME, H5_ITER_INC, i, name, sizeof name,
@@ -1114,8 +1116,8 @@ static void test_self_describing(void **state) {
   assert_true(h5 >= 0);
   int count = 0;
   assert_true(H5Ovisit(h5, H5_INDEX_NAME, H5_ITER_INC, described, &count) >= 0);
-  /* root, parameters, mesh + 3, series + 20, snapshots + 0 + 3, references + 0 + 5 */
-  assert_int_equal(count, 1 + 1 + 4 + 21 + 5 + 7);
+  /* root, parameters, mesh + 3, series + 21, snapshots + 0 + 3, references + 0 + 5 */
+  assert_int_equal(count, 1 + 1 + 4 + 22 + 5 + 7);
   const char *root[] = {"program", "version",        "problem",
                         "source",  "format_version", "format_description"};
   for (size_t i = 0; i < sizeof root / sizeof root[0]; i++)
@@ -1171,15 +1173,92 @@ static void test_tsv_row(void **state) {
                     .reconnections = 2,
                     .rejected_iterations = 9,
                     .rejected_seconds = 0.5,
+                    .factorizations = 8,
                     .c0 = 3,
                     .violation = 1e-12,
                     .status = 0};
   assert_int_equal(ves_io_tsv_row(f, &row, 12.0), VES_OK);
   fclose(f);
   assert_string_equal(buf, "# step\tt\tdt\tE\tA/A0-1\tV/Vt-1\tlambda_A\tlambda_V\titer\tf\tg\th\t"
-                           "seconds\tretries\tresets\trejected_iterations\trejected_seconds\n"
+                           "seconds\tretries\tresets\trejected_iterations\trejected_seconds\t"
+                           "factorizations\n"
                            "7\t0.125\t0.5\t6.25\t5.000e-02\t5.000e-02\t-1.5\t2.5\t3\t4\t5\t6\t1.250"
-                           "\t1\t2\t9\t0.500\n");
+                           "\t1\t2\t9\t0.500\t8\n");
+}
+
+/* A file of an older writer, without the series column "factorizations"
+ * (added on 2026-12-05 within format_version 2): it opens and continues
+ * without the column (appends, snapshots), reads it as -1 and summarizes it
+ * as not recorded; its checksums, written without the column, hold, so a
+ * copy cut short is salvaged, and the salvaged file lacks the column too. */
+static void test_older_file(void **state) {
+  (void)state;
+  fake f;
+  char path[128], cut[160], out[192], err[512] = "";
+  ves_io *io = fake_file(&f, "old.h5", path, sizeof path);
+  ves_io_close(&io);
+  hid_t h = H5Fopen(path, H5F_ACC_RDWR, H5P_DEFAULT);
+  assert_true(h >= 0 && H5Ldelete(h, "series/factorizations", H5P_DEFAULT) >= 0);
+  H5Fclose(h);
+  assert_int_equal(ves_io_open(path, 1, &io, err, sizeof err), VES_OK);
+  double y[8], x[8], phi[4] = {1, 0.5, -0.25, -1};
+  for (int j = 0; j < 8; j++) y[j] = f.X[j], x[j] = y[j] + 1e-3;
+  for (long i = 0; i <= 6; i++) {
+    if (i % 3 == 0) {
+      ves_io_snapinfo si = snap_of(i);
+      assert_int_equal(ves_io_snapshot(io, y, x, phi, &si), VES_OK);
+    }
+    ves_io_row r = row_of(i);
+    if (i < 6) assert_int_equal(ves_io_append(io, &r), VES_OK);
+  }
+  assert_int_equal(ves_io_truncate(io, 6), VES_OK);
+  ves_io_close(&io);
+  assert_int_equal(ves_io_open(path, 0, &io, err, sizeof err), VES_OK);
+  assert_int_equal(ves_io_rows(io), 6);
+  double v[6], it[6];
+  assert_int_equal(ves_io_read_series(io, "factorizations", v), VES_OK);
+  assert_int_equal(ves_io_read_series(io, "iterations", it), VES_OK);
+  for (int i = 0; i < 6; i++) assert_true(v[i] == -1 && it[i] == row_of(i).iterations);
+  ves_io_summary sum;
+  assert_int_equal(ves_io_summarize(io, 0, &sum), VES_OK);
+  assert_true(sum.factorizations == -1 && sum.iterations == 3 + 4 + 5 + 6 + 7 + 8);
+  ves_io_close(&io);
+  /* cut short at every 997th byte: some copy keeps a later snapshot, whose
+   * series checksum (without the column) held */
+  struct stat sb;
+  assert_int_equal(stat(path, &sb), 0);
+  FILE *in = fopen(path, "rb");
+  char *bytes = malloc((size_t)sb.st_size);
+  assert_true(in && bytes && fread(bytes, 1, (size_t)sb.st_size, in) == (size_t)sb.st_size);
+  fclose(in);
+  snprintf(cut, sizeof cut, "%s.cut", path);
+  snprintf(out, sizeof out, "%s.salvage", path);
+  int later = 0;
+  for (long c = 500; c < (long)sb.st_size; c += 997) {
+    FILE *o = fopen(cut, "wb");
+    assert_true(o && fwrite(bytes, 1, (size_t)c, o) == (size_t)c);
+    fclose(o);
+    ves_io_salvaged s;
+    if (ves_io_salvage(cut, out, &s, err, sizeof err) != VES_OK) continue;
+    later += s.snapshot > 0;
+    assert_int_equal(ves_io_open(out, 1, &io, err, sizeof err), VES_OK);
+    assert_int_equal(ves_io_rows(io), s.rows);
+    ves_io_row r = row_of(s.rows); /* it continues, still without the column */
+    assert_int_equal(ves_io_append(io, &r), VES_OK);
+    double w[7];
+    assert_int_equal(ves_io_read_series(io, "factorizations", w), VES_OK);
+    for (long i = 0; i <= s.rows; i++) assert_true(w[i] == -1);
+    ves_io_close(&io);
+    h = H5Fopen(out, H5F_ACC_RDONLY, H5P_DEFAULT);
+    assert_true(h >= 0 && H5Lexists(h, "series/factorizations", H5P_DEFAULT) == 0);
+    H5Fclose(h);
+    remove(out);
+  }
+  printf("# an older file cut short: %d salvaged copies kept a later snapshot\n", later);
+  assert_true(later > 0);
+  free(bytes);
+  remove(cut), remove(path);
+  free(f.problem);
 }
 
 int main(int argc, char **argv) {
@@ -1196,6 +1275,7 @@ int main(int argc, char **argv) {
       cmocka_unit_test(test_salvage_huge_end), cmocka_unit_test(test_foreign_types),
       cmocka_unit_test(test_salvage_bad_layout), cmocka_unit_test(test_salvage_bad_attribute),
       cmocka_unit_test(test_self_describing), cmocka_unit_test(test_tsv_row),
+      cmocka_unit_test(test_older_file),
   };
   // clang-format on
   return cmocka_run_group_tests_name("io", tests, setup_all, teardown_all);

@@ -36,7 +36,8 @@
  *                        step: t, dt, E (E*), A, V, V_target, lambda_A,
  *                        lambda_V, c0, iterations, f_evals, g_evals, h_evals,
  *                        violation, solve_seconds, wall_seconds, retries,
- *                        status, reconnections and last step (row i holds
+ *                        status, reconnections, factorizations (absent in
+ *                        files written before 2026-12-05) and last step (row i holds
  *                        step i + 1; the table SERIES in io.c)
  *   /snapshots           attribute count; groups "0", "1", ... each with
  *     y                  n x 2 nodal coefficients y^a (r, z) of the motion:
@@ -124,6 +125,7 @@ typedef struct {
   int retries;                   /* halvings of dt before acceptance */
   int status;                    /* ves_status of the accepted solve */
   int reconnections;             /* reference-configuration resets so far */
+  int factorizations;            /* KKT factorizations of the accepted solve (newton, euler) */
   int rejected_iterations;       /* iterations of the attempts rejected before (text only) */
   double rejected_seconds;       /* their wall time (text only: not in the file) */
 } ves_io_row;
@@ -254,6 +256,8 @@ typedef struct {
   double area_drift_max, volume_drift_max; /* max |A/A0 - 1|, max |V/V_target - 1| */
   double dt_first, dt_largest;             /* t* (0 without rows) */
   double retries, iterations, h_evals;     /* sums over the rows */
+  double factorizations;                   /* sum over the rows; -1: not recorded (a file
+                                              written before 2026-12-05) */
   double reconnections, wall_seconds;      /* the last row's (0 without rows) */
 } ves_io_summary;
 
