@@ -821,6 +821,25 @@ static void test_truncated(void **state) {
  * offset is assumed), and the salvaged file continues. An intact file is
  * not salvaged (VES_ERR_ARG), an existing output not overwritten, and a
  * file whose snapshots carry no checksums (an older writer) is refused. */
+/* The whole of file path (malloc'd, taken by the caller; its size in *size). */
+static char *file_bytes(const char *path, long *size) {
+  struct stat sb;
+  assert_int_equal(stat(path, &sb), 0);
+  FILE *in = fopen(path, "rb");
+  char *bytes = malloc((size_t)sb.st_size);
+  assert_true(in && bytes && fread(bytes, 1, (size_t)sb.st_size, in) == (size_t)sb.st_size);
+  fclose(in);
+  *size = (long)sb.st_size;
+  return bytes;
+}
+
+/* File path made of the first n bytes (a file cut short). */
+static void write_prefix(const char *path, const char *bytes, long n) {
+  FILE *o = fopen(path, "wb");
+  assert_true(o && fwrite(bytes, 1, (size_t)n, o) == (size_t)n);
+  fclose(o);
+}
+
 static void test_salvage(void **state) {
   (void)state;
   fake f;
@@ -845,21 +864,15 @@ static void test_salvage(void **state) {
   assert_int_equal(ves_io_salvage(path, out, &s, err, sizeof err), VES_ERR_ARG);
   assert_non_null(strstr(err, "not cut short"));
   assert_int_equal(ves_io_cut_short(path, NULL, NULL), 0);
-  struct stat sb;
-  assert_int_equal(stat(path, &sb), 0);
-  FILE *in = fopen(path, "rb");
-  char *bytes = malloc((size_t)sb.st_size);
-  assert_true(in && bytes && fread(bytes, 1, (size_t)sb.st_size, in) == (size_t)sb.st_size);
-  fclose(in);
+  long fsize;
+  char *bytes = file_bytes(path, &fsize);
   snprintf(cut, sizeof cut, "%s.cut", path);
   int kept[3] = {0}, refused = 0;
-  for (long c = 500; c < (long)sb.st_size; c += 2500) {
-    FILE *o = fopen(cut, "wb");
-    assert_true(o && fwrite(bytes, 1, (size_t)c, o) == (size_t)c);
-    fclose(o);
+  for (long c = 500; c < fsize; c += 2500) {
+    write_prefix(cut, bytes, c);
     long long size = 0, stored = 0;
     assert_int_equal(ves_io_cut_short(cut, &size, &stored), 1);
-    assert_true(size == c && stored == sb.st_size);
+    assert_true(size == c && stored == fsize);
     ves_status st = ves_io_salvage(cut, out, &s, err, sizeof err);
     if (st != VES_OK) {
       if (st != VES_ERR_IO) fail_msg("cut at %ld: %s (%s)", c, ves_status_str(st), err);
@@ -889,8 +902,8 @@ static void test_salvage(void **state) {
     }
     remove(out);
   }
-  printf("# %ld cuts: snapshot 0 kept %d times, 1 %d, 2 %d; %d refused\n",
-         ((long)sb.st_size + 2000) / 2500, kept[0], kept[1], kept[2], refused);
+  printf("# %ld cuts: snapshot 0 kept %d times, 1 %d, 2 %d; %d refused\n", (fsize + 2000) / 2500,
+         kept[0], kept[1], kept[2], refused);
   assert_true(kept[1] + kept[2] >= 1); /* the end cut off keeps a later snapshot */
   assert_true(kept[0] + kept[1] + kept[2] > refused);
   free(bytes);
@@ -907,6 +920,7 @@ static void test_salvage(void **state) {
   assert_true(h >= 0);
   assert_true(H5Adelete_by_name(h, "snapshots/0", "checksum", H5P_DEFAULT) >= 0);
   H5Fclose(h);
+  struct stat sb;
   assert_int_equal(stat(plain, &sb), 0);
   assert_int_equal(truncate(plain, sb.st_size - 1), 0);
   snprintf(out, sizeof out, "%s.salvage", plain);
@@ -932,14 +946,7 @@ static unsigned char *fake_bytes(const char *name, char *path, size_t len, int n
   }
   ves_io_close(&io);
   free(f.problem);
-  struct stat sb;
-  FILE *fp = fopen(path, "rb");
-  assert_true(fp && fstat(fileno(fp), &sb) == 0);
-  unsigned char *b = malloc((size_t)sb.st_size);
-  assert_true(b && fread(b, 1, (size_t)sb.st_size, fp) == (size_t)sb.st_size);
-  fclose(fp);
-  *size = (long)sb.st_size;
-  return b;
+  return (unsigned char *)file_bytes(path, size);
 }
 
 /* The first size bytes of b as the file path; b freed. */
@@ -1225,19 +1232,13 @@ static void test_older_file(void **state) {
   ves_io_close(&io);
   /* cut short at every 997th byte: some copy keeps a later snapshot, whose
    * series checksum (without the column) held */
-  struct stat sb;
-  assert_int_equal(stat(path, &sb), 0);
-  FILE *in = fopen(path, "rb");
-  char *bytes = malloc((size_t)sb.st_size);
-  assert_true(in && bytes && fread(bytes, 1, (size_t)sb.st_size, in) == (size_t)sb.st_size);
-  fclose(in);
+  long fsize;
+  char *bytes = file_bytes(path, &fsize);
   snprintf(cut, sizeof cut, "%s.cut", path);
   snprintf(out, sizeof out, "%s.salvage", path);
   int later = 0;
-  for (long c = 500; c < (long)sb.st_size; c += 997) {
-    FILE *o = fopen(cut, "wb");
-    assert_true(o && fwrite(bytes, 1, (size_t)c, o) == (size_t)c);
-    fclose(o);
+  for (long c = 500; c < fsize; c += 997) {
+    write_prefix(cut, bytes, c);
     ves_io_salvaged s;
     if (ves_io_salvage(cut, out, &s, err, sizeof err) != VES_OK) continue;
     later += s.snapshot > 0;
