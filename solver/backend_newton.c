@@ -133,9 +133,11 @@
 #include "ves/backend.h"
 #include "clock_impl.h"
 
-#define NEWTON_ARMIJO 1e-4    /* sufficient decrease of the merit function */
-#define NEWTON_MAX_LS 40      /* backtracking halvings */
-#define NEWTON_DELTA0 1e-3    /* first inertia correction, units of K */
+#define NEWTON_ARMIJO 1e-4 /* sufficient decrease of the merit function */
+#define NEWTON_MAX_LS 40   /* backtracking halvings */
+#ifndef NEWTON_DELTA0      /* overridable for measurements (bench/RESULTS.md, session 38) */
+#define NEWTON_DELTA0 1e-3 /* first inertia correction, units of K */
+#endif
 #define NEWTON_DELTA_MAX 1e6  /* give up beyond this correction */
 #define NEWTON_NEG_JUMP 8     /* more extra negative pivots than this: the next delta x100 */
 #define NEWTON_STALL 0.5      /* frozen: refresh when |res| fell by less than this ... */
