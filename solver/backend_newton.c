@@ -87,11 +87,12 @@
  * Correction limit (opt->max_correction, [solver] max_correction; 0, the
  * default, = none): a matrix whose ladder would go beyond this delta
  * returns VES_MAXITER before factorizing that rung, and the integrator
- * retries at dt/2. The correction measures how far the step is beyond the
- * time of its fastest unstable mode: H + delta K is positive definite (on
- * the constraints' null space) once delta > -(1 + dt mu_min), mu_min the
- * most negative eigenvalue of Hess E against K, so delta ~ 10 means dt ~
- * 10x that time, and a chord on (1 + delta) K + dt Hess E contracts the
+ * retries at dt/2; the limit itself is the ladder's last rung (a rung
+ * beyond it is cut to it once), so the attempt is given up only when a
+ * correction of max_correction does not suffice. The correction measures how far the step is beyond
+ * the time of its fastest unstable mode: H + delta K is positive definite (on the constraints' null
+ * space) once delta > -(1 + dt mu_min), mu_min the most negative eigenvalue of Hess E against K, so
+ * delta ~ 10 means dt ~ 10x that time, and a chord on (1 + delta) K + dt Hess E contracts the
  * viscous modes by only ~delta/(1 + delta) an iteration. Traced in the
  * prolate C0 run at eps 0.01 (NEWTON_TRACE, session 37): the attempt at
  * dt* 0.041 that was retried (step 19) needed delta 100 at the predictor
@@ -283,6 +284,12 @@ static ves_status assemble_factor(newton_state *w, ves_step *s, const double *x,
      * (measured: 50 extra negative pivots at delta 0 needed delta 1e3) */
     const int extra = st == VES_OK ? w->kkt.neg - KKT_NROWS : 0;
     delta = delta == 0 ? d0 : (extra > NEWTON_NEG_JUMP ? 100 : 10) * delta;
+    /* the limit itself is the last rung: a matrix that needs no more than
+     * max_correction is not given up for the ladder's grid (which had made
+     * a limit of 10 mean 3.3 after the rungs 0.033, 0.33, 3.3: RESULTS,
+     * session 38) */
+    const double lim = w->opt.max_correction;
+    if (lim > 0 && in < lim && delta > lim) delta = lim;
   }
   return VES_ERR_SINGULAR;
 }

@@ -141,8 +141,8 @@ static const key_spec KEYS[] = {
      "step; an attempt that needs more is given up and retried at dt/2 (0: no limit)"},
     {"solver", "max_correction", KEY_DOUBLE, OFF(max_correction), "0", 0, 1e6, NULL,
      "newton: the largest inertia correction delta (the matrix H + delta K, K the dissipation) "
-     "an attempt of a step may need; a matrix that needs more gives the attempt up, retried at "
-     "dt/2 (0: no limit)"},
+     "an attempt of a step may need (the correction ladder's last rung); a matrix that needs "
+     "more gives the attempt up, retried at dt/2 (0: no limit)"},
     {"solver", "freeze_hessian", KEY_INT, OFF(freeze_hessian), "1", 0, 2, NULL,
      "newton: 0 a fresh Hessian every iteration; 1 assembled once per step, rebuilt when "
      "the chord stalls (paper); 2 also kept across steps while the chord converges"},

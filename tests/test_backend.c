@@ -528,11 +528,14 @@ static void test_huge_dt(void **state) {
 }
 
 /* The correction limit ([solver] max_correction, backend_newton.c): at the
- * first dt* of 1, 10, 100, 1e3 whose first matrix needs a correction of at
- * least 1e-2 K (>= 3 factorizations on the ladder 0, 1e-3, 1e-2, ...), a
- * limit of 5e-3 gives the attempt up before factorizing the rung 1e-2:
- * VES_MAXITER after exactly 2 factorizations and no iteration, x still x0;
- * a limit above the ladder's end (1e6) changes nothing (the same count). */
+ * first dt* of 1, 10, 100, 1e3 whose first matrix needs a correction above
+ * 1e-2 K (>= 4 factorizations on the ladder 0, 1e-3, 1e-2, 0.1, ...), a
+ * limit of 5e-3 is the ladder's last rung (0, 1e-3, then 5e-3 instead of
+ * 1e-2; the inertia only improves with delta, so 5e-3 cannot suffice where
+ * 1e-2 did not): VES_MAXITER after exactly 3 factorizations and no
+ * iteration, x still x0, the limit named; a limit on a rung (1e-3) ends the
+ * ladder there (2 factorizations); a limit above the ladder's end (1e6)
+ * changes nothing (the same count). */
 static void test_correction_limit(void **state) {
   (void)state;
   const ves_backend_type *b = ves_backend_find("newton");
@@ -545,10 +548,10 @@ static void test_correction_limit(void **state) {
     par.dt = dts[k];
     par.fresh = 1; /* no inertia hint carried between the solves */
     assert_int_equal(ves_step_set(FX.step, FX.yn, &par), VES_OK);
-    const double limits[] = {0, 5e-3, 1e6};
-    ves_backend_stats s[3] = {{0}};
-    ves_status st[3];
-    for (int j = 0; j < 3; j++) {
+    const double limits[] = {0, 5e-3, 1e-3, 1e6};
+    ves_backend_stats s[4] = {{0}};
+    ves_status st[4];
+    for (int j = 0; j < 4; j++) {
       ves_backend_options opt;
       ves_backend_options_default(&opt);
       opt.max_iter = 1;
@@ -559,19 +562,22 @@ static void test_correction_limit(void **state) {
       memcpy(x, FX.x0, (size_t)FX.nvar * sizeof(double));
       st[j] = b->solve(ns, FX.step, x, lam, &s[j]);
       b->destroy(&ns);
-      if (j == 0 && s[0].factorizations < 3) break;
-      if (j == 1) assert_true(memcmp(x, FX.x0, (size_t)FX.nvar * sizeof(double)) == 0);
-      found = j == 2;
+      if (j == 0 && s[0].factorizations < 4) break;
+      if (j == 1 || j == 2) assert_true(memcmp(x, FX.x0, (size_t)FX.nvar * sizeof(double)) == 0);
+      found = j == 3;
     }
     if (!found) continue;
-    printf("# dt* %g: %d factorizations, with max_correction 5e-3 %d (%s)\n", dts[k],
-           s[0].factorizations, s[1].factorizations, ves_status_str(st[1]));
-    assert_int_equal(st[1], VES_MAXITER);
-    assert_int_equal(s[1].limit, VES_LIMIT_CORRECTION);
-    assert_int_equal(s[1].factorizations, 2);
-    assert_int_equal(s[1].iterations, 0);
-    assert_int_equal(st[2], st[0]);
-    assert_int_equal(s[2].factorizations, s[0].factorizations);
+    printf("# dt* %g: %d factorizations, with max_correction 5e-3 %d (%s), 1e-3 %d\n", dts[k],
+           s[0].factorizations, s[1].factorizations, ves_status_str(st[1]), s[2].factorizations);
+    for (int j = 1; j <= 2; j++) {
+      assert_int_equal(st[j], VES_MAXITER);
+      assert_int_equal(s[j].limit, VES_LIMIT_CORRECTION);
+      assert_int_equal(s[j].iterations, 0);
+    }
+    assert_int_equal(s[1].factorizations, 3);
+    assert_int_equal(s[2].factorizations, 2);
+    assert_int_equal(st[3], st[0]);
+    assert_int_equal(s[3].factorizations, s[0].factorizations);
   }
   assert_true(found);
   free(x);
