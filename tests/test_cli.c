@@ -1310,6 +1310,7 @@ static void test_numerical_failure(void **state) {
   printf("# forced failure -> %d: %s", r.code, r.err);
   assert_int_equal(r.code, 3);
   assert_non_null(strstr(r.err, "no acceptable step"));
+  assert_non_null(strstr(r.err, "the last attempt hit solver.max_iter")); /* the limit's key */
   assert_non_null(strstr(r.err, out));
   ves_io *io = open_ro(out);
   assert_string_equal(ves_io_get_info(io)->status, "failed");
