@@ -260,6 +260,20 @@ static ves_step_params params_now(const ves_sim *s) {
   return sp;
 }
 
+/* A new reference's or mesh's solver objects beside the old: its step
+ * problem set at y with sp (the backend needs a set problem), a backend
+ * state for it (*bstate), the model's C0 the run's, and E, A, V at y. */
+static ves_status new_solver(ves_sim *s, ves_model *m, ves_step *step, const double *y,
+                             const ves_step_params *sp, void **bstate, double *E, double *A,
+                             double *V) {
+  ves_status st = ves_step_set(step, y, sp);
+  if (st == VES_OK) st = s->backend->create(&s->bopt, step, bstate);
+  if (st == VES_OK) st = ves_model_set_c0(m, s->c0);
+  if (st == VES_OK)
+    st = ves_model_eval(m, y, VES_F_E | VES_F_A | VES_F_V, E, A, V, NULL, NULL, NULL);
+  return st;
+}
+
 /* Put the simulation on the reference nr (taken on success): a new step
  * problem and backend state on its model are made (the old ones already
  * released: release_solver); y continues from the new reference nodes. E, A,
@@ -274,11 +288,7 @@ static ves_status switch_reference(ves_sim *s, ves_reconnect *nr, const ves_step
   const double *y = ves_reconnect_nodes(nr)->x;
   ves_status st = ves_step_create(m, &step);
   if (st == VES_OK && ves_step_nvar(step) != s->nvar) st = VES_ERR_INTERNAL; /* same dofs */
-  if (st == VES_OK) st = ves_step_set(step, y, sp); /* the backend needs a set problem */
-  if (st == VES_OK) st = s->backend->create(&s->bopt, step, &bstate);
-  if (st == VES_OK) st = ves_model_set_c0(m, s->c0);
-  if (st == VES_OK)
-    st = ves_model_eval(m, y, VES_F_E | VES_F_A | VES_F_V, &E, &A, &V, NULL, NULL, NULL);
+  if (st == VES_OK) st = new_solver(s, m, step, y, sp, &bstate, &E, &A, &V);
   if (st != VES_OK) {
     if (bstate) s->backend->destroy(&bstate);
     ves_step_destroy(&step);
@@ -427,12 +437,8 @@ static ves_status switch_remesh(ves_sim *s, ves_remesh *nm, double V_target) {
     memcpy(y, ves_remesh_y(nm), 2 * (size_t)n * sizeof *y);
     ves_step_params sp = params_now(s);
     sp.V_target = V_target;
-    st = ves_step_set(step, y, &sp); /* the backend needs a set problem */
+    st = new_solver(s, m, step, y, &sp, &bstate, &E, &A, &V);
   }
-  if (st == VES_OK) st = s->backend->create(&s->bopt, step, &bstate);
-  if (st == VES_OK) st = ves_model_set_c0(m, s->c0);
-  if (st == VES_OK)
-    st = ves_model_eval(m, y, VES_F_E | VES_F_A | VES_F_V, &E, &A, &V, NULL, NULL, NULL);
   if (st != VES_OK) {
     if (bstate) s->backend->destroy(&bstate);
     ves_step_destroy(&step);
