@@ -89,20 +89,21 @@
  * returns VES_MAXITER before factorizing that rung, and the integrator
  * retries at dt/2; the limit itself is the ladder's last rung (a rung
  * beyond it is cut to it once), so the attempt is given up only when a
- * correction of max_correction does not suffice. The correction measures how far the step is beyond
- * the time of its fastest unstable mode: H + delta K is positive definite (on the constraints' null
- * space) once delta > -(1 + dt mu_min), mu_min the most negative eigenvalue of Hess E against K, so
- * delta ~ 10 means dt ~ 10x that time, and a chord on (1 + delta) K + dt Hess E contracts the
- * viscous modes by only ~delta/(1 + delta) an iteration. Traced in the
- * prolate C0 run at eps 0.01 (NEWTON_TRACE, session 37): the attempt at
- * dt* 0.041 that was retried (step 19) needed delta 100 at the predictor
- * (20 extra negative pivots at 0, 7 at 10) and then 3.3e3, 1.1e3, 370;
- * the accepted steps before it (17, 18: 72 and 96 s) needed up to 33 and
- * 11 in 20 factorizations each, against one matrix at delta 0 for the
- * steps at dt* 0.02 before them. Off by default: near rest large steps
- * meet the spurious modes above (5-50 negative directions at dt* ~0.8)
- * and still converge in a few builds, and the robustness studies' single
- * steps at dt* 100 are meant to run long.
+ * correction of max_correction does not suffice. The correction measures
+ * how far the step is beyond the time of its fastest unstable mode: H +
+ * delta K is positive definite (on the constraints' null space) once delta
+ * > -(1 + dt mu_min), mu_min the most negative eigenvalue of Hess E against
+ * K, so delta ~ 10 means dt ~ 10x that time, and a chord on (1 + delta) K +
+ * dt Hess E contracts the viscous modes by only ~delta/(1 + delta) an
+ * iteration. Traced in the prolate C0 run at eps 0.01 (NEWTON_TRACE,
+ * session 37): the attempt at dt* 0.041 that was retried (step 19) needed
+ * delta 100 at the predictor (20 extra negative pivots at 0, 7 at 10) and
+ * then 3.3e3, 1.1e3, 370; the accepted steps before it (17, 18: 72 and 96
+ * s) needed up to 33 and 11 in 20 factorizations each, against one matrix
+ * at delta 0 for the steps at dt* 0.02 before them. Off by default: near
+ * rest large steps meet the spurious modes above (5-50 negative directions
+ * at dt* ~0.8) and still converge in a few builds, and the robustness
+ * studies' single steps at dt* 100 are meant to run long.
  *
  * Convergence (both):
  *   |g + J^T lam|_inf <= max(tol * S, N),  S = max(|g(x_start)|_inf, |J^T lam|_inf),
