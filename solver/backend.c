@@ -33,8 +33,6 @@ const char *ves_backend_limit_key(int limit) {
     return "solver.max_builds";
   case VES_LIMIT_CORRECTION:
     return "solver.max_correction";
-  case VES_LIMIT_TIME:
-    return "nlopt's time budget";
   default:
     return "";
   }

@@ -256,11 +256,13 @@ static ves_status assemble_factor(newton_state *w, ves_step *s, const double *x,
    * measured at eps 0.01, dt* 0.8: 19 factorizations in 7 builds, a build
    * needing delta 1..10 after one that needed 1..10) */
   double delta = w->delta_build / 3 >= NEWTON_DELTA0 ? w->delta_build / 3 : 0, in = 0;
-  while (delta <= NEWTON_DELTA_MAX) {
-    if (w->opt.max_correction > 0 && delta > w->opt.max_correction) {
+  const double lim = w->opt.max_correction;
+  for (;;) {
+    if (lim > 0 && delta > lim) {        /* before the ladder's end: the limit is named */
       stt->limit = VES_LIMIT_CORRECTION; /* a step far beyond its unstable modes' time */
       return VES_MAXITER;
     }
+    if (delta > NEWTON_DELTA_MAX) return VES_ERR_SINGULAR;
     if (delta != in) { /* H + delta K: the difference to the last rung added */
       if (!K && !(K = ves_step_K(s))) return VES_ERR_ALLOC;
       for (int t = 0; t < w->kkt.nh; t++) H[t] += (delta - in) * K[t];
@@ -289,10 +291,8 @@ static ves_status assemble_factor(newton_state *w, ves_step *s, const double *x,
      * max_correction is not given up for the ladder's grid (which had made
      * a limit of 10 mean 3.3 after the rungs 0.033, 0.33, 3.3: RESULTS,
      * session 38) */
-    const double lim = w->opt.max_correction;
     if (lim > 0 && in < lim && delta > lim) delta = lim;
   }
-  return VES_ERR_SINGULAR;
 }
 
 /* The KKT solves' refinement target: NEWTON_SOLVE_TOL for the chord (a

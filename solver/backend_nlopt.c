@@ -982,9 +982,7 @@ static ves_status nlb_solve(void *state, ves_step *s, double *x, double *lambda,
     stats->violation = viol;
     stats->seconds = ves_wall_seconds() - t0;
     stats->solver_status = (int)r;
-    stats->limit = out != VES_MAXITER           ? VES_LIMIT_NONE
-                   : r == NLOPT_MAXTIME_REACHED ? VES_LIMIT_TIME
-                                                : VES_LIMIT_ITER;
+    stats->limit = out == VES_MAXITER ? VES_LIMIT_ITER : VES_LIMIT_NONE; /* its budget */
   }
   return out;
 }

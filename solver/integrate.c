@@ -760,12 +760,11 @@ ves_status ves_sim_step(ves_sim *s, ves_step_report *rep) {
       s->dt = s->ip.dt_min;
       if (st == VES_STEP_REJECTED) VES_FAIL(VES_ERR_NOCONV, "the last attempt raised E*");
       if (st == VES_MAXITER) /* the limit by its key */
-        VES_FAIL(VES_ERR_NOCONV,
-                 rep->stats.limit == VES_LIMIT_CORRECTION
-                     ? "the last attempt hit solver.max_correction"
-                 : rep->stats.limit == VES_LIMIT_BUILDS ? "the last attempt hit solver.max_builds"
-                 : rep->stats.limit == VES_LIMIT_TIME   ? "the last attempt hit nlopt's time budget"
-                                                        : "the last attempt hit solver.max_iter");
+        VES_FAIL(VES_ERR_NOCONV, rep->stats.limit == VES_LIMIT_CORRECTION
+                                     ? "the last attempt hit solver.max_correction"
+                                 : rep->stats.limit == VES_LIMIT_BUILDS
+                                     ? "the last attempt hit solver.max_builds"
+                                     : "the last attempt hit solver.max_iter");
       return ves_error_pass(st, __FILE__, __LINE__, __func__, "the last attempt");
     }
   }

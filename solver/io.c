@@ -1179,6 +1179,8 @@ ves_status ves_io_summarize(ves_io *io, double c0, ves_io_summary *s) {
     st = !col[c] ? VES_ERR_ALLOC : ves_io_read_series(io, SUM_COLS[c], col[c]);
   }
   if (st == VES_OK) summarize(&io->info, c0, R, col, s);
+  for (int i = 0; i < NSERIES; i++) /* the column absent: not recorded, even without rows */
+    if (io->series[i] < 0 && !strcmp(SERIES[i].name, SUM_COLS[S_FACT])) s->factorizations = -1;
   for (int c = 0; c < NSUM; c++) free(col[c]);
   return st;
 }

@@ -534,8 +534,8 @@ static void test_huge_dt(void **state) {
  * 1e-2; the inertia only improves with delta, so 5e-3 cannot suffice where
  * 1e-2 did not): VES_MAXITER after exactly 3 factorizations and no
  * iteration, x still x0, the limit named; a limit on a rung (1e-3) ends the
- * ladder there (2 factorizations); a limit above the ladder's end (1e6)
- * changes nothing (the same count). */
+ * ladder there (2 factorizations); a limit far above what this matrix needs
+ * (1e6) changes nothing (the same count). */
 static void test_correction_limit(void **state) {
   (void)state;
   const ves_backend_type *b = ves_backend_find("newton");

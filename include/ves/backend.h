@@ -49,11 +49,10 @@ typedef struct {
 /* Which limit ended a solve that returned VES_MAXITER (ves_backend_stats.limit),
  * each a problem-file key: the retry line names it. */
 typedef enum {
-  VES_LIMIT_NONE = 0,   /* the solve did not stop at a limit */
-  VES_LIMIT_ITER,       /* [solver] max_iter (Ipopt's max_iter, nlopt's evaluation budget) */
-  VES_LIMIT_BUILDS,     /* [solver] max_builds (newton with a frozen Hessian) */
-  VES_LIMIT_CORRECTION, /* [solver] max_correction (newton) */
-  VES_LIMIT_TIME        /* nlopt's time budget */
+  VES_LIMIT_NONE = 0,  /* the solve did not stop at a limit */
+  VES_LIMIT_ITER,      /* [solver] max_iter (Ipopt's max_iter, nlopt's evaluation budget) */
+  VES_LIMIT_BUILDS,    /* [solver] max_builds (newton with a frozen Hessian) */
+  VES_LIMIT_CORRECTION /* [solver] max_correction (newton) */
 } ves_backend_limit;
 
 /* The problem-file key of a limit ("solver.max_iter", ...; "" for VES_LIMIT_NONE). */
