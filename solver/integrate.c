@@ -57,6 +57,7 @@
 #include "ves/integrate.h"
 
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -759,12 +760,12 @@ ves_status ves_sim_step(ves_sim *s, ves_step_report *rep) {
     if (dt < s->ip.dt_min) {
       s->dt = s->ip.dt_min;
       if (st == VES_STEP_REJECTED) VES_FAIL(VES_ERR_NOCONV, "the last attempt raised E*");
-      if (st == VES_MAXITER) /* the limit by its key */
-        VES_FAIL(VES_ERR_NOCONV, rep->stats.limit == VES_LIMIT_CORRECTION
-                                     ? "the last attempt hit solver.max_correction"
-                                 : rep->stats.limit == VES_LIMIT_BUILDS
-                                     ? "the last attempt hit solver.max_builds"
-                                     : "the last attempt hit solver.max_iter");
+      if (st == VES_MAXITER) { /* the limit by its key (every backend's VES_MAXITER names one) */
+        const char *key = ves_backend_limit_key(rep->stats.limit);
+        char why[64];
+        snprintf(why, sizeof why, "the last attempt hit %s", *key ? key : "solver.max_iter");
+        VES_FAIL(VES_ERR_NOCONV, why);
+      }
       return ves_error_pass(st, __FILE__, __LINE__, __func__, "the last attempt");
     }
   }

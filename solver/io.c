@@ -1159,8 +1159,7 @@ static void summarize(const ves_io_info *in, double c0, long R, double *const *c
     s->dt_largest = fmax(s->dt_largest, col[S_DT][i]);
     s->iterations += col[S_ITER][i], s->h_evals += col[S_HEV][i];
     s->retries += col[S_RETRIES][i];
-    if (col[S_FACT][i] < 0) s->factorizations = -1; /* not recorded: unknown */
-    if (s->factorizations >= 0) s->factorizations += col[S_FACT][i];
+    s->factorizations += col[S_FACT][i];
   }
   if (R > 0) {
     s->t_final = col[S_T][R - 1], s->E_final = E[R - 1];
@@ -1179,8 +1178,8 @@ ves_status ves_io_summarize(ves_io *io, double c0, ves_io_summary *s) {
     st = !col[c] ? VES_ERR_ALLOC : ves_io_read_series(io, SUM_COLS[c], col[c]);
   }
   if (st == VES_OK) summarize(&io->info, c0, R, col, s);
-  for (int i = 0; i < NSERIES; i++) /* the column absent: not recorded, even without rows */
-    if (io->series[i] < 0 && !strcmp(SERIES[i].name, SUM_COLS[S_FACT])) s->factorizations = -1;
+  for (int i = 0; i < NSERIES; i++) /* the column absent (an older file): not recorded */
+    if (io->series[i] < 0 && col_optional(i)) s->factorizations = -1;
   for (int c = 0; c < NSUM; c++) free(col[c]);
   return st;
 }
