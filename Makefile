@@ -51,7 +51,12 @@ LDFLAGS += $(SANFLAGS) -fopenmp
 LIB_C    = $(filter-out solver/cli%.c,$(wildcard solver/*.c))
 CLI_OBJ  = $(patsubst solver/%.c,$(BUILD)/obj/%.o,$(wildcard solver/cli*.c))
 LIB_OBJ  = $(LIB_C:solver/%.c=$(BUILD)/obj/%.o) $(BUILD)/obj/geom.o
-TESTS    = $(patsubst tests/%.c,$(BUILD)/tests/%,$(wildcard tests/test_*.c))
+# the longest first (by their times under SAN=1, session 39): tests/run.sh
+# runs them two at a time, each lane taking the next one not yet taken
+TESTS_LONG = test_integrate test_cli test_backend test_spectrum test_model test_remesh
+TESTS    = $(addprefix $(BUILD)/tests/,$(TESTS_LONG)) \
+           $(filter-out $(addprefix $(BUILD)/tests/,$(TESTS_LONG)), \
+             $(patsubst tests/%.c,$(BUILD)/tests/%,$(wildcard tests/test_*.c)))
 BENCHES  = $(patsubst bench/%.c,$(BUILD)/bench/%,$(wildcard bench/bench_*.c))
 # make bench runs them all with their defaults (hours: bench_table1 and
 # bench_robust include explicit Euler and NLopt); bench/RESULTS.md gives the
