@@ -650,6 +650,53 @@ static void same_series(ves_io *a, ves_io *b, long rows) {
   }
 }
 
+/* The last snapshots of two runs of R steps the same bit for bit: y, x,
+ * phi (at the snapshot's own node count: a remeshed run's differs from the
+ * header's) and the integrator state. */
+static void same_last_snapshot(ves_io *a, ves_io *b, long R) {
+  const int S = ves_io_snapshots(a), n = ves_io_snapshot_nodes(a, S - 1);
+  assert_int_equal(ves_io_snapshot_nodes(b, ves_io_snapshots(b) - 1), n);
+  double *va = malloc(5 * (size_t)n * sizeof *va), *vb = malloc(5 * (size_t)n * sizeof *vb);
+  assert_true(va && vb);
+  ves_io_snapinfo sa, sb;
+  assert_int_equal(ves_io_read_snapshot_n(a, S - 1, n, va, va + 2 * n, va + 4 * n, &sa), VES_OK);
+  assert_int_equal(
+      ves_io_read_snapshot_n(b, ves_io_snapshots(b) - 1, n, vb, vb + 2 * n, vb + 4 * n, &sb),
+      VES_OK);
+  assert_true(sa.state.nstep == R && sb.state.nstep == R);
+  assert_int_equal(sa.reconnections, sb.reconnections);
+  assert_memory_equal(va, vb, 5 * (size_t)n * sizeof *va); /* y, x, phi bit for bit */
+  assert_memory_equal(&sa.state, &sb.state, sizeof sa.state);
+  free(va), free(vb);
+}
+
+/* A run of ini on TINY into full, uninterrupted; the same into part,
+ * stopped by --max-steps stop (its status "stopped") and continued by
+ * --restart to the end. */
+static void run_split(const char *ini, const char *full, const char *part, const char *stop) {
+  result r;
+  run(&r, "run", ini, TINY, "--out", full, "--quiet", NULL);
+  if (r.code) fail_msg("run: exit %d: %s", r.code, r.err);
+  run(&r, "run", ini, TINY, "--out", part, "--quiet", "--max-steps", stop, NULL);
+  if (r.code) fail_msg("run to step %s: exit %d: %s", stop, r.code, r.err);
+  ves_io *b = open_ro(part);
+  assert_string_equal(ves_io_get_info(b)->status, "stopped");
+  ves_io_close(&b);
+  run(&r, "run", "--restart", part, "--quiet", NULL);
+  if (r.code) fail_msg("restart: exit %d: %s", r.code, r.err);
+}
+
+/* Remove a run's file FILE.h5 and its FILE.xdmf. */
+static void rm_run(const char *h5) {
+  char x[PATH_MAX];
+  unlink(h5);
+  const size_t n = strlen(h5);
+  if (n > 3 && !strcmp(h5 + n - 3, ".h5")) {
+    snprintf(x, sizeof x, "%.*s.xdmf", (int)(n - 3), h5);
+    unlink(x);
+  }
+}
+
 /* A run that reset its reference configuration continues on the reference
  * the file stores (io.h /references): resets every 2 steps, stopped after 3
  * (last snapshot: step 3, one reset behind it, on reference 0) and
@@ -697,7 +744,6 @@ static void test_restart_after_reset(void **state) {
   ves_io *a = open_ro(full);
   b = open_ro(part);
   long R = ves_io_rows(a);
-  int n = ves_io_get_info(a)->n;
   printf("# resets every 2 steps: uninterrupted %ld steps, %d references; stopped at 3 and "
          "restarted: %ld steps, %d references\n",
          R, ves_io_references(a), ves_io_rows(b), ves_io_references(b));
@@ -708,16 +754,9 @@ static void test_restart_after_reset(void **state) {
   double *ra = series(a, "reconnections"), *rb = series(b, "reconnections");
   assert_memory_equal(ra, rb, (size_t)R * sizeof *ra);
   free(ra), free(rb);
-  double *va = malloc(5 * (size_t)n * sizeof *va), *vb = malloc(5 * (size_t)n * sizeof *vb);
-  ves_io_snapinfo sa, sb;
-  assert_int_equal(
-      ves_io_read_snapshot(a, ves_io_snapshots(a) - 1, va, va + 2 * n, va + 4 * n, &sa), VES_OK);
-  assert_int_equal(
-      ves_io_read_snapshot(b, ves_io_snapshots(b) - 1, vb, vb + 2 * n, vb + 4 * n, &sb), VES_OK);
-  assert_true(sa.state.nstep == R && sb.state.nstep == R && sb.reconnections == 4);
-  assert_memory_equal(va, vb, 5 * (size_t)n * sizeof *va); /* y, x, phi bit for bit */
-  assert_memory_equal(&sa.state, &sb.state, sizeof sa.state);
-  free(va), free(vb);
+  same_last_snapshot(a, b, R);
+  assert_int_equal(ves_io_read_snapshot(b, ves_io_snapshots(b) - 1, NULL, NULL, NULL, &si), VES_OK);
+  assert_int_equal(si.reconnections, 4);
   ves_io_close(&a), ves_io_close(&b);
 
   /* references lost: refused, file untouched */
@@ -749,18 +788,13 @@ static void test_reset_and_remesh_same_step(void **state) {
   tmp_path(full, sizeof full, "both_full.h5");
   write_file(ini, "[time]\nt_end = 0.03\nadaptive = 0\n[output]\nsnapshot_every = 1\n"
                   "[reconnect]\nevery = 1\n[remesh]\nevery = 2\n");
-  result r;
-  run(&r, "run", ini, TINY, "--out", full, "--quiet", NULL);
-  if (r.code) fail_msg("run: exit %d: %s", r.code, r.err);
-  run(&r, "run", ini, TINY, "--out", part, "--quiet", "--max-steps", "3", NULL);
-  if (r.code) fail_msg("run: exit %d: %s", r.code, r.err);
-  run(&r, "run", "--restart", part, "--quiet", NULL);
-  if (r.code) fail_msg("restart: exit %d: %s", r.code, r.err);
+  run_split(ini, full, part, "3");
   ves_io *a = open_ro(full), *b = open_ro(part);
   const long R = ves_io_rows(a);
   assert_int_equal(R, 6);
   assert_int_equal(ves_io_rows(b), R);
   same_series(a, b, R);
+  same_last_snapshot(a, b, R);
   double *ra = series(a, "reconnections");
   printf("# resets after each step:");
   for (long k = 0; k < R; k++) printf(" %g", ra[k]);
@@ -928,28 +962,20 @@ static void test_restart_after_remesh(void **state) {
     }
     free(d), free(fl);
   }
-  const int S = ves_io_snapshots(a), n = ves_io_snapshot_nodes(a, S - 1);
-  assert_int_equal(ves_io_snapshot_nodes(b, ves_io_snapshots(b) - 1), n);
-  double *va = malloc(5 * (size_t)n * sizeof *va), *vb = malloc(5 * (size_t)n * sizeof *vb);
-  ves_io_snapinfo sa, sb;
-  assert_int_equal(ves_io_read_snapshot_n(a, S - 1, n, va, va + 2 * n, va + 4 * n, &sa), VES_OK);
-  assert_int_equal(
-      ves_io_read_snapshot_n(b, ves_io_snapshots(b) - 1, n, vb, vb + 2 * n, vb + 4 * n, &sb),
-      VES_OK);
-  assert_true(sa.state.nstep == R && sb.state.nstep == R);
-  assert_memory_equal(va, vb, 5 * (size_t)n * sizeof *va); /* y, x, phi bit for bit */
-  assert_memory_equal(&sa.state, &sb.state, sizeof sa.state);
+  same_last_snapshot(a, b, R);
   /* the header's node count no longer reads such a snapshot: an error, not an overrun */
-  if (n != n0) assert_int_equal(ves_io_read_snapshot(a, S - 1, va, NULL, NULL, NULL), VES_ERR_IO);
-  free(va), free(vb);
+  const int S = ves_io_snapshots(a), n = ves_io_snapshot_nodes(a, S - 1);
+  if (n != n0) {
+    double *y = malloc(2 * (size_t)(n > n0 ? n : n0) * sizeof *y);
+    assert_int_equal(ves_io_read_snapshot(a, S - 1, y, NULL, NULL, NULL), VES_ERR_IO);
+    free(y);
+  }
   ves_io_close(&a), ves_io_close(&b);
   run(&r, "info", part, NULL);
   assert_int_equal(r.code, 0);
   assert_non_null(strstr(r.out, "remeshings = 2\n"));
   assert_non_null(strstr(r.out, "interface_area_final = "));
-  unlink(ini), unlink(part), unlink(full);
-  tmp_path(full, sizeof full, "remesh_full.xdmf"), unlink(full);
-  tmp_path(part, sizeof part, "remesh.xdmf"), unlink(part);
+  unlink(ini), rm_run(part), rm_run(full);
 }
 
 /* freeze_hessian = 2 keeps the factorization across steps; every snapshot
@@ -969,26 +995,15 @@ static void test_restart_bitwise_freeze2(void **state) {
   tmp_path(part, sizeof part, "part2.h5");
   write_file(ini, "[time]\nt_end = 0.04\nadaptive = 0\n" /* TINY's dt* 5e-3: 8 steps */
                   "[solver]\nfreeze_hessian = 2\n[output]\nsnapshot_every = 3\n");
-  result r;
-  run(&r, "run", ini, TINY, "--out", full, "--quiet", NULL);
-  assert_int_equal(r.code, 0);
-  run(&r, "run", ini, TINY, "--out", part, "--quiet", "--max-steps", "3", NULL);
-  assert_int_equal(r.code, 0);
-  run(&r, "run", "--restart", part, "--quiet", NULL);
-  if (r.code) fail_msg("restart: exit %d: %s", r.code, r.err);
+  run_split(ini, full, part, "3");
   ves_io *a = open_ro(full), *b = open_ro(part);
   const long R = ves_io_rows(a);
   assert_int_equal(R, 8);
   assert_int_equal(ves_io_rows(b), R);
   same_series(a, b, R);
-  const int n = ves_io_get_info(a)->n;
-  double *ya = malloc(4 * (size_t)n * sizeof *ya), *yb = ya + 2 * n;
-  ves_io_snapinfo sa, sb;
-  assert_int_equal(ves_io_read_snapshot(a, ves_io_snapshots(a) - 1, ya, NULL, NULL, &sa), VES_OK);
-  assert_int_equal(ves_io_read_snapshot(b, ves_io_snapshots(b) - 1, yb, NULL, NULL, &sb), VES_OK);
-  assert_memory_equal(ya, yb, 2 * (size_t)n * sizeof *ya); /* positions, bit for bit */
-  free(ya);
+  same_last_snapshot(a, b, R);
   ves_io_close(&a), ves_io_close(&b);
+  result r;
   run(&r, "info", full, NULL);
   assert_int_equal(r.code, 0);
   const char *h = strstr(r.out, "hessian_evaluations = ");
@@ -996,9 +1011,7 @@ static void test_restart_bitwise_freeze2(void **state) {
   const long nh = atol(h + strlen("hessian_evaluations = "));
   printf("# freeze 2: %ld matrices in %ld steps\n", nh, R);
   assert_true(nh < R); /* the factorization was reused */
-  unlink(ini), unlink(full), unlink(part);
-  tmp_path(full, sizeof full, "full2.xdmf"), unlink(full);
-  tmp_path(part, sizeof part, "part2.xdmf"), unlink(part);
+  unlink(ini), rm_run(full), rm_run(part);
 }
 
 static void test_restart_bitwise(void **state) {
@@ -1008,38 +1021,18 @@ static void test_restart_bitwise(void **state) {
   tmp_path(full, sizeof full, "full.h5");
   tmp_path(part, sizeof part, "part.h5");
   write_file(ini, "[time]\nt_end = 0.1\n[output]\nsnapshot_every = 2\n");
-  result r;
-  run(&r, "run", ini, TINY, "--out", full, "--quiet", NULL);
-  assert_int_equal(r.code, 0);
-  run(&r, "run", ini, TINY, "--out", part, "--quiet", "--max-steps", "3", NULL);
-  assert_int_equal(r.code, 0);
-  ves_io *b = open_ro(part);
-  assert_int_equal(ves_io_rows(b), 3);
-  assert_string_equal(ves_io_get_info(b)->status, "stopped");
-  ves_io_close(&b);
-  run(&r, "run", "--restart", part, "--quiet", NULL);
-  if (r.code) fail_msg("restart: exit %d: %s", r.code, r.err);
-
-  ves_io *a = open_ro(full);
-  b = open_ro(part);
+  run_split(ini, full, part, "3");
+  ves_io *a = open_ro(full), *b = open_ro(part);
   long R = ves_io_rows(a);
   printf("# uninterrupted: %ld steps; interrupted at 3 and restarted: %ld steps\n", R,
          ves_io_rows(b));
   assert_true(R >= 5); /* the restart had steps to repeat */
   assert_int_equal(ves_io_rows(b), R);
   same_series(a, b, R);
-  int n = ves_io_get_info(a)->n;
-  double *ya = malloc(2 * (size_t)n * sizeof *ya), *yb = malloc(2 * (size_t)n * sizeof *yb);
-  ves_io_snapinfo sa, sb;
-  assert_int_equal(ves_io_read_snapshot(a, ves_io_snapshots(a) - 1, ya, NULL, NULL, &sa), VES_OK);
-  assert_int_equal(ves_io_read_snapshot(b, ves_io_snapshots(b) - 1, yb, NULL, NULL, &sb), VES_OK);
-  assert_int_equal(sa.state.nstep, R);
-  assert_int_equal(sb.state.nstep, R);
-  assert_memory_equal(ya, yb, 2 * (size_t)n * sizeof *ya); /* positions, bit for bit */
-  assert_true(sa.state.t == sb.state.t && sa.state.dt == sb.state.dt && sa.state.E == sb.state.E);
+  same_last_snapshot(a, b, R);
   assert_string_equal(ves_io_get_info(b)->status, "finished");
-  free(ya), free(yb);
   ves_io_close(&a), ves_io_close(&b);
+  result r;
 
   /* info: the stable keys */
   run(&r, "info", part, NULL);
@@ -1072,9 +1065,7 @@ static void test_restart_bitwise(void **state) {
   printf("# plot without gnuplot -> %d: %s", r.code, r.err);
   assert_int_equal(r.code, 3);
   assert_non_null(strstr(r.err, "gnuplot failed"));
-  unlink(ini), unlink(full), unlink(part);
-  tmp_path(full, sizeof full, "full.xdmf"), unlink(full);
-  tmp_path(part, sizeof part, "part.xdmf"), unlink(part);
+  unlink(ini), rm_run(full), rm_run(part);
 }
 
 /* A restart may change the solver settings and t_end (recorded in the file:
@@ -1133,8 +1124,7 @@ static void test_restart_set(void **state) {
   if (r.code) fail_msg("restart to 0.04: exit %d: %s", r.code, r.err);
   run(&r, "info", out, NULL);
   assert_non_null(strstr(r.out, "t_final = 0.04\n"));
-  unlink(ini), unlink(out);
-  tmp_path(out, sizeof out, "rset.xdmf"), unlink(out);
+  unlink(ini), rm_run(out);
 }
 
 /* ---- the progress line -------------------------------------------------------- */
@@ -1202,8 +1192,7 @@ static void test_progress_eta(void **state) {
                           "in all %d iterations, %d Hessians, %d factorizations", &its, &hs, &fs),
                    3);
   assert_true(attempts >= 1 && fs == attempts);
-  unlink(ini), unlink(out);
-  tmp_path(out, sizeof out, "eta.xdmf"), unlink(out);
+  unlink(ini), rm_run(out);
 }
 
 /* Tab-separated fields of a line (without its newline). */
@@ -1300,8 +1289,7 @@ static void test_series(void **state) {
   assert_true(key_value(r.out, "kkt_factorizations") == fsum);
   free(t), free(E), free(fac);
   ves_io_close(&io);
-  unlink(ini), unlink(out), unlink(tsv);
-  tmp_path(out, sizeof out, "ser.xdmf"), unlink(out);
+  unlink(ini), rm_run(out), unlink(tsv);
 }
 
 /* ---- numerical failure: exit 3, the file kept with the last good state ---- */
@@ -1339,8 +1327,7 @@ static void test_numerical_failure(void **state) {
   printf("# the correction limit -> %d: %s", r.code, r.err);
   assert_int_equal(r.code, 3);
   assert_non_null(strstr(r.err, "the last attempt hit solver.max_correction"));
-  unlink(ini), unlink(out);
-  tmp_path(out, sizeof out, "fail.xdmf"), unlink(out);
+  unlink(ini), rm_run(out);
 }
 
 /* ---- SIGTERM: the current step finishes, the state is saved --------------- */
@@ -1393,8 +1380,7 @@ static void test_sigterm(void **state) {
   assert_int_equal(ves_io_read_snapshot(io, 1, NULL, NULL, NULL, &si), VES_OK);
   assert_int_equal(si.state.nstep, R); /* nothing lost: a restart continues from here */
   ves_io_close(&io);
-  unlink(ini), unlink(out);
-  tmp_path(out, sizeof out, "term.xdmf"), unlink(out);
+  unlink(ini), rm_run(out);
 }
 
 /* ---- SIGKILL mid-run --------------------------------------------------------- */
@@ -1457,9 +1443,7 @@ static void test_sigkill(void **state) {
   same_series(a, b, R);
   ves_io_close(&a), ves_io_close(&b);
   free(step), free(t), free(E);
-  unlink(ini), unlink(out), unlink(copy);
-  tmp_path(out, sizeof out, "killed.xdmf"), unlink(out);
-  tmp_path(copy, sizeof copy, "killed_copy.xdmf"), unlink(copy);
+  unlink(ini), rm_run(out), rm_run(copy);
 }
 
 /* ---- the size of a setup, said before it starts ---------------------------- */
@@ -1672,21 +1656,19 @@ static void expect_full(const char *out, const char *frag) {
   io = open_ro(copy);
   assert_int_equal(ves_io_rows(io), R + 3);
   ves_io_close(&io);
-  unlink(ini), unlink(copy);
-  tmp_path(copy, sizeof copy, "full_copy.xdmf"), unlink(copy);
+  unlink(ini), rm_run(copy);
 }
 
 static void test_full_disk(void **state) {
   (void)state;
-  char out[256], x[128];
+  char out[256];
   /* the file-size limit (ulimit -f): 400 KiB hold the header, the first
    * snapshot, the first chunk of every series and a few steps (340 KiB
    * until the snapshots held the flow: then the room check refused step 1) */
   tmp_path(out, sizeof out, "full.h5");
   fsize_limit = 400 * 1024;
   expect_full(out, "file size limit reached");
-  unlink(out);
-  tmp_path(x, sizeof x, "full.xdmf"), unlink(x);
+  rm_run(out);
   /* a real full disk: a 440 KiB tmpfs (needs root; issue 21's case) */
   char mnt[128];
   tmp_path(mnt, sizeof mnt, "tmpfs");
