@@ -686,6 +686,18 @@ static void run_split(const char *ini, const char *full, const char *part, const
   if (r.code) fail_msg("restart: exit %d: %s", r.code, r.err);
 }
 
+/* The runs in files full and part the same: as many steps, the series and
+ * the last snapshot bit for bit. Their number of steps. */
+static long same_runs(const char *full, const char *part) {
+  ves_io *a = open_ro(full), *b = open_ro(part);
+  const long R = ves_io_rows(a);
+  assert_int_equal(ves_io_rows(b), R);
+  same_series(a, b, R);
+  same_last_snapshot(a, b, R);
+  ves_io_close(&a), ves_io_close(&b);
+  return R;
+}
+
 /* Remove a run's file FILE.h5 and its FILE.xdmf. */
 static void rm_run(const char *h5) {
   char x[PATH_MAX];
@@ -789,12 +801,9 @@ static void test_reset_and_remesh_same_step(void **state) {
   write_file(ini, "[time]\nt_end = 0.03\nadaptive = 0\n[output]\nsnapshot_every = 1\n"
                   "[reconnect]\nevery = 1\n[remesh]\nevery = 2\n");
   run_split(ini, full, part, "3");
-  ves_io *a = open_ro(full), *b = open_ro(part);
-  const long R = ves_io_rows(a);
+  const long R = same_runs(full, part);
   assert_int_equal(R, 6);
-  assert_int_equal(ves_io_rows(b), R);
-  same_series(a, b, R);
-  same_last_snapshot(a, b, R);
+  ves_io *a = open_ro(full), *b = open_ro(part);
   double *ra = series(a, "reconnections");
   printf("# resets after each step:");
   for (long k = 0; k < R; k++) printf(" %g", ra[k]);
@@ -996,13 +1005,8 @@ static void test_restart_bitwise_freeze2(void **state) {
   write_file(ini, "[time]\nt_end = 0.04\nadaptive = 0\n" /* TINY's dt* 5e-3: 8 steps */
                   "[solver]\nfreeze_hessian = 2\n[output]\nsnapshot_every = 3\n");
   run_split(ini, full, part, "3");
-  ves_io *a = open_ro(full), *b = open_ro(part);
-  const long R = ves_io_rows(a);
+  const long R = same_runs(full, part);
   assert_int_equal(R, 8);
-  assert_int_equal(ves_io_rows(b), R);
-  same_series(a, b, R);
-  same_last_snapshot(a, b, R);
-  ves_io_close(&a), ves_io_close(&b);
   result r;
   run(&r, "info", full, NULL);
   assert_int_equal(r.code, 0);
@@ -1022,16 +1026,12 @@ static void test_restart_bitwise(void **state) {
   tmp_path(part, sizeof part, "part.h5");
   write_file(ini, "[time]\nt_end = 0.1\n[output]\nsnapshot_every = 2\n");
   run_split(ini, full, part, "3");
-  ves_io *a = open_ro(full), *b = open_ro(part);
-  long R = ves_io_rows(a);
-  printf("# uninterrupted: %ld steps; interrupted at 3 and restarted: %ld steps\n", R,
-         ves_io_rows(b));
+  const long R = same_runs(full, part);
+  printf("# uninterrupted: %ld steps, the same after an interruption at 3 and a restart\n", R);
   assert_true(R >= 5); /* the restart had steps to repeat */
-  assert_int_equal(ves_io_rows(b), R);
-  same_series(a, b, R);
-  same_last_snapshot(a, b, R);
+  ves_io *b = open_ro(part);
   assert_string_equal(ves_io_get_info(b)->status, "finished");
-  ves_io_close(&a), ves_io_close(&b);
+  ves_io_close(&b);
   result r;
 
   /* info: the stable keys */
