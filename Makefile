@@ -63,7 +63,7 @@ BENCHES  = $(patsubst bench/%.c,$(BUILD)/bench/%,$(wildcard bench/bench_*.c))
 # command of every table, e.g. make bench BENCH_ONLY=bench_mode.
 BENCH_ONLY ?= 
 
-.PHONY: all deps test test-slow test-slurm valgrind bench run paper clean format format-check
+.PHONY: all deps test test-build test-slow test-slurm valgrind bench run paper clean format format-check
 # (a sub-make, as test and run do: the pkg-config flags above are read when
 # this Makefile is parsed, i.e. before deps installs ipopt and hdf5 on a
 # fresh machine)
@@ -104,9 +104,12 @@ deps:
 	  echo "run as root: apt-get update && apt-get install -y --no-install-recommends$$missing"; exit 1; \
 	fi
 
-test: deps
-	@$(MAKE) --no-print-directory $(BUILD)/libvesica.a $(BUILD)/vesica $(TESTS) $(BENCHES)
+test: test-build
 	@OPENBLAS_NUM_THREADS=1 sh tests/run.sh $(TESTS)
+
+# what make test runs, built (.ci/run builds it beside make valgrind)
+test-build: deps
+	@$(MAKE) --no-print-directory $(BUILD)/libvesica.a $(BUILD)/vesica $(TESTS) $(BENCHES)
 
 # the small cases under valgrind (memcheck, no SAN build): ~4 min
 valgrind: deps
