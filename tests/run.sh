@@ -45,8 +45,7 @@ lane() {
     mkdir "$work/taken.$i" 2>/dev/null || continue
     t0=$(date +%s)
     "$t" >"$work/$i.out" 2>&1
-    rc=$?
-    echo "$((rc)) $(($(date +%s) - t0))" >"$work/$i.rc.tmp" && mv "$work/$i.rc.tmp" "$work/$i.rc"
+    echo "$? $(($(date +%s) - t0))" >"$work/$i.rc.tmp" && mv "$work/$i.rc.tmp" "$work/$i.rc"
   done
 }
 k=0

@@ -652,8 +652,8 @@ static void same_series(ves_io *a, ves_io *b, long rows) {
 
 /* The last snapshots of two runs of R steps the same bit for bit: y, x,
  * phi (at the snapshot's own node count: a remeshed run's differs from the
- * header's) and the integrator state. */
-static void same_last_snapshot(ves_io *a, ves_io *b, long R) {
+ * header's) and the integrator state. Their resets behind them. */
+static int same_last_snapshot(ves_io *a, ves_io *b, long R) {
   const int S = ves_io_snapshots(a), n = ves_io_snapshot_nodes(a, S - 1);
   assert_int_equal(ves_io_snapshot_nodes(b, ves_io_snapshots(b) - 1), n);
   double *va = malloc(5 * (size_t)n * sizeof *va), *vb = malloc(5 * (size_t)n * sizeof *vb);
@@ -668,11 +668,12 @@ static void same_last_snapshot(ves_io *a, ves_io *b, long R) {
   assert_memory_equal(va, vb, 5 * (size_t)n * sizeof *va); /* y, x, phi bit for bit */
   assert_memory_equal(&sa.state, &sb.state, sizeof sa.state);
   free(va), free(vb);
+  return sa.reconnections;
 }
 
 /* A run of ini on TINY into full, uninterrupted; the same into part,
- * stopped by --max-steps stop (its status "stopped") and continued by
- * --restart to the end. */
+ * stopped by --max-steps stop (its status "stopped", stop steps) and
+ * continued by --restart to the end. */
 static void run_split(const char *ini, const char *full, const char *part, const char *stop) {
   result r;
   run(&r, "run", ini, TINY, "--out", full, "--quiet", NULL);
@@ -681,6 +682,7 @@ static void run_split(const char *ini, const char *full, const char *part, const
   if (r.code) fail_msg("run to step %s: exit %d: %s", stop, r.code, r.err);
   ves_io *b = open_ro(part);
   assert_string_equal(ves_io_get_info(b)->status, "stopped");
+  assert_int_equal(ves_io_rows(b), atol(stop));
   ves_io_close(&b);
   run(&r, "run", "--restart", part, "--quiet", NULL);
   if (r.code) fail_msg("restart: exit %d: %s", r.code, r.err);
@@ -693,7 +695,7 @@ static long same_runs(const char *full, const char *part) {
   const long R = ves_io_rows(a);
   assert_int_equal(ves_io_rows(b), R);
   same_series(a, b, R);
-  same_last_snapshot(a, b, R);
+  (void)same_last_snapshot(a, b, R);
   ves_io_close(&a), ves_io_close(&b);
   return R;
 }
@@ -766,9 +768,7 @@ static void test_restart_after_reset(void **state) {
   double *ra = series(a, "reconnections"), *rb = series(b, "reconnections");
   assert_memory_equal(ra, rb, (size_t)R * sizeof *ra);
   free(ra), free(rb);
-  same_last_snapshot(a, b, R);
-  assert_int_equal(ves_io_read_snapshot(b, ves_io_snapshots(b) - 1, NULL, NULL, NULL, &si), VES_OK);
-  assert_int_equal(si.reconnections, 4);
+  assert_int_equal(same_last_snapshot(a, b, R), 4);
   ves_io_close(&a), ves_io_close(&b);
 
   /* references lost: refused, file untouched */
@@ -971,7 +971,7 @@ static void test_restart_after_remesh(void **state) {
     }
     free(d), free(fl);
   }
-  same_last_snapshot(a, b, R);
+  (void)same_last_snapshot(a, b, R);
   /* the header's node count no longer reads such a snapshot: an error, not an overrun */
   const int S = ves_io_snapshots(a), n = ves_io_snapshot_nodes(a, S - 1);
   if (n != n0) {
