@@ -1461,12 +1461,12 @@ ves_status ves_io_read_reference(ves_io *io, int k, ves_io_reference_buf *out) {
   return st;
 }
 
-ves_status ves_io_truncate_references(ves_io *io, int count) {
-  VES_CHECK(io && io->writable && count >= 0, VES_ERR_ARG);
-  const int have = ves_io_references(io);
-  VES_CHECK(count <= have, VES_ERR_ARG);
+/* Drop the counted group's members count..have-1 (the count attribute first: the rest is
+   then stray) and flush. */
+static ves_status truncate_counted(ves_io *io, const char *group, int have, int count) {
+  VES_CHECK(io && io->writable && count >= 0 && count <= have, VES_ERR_ARG);
   if (count == have) return VES_OK;
-  hid_t s = H5Gopen2(io->file, "references", H5P_DEFAULT);
+  hid_t s = H5Gopen2(io->file, group, H5P_DEFAULT);
   if (s < 0) return VES_ERR_IO;
   ves_status st = attr_int(s, "count", count); /* first: the rest is then stray */
   for (int k = count; k < have && st == VES_OK; k++) {
@@ -1477,6 +1477,11 @@ ves_status ves_io_truncate_references(ves_io *io, int count) {
   H5Gclose(s);
   VES_CALL(st);
   return H5Fflush(io->file, H5F_SCOPE_LOCAL) < 0 ? VES_ERR_IO : VES_OK;
+}
+
+ves_status ves_io_truncate_references(ves_io *io, int count) {
+  VES_CHECK(io, VES_ERR_ARG);
+  return truncate_counted(io, "references", ves_io_references(io), count);
 }
 
 ves_status ves_io_set_status(ves_io *io, const char *status) {
@@ -1802,21 +1807,8 @@ ves_status ves_io_read_remesh(ves_io *io, int k, ves_io_remesh_buf *out) {
 }
 
 ves_status ves_io_truncate_remeshes(ves_io *io, int count) {
-  VES_CHECK(io && io->writable && count >= 0, VES_ERR_ARG);
-  const int have = ves_io_remeshes(io);
-  VES_CHECK(count <= have, VES_ERR_ARG);
-  if (count == have) return VES_OK;
-  hid_t s = H5Gopen2(io->file, "remeshes", H5P_DEFAULT);
-  if (s < 0) return VES_ERR_IO;
-  ves_status st = attr_int(s, "count", count); /* first: the rest is then stray */
-  for (int k = count; k < have && st == VES_OK; k++) {
-    char name[32];
-    snprintf(name, sizeof name, "%d", k);
-    if (H5Ldelete(s, name, H5P_DEFAULT) < 0) st = VES_ERR_IO;
-  }
-  H5Gclose(s);
-  VES_CALL(st);
-  return H5Fflush(io->file, H5F_SCOPE_LOCAL) < 0 ? VES_ERR_IO : VES_OK;
+  VES_CHECK(io, VES_ERR_ARG);
+  return truncate_counted(io, "remeshes", ves_io_remeshes(io), count);
 }
 
 ves_status ves_io_reference_step(const ves_io *io, int k, long *step) {
