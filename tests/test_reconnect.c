@@ -22,6 +22,7 @@
 #include "ves/reconnect.h"
 #include "ves/setup.h"
 #include "ves/step.h"
+#include "vesicle_impl.h"
 
 /* ------------------------------------------------------------------------ */
 /* The problem                                                               */
@@ -35,8 +36,8 @@ static double *xmalloc(size_t n) {
 
 /* A small out-of-equilibrium vesicle: the unit sphere with a P2 bump of 0.15,
  * eps = 0.15, band 3 eps, in a 1.9 x 1.9 box, L2-projected phi0 (983 nodes,
- * 11310 points). yd: the smooth motion of deform() with amplitude AMP, which
- * gives min det F = 0.696 and max cond F = 1.875 (a visible shear). */
+ * 11310 points). yd: smooth_motion() (vesicle_impl.h) with amplitude AMP,
+ * which gives min det F = 0.696 and max cond F = 1.875 (a visible shear). */
 typedef struct {
   ves_config cfg;     /* its configuration */
   ves_setup *su;      /* shape, nodes, quadrature, phi0 coefficients, model */
@@ -49,21 +50,6 @@ typedef struct {
 static problem *P;
 #define AMP 0.07
 
-/* y = X + u(X): u_r = amp R w (1 + 0.5 sin(3Z + 0.7) + 0.3 cos(2R^2) + 2Z) odd
- * in R (0 on the axis), u_z = amp w (sin(2.5Z + 0.3) + 0.5 cos(3R^2 - Z) + 2R^2)
- * even in R, w = (1 - (R/LR)^2)(1 - (Z/LZ)^2) zero on the wall (so the fixed
- * dofs keep their values). The 2Z and 2R^2 terms add shear. X and y may be
- * the same array. */
-static void deform(const ves_nodes *nodes, const double *X, double amp, double *y) {
-  const double LR = nodes->LR, LZ = nodes->LZ;
-  for (int a = 0; a < nodes->n; a++) {
-    const double R = X[2 * a], Z = X[2 * a + 1];
-    const double w = (1 - (R / LR) * (R / LR)) * (1 - (Z / LZ) * (Z / LZ));
-    y[2 * a] = R + amp * R * w * (1 + 0.5 * sin(3 * Z + 0.7) + 0.3 * cos(2 * R * R) + 2 * Z);
-    y[2 * a + 1] = Z + amp * w * (sin(2.5 * Z + 0.3) + 0.5 * cos(3 * R * R - Z) + 2 * R * R);
-  }
-}
-
 static int group_setup(void **state) {
   (void)state;
   P = calloc(1, sizeof *P);
@@ -72,10 +58,8 @@ static int group_setup(void **state) {
   /* the paper's E (no stabilization): the reset's identities are its own
    * (E_s is measured from the reference and drops to 0 at a reset; the time
    * loop's test_reconnect_stabilized checks that) */
-  const char *set[] = {"geometry.epsilon=0.15",   "geometry.box_r=1.9", "geometry.box_z=1.9",
-                       "geometry.band=3",         "shape.mode=2",       "shape.delta=0.15",
-                       "geometry.stabilization=0"};
-  if (ves_config_load(NULL, 7, set, &P->cfg, err, sizeof err) != VES_OK) {
+  if (bump_config("shape.delta=0.15", "geometry.stabilization=0", &P->cfg, err, sizeof err) !=
+      VES_OK) {
     fprintf(stderr, "config: %s\n", err);
     return -1;
   }
@@ -89,7 +73,7 @@ static int group_setup(void **state) {
   P->yd = malloc(2 * (size_t)P->n * sizeof *P->yd);
   if (!P->X || !P->yd) return -1;
   ves_model_reference(P->su->model, P->X);
-  deform(P->su->nodes, P->X, AMP, P->yd);
+  smooth_motion(P->su->nodes, P->X, AMP, P->yd);
   printf("# problem: %d nodes, %d points\n", P->n, P->su->quad->nq);
   return 0;
 }
@@ -405,7 +389,7 @@ static double blk_quad(const ves_pattern *pat, const double *blk, const double *
  * (r odd, z even: both spaces contain it, the old one as A y(X) + b, the new
  * one as A X' + b, so E, A, V agree along the whole line y + t dy, and so do
  * all their derivatives and the dissipation of that velocity field).
- * Measured at the state of deform(AMP): the values agree to 4e-16, and the
+ * Measured at the state of smooth_motion(AMP): the values agree to 4e-16, and the
  * directional derivatives to 1e-14. The reset's residual is the affine
  * reproduction of the new basis (F' - I ~ 1e-14 at the points, measured
  * below) and rounding of sums over ~1e4 points: 1e-12 for values,
@@ -500,7 +484,7 @@ static void grad_diff(ves_model *m0, ves_model *m1, const double *y, double rel[
   free(g0), free(g1);
 }
 
-/* A reset near the identity (deform() with amplitude 2e-4: cond F = 1.002).
+/* A reset near the identity (smooth_motion() with amplitude 2e-4: cond F = 1.002).
  * E, A, V are preserved as at yd (1e-12, as above). The new spacings are not
  * the old ones moved: where the nodes sit on nearly co-circular quadruples
  * (the interface-aligned band layers) Delaunay edges flip under the tiny
@@ -513,7 +497,7 @@ static void grad_diff(ves_model *m0, ves_model *m1, const double *y, double rel[
 static void test_near_identity(void **state) {
   (void)state;
   double *y = xmalloc(2 * (size_t)P->n), v0[3], v1[3], c, d, rel[3];
-  deform(P->su->nodes, P->X, 2e-4, y);
+  smooth_motion(P->su->nodes, P->X, 2e-4, y);
   assert_int_equal(ves_reconnect_distortion(P->su->model, y, &c, &d), VES_OK);
   ves_reconnect *r = reset(P->su->model, y);
   const ves_nodes *nn = ves_reconnect_nodes(r);
@@ -540,7 +524,7 @@ static void test_chain(void **state) {
   (void)state;
   ves_reconnect *r1 = reset(P->su->model, P->yd);
   double *y2 = xmalloc(2 * (size_t)P->n), v1[3], v2[3], c, d;
-  deform(ves_reconnect_nodes(r1), P->yd, 0.5 * AMP, y2);
+  smooth_motion(ves_reconnect_nodes(r1), P->yd, 0.5 * AMP, y2);
   assert_int_equal(ves_reconnect_distortion(ves_reconnect_model(r1), y2, &c, &d), VES_OK);
   eav(ves_reconnect_model(r1), y2, v1);
   ves_reconnect *r2 = reset(ves_reconnect_model(r1), y2);
@@ -1114,7 +1098,7 @@ static void test_restore(void **state) {
   /* a further motion on the new reference: the same model */
   double *y2 = xmalloc((size_t)n2), *g1 = xmalloc(3 * (size_t)n2), *g2 = xmalloc(3 * (size_t)n2);
   double v1[3], v2[3];
-  deform(nd, nd->x, 0.5 * AMP, y2);
+  smooth_motion(nd, nd->x, 0.5 * AMP, y2);
   assert_int_equal(
       ves_model_eval(ves_reconnect_model(r1), y2, 7, v1, v1 + 1, v1 + 2, g1, g1 + n2, g1 + 2 * n2),
       VES_OK);

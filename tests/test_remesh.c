@@ -21,6 +21,7 @@
 #include "ves/remesh.h"
 #include "ves/setup.h"
 #include "ves/step.h"
+#include "vesicle_impl.h"
 
 /* The problem: the unit sphere with a P2 bump of 0.15 (an oblate-prolate
  * perturbation, out of equilibrium), eps = 0.15, band 3 eps, in a 1.9 x 1.9
@@ -37,17 +38,6 @@ typedef struct {
 static problem *P;
 #define AMP 0.07
 
-/* The smooth motion of test_reconnect.c: odd in R, zero on the wall. */
-static void deform(const ves_nodes *nodes, const double *X, double amp, double *y) {
-  const double LR = nodes->LR, LZ = nodes->LZ;
-  for (int a = 0; a < nodes->n; a++) {
-    const double R = X[2 * a], Z = X[2 * a + 1];
-    const double w = (1 - (R / LR) * (R / LR)) * (1 - (Z / LZ) * (Z / LZ));
-    y[2 * a] = R + amp * R * w * (1 + 0.5 * sin(3 * Z + 0.7) + 0.3 * cos(2 * R * R) + 2 * Z);
-    y[2 * a + 1] = Z + amp * w * (sin(2.5 * Z + 0.3) + 0.5 * cos(3 * R * R - Z) + 2 * R * R);
-  }
-}
-
 static int group_setup(void **state) {
   (void)state;
   P = calloc(1, sizeof *P);
@@ -55,10 +45,8 @@ static int group_setup(void **state) {
   char err[512] = "";
   /* the paper's E: E_s is measured from the reference and a remeshing makes a
    * new one, so the energy comparisons below are of E without it */
-  const char *set[] = {"geometry.epsilon=0.15",   "geometry.box_r=1.9", "geometry.box_z=1.9",
-                       "geometry.band=3",         "shape.mode=2",       "shape.delta=0.15",
-                       "geometry.stabilization=0"};
-  if (ves_config_load(NULL, 7, set, &P->cfg, err, sizeof err) != VES_OK) {
+  if (bump_config("shape.delta=0.15", "geometry.stabilization=0", &P->cfg, err, sizeof err) !=
+      VES_OK) {
     fprintf(stderr, "config: %s\n", err);
     return -1;
   }
@@ -71,7 +59,7 @@ static int group_setup(void **state) {
   P->yd = malloc(2 * (size_t)P->n * sizeof *P->yd);
   if (!P->X || !P->yd) return -1;
   ves_model_reference(P->su->model, P->X);
-  deform(P->su->nodes, P->X, AMP, P->yd);
+  smooth_motion(P->su->nodes, P->X, AMP, P->yd);
   /* the resolution's yardstick: the same problem on another node set of the
    * same sizing (seed + 1) */
   ves_config c2 = P->cfg;
