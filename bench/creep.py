@@ -1,0 +1,94 @@
+#!/usr/bin/python3
+"""
+vesica bench: how far a slowly creeping run is from rest (issue 18, Fig. 5 right at eps 0.01).
+Usage: /usr/bin/python3 bench/creep.py RUN.h5 [T_FROM] [T_WINDOW]
+  RUN.h5    a run's file (read-only; HDF5_USE_FILE_LOCKING=FALSE lets it read a file a run
+            still writes: the rows are flushed at every step)
+  T_FROM    fit the rows with t* >= T_FROM (default: the last half of the run's t*)
+  T_WINDOW  the window of the local rates (default 0.5)
+
+Prints, from the file's /series (t*, E* = E/k):
+  - the local rate -dE*/dt* over consecutive windows of T_WINDOW (a straight line fitted to the
+    rows in each window), and the rate's decay time between windows;
+  - the least-squares fit E*(t*) = E_inf + a exp(-t*/tau) over t* >= T_FROM (for each tau of a
+    log grid, E_inf and a are linear; the tau of the smallest residual is kept), with E_inf for
+    the taus whose residual is within 2x of the best: the spread says how well the tail pins
+    E_inf down.
+The series' energy jumps at remeshings (|dE*| ~1e-2-1e-1 at eps 0.01) and the rows of retried
+steps are in the data as they are: they show in the residual.
+"""
+import math
+import sys
+
+import h5py
+import numpy as np
+
+
+def line(t, e):
+    """Slope and intercept of the least-squares line e = s t + c."""
+    A = np.vstack([t, np.ones_like(t)]).T
+    (s, c), *_ = np.linalg.lstsq(A, e, rcond=None)
+    return s, c
+
+
+def fit_exp(t, e, tau):
+    """E_inf, a and the rms residual of e = E_inf + a exp(-(t - t[0])/tau)."""
+    A = np.vstack([np.ones_like(t), np.exp(-(t - t[0]) / tau)]).T
+    (einf, a), *_ = np.linalg.lstsq(A, e, rcond=None)
+    r = e - A @ np.array([einf, a])
+    return einf, a, math.sqrt(float(np.mean(r * r)))
+
+
+def main():
+    if len(sys.argv) < 2 or sys.argv[1] in ("-h", "--help"):
+        print(__doc__.strip())
+        sys.exit(0 if len(sys.argv) > 1 else 2)
+    with h5py.File(sys.argv[1], "r") as f:
+        s = f["series"]
+        t = np.array(s["t"][:], dtype=float)
+        e = np.array(s["E"][:], dtype=float)
+        k = float(f["parameters"].attrs["material.k"])
+    e = e / k
+    if t.size < 4:
+        sys.exit(f"creep.py: {sys.argv[1]}: {t.size} rows, too few to fit")
+    t_from = float(sys.argv[2]) if len(sys.argv) > 2 else 0.5 * t[-1]
+    win = float(sys.argv[3]) if len(sys.argv) > 3 else 0.5
+    print(f"{sys.argv[1]}: {t.size} rows, t* {t[0]:.4g} - {t[-1]:.4g}, E* {e[-1]:.6f} at the end")
+
+    print(f"\nlocal rates (a line through the rows of each window of {win:g} t*, from the end back):")
+    print("| t* window | rows | -dE*/dt* | decay time of the rate (t*) |")
+    print("|---|---|---|---|")
+    rows, hi = [], t[-1]
+    while hi - win >= t[0] - 1e-12:
+        m = (t >= hi - win) & (t <= hi)
+        if m.sum() >= 3:
+            rows.append((hi - win, hi, int(m.sum()), -line(t[m], e[m])[0]))
+        hi -= win
+    rows.reverse()
+    prev = None
+    for lo, hi, n, rate in rows:
+        decay = "—"
+        if prev and prev[1] > 0 and rate > 0 and rate < prev[1]:
+            decay = f"{(0.5 * (lo + hi) - prev[0]) / math.log(prev[1] / rate):.2f}"
+        print(f"| {lo:.3f} - {hi:.3f} | {n} | {rate:.4g} | {decay} |")
+        prev = (0.5 * (lo + hi), rate)
+
+    m = t >= t_from
+    if m.sum() < 4:
+        sys.exit(f"creep.py: {m.sum()} rows with t* >= {t_from:g}, too few to fit")
+    tt, ee = t[m], e[m]
+    fits = [(tau,) + fit_exp(tt, ee, tau) for tau in np.geomspace(0.05, 50, 400)]
+    best = min(fits, key=lambda r: r[3])
+    good = [r for r in fits if r[3] <= 2 * best[3] and r[2] > 0]
+    print(f"\nE*(t*) = E_inf + a exp(-(t* - {tt[0]:.3f})/tau) over t* {tt[0]:.3f} - {tt[-1]:.3f} "
+          f"({m.sum()} rows):")
+    print(f"best tau {best[0]:.3g}: E_inf {best[1]:.4f}, a {best[2]:.4g}, rms residual {best[3]:.2e}")
+    if good:
+        lo, hi = min(r[1] for r in good), max(r[1] for r in good)
+        print(f"taus within 2x of the best residual: {good[0][0]:.3g} - {good[-1][0]:.3g}, "
+              f"E_inf {lo:.4f} - {hi:.4f} (still to fall from the last row: "
+              f"{e[-1] - hi:.4f} - {e[-1] - lo:.4f})")
+
+
+if __name__ == "__main__":
+    main()
