@@ -10,10 +10,11 @@ Usage: /usr/bin/python3 bench/creep.py RUN.h5 [T_FROM] [T_WINDOW]
 Prints, from the file's /series (t*, E* = E/k):
   - the local rate -dE*/dt* over consecutive windows of T_WINDOW (a straight line fitted to the
     rows in each window), and the rate's decay time between windows;
-  - the least-squares fit E*(t*) = E_inf + a exp(-t*/tau) over t* >= T_FROM (for each tau of a
-    log grid, E_inf and a are linear; the tau of the smallest residual is kept), with E_inf for
-    the taus whose residual is within 2x of the best: the spread says how well the tail pins
-    E_inf down.
+  - the rest of the fall the last two windows imply (their rate times the rate's decay time);
+  - the least-squares fit E*(t*) = E_inf + a exp(-(t* - t0)/tau) over the rows from t0 = T_FROM
+    on, and from two later starts (1/3 and 1/2 of the way to the end): for each tau of a log
+    grid E_inf and a are linear, the tau of the smallest residual is kept; the spread of E_inf
+    over the starts says how well the tail pins it down.
 The series' energy jumps at remeshings (|dE*| ~1e-2-1e-1 at eps 0.01) and the rows of retried
 steps are in the data as they are: they show in the residual.
 """
@@ -73,21 +74,27 @@ def main():
         print(f"| {lo:.3f} - {hi:.3f} | {n} | {rate:.4g} | {decay} |")
         prev = (0.5 * (lo + hi), rate)
 
-    m = t >= t_from
-    if m.sum() < 4:
-        sys.exit(f"creep.py: {m.sum()} rows with t* >= {t_from:g}, too few to fit")
-    tt, ee = t[m], e[m]
-    fits = [(tau,) + fit_exp(tt, ee, tau) for tau in np.geomspace(0.05, 50, 400)]
-    best = min(fits, key=lambda r: r[3])
-    good = [r for r in fits if r[3] <= 2 * best[3] and r[2] > 0]
-    print(f"\nE*(t*) = E_inf + a exp(-(t* - {tt[0]:.3f})/tau) over t* {tt[0]:.3f} - {tt[-1]:.3f} "
-          f"({m.sum()} rows):")
-    print(f"best tau {best[0]:.3g}: E_inf {best[1]:.4f}, a {best[2]:.4g}, rms residual {best[3]:.2e}")
-    if good:
-        lo, hi = min(r[1] for r in good), max(r[1] for r in good)
-        print(f"taus within 2x of the best residual: {good[0][0]:.3g} - {good[-1][0]:.3g}, "
-              f"E_inf {lo:.4f} - {hi:.4f} (still to fall from the last row: "
-              f"{e[-1] - hi:.4f} - {e[-1] - lo:.4f})")
+    if len(rows) >= 2 and 0 < rows[-1][3] < rows[-2][3]:
+        (lo1, hi1, _, r1), (lo2, hi2, _, r2) = rows[-2], rows[-1]
+        tau = (0.5 * (lo2 + hi2) - 0.5 * (lo1 + hi1)) / math.log(r1 / r2)
+        print(f"\nfrom the last two windows: the rate {r2:.4g} decaying with tau {tau:.3g}, "
+              f"E* still to fall {r2 * tau:.4f} (E_inf ~ {e[-1] - r2 * tau:.4f})")
+
+    print("\nE*(t*) = E_inf + a exp(-(t* - t0)/tau), least squares over the rows from t0 on "
+          "(later starts: how well the tail pins E_inf down):")
+    print("| t0 | rows | tau | E_inf | a | rms residual | E* still to fall |")
+    print("|---|---|---|---|---|---|---|")
+    for frac in (0.0, 1.0 / 3.0, 0.5):
+        t0 = t_from + frac * (t[-1] - t_from)
+        m = t >= t0
+        if m.sum() < 4:
+            continue
+        tt, ee = t[m], e[m]
+        fits = [(tau,) + fit_exp(tt, ee, tau) for tau in np.geomspace(0.05, 50, 400)]
+        tau, einf, a, res = min(fits, key=lambda r: r[3])
+        edge = " (grid's end)" if tau in (fits[0][0], fits[-1][0]) else ""
+        print(f"| {tt[0]:.3f} | {m.sum()} | {tau:.3g}{edge} | {einf:.4f} | {a:.4g} | {res:.2e} | "
+              f"{e[-1] - einf:.4f} |")
 
 
 if __name__ == "__main__":
