@@ -25,13 +25,6 @@ import h5py
 import numpy as np
 
 
-def line(t, e):
-    """Slope and intercept of the least-squares line e = s t + c."""
-    A = np.vstack([t, np.ones_like(t)]).T
-    (s, c), *_ = np.linalg.lstsq(A, e, rcond=None)
-    return s, c
-
-
 def fit_exp(t, e, tau):
     """E_inf, a and the rms residual of e = E_inf + a exp(-(t - t[0])/tau)."""
     A = np.vstack([np.ones_like(t), np.exp(-(t - t[0]) / tau)]).T
@@ -63,22 +56,20 @@ def main():
     while hi - win >= t[0] - 1e-12:
         m = (t >= hi - win) & (t <= hi)
         if m.sum() >= 3:
-            rows.append((hi - win, hi, int(m.sum()), -line(t[m], e[m])[0]))
+            rows.append((hi - win, hi, int(m.sum()), -np.polyfit(t[m], e[m], 1)[0]))
         hi -= win
     rows.reverse()
-    prev = None
+    prev, tau = None, None
     for lo, hi, n, rate in rows:
-        decay = "—"
+        tau = None  # the rate's decay time since the window before
         if prev and prev[1] > 0 and rate > 0 and rate < prev[1]:
-            decay = f"{(0.5 * (lo + hi) - prev[0]) / math.log(prev[1] / rate):.2f}"
-        print(f"| {lo:.3f} - {hi:.3f} | {n} | {rate:.4g} | {decay} |")
+            tau = (0.5 * (lo + hi) - prev[0]) / math.log(prev[1] / rate)
+        print(f"| {lo:.3f} - {hi:.3f} | {n} | {rate:.4g} | {'—' if tau is None else f'{tau:.2f}'} |")
         prev = (0.5 * (lo + hi), rate)
-
-    if len(rows) >= 2 and 0 < rows[-1][3] < rows[-2][3]:
-        (lo1, hi1, _, r1), (lo2, hi2, _, r2) = rows[-2], rows[-1]
-        tau = (0.5 * (lo2 + hi2) - 0.5 * (lo1 + hi1)) / math.log(r1 / r2)
-        print(f"\nfrom the last two windows: the rate {r2:.4g} decaying with tau {tau:.3g}, "
-              f"E* still to fall {r2 * tau:.4f} (E_inf ~ {e[-1] - r2 * tau:.4f})")
+    if tau is not None:  # the last window's rate, decaying as since the one before
+        r = rows[-1][3]
+        print(f"\nfrom the last two windows: the rate {r:.4g} decaying with tau {tau:.3g}, "
+              f"E* still to fall {r * tau:.4f} (E_inf ~ {e[-1] - r * tau:.4f})")
 
     print("\nE*(t*) = E_inf + a exp(-(t* - t0)/tau), least squares over the rows from t0 on "
           "(later starts: how well the tail pins E_inf down):")
