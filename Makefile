@@ -30,7 +30,7 @@ endif
 # python3-meshio and python3-h5py: test_cli reads the output with them
 # (tests/xdmf_check.py), readers that share no code with vesica;
 # clang-format: make format-check (the first step of .ci/run); libsuitesparse-dev:
-# CHOLMOD, the nlopt backend's exact sparse Cholesky factor (solver/chol.c)
+# CHOLMOD, the nlopt backend's exact sparse Cholesky factor (solver/linalg/chol.c)
 DEPS_PKGS = coinor-libipopt-dev libnlopt-dev libmumps-seq-dev libcgal-dev \
             libhdf5-dev libcmocka-dev liblapacke-dev libopenblas-dev \
             gnuplot-nox pkg-config libiniparser-dev libsuitesparse-dev python3-meshio python3-h5py clang-format
@@ -48,9 +48,14 @@ CXXFLAGS_CGAL = -std=c++17 -O2 -g -fopenmp -frounding-math -DCGAL_DISABLE_ROUNDI
 LDLIBS   = $(PKG_LIBS) -lnlopt -ldmumps_seq -lsmumps_seq -liniparser -lcholmod -llapacke -lopenblas -lgmp -lstdc++ -lm
 LDFLAGS += $(SANFLAGS) -fopenmp
 
-LIB_C    = $(filter-out solver/cli%.c,$(wildcard solver/*.c))
-CLI_OBJ  = $(patsubst solver/%.c,$(BUILD)/obj/%.o,$(wildcard solver/cli*.c))
-LIB_OBJ  = $(LIB_C:solver/%.c=$(BUILD)/obj/%.o) $(BUILD)/obj/geom.o
+# The library's layers, lowest first (docs/design.md, "Layers"); the program
+# (command line, problem files, output, plots, studies) in solver/app.
+LAYERS   = core linalg discret model step backends time analysis
+LIB_C    = $(foreach l,$(LAYERS),$(wildcard solver/$(l)/*.c))
+LIB_CXX  = $(foreach l,$(LAYERS),$(wildcard solver/$(l)/*.cpp))
+APP_C    = $(wildcard solver/app/*.c)
+CLI_OBJ  = $(APP_C:solver/%.c=$(BUILD)/obj/%.o)
+LIB_OBJ  = $(LIB_C:solver/%.c=$(BUILD)/obj/%.o) $(LIB_CXX:solver/%.cpp=$(BUILD)/obj/%.o)
 # the longest first (by their times under SAN=1, session 39): tests/run.sh
 # runs them two at a time, each lane taking the next one not yet taken
 TESTS_LONG = test_integrate test_cli test_backend test_spectrum test_model test_remesh
@@ -70,23 +75,29 @@ BENCH_ONLY ?=
 all: deps
 	@$(MAKE) --no-print-directory $(BUILD)/libvesica.a $(BUILD)/vesica
 
-$(BUILD)/obj/%.o: solver/%.c | $(BUILD)/obj
+$(BUILD)/obj/%.o: solver/%.c
+	@mkdir -p $(@D)
 	$(CC) $(CFLAGS) -c $< -o $@
-$(BUILD)/obj/geom.o: solver/geom.cpp | $(BUILD)/obj
+$(BUILD)/obj/%.o: solver/%.cpp
+	@mkdir -p $(@D)
 	$(CXX) $(CXXFLAGS_CGAL) -c $< -o $@
 $(BUILD)/libvesica.a: $(LIB_OBJ)
 	ar rcs $@ $^
+# the program's objects (solver/app) in an archive of their own, which the
+# tests of the program link too
+$(BUILD)/libvesica_app.a: $(CLI_OBJ)
+	ar rcs $@ $^
 $(BUILD)/vesica: $(CLI_OBJ) $(BUILD)/libvesica.a
-	$(CC) $(LDFLAGS) -o $@ $^ $(LDLIBS)
-$(BUILD)/tests/%: tests/%.c $(BUILD)/libvesica.a | $(BUILD)/tests
-	$(CC) $(CFLAGS) -o $@ $< $(BUILD)/libvesica.a $(LDFLAGS) -lcmocka $(LDLIBS)
-$(BUILD)/bench/%: bench/%.c $(BUILD)/libvesica.a | $(BUILD)/bench
-	$(CC) $(CFLAGS) -o $@ $< $(BUILD)/libvesica.a $(LDFLAGS) $(LDLIBS)
+	$(CC) $(LDFLAGS) -o $@ $(CLI_OBJ) $(BUILD)/libvesica.a $(LDLIBS)
+$(BUILD)/tests/%: tests/%.c $(BUILD)/libvesica_app.a $(BUILD)/libvesica.a | $(BUILD)/tests
+	$(CC) $(CFLAGS) -o $@ $< $(BUILD)/libvesica_app.a $(BUILD)/libvesica.a $(LDFLAGS) -lcmocka $(LDLIBS)
+$(BUILD)/bench/%: bench/%.c $(BUILD)/libvesica_app.a $(BUILD)/libvesica.a | $(BUILD)/bench
+	$(CC) $(CFLAGS) -o $@ $< $(BUILD)/libvesica_app.a $(BUILD)/libvesica.a $(LDFLAGS) $(LDLIBS)
 # the independent Stokes prediction of the shape-mode decay: self-contained
 # (no libvesica: it checks the solver's time scale from outside)
 $(BUILD)/bench/stokes_mode: bench/stokes_mode.c | $(BUILD)/bench
 	$(CC) -std=c11 $(OPT) -Wall -Wextra -Werror -o $@ $< -ldmumps_seq -llapacke -lopenblas -lm
-$(BUILD)/obj $(BUILD)/tests $(BUILD)/bench:
+$(BUILD)/tests $(BUILD)/bench:
 	mkdir -p $@
 
 # Install what is missing (root), or say what to run. Costs one dpkg-query
@@ -163,11 +174,11 @@ fuzz: deps
 	  apt-get install -y -qq --no-install-recommends clang libclang-rt-14-dev; \
 	  else echo "run as root: apt-get install -y --no-install-recommends clang libclang-rt-14-dev"; exit 1; fi; }
 	@mkdir -p $(BUILD)/fuzz/corpus_config $(BUILD)/fuzz/corpus_points $(BUILD)/fuzz/corpus_h5
-	clang $(FUZZ_CFLAGS) -o $(BUILD)/fuzz/fuzz_config tests/fuzz/fuzz_config.c solver/status.c -lm
-	clang $(FUZZ_CFLAGS) -o $(BUILD)/fuzz/fuzz_points tests/fuzz/fuzz_points.c solver/config.c \
-	  solver/shape.c solver/status.c -lm
+	clang $(FUZZ_CFLAGS) -o $(BUILD)/fuzz/fuzz_config tests/fuzz/fuzz_config.c solver/core/status.c -lm
+	clang $(FUZZ_CFLAGS) -o $(BUILD)/fuzz/fuzz_points tests/fuzz/fuzz_points.c solver/app/config.c \
+	  solver/discret/shape.c solver/core/status.c -lm
 	clang $(FUZZ_CFLAGS) $$(pkg-config --cflags hdf5) -o $(BUILD)/fuzz/fuzz_h5 tests/fuzz/fuzz_h5.c \
-	  solver/io.c solver/plot.c solver/level_set.c solver/config.c solver/status.c \
+	  $(wildcard solver/app/io*.c) solver/app/plot.c solver/analysis/level_set.c solver/app/config.c solver/core/status.c \
 	  $$(pkg-config --libs hdf5) -lm
 	@cp problems/*.ini tests/fuzz/seeds/*.ini tests/fuzz/seeds/set_*.txt $(BUILD)/fuzz/corpus_config/
 	@cp data/cup.txt tests/fuzz/seeds/*.txt $(BUILD)/fuzz/corpus_points/
@@ -219,7 +230,7 @@ paper: deps
 # Every C/C++ file of the repository, formatted by .clang-format: format
 # rewrites them, format-check only reports (exit 1 and the lines that differ;
 # .ci/run runs it). The cmocka test tables stay packed (clang-format off).
-FORMAT_FILES = $(wildcard include/ves/*.h solver/*.c solver/*.h solver/*.cpp tests/*.c \
+FORMAT_FILES = $(wildcard include/ves/*.h solver/*/*.c solver/*/*.h solver/*/*.cpp tests/*.c \
                  tests/*.h tests/fuzz/*.c bench/*.c bench/*.h)
 format:
 	clang-format -i --style=file $(FORMAT_FILES)
@@ -233,4 +244,4 @@ format-check: deps
 clean:
 	rm -rf build build-san
 
--include $(wildcard $(BUILD)/obj/*.d $(BUILD)/tests/*.d $(BUILD)/bench/*.d)
+-include $(wildcard $(BUILD)/obj/*/*.d $(BUILD)/tests/*.d $(BUILD)/bench/*.d)

@@ -7,7 +7,7 @@
 #include <stdlib.h>
 
 #include "ves/backend.h"
-#include "ves/config.h"
+#include "app/config.h"
 #include "ves/integrate.h"
 
 /* Integrator parameters of a run with constant dt to t_end, the constraints

@@ -25,11 +25,11 @@
 #include <string.h>
 
 #include "ves/backend.h"
-#include "ves/config.h"
+#include "app/config.h"
 #include "ves/integrate.h"
 #include "ves/setup.h"
 #include "bench_common.h"
-#include "blas_core_impl.h"
+#include "app/blas_core_impl.h"
 
 #define MAX_SET 32
 

@@ -1,4 +1,4 @@
-/* vesica — benchmark of the model assembly (solver/model.c): setup time, one
+/* vesica — benchmark of the model assembly (solver/model/model.c): setup time, one
  * E+A+V value+gradient evaluation (the fastest of EVAL_REPEAT, as in a run's
  * warm loop), one Hessian (cE = cA = cV = 1) and one K assembly (each the
  * fastest of MAT_REPEAT), with the sizes that drive them, for a sphere in a
@@ -18,7 +18,7 @@
 
 #include "ves/model.h"
 #include "ves/setup.h"
-#include "blas_core_impl.h"
+#include "app/blas_core_impl.h"
 
 #define EVAL_REPEAT 5 /* E+A+V+g passes timed (a run makes hundreds) */
 #define MAT_REPEAT                                                                                 \

@@ -19,7 +19,7 @@
 #include <time.h>
 
 #include "bench_common.h"
-#include "ves/problem.h"
+#include "app/problem.h"
 #include "ves/setup.h"
 
 #define MAXS 100000

@@ -27,14 +27,14 @@
 #endif
 
 #include "ves/backend.h"
-#include "ves/config.h"
+#include "app/config.h"
 #include "ves/integrate.h"
 #include "ves/model.h"
-#include "ves/problem.h"
+#include "app/problem.h"
 #include "ves/setup.h"
 #include "ves/step.h"
-#include "backend_kkt_impl.h"
-#include "blas_core_impl.h"
+#include "backends/backend_kkt_impl.h"
+#include "app/blas_core_impl.h"
 
 #define NREP 3 /* repeats of each single evaluation (the median is reported) */
 

@@ -36,14 +36,14 @@
 #include <string.h>
 
 #include "ves/backend.h"
-#include "ves/config.h"
+#include "app/config.h"
 #include "ves/integrate.h"
 #include "ves/setup.h"
 #include "ves/spectrum.h"
 #include "ves/step.h"
 #include "bench_common.h"
-#include "blas_core_impl.h"
-#include "clock_impl.h"
+#include "app/blas_core_impl.h"
+#include "core/clock_impl.h"
 
 #define MAX_LIST 16
 #define MAX_SET 32

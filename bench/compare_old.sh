@@ -18,7 +18,7 @@
 # OMP_NUM_THREADS are pinned to THREADS, and OPENBLAS_CORETYPE is UNSET for
 # both: the environment a user has. The new vesica then re-executes itself
 # with OPENBLAS_CORETYPE set when OpenBLAS fell back to its generic kernels
-# (solver/blas_core_impl.h) while the old one keeps the generic kernels, so
+# (solver/app/blas_core_impl.h) while the old one keeps the generic kernels, so
 # the ratios include that kernel choice: this is the honest user-facing
 # comparison. CORETYPE=SkylakeX (or Haswell, ...) sets OPENBLAS_CORETYPE for
 # both instead, which separates the code changes from the kernel choice.

@@ -15,7 +15,7 @@
 # own folder (mkdtemp), and no test's result depends on the thread count,
 # so the lanes change no result.
 #
-# OpenBLAS's kernels: the programs choose them (solver/blas_core_impl.h); the
+# OpenBLAS's kernels: the programs choose them (solver/app/blas_core_impl.h); the
 # test programs get the same choice from here (never under valgrind, whose
 # CPU has no AVX-512: tests/valgrind.sh does not use this script)
 if [ -z "${OPENBLAS_CORETYPE:-}" ]; then

@@ -26,7 +26,7 @@
 #include <string.h>
 
 #include "ves/backend.h"
-#include "ves/config.h"
+#include "app/config.h"
 #include "ves/setup.h"
 #include "ves/step.h"
 

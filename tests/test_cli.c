@@ -28,8 +28,8 @@
 #include <time.h>
 #include <unistd.h>
 
-#include "ves/io.h"
-#include "ves/plot.h"
+#include "app/io.h"
+#include "app/plot.h"
 
 static char vesica[PATH_MAX]; /* the program under test */
 static char tmpdir[64];       /* this test's scratch folder */

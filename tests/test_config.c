@@ -13,7 +13,7 @@
 #include <unistd.h>
 
 #include "ves/backend.h"
-#include "ves/config.h"
+#include "app/config.h"
 #include "ves/geom.h"
 #include "ves/integrate.h"
 #include "ves/lme.h"

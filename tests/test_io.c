@@ -21,7 +21,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
-#include "ves/io.h"
+#include "app/io.h"
 #include "ves/reconnect.h"
 #include "ves/setup.h"
 

@@ -9,7 +9,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "mem_impl.h"
+#include "core/mem_impl.h"
 
 /* Below VES_BIG_MIN a plain block; from it on a block aligned to 2 MiB,
  * writable to its last byte. */

@@ -1,4 +1,4 @@
-/* vesica — tests of the global model (solver/model.c): gradients and Hessians
+/* vesica — tests of the global model (solver/model/model.c): gradients and Hessians
  * of E, A, V and of the step objective against finite differences at deformed
  * states, the dissipation matrix K against its definition and for positive
  * definiteness, invariance under rigid translation and under motions away
@@ -19,7 +19,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "model_impl.h"
+#include "model/model_impl.h"
 #include "ves/model.h"
 #include "ves/setup.h"
 

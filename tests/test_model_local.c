@@ -12,7 +12,7 @@
 #include <stdio.h>
 #include <string.h>
 
-#include "model_impl.h"
+#include "model/model_impl.h"
 
 #define NQ VES_NQ
 #define EPS 0.04 /* interface width of the random states (brief: eps = 0.04) */

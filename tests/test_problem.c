@@ -9,7 +9,7 @@
 
 #include <string.h>
 
-#include "ves/problem.h"
+#include "app/problem.h"
 
 static void load(int nset, const char *const *set, ves_config *c) {
   char err[512] = "";

@@ -1,5 +1,5 @@
 /* vesica — tests of the reset of the reference configuration
- * (solver/reconnect.c, paper Sec. 3.3): the push-forward of grad phi0 and
+ * (solver/time/reconnect.c, paper Sec. 3.3): the push-forward of grad phi0 and
  * Hess phi0 against finite differences of the composed field phi0 o y^-1
  * (analytic and discrete), invariance of E, A, V and of their variations
  * along motions both discrete spaces contain, a chain of two resets, the

@@ -1,4 +1,4 @@
-/* vesica — tests of the full remeshing (solver/remesh.c): the interface
+/* vesica — tests of the full remeshing (solver/time/remesh.c): the interface
  * extracted from a state against the exact curve, a remesh of the unmoved
  * initial state against the initial setup, a remesh of a deformed state
  * (E, A, V against the old model's, constraints restored to rounding), the

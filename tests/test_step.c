@@ -1,4 +1,4 @@
-/* vesica — tests of the step problem (solver/step.c) and of the newton and
+/* vesica — tests of the step problem (solver/step/step.c) and of the newton and
  * euler backends: objective, gradient, constraint Jacobian and Hessian of the
  * Lagrangian against finite differences; the evaluation cache; one Newton
  * step (convergence, constraints, energy decrease, frozen vs fresh Hessian);
@@ -20,7 +20,7 @@
 #include "ves/setup.h"
 #include "ves/step.h"
 
-#include "step_impl.h"
+#include "step/step_impl.h"
 
 /* ------------------------------------------------------------------------ */
 /* The problem                                                               */

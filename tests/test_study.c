@@ -27,8 +27,8 @@
 #include <time.h>
 #include <unistd.h>
 
-#include "ves/study.h"
-#include "clock_impl.h"
+#include "app/study.h"
+#include "core/clock_impl.h"
 
 static char vesica[PATH_MAX]; /* the program under test */
 static char tmpdir[64];       /* this test's scratch folder */

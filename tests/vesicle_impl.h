@@ -8,7 +8,7 @@
 #include <math.h>
 
 #include "ves/backend.h"
-#include "ves/config.h"
+#include "app/config.h"
 #include "ves/integrate.h"
 #include "ves/setup.h"
 

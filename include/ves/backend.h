@@ -9,7 +9,7 @@
 #ifndef VES_BACKEND_H
 #define VES_BACKEND_H
 
-#include "ves/config.h"
+#include "app/config.h"
 #include "ves/status.h"
 #include "ves/step.h"
 

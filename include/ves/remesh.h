@@ -49,7 +49,7 @@
 
 #include <stddef.h>
 
-#include "ves/config.h"
+#include "app/config.h"
 #include "ves/geom.h"
 #include "ves/model.h"
 #include "ves/quad.h"

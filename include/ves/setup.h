@@ -6,7 +6,7 @@
 
 #include <stddef.h>
 
-#include "ves/config.h"
+#include "app/config.h"
 #include "ves/model.h"
 #include "ves/quad.h"
 #include "ves/shape.h"

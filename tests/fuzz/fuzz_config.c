@@ -8,7 +8,7 @@
  * (ves_config_to_text) reads back to the identical configuration. A refused
  * input: a status < 0 and a one-line message naming the file (or --set).
  * config.c is compiled in so the checks read its key table (KEYS). */
-#include "../../solver/config.c"
+#include "../../solver/app/config.c"
 
 #include <stdint.h>
 #include <stdio.h>

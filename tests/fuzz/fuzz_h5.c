@@ -24,10 +24,10 @@
 #include <string.h>
 #include <unistd.h>
 
-#include "ves/config.h"
-#include "ves/io.h"
+#include "app/config.h"
+#include "app/io.h"
 #include "ves/level_set.h"
-#include "ves/plot.h"
+#include "app/plot.h"
 
 int LLVMFuzzerInitialize(int *argc, char ***argv);
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);

@@ -14,7 +14,7 @@
 #include <string.h>
 #include <unistd.h>
 
-#include "ves/config.h"
+#include "app/config.h"
 #include "ves/shape.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);

@@ -1,0 +1,121 @@
+/* vesica — what the files of the command line share (cli*.c): the run's
+ * state, option and file helpers, messages. The program's only header; the
+ * library never includes it. */
+#ifndef VES_CLI_IMPL_H
+#define VES_CLI_IMPL_H
+
+#include <limits.h>
+#include <stdio.h>
+
+#include "ves/backend.h"
+#include "app/config.h"
+#include "ves/integrate.h"
+#include "app/io.h"
+#include "app/problem.h"
+#include "ves/setup.h"
+#include "ves/status.h"
+#include "core/clock_impl.h"
+
+#define VES_VERSION "0.1.0"
+#define MAX_SET 64 /* --set options a command takes */
+
+/* The commands: argc, argv after the command's name; each returns the exit
+ * code. */
+int cmd_check(int argc, char **argv);
+int cmd_run(int argc, char **argv);
+int cmd_info(int argc, char **argv);
+int cmd_plot(int argc, char **argv);
+int cmd_spectrum(int argc, char **argv);
+int cmd_study(int argc, char **argv);
+
+/* ---- options, problem files, output paths (cli_common.c) ---------------- */
+
+/* A setup's message err, naming label (the problem file) unless err does. */
+void cli_setup_error(const char *cmd, const char *label, const char *err);
+/* Exit code for a failed library call: 2 bad input, 3 numerical. */
+int cli_exit_for(ves_status st);
+/* The text of a failed library call's status st: its meaning and, when the
+ * error record holds st (status.h), the condition that failed and where. */
+const char *cli_why(ves_status st);
+/* The size and cost of a setup, estimated from the problem before it is
+ * built: a line when large (unless quiet), a refusal (2) beyond the
+ * machine's memory. 0 ok. */
+int cli_setup_estimate(const char *cmd, const ves_config *c, int quiet);
+/* Load the problem file path with the --set overrides set[nset] into cfg.
+ * 0, or the exit code (message printed; the usage when path is NULL). */
+int cli_load_problem(const char *cmd, const char *path, void (*usage_fn)(FILE *), int nset,
+                     const char *const *set, ves_config *cfg);
+/* A --set argument at argv[*i]: 0 when taken, else the exit code. */
+int cli_take_set(const char *cmd, int argc, char **argv, int *i, int *nset, const char **set);
+/* An operand a of command cmd (what: "file", ...): an unknown option when
+ * is_option, a second operand when *path is set (2, message printed), else
+ * taken into *path (0). */
+int cli_operand(const char *cmd, const char *what, int is_option, const char *a, const char **path);
+/* 0 when the operand path was given, else 2 with the usage on stderr. */
+int cli_need(const char *path, void (*usage_fn)(FILE *));
+/* A long in [lo, hi] for option opt; 0, or 2 with a message. */
+int cli_parse_long(const char *cmd, const char *opt, const char *v, long lo, long hi, long *out);
+/* The folder of path exists and is writable, path is not a folder: 0, else 2. */
+int cli_check_writable(const char *cmd, const char *what, const char *path);
+/* Whether a and b name the same existing file. */
+int cli_same_file(const char *a, const char *b);
+/* An output path: never one of the inputs in[nin], not an existing file
+ * unless force: 0, else 2 (hint, if any, says how to keep the file). */
+int cli_check_new(const char *cmd, const char *what, const char *path, int force,
+                  const char *const *in, int nin, const char *hint);
+
+/* ---- a run's state (cli_state.c) ------------------------------------------ */
+
+/* Everything a run holds. */
+typedef struct {
+  const char *label;          /* what messages name: the problem file or FILE.h5 */
+  char out[PATH_MAX];         /* the HDF5 file */
+  ves_config cfg;             /* parameters */
+  const ves_backend_type *bk; /* step solver */
+  ves_setup *setup;           /* initial discrete state */
+  ves_sim *sim;               /* the integrator */
+  ves_io *io;                 /* the output file */
+  double *phi;                /* n scratch: phi at the nodes */
+  double *y;                  /* 2n scratch: coefficients */
+  double *x;                  /* 2n scratch: material positions at the nodes */
+  double *v;                  /* 2n scratch: the flow at the nodes */
+  FILE *series;               /* --series file or NULL */
+  int quiet;                  /* --quiet */
+  long max_steps;             /* --max-steps (0: none) */
+  int ncap;                   /* nodes phi, y, x, v have room for */
+  double wall_offset;         /* wall time of the time loop before this process */
+  long last_snapshot_step;    /* step of the last snapshot written */
+} run_ctx;
+
+void cli_run_free(run_ctx *r);
+/* The scratch buffers for n nodes (the node count changes at a remeshing). */
+ves_status cli_ensure_nodes(run_ctx *r, int n);
+/* Nodes of the reference in use. */
+int cli_nodes_now(run_ctx *r);
+/* Setup, phi at the nodes and the integrator for r->cfg and r->bk; 0 or
+ * the exit code (message printed). */
+int cli_build(run_ctx *r);
+/* Snapshot of the current state (wall: the loop's time so far). */
+ves_status cli_snapshot(run_ctx *r, double wall);
+/* The reference the last reset made, and the remeshing just made, for a
+ * restart (io.h). */
+ves_status cli_write_reference(run_ctx *r, long step);
+ves_status cli_write_remesh(run_ctx *r, long step, const ves_remesh_info *info);
+/* The run of r->io (its problem in r->cfg) rebuilt at snapshot S into r;
+ * pre starts every message. 0 or the exit code. */
+int cli_rebuild_at(run_ctx *r, const char *pre, int S, ves_io_snapinfo *si);
+
+/* ---- run (cli_run.c, cli_restart.c) --------------------------------------- */
+
+/* Why a write to the output failed: the io module's cause, else the status. */
+const char *cli_io_cause(const ves_io *io, ves_status st);
+/* The time loop: steps, rows, snapshots, progress. Returns the exit code. */
+int cli_loop(run_ctx *r);
+/* Continue FILE.h5 from its last snapshot with the overrides set[nset]. */
+int cli_run_restart(run_ctx *r, const char *file, int nset, const char *const *set);
+/* The keys a restart may change, "a, b and c", then " tail", into f: the
+ * first line after `col` characters already printed on it, wrapped before
+ * `width` (0: no wrapping) with continuation lines indented by `indent`. */
+void cli_restart_keys_print(FILE *f, int col, int indent, int width, const char *tail);
+
+#endif

@@ -1,0 +1,254 @@
+/* vesica — the time loop of vesica run, new or restarted: steps, the file's
+ * rows and snapshots, the --series text, progress, signals, the end. */
+
+#include <errno.h>
+#include <math.h>
+#include <signal.h>
+#include <stdio.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "app/cli_impl.h"
+
+/* Set by SIGINT/SIGTERM: stop after the current step (which can take
+ * minutes: up to max_iter iterations and its halvings). The handler then
+ * restores the default action, so a second signal ends the run at once;
+ * the file keeps every step written before it (flushed per step). */
+static volatile sig_atomic_t stop_signal = 0;
+static void on_signal(int sig) {
+  static const char msg[] = "\nvesica run: stopping after the current step (signal again to "
+                            "stop at once)\n";
+  stop_signal = sig;
+  signal(sig, SIG_DFL);
+  ssize_t w = write(2, msg, sizeof msg - 1);
+  (void)w;
+}
+
+/* The progress line's time to the end of the run, from the mean wall time
+ * w of the recent steps: (t_end - t) / dt steps of w with constant steps;
+ * with adaptive ones the step count lies between (t_end - t) / dt_max (dt
+ * grows to its cap) and (t_end - t) / dt (it stays); --max-steps caps both.
+ * One value once the two are within 1.5x, a range lo-hi within 10x, and
+ * "unknown" beyond (a range over orders of magnitude says nothing). A
+ * linear extrapolation in t* is off by the growth of dt, orders of
+ * magnitude early in a run. */
+static double steps_left(double left, double dt) {
+  double n = ceil(left / dt - 1e-9); /* a step that ends at t_end up to rounding is the last */
+  return n > 0 ? n : 0.0;            /* not -0 */
+}
+
+static void eta_text(char *buf, size_t len, const ves_config *c, double t, double dt, double w,
+                     long nstep, long max_steps) {
+  const double left = c->t_end - t;
+  double nhi = steps_left(left, dt), nlo = c->adaptive ? steps_left(left, c->dt_max) : nhi;
+  if (max_steps > 0) { /* --max-steps stops the run first when it comes first */
+    const double m = max_steps > nstep ? (double)(max_steps - nstep) : 0.0;
+    nhi = fmin(nhi, m), nlo = fmin(nlo, m);
+  }
+  const double hi = w * nhi, lo = w * nlo;
+  if (hi <= 1.5 * lo || floor(hi + 0.5) == floor(lo + 0.5))
+    snprintf(buf, len, "%.0f s", hi);
+  else if (hi <= 10 * lo)
+    snprintf(buf, len, "%.0f-%.0f s", lo, hi);
+  else
+    snprintf(buf, len, "unknown (dt* adapting)");
+}
+
+/* Why a write to the output failed: the cause the io module recorded (no
+ * space, the file-size limit, the failing write's errno), else the status. */
+const char *cli_io_cause(const ves_io *io, ves_status st) {
+  return ves_io_error(io) ? ves_io_error(io) : cli_why(st);
+}
+
+/* What the loop carries from step to step. */
+typedef struct {
+  double t0;         /* wall clock at the start of this process's loop */
+  double recent[10]; /* wall times at the ends of the last 10 steps (ring) */
+  int tty;           /* stderr is a terminal: the progress line is redrawn */
+  long iters, steps; /* backend iterations and steps of this process */
+} loop_ctx;
+
+/* Install the handlers of SIGINT and SIGTERM (stop after the current step;
+ * a second signal kills). */
+static void catch_signals(void) {
+  struct sigaction sa;
+  memset(&sa, 0, sizeof sa);
+  sa.sa_handler = on_signal;
+  sa.sa_flags = SA_RESETHAND; /* a second signal kills */
+  sigaction(SIGINT, &sa, NULL);
+  sigaction(SIGTERM, &sa, NULL);
+}
+
+/* Room for the next step's writes and a last snapshot after them: a run on
+ * a filling disk stops here, between complete writes (io.h); resets: a step
+ * may also write a reference. */
+static ves_status room_for_step(run_ctx *r, long nstep, int resets) {
+  const int due = (nstep + 1) % r->cfg.snapshot_every == 0;
+  const int nq = ves_model_quad(ves_sim_model(r->sim))->nq;
+  return ves_io_room(r->io, 1 + due, resets ? nq : 0); /* a remeshing is smaller */
+}
+
+/* The accepted step rep into the file (row, a reset's reference, a
+ * remeshing, a due snapshot) and the --series text. */
+static ves_status record_step(run_ctx *r, const ves_step_report *rep, double wall) {
+  ves_io_row row;
+  ves_io_row_from_step(rep, ves_sim_reconnections(r->sim), wall, &row);
+  VES_CALL(ves_io_append(r->io, &row));
+  if (rep->reconnected) VES_CALL(cli_write_reference(r, rep->step));
+  if (rep->remeshed) VES_CALL(cli_write_remesh(r, rep->step, &rep->remesh));
+  if (rep->step % r->cfg.snapshot_every == 0) VES_CALL(cli_snapshot(r, wall));
+  if (r->series) {
+    double A0, V0;
+    ves_sim_initial(r->sim, NULL, &A0, &V0);
+    ves_io_tsv_row(r->series, &row, A0); /* the text is a view: its failure is not the run's */
+    fflush(r->series);
+  }
+  return VES_OK;
+}
+
+/* The lines of an accepted step on stderr: progress (with w the mean wall
+ * time of the recent steps), retries, a reset, a remeshing, and the
+ * warnings of a reset or remeshing that failed (even with --quiet). */
+static void report_step(const run_ctx *r, const ves_step_report *rep, const loop_ctx *L, double w) {
+  const int tty = L->tty;
+  if (!r->quiet && (tty || rep->step % 10 == 0)) {
+    char eta[64];
+    eta_text(eta, sizeof eta, &r->cfg, rep->t, rep->dt, w, rep->step, r->max_steps);
+    fprintf(stderr, "%sstep %ld  t* %.4g/%.4g  dt* %.3g  E* %.6f  iter %d  ETA %s%s",
+            tty ? "\r" : "", rep->step, rep->t, r->cfg.t_end, rep->dt, rep->E,
+            rep->stats.iterations, eta, tty ? "   " : "\n");
+  }
+  if (rep->retries && !r->quiet) { /* why the last attempt failed, and what they all cost */
+    const char *key =
+        rep->reject_status == VES_MAXITER ? ves_backend_limit_key(rep->rejected.limit) : "";
+    fprintf(stderr,
+            "%sstep %ld: %d attempt(s) rejected from dt* %.3g (last: %s%s%s%s; in all %d "
+            "iterations, %d Hessians, %d factorizations, %.1f s), accepted at dt* %.3g\n",
+            tty ? "\n" : "", rep->step, rep->retries, rep->reject_dt,
+            ves_status_str(rep->reject_status), *key ? " (" : "", key, *key ? ")" : "",
+            rep->rejected.iterations, rep->rejected.h_evals, rep->rejected.factorizations,
+            rep->rejected.seconds, rep->dt);
+  }
+  if (rep->reconnected && !r->quiet)
+    fprintf(stderr,
+            "%sstep %ld: reference reset #%d (max cond F %.3g, min det F %.3g, max "
+            "|y^a - y(X_a)|/h_a %.3g, %d node(s) mirrored across the axis, E* %.9g -> %.9g)\n",
+            tty ? "\n" : "", rep->step, ves_sim_reconnections(r->sim), rep->cond, rep->det_min,
+            rep->shift, rep->mirrored, rep->E, rep->E_reset);
+  if (rep->remeshed && !r->quiet) {
+    const ves_remesh_info *m = &rep->remesh;
+    char thin[200] = "";
+    if (m->proj_cells_refined)
+      snprintf(thin, sizeof thin,
+               "; %d old cell(s) spread thin refined for the projection, %d of them still thin, "
+               "%d of their points outside the domain left out",
+               m->proj_cells_refined, m->proj_cells_capped, m->proj_points_dropped);
+    fprintf(stderr,
+            "%sstep %ld: remeshing #%d (%d -> %d nodes; before the correction dE* %.3g, "
+            "dA/A %.3g, dV/V %.3g; correction max |delta|/h %.3g, |delta| %.3g in %d "
+            "iteration(s), then |A/A0 - 1| %.2g, |V/Vt - 1| %.2g; interface moved max %.3g, "
+            "mean %.3g; E* %.9g -> %.9g; %.1f s%s%s)\n",
+            tty ? "\n" : "", rep->step, ves_sim_remeshings(r->sim), m->n_old, m->n_new, m->dE,
+            m->dA, m->dV, m->corr_max, m->corr_norm, m->corr_iter, m->res_A, m->res_V, m->disp_max,
+            m->disp_mean, m->E_old, m->E, m->seconds,
+            m->band_layers ? "" : "; the band without layers", thin);
+  }
+  if (rep->remesh_status != VES_OK) /* a warning even with --quiet: a remeshing was skipped */
+    fprintf(stderr,
+            "%svesica run: warning: step %ld: the remeshing that was due failed (%s); "
+            "continuing on the old nodes; tried again in max(1, every/4) steps ([remesh] every), "
+            "after the next one (distortion)\n",
+            tty ? "\n" : "", rep->step, ves_status_str(rep->remesh_status));
+  if (rep->reconnect_status != VES_OK) /* a warning even with --quiet: a reset was skipped */
+    fprintf(stderr,
+            "%svesica run: warning: step %ld: the reference reset that was due failed (%s); "
+            "continuing on the old reference, retried after the next step\n",
+            tty ? "\n" : "", rep->step, ves_status_str(rep->reconnect_status));
+}
+
+/* The end of the loop: why it stopped (a write wst, the disk room, the step
+ * st, a signal, --max-steps or t_end), the last snapshot and the file's
+ * status. Returns the exit code. */
+static int finish(run_ctx *r, const loop_ctx *L, ves_status st, ves_status wst, ves_status room) {
+  const double tend = r->cfg.t_end, wall = r->wall_offset + ves_wall_seconds() - L->t0;
+  ves_sim_state fin;
+  ves_sim_get_state(r->sim, &fin, NULL);
+  const char *status = "finished";
+  int code = 0;
+  if (wst != VES_OK) { /* a write failed half-way: nothing more is written */
+    fprintf(stderr,
+            "vesica run: %s: cannot write: %s; continue from its last complete snapshot with "
+            "vesica run --restart %s\n",
+            r->out, cli_io_cause(r->io, wst), r->out);
+    return 3; /* the file holds every step written before */
+  }
+  if (room != VES_OK) {
+    fprintf(stderr,
+            "vesica run: %s: stopped at step %ld, t* = %.6g: %s; the state is saved as the last "
+            "snapshot: free some space (or move the file) and continue with vesica run "
+            "--restart %s\n",
+            r->out, fin.nstep, fin.t, cli_io_cause(r->io, room), r->out);
+    status = "failed", code = 3;
+  } else if (st < 0) {
+    fprintf(stderr,
+            "vesica run: %s: no acceptable step at t* = %.6g down to dt* = %g (%s); the last "
+            "good state (step %ld) is the last snapshot of %s\n",
+            r->label, fin.t, r->cfg.dt_min, cli_why(st), fin.nstep, r->out);
+    status = "failed", code = 3;
+  } else if (stop_signal) {
+    fprintf(stderr,
+            "vesica run: stopped by signal %d at step %ld, t* = %.6g; continue with "
+            "vesica run --restart %s\n",
+            (int)stop_signal, fin.nstep, fin.t, r->out);
+    status = "stopped", code = 128 + (int)stop_signal;
+  } else if (st != VES_DONE && fin.t < tend - 1e-12 * (1 + fabs(tend))) {
+    status = "stopped"; /* --max-steps */
+  }
+  if (fin.nstep != r->last_snapshot_step && (wst = cli_snapshot(r, wall)) != VES_OK) {
+    fprintf(stderr, "vesica run: %s: cannot write the last snapshot: %s\n", r->out,
+            cli_io_cause(r->io, wst));
+    return 3;
+  }
+  if ((wst = ves_io_set_status(r->io, status)) != VES_OK) {
+    fprintf(stderr, "vesica run: %s: cannot write: %s\n", r->out, cli_io_cause(r->io, wst));
+    return 3;
+  }
+  if (!r->quiet && code == 0)
+    fprintf(stderr,
+            "vesica run: %s at step %ld, t* = %.6g: %ld steps, %ld iterations, %.1f s; "
+            "wrote %s\n",
+            !strcmp(status, "finished") ? "t_end reached" : "--max-steps reached", fin.nstep, fin.t,
+            L->steps, L->iters, ves_wall_seconds() - L->t0, r->out);
+  return code;
+}
+
+int cli_loop(run_ctx *r) {
+  loop_ctx L = {.t0 = ves_wall_seconds(), .tty = isatty(2)};
+  ves_problem_params p; /* whether a step may write a reference (resets, remeshings) */
+  ves_problem_params_from_config(&r->cfg, &p);
+  ves_step_report rep;
+  ves_status st = VES_OK, wst = VES_OK, room = VES_OK;
+  catch_signals();
+  for (;;) {
+    ves_sim_state now;
+    ves_sim_get_state(r->sim, &now, NULL);
+    if (r->max_steps > 0 && now.nstep >= r->max_steps) break;
+    if (stop_signal) break;
+    if ((room = room_for_step(r, now.nstep, p.resets)) != VES_OK) break;
+    ves_error_clear(); /* the record of this step's failure alone */
+    if ((st = ves_sim_step(r->sim, &rep)) != VES_OK) break;
+    L.steps++;
+    L.iters += rep.stats.iterations;
+    const double wall = r->wall_offset + ves_wall_seconds() - L.t0;
+    if ((wst = record_step(r, &rep, wall)) != VES_OK) break;
+    const double el = ves_wall_seconds() - L.t0;     /* this process's loop */
+    const int nr = L.steps < 10 ? (int)L.steps : 10; /* steps in the window */
+    const double w = (el - (L.steps > 10 ? L.recent[L.steps % 10] : 0.0)) / nr;
+    L.recent[L.steps % 10] = el;
+    report_step(r, &rep, &L, w);
+  }
+  if (L.tty && !r->quiet && L.steps) fputc('\n', stderr);
+  signal(SIGINT, SIG_DFL);
+  signal(SIGTERM, SIG_DFL);
+  return finish(r, &L, st, wst, room);
+}

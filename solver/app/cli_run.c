@@ -1,0 +1,246 @@
+/* vesica run: a new run and the time loop (progress, rows, snapshots, the
+ * end of a run). */
+
+#include <errno.h>
+#include <limits.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "app/cli_impl.h"
+#include "ves/quad.h"
+
+static void usage_run(FILE *f) {
+  fprintf(f,
+          "usage: vesica run CONFIG.ini [--backend ipopt|nlopt|newton|euler] [--out FILE.h5]\n"
+          "                 [--set section.key=value]... [--max-steps N] [--series FILE.tsv]\n"
+          "                 [--quiet] [--force]\n"
+          "       vesica run --restart FILE.h5 [--set KEY=VALUE]... [--max-steps N] [--quiet]\n"
+          "Builds the initial state as 'check' does and integrates to [time] t_end with the\n"
+          "chosen backend (default [solver] backend).\n"
+          "  --out FILE.h5     the run's HDF5 file (default: the problem file's name with .h5,\n"
+          "                    in the current folder), with FILE.xdmf beside it for ParaView:\n"
+          "                    parameters, one row per accepted step (flushed at every step),\n"
+          "                    snapshots every [output] snapshot_every steps and at the end\n"
+          "  --restart FILE.h5 continue the run of FILE.h5 from its last snapshot, appending to\n"
+          "                    it; the trajectory is bit for bit the uninterrupted one;\n");
+  cli_restart_keys_print(f, fprintf(f, "                    --set may change "), 20, 86,
+                         "(recorded in the file)\n");
+  fprintf(f,
+          "  --max-steps N     stop (with a snapshot, exit 0) once N steps are accepted in all\n"
+          "  --series FILE.tsv also one tab-separated line per accepted step: step t dt E\n"
+          "                    A/A0-1 V/Vtarget-1 lambda_A lambda_V iterations f_evals g_evals\n"
+          "                    h_evals seconds retries resets (reference resets so far)\n"
+          "                    rejected_iterations rejected_seconds (attempts retried at dt/2)\n"
+          "  --force           overwrite an existing FILE.h5, FILE.xdmf or --series file\n"
+          "                    (without it they are refused, exit 2; the problem file and\n"
+          "                    its points file are never overwritten)\n"
+          "  --quiet           no progress line (otherwise one line on stderr: step, t*, dt*,\n"
+          "                    E*, iterations, ETA (a range lo-hi while adaptive steps\n"
+          "                    are below dt_max, 'unknown' when that range spans more than\n"
+          "                    10x; --max-steps counted); updated in place on a terminal)\n"
+          "Exit 0 at t_end (or --max-steps), 2 on bad input (nothing written), 3 when a step\n"
+          "fails down to dt_min (the last good state is saved as the last snapshot), 130/143 on\n"
+          "SIGINT/SIGTERM after the current step (state saved; a second signal kills).\n");
+}
+
+/* Remove the output of a run that failed before its first step. */
+static void remove_output(const char *out) {
+  char x[PATH_MAX];
+  ves_io_xdmf_path(out, x, sizeof x);
+  remove(out);
+  remove(x);
+}
+
+/* The outputs of a new run from the problem file path: r->out (out, or the
+ * problem's name with .h5 here), its XDMF file, the --series file, each
+ * writable, none an input, none existing unless force. 0 or 2. */
+static int check_outputs(run_ctx *r, const char *path, const char *out, const char *series,
+                         int force) {
+  int rc;
+  if (out) {
+    snprintf(r->out, sizeof r->out, "%s", out);
+  } else { /* the problem file's name, .h5, here */
+    const char *base = strrchr(path, '/') ? strrchr(path, '/') + 1 : path;
+    size_t l = strlen(base);
+    if (l > 4 && !strcmp(base + l - 4, ".ini")) l -= 4;
+    snprintf(r->out, sizeof r->out, "%.*s.h5", (int)l, base);
+  }
+  char xdmf[PATH_MAX], points[PATH_MAX + 600] = "", hint[PATH_MAX + 64], why[128];
+  if (!ves_io_xdmf_name_ok(r->out, why, sizeof why)) { /* the .xdmf could not name it */
+    fprintf(stderr,
+            "vesica run: --out %s: %s, so the XDMF file beside it could not refer to it: "
+            "choose another name\n",
+            r->out, why);
+    return 2;
+  }
+  ves_io_xdmf_path(r->out, xdmf, sizeof xdmf);
+  if ((rc = cli_check_writable("run", "--out", r->out)) ||
+      (rc = cli_check_writable("run", "--out", xdmf)))
+    return rc;
+  if (series && (rc = cli_check_writable("run", "--series", series))) return rc;
+  if (r->cfg.points[0]) { /* a curve's points file, found as ves_config_read_points does */
+    const char *sl = r->cfg.points[0] == '/' ? NULL : strrchr(path, '/');
+    snprintf(points, sizeof points, "%.*s%s%s", sl ? (int)(sl - path) : 0, path, sl ? "/" : "",
+             r->cfg.points);
+  }
+  const char *inputs[] = {path, points[0] ? points : NULL};
+  snprintf(hint, sizeof hint, ", or vesica run --restart %s continues it", r->out);
+  if ((rc = cli_check_new("run", "--out", r->out, force, inputs, 2, hint)) ||
+      (rc = cli_check_new("run", "--out", xdmf, force, inputs, 2, NULL)) ||
+      (series && (rc = cli_check_new("run", "--series", series, force, inputs, 2, NULL))))
+    return rc;
+  if (series &&
+      (cli_same_file(series, r->out) || !strcmp(series, r->out) || !strcmp(series, xdmf))) {
+    fprintf(stderr, "vesica run: --series %s: is the run's output file\n", series);
+    return 2;
+  }
+  return 0;
+}
+
+/* The new file r->out of the built run (problem file path): header, mesh,
+ * the first snapshot. 0, or the exit code (nothing left behind). */
+static int create_output(run_ctx *r, const char *path) {
+  char abs[PATH_MAX], *problem = NULL, err[1024] = "";
+  if (!realpath(path, abs)) snprintf(abs, sizeof abs, "%s", path);
+  double E0, A0, V0;
+  ves_sim_initial(r->sim, &E0, &A0, &V0);
+  int ncell = 0, *cells = NULL; /* the Delaunay triangles (a rich rule repeats them) */
+  if (ves_config_to_text(&r->cfg, &problem) != VES_OK ||
+      ves_quad_cells(r->setup->quad, &ncell, &cells) != VES_OK) {
+    free(problem);
+    fprintf(stderr, "vesica run: out of memory\n");
+    return 3;
+  }
+  ves_io_header h = {.version = VES_VERSION,
+                     .backend = r->bk->name,
+                     .problem = problem,
+                     .source = abs,
+                     .cfg = &r->cfg,
+                     .n = r->setup->nodes->n,
+                     .X = r->setup->nodes->x,
+                     .ntri = ncell,
+                     .tri = cells,
+                     .E0 = E0,
+                     .A0 = A0,
+                     .V0 = V0,
+                     .setup_seconds = r->setup->seconds_total};
+  ves_status st = ves_io_create(r->out, &h, &r->io, err, sizeof err);
+  free(problem), free(cells);
+  if (st != VES_OK) { /* not created: nothing of ours to remove */
+    fprintf(stderr, "vesica run: %s\n", err);
+    return 2;
+  }
+  if ((st = cli_snapshot(r, 0.0)) != VES_OK) { /* nothing half-written stays behind */
+    fprintf(stderr, "vesica run: %s: cannot write the first snapshot: %s\n", r->out,
+            cli_io_cause(r->io, st));
+    ves_io_close(&r->io);
+    remove_output(r->out);
+    return 2;
+  }
+  return 0;
+}
+
+/* The --series file: its two header lines (the run, then the columns). */
+static int open_series(run_ctx *r, const char *path, const char *series) {
+  if (!(r->series = fopen(series, "w"))) {
+    fprintf(stderr, "vesica run: --series %s: cannot open for writing: %s\n", series,
+            strerror(errno));
+    ves_io_close(&r->io);
+    remove_output(r->out);
+    return 2;
+  }
+  double E0, A0, V0;
+  ves_sim_initial(r->sim, &E0, &A0, &V0);
+  fprintf(r->series, "# vesica %s run %s backend %s nodes %d E0 %.12g A0 %.12g V0 %.12g\n",
+          VES_VERSION, path, r->bk->name, r->setup->nodes->n, E0, A0, V0);
+  ves_io_tsv_header(r->series);
+  return 0;
+}
+
+/* A new run: CONFIG.ini [options]. */
+static int run_new(run_ctx *r, const char *path, const char *out, const char *backend, int nset,
+                   const char *const *set, const char *series, int force) {
+  int rc = cli_load_problem("run", path, usage_run, nset, set, &r->cfg);
+  if (rc) return rc;
+  r->label = path;
+  r->bk = ves_backend_find(backend ? backend : r->cfg.backend);
+  if (!r->bk) {
+    fprintf(stderr, "vesica run: --backend '%s': not one of ipopt, nlopt, newton, euler\n",
+            backend ? backend : r->cfg.backend);
+    return 2;
+  }
+  if ((rc = check_outputs(r, path, out, series, force)) ||
+      (rc = cli_setup_estimate("run", &r->cfg, r->quiet)) || (rc = cli_build(r)) ||
+      (rc = create_output(r, path)) || (series && (rc = open_series(r, path, series))))
+    return rc;
+  return cli_loop(r);
+}
+
+int cmd_run(int argc, char **argv) {
+  const char *path = NULL, *set[MAX_SET] = {0}, *backend = NULL, *series = NULL, *out = NULL;
+  const char *restart = NULL;
+  int nset = 0, quiet = 0, force = 0, rc;
+  long max_steps = 0;
+  for (int i = 0; i < argc; i++) {
+    const char *a = argv[i];
+    int has = i + 1 < argc && argv[i + 1][0] != '-'; /* a value follows */
+    if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
+      usage_run(stdout);
+      return 0;
+    } else if (!strcmp(a, "--set")) {
+      if ((rc = cli_take_set("run", argc, argv, &i, &nset, set))) return rc;
+    } else if (!strcmp(a, "--backend") || !strcmp(a, "--series") || !strcmp(a, "--out") ||
+               !strcmp(a, "--restart") || !strcmp(a, "--max-steps")) {
+      if (!has) {
+        fprintf(stderr, "vesica run: %s needs a value (see vesica run --help)\n", a);
+        return 2;
+      }
+      const char *v = argv[++i];
+      if (!strcmp(a, "--backend"))
+        backend = v;
+      else if (!strcmp(a, "--series"))
+        series = v;
+      else if (!strcmp(a, "--out"))
+        out = v;
+      else if (!strcmp(a, "--restart"))
+        restart = v;
+      else {
+        char *end;
+        errno = 0;
+        max_steps = strtol(v, &end, 10);
+        if (*end || errno || max_steps < 1) {
+          fprintf(stderr, "vesica run: --max-steps '%s': not a positive integer\n", v);
+          return 2;
+        }
+      }
+    } else if (!strcmp(a, "--quiet")) {
+      quiet = 1;
+    } else if (!strcmp(a, "--force")) {
+      force = 1;
+    } else if (cli_operand("run", "configuration file", a[0] == '-', a, &path)) {
+      return 2;
+    }
+  }
+  if (restart && (path || backend || out || series || force)) {
+    fprintf(stderr,
+            "vesica run: --restart %s continues the stored problem: no CONFIG.ini, "
+            "--backend, --out, --series or --force with it\n",
+            restart);
+    return 2;
+  }
+  if (backend && !ves_backend_find(backend)) {
+    fprintf(stderr, "vesica run: --backend '%s': not one of ipopt, nlopt, newton, euler\n",
+            backend);
+    return 2;
+  }
+  run_ctx r;
+  memset(&r, 0, sizeof r);
+  r.quiet = quiet, r.max_steps = max_steps, r.last_snapshot_step = -1;
+  rc = restart ? cli_run_restart(&r, restart, nset, set)
+               : run_new(&r, path, out, backend, nset, set, series, force);
+  cli_run_free(&r);
+  return rc;
+}

@@ -1,0 +1,230 @@
+/* vesica study: a grid of runs, locally or through Slurm. */
+
+#include <errno.h>
+#include <limits.h>
+#include <signal.h>
+#include <stdio.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "app/cli_impl.h"
+#include "app/study.h"
+
+static void usage_study(FILE *f) {
+  fprintf(f,
+          "usage: vesica study STUDY.ini [--jobs N] [--out DIR] [--retry-failed] [--max-cells N]\n"
+          "       vesica study STUDY.ini [--out DIR] --emit slurm | --cell K | --collect\n"
+          "Runs the grid of a study file (problems/README.md, 'Study files'): every cell is its\n"
+          "own 'vesica run' of the base problem with the cell's --set overrides, writing\n"
+          "DIR/cells/NAME.h5 and its log; then DIR/study.csv (one row per cell: the swept\n"
+          "values, status and reason, steps, iterations, evaluations, seconds, memory, E*)\n"
+          "and, with a time.dt_initial axis, DIR/study_frontier.png and DIR/study_cost.png.\n"
+          "A rerun skips the cells that ended (failed ones too: --retry-failed reruns them).\n"
+          "  --jobs N        cells at a time (default: the number of cores)\n"
+          "  --out DIR       the study folder (default: the study file's name, here)\n"
+          "  --max-cells N   allow a grid of up to N cells (default %d)\n"
+          "  --emit slurm    write DIR/study.sbatch: a job array, one cell per task (sbatch it,\n"
+          "                  then --collect)\n"
+          "  --cell K        run cell K (0-based) only, as an array task does\n"
+          "  --collect       write the table and figures from the cells that have ended\n"
+          "  --quiet         no progress line\n"
+          "Exit 0 when every cell ran (whatever its outcome: see the table), 2 on bad input\n"
+          "(nothing run), 3 when the folder or table cannot be written, 130/143 when stopped\n"
+          "by SIGINT/SIGTERM (running cells are stopped and rerun next time).\n",
+          VES_STUDY_MAX_CELLS);
+}
+
+static volatile sig_atomic_t study_stop = 0;
+static void on_study_signal(int sig) { study_stop = sig; }
+
+typedef struct {
+  int tty, quiet;
+  const ves_study *s;
+} study_view;
+
+/* The progress line: cells done, failed, running, ETA; a line per ended cell. */
+static void study_progress(void *ctx, const ves_study_progress *p) {
+  const study_view *v = ctx;
+  if (v->quiet) return;
+  if (p->cell >= 0 && p->result && (!v->tty || strcmp(p->result->outcome, "converged"))) {
+    char name[PATH_MAX / 2];
+    ves_study_cell_name(v->s, p->cell, name, sizeof name);
+    fprintf(stderr, "%scell %s: %s%s%s (%.1f s)\n", v->tty ? "\r\033[K" : "", name,
+            p->result->outcome, p->result->reason[0] ? ": " : "", p->result->reason,
+            p->result->wall_seconds);
+  }
+  char eta[32] = "?";
+  if (p->eta >= 0) snprintf(eta, sizeof eta, "%.0f s", p->eta);
+  if (v->tty || p->cell < 0)
+    fprintf(stderr, "%sstudy: %ld/%ld cells done (%ld before), %ld failed, %d running, ETA %s%s",
+            v->tty ? "\r\033[K" : "", p->skipped + p->done, p->total, p->skipped, p->failed,
+            p->running, eta, v->tty ? "" : "\n");
+}
+
+/* Table and figures of the study in dir; returns the exit code. */
+static int study_collect(const ves_study *s, const char *dir, int quiet) {
+  char err[1024] = "";
+  ves_study_table t;
+  if (ves_study_collect(s, dir, &t, err, sizeof err) != VES_OK) {
+    fprintf(stderr, "vesica study: %s\n", err);
+    return 3;
+  }
+  printf("%s/study.csv: %ld of %ld cells, %ld converged\n", dir, t.rows, t.cells, t.converged);
+  ves_status st = ves_study_plot(s, dir, err, sizeof err);
+  if (st == VES_OK)
+    printf("%s/study_frontier.png\n%s/study_cost.png\n", dir, dir);
+  else if (!quiet || st != VES_STEP_REJECTED)
+    fprintf(stderr, "vesica study: figures: %s\n", err);
+  return st < 0 ? 3 : 0;
+}
+
+/* The command's options. */
+typedef struct {
+  const char *path, *out, *emit;
+  long jobs, max_cells, cell; /* cell -1: every cell */
+  int retry, collect, quiet;
+} study_args;
+
+/* argv into o. 0 to go on, -1 after --help, else the exit code. */
+static int study_parse(int argc, char **argv, study_args *o) {
+  *o = (study_args){
+      .jobs = sysconf(_SC_NPROCESSORS_ONLN), .max_cells = VES_STUDY_MAX_CELLS, .cell = -1};
+  int rc;
+  for (int i = 0; i < argc; i++) {
+    const char *a = argv[i];
+    if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
+      usage_study(stdout);
+      return -1;
+    } else if (!strcmp(a, "--jobs") || !strcmp(a, "--out") || !strcmp(a, "--max-cells") ||
+               !strcmp(a, "--cell") || !strcmp(a, "--emit")) {
+      if (i + 1 >= argc) {
+        fprintf(stderr, "vesica study: %s needs a value (see vesica study --help)\n", a);
+        return 2;
+      }
+      const char *v = argv[++i];
+      if (!strcmp(a, "--out"))
+        o->out = v;
+      else if (!strcmp(a, "--emit"))
+        o->emit = v;
+      else if ((rc = cli_parse_long("study", a, v, !strcmp(a, "--cell") ? 0 : 1,
+                                    !strcmp(a, "--jobs") ? 1024 : 1000000000L,
+                                    !strcmp(a, "--jobs")   ? &o->jobs
+                                    : !strcmp(a, "--cell") ? &o->cell
+                                                           : &o->max_cells)))
+        return rc;
+    } else if (!strcmp(a, "--retry-failed")) {
+      o->retry = 1;
+    } else if (!strcmp(a, "--collect")) {
+      o->collect = 1;
+    } else if (!strcmp(a, "--quiet")) {
+      o->quiet = 1;
+    } else if (cli_operand("study", "study file", a[0] == '-', a, &o->path)) {
+      return 2;
+    }
+  }
+  if (cli_need(o->path, usage_study)) return 2;
+  if (o->emit && strcmp(o->emit, "slurm")) {
+    fprintf(stderr, "vesica study: --emit '%s': only slurm\n", o->emit);
+    return 2;
+  }
+  if ((o->emit != NULL) + o->collect + (o->cell >= 0) > 1) {
+    fprintf(stderr, "vesica study: --emit, --cell and --collect exclude each other\n");
+    return 2;
+  }
+  return 0;
+}
+
+/* Run the cells of s (all, or --cell) in dir with this program self, then
+ * the table and figures. Returns the exit code. */
+static int study_run(const ves_study *s, const study_args *o, const char *dir, const char *self) {
+  char err[1024] = "";
+  study_view view = {.tty = isatty(2), .quiet = o->quiet || o->cell >= 0, .s = s};
+  ves_study_run_opts ro = {.program = self,
+                           .dir = dir,
+                           .jobs = o->cell >= 0 ? 1 : (int)o->jobs,
+                           .retry_failed = o->retry,
+                           .only = o->cell,
+                           .grace = 10,
+                           .stop = &study_stop,
+                           .progress = study_progress,
+                           .ctx = &view};
+  struct sigaction sa;
+  memset(&sa, 0, sizeof sa);
+  sa.sa_handler = on_study_signal;
+  sigaction(SIGINT, &sa, NULL);
+  sigaction(SIGTERM, &sa, NULL);
+  ves_status st = ves_study_run(s, &ro, err, sizeof err);
+  if (view.tty && !view.quiet) fputc('\n', stderr);
+  if (st == VES_STEP_REJECTED) {
+    fprintf(stderr,
+            "vesica study: stopped by signal %d; the cells that ended are kept, rerun to "
+            "continue\n",
+            (int)study_stop);
+    return 128 + (int)study_stop;
+  }
+  if (st != VES_OK) {
+    fprintf(stderr, "vesica study: %s\n", err[0] ? err : ves_status_str(st));
+    return 3;
+  }
+  return o->cell < 0 ? study_collect(s, dir, o->quiet) : 0;
+}
+
+/* --collect, or --emit slurm. Returns the exit code. */
+static int study_other(const ves_study *s, const study_args *o, const char *dir, const char *self) {
+  char err[1024] = "";
+  struct stat sb;
+  if (o->collect) {
+    if (stat(dir, &sb) != 0 || !S_ISDIR(sb.st_mode)) {
+      fprintf(stderr, "vesica study: --collect: %s: no such folder (--out DIR?)\n", dir);
+      return 2;
+    }
+    return study_collect(s, dir, o->quiet);
+  }
+  if ((stat(dir, &sb) != 0 && mkdir(dir, 0777) != 0) ||
+      ves_study_write_sbatch(s, self, dir, err, sizeof err) != VES_OK) {
+    fprintf(stderr, "vesica study: %s: %s\n", dir, err[0] ? err : strerror(errno));
+    return 3;
+  }
+  printf("%s/study.sbatch: %ld array tasks; sbatch it, then vesica study %s --out %s "
+         "--collect\n",
+         dir, s->ncells, o->path, dir);
+  return 0;
+}
+
+int cmd_study(int argc, char **argv) {
+  study_args o;
+  int rc = study_parse(argc, argv, &o);
+  if (rc) return rc < 0 ? 0 : rc;
+  char err[1024] = "", dir[PATH_MAX], self[PATH_MAX];
+  ves_study *s = NULL;
+  ves_status st = ves_study_load(o.path, o.max_cells, &s, err, sizeof err);
+  if (st != VES_OK) {
+    fprintf(stderr, "vesica study: %s\n", err);
+    return 2;
+  }
+  if (o.cell >= s->ncells) {
+    fprintf(stderr, "vesica study: --cell %ld: the grid has %ld cells (0 to %ld)\n", o.cell,
+            s->ncells, s->ncells - 1);
+    ves_study_destroy(&s);
+    return 2;
+  }
+  if (o.out) {
+    snprintf(dir, sizeof dir, "%s", o.out);
+  } else { /* the study file's name without .ini, here */
+    const char *base = strrchr(o.path, '/') ? strrchr(o.path, '/') + 1 : o.path;
+    size_t l = strlen(base);
+    if (l > 4 && !strcmp(base + l - 4, ".ini")) l -= 4;
+    snprintf(dir, sizeof dir, "%.*s", (int)l, base);
+  }
+  ssize_t n = readlink("/proc/self/exe", self, sizeof self - 1);
+  if (n <= 0) {
+    fprintf(stderr, "vesica study: cannot find this program's path: %s\n", strerror(errno));
+    ves_study_destroy(&s);
+    return 3;
+  }
+  self[n] = 0;
+  rc = o.collect || o.emit ? study_other(s, &o, dir, self) : study_run(s, &o, dir, self);
+  ves_study_destroy(&s);
+  return rc;
+}

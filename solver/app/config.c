@@ -1,0 +1,791 @@
+/* vesica — problem-file parsing: one table of keys (type, default, range,
+ * documentation) drives defaults, parsing, validation and the key listing. */
+#include "app/config.h"
+
+#include <ctype.h>
+#include <errno.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+typedef enum { KEY_DOUBLE, KEY_INT, KEY_STRING } key_type;
+
+typedef struct {
+  const char *section, *key;
+  key_type type;
+  size_t offset;      /* into ves_config */
+  const char *def;    /* default, as text */
+  double min, max;    /* inclusive range (numbers) */
+  const char *choice; /* strings: allowed values, '|'-separated */
+  const char *doc;    /* units and meaning */
+} key_spec;
+
+#define OFF(f) offsetof(ves_config, f)
+static const key_spec KEYS[] = {
+    {"geometry", "epsilon", KEY_DOUBLE, OFF(epsilon), "0.04", 1e-4, 0.5, NULL,
+     "interface width eps/R0 (paper: 0.01)"},
+    {"geometry", "box_r", KEY_DOUBLE, OFF(box_r), "2.0", 0.1, 100, NULL,
+     "meridian box extent in R (units R0)"},
+    {"geometry", "box_z", KEY_DOUBLE, OFF(box_z), "2.0", 0.1, 100, NULL,
+     "meridian box half-extent in Z (units R0)"},
+    {"geometry", "h_band", KEY_DOUBLE, OFF(h_band), "0.5", 0.05, 2.0, NULL,
+     "node spacing in the band, units of eps (<= 0.5 recommended)"},
+    {"geometry", "band", KEY_DOUBLE, OFF(band), "5.5", 0.0, 20.0, NULL,
+     "half-width of the refined band |d| < band*eps, units of eps"},
+    {"geometry", "band_layers", KEY_INT, OFF(band_layers), "1", 0, 1, NULL,
+     "1: nodes in the band on interface-aligned layers (hex lattice bent along the "
+     "interface); 0: CVT everywhere but the axis strip"},
+    {"geometry", "slope", KEY_DOUBLE, OFF(slope), "0.15", 0.01, 0.5, NULL,
+     "growth rate of the spacing away from the band (< 0.2 recommended)"},
+    {"geometry", "h_far", KEY_DOUBLE, OFF(h_far), "0.2", 1e-4, 10, NULL,
+     "largest node spacing (units R0)"},
+    {"geometry", "gamma", KEY_DOUBLE, OFF(gamma), "0.6", 0.1, 4.0, NULL,
+     "LME aspect ratio gamma, beta_a = gamma/h_a^2 (0.6: see bench/RESULTS.md)"},
+    {"geometry", "support_tol", KEY_DOUBLE, OFF(support_tol), "1e-6", 1e-14, 1e-2, NULL,
+     "LME support truncation tol0"},
+    {"geometry", "quadrature", KEY_STRING, OFF(quadrature), "d4", 0, 0,
+     "d4|d6|d4x4|d6x4|d4x16|d6x16",
+     "rule per Delaunay triangle: base degree 4 (6 points) or 6 (12 points, Dunavant), "
+     "xN on each of N congruent sub-triangles (issue 22; see bench/RESULTS.md)"},
+    {"geometry", "stabilization", KEY_DOUBLE, OFF(stabilization), "0.1", 0, 1e6, NULL,
+     "kappa (units k/R0^3): E gets (1/2) sum_a kappa 2 pi M_a/h_a^2 |y^a - y(X_a)|^2, positive "
+     "curvature on the grid-scale coefficient modes, zero at the reference, O(h^2) on smooth "
+     "motions (0: off, the paper's energy; issue 22, bench/RESULTS.md)"},
+    {"geometry", "axis_spacings", KEY_DOUBLE, OFF(axis_spacings), "10", 8, 50, NULL,
+     "width of the regular lattice strip along the axis, in spacings"},
+    {"geometry", "lloyd_iterations", KEY_INT, OFF(lloyd_iterations), "60", 0, 10000, NULL,
+     "Lloyd (CVT) smoothing iterations of the node set"},
+    {"geometry", "seed", KEY_INT, OFF(seed), "1", 0, 2147483647, NULL,
+     "seed of the deterministic node sampling"},
+    {"shape", "type", KEY_STRING, OFF(shape_type), "sphere", 0, 0,
+     "sphere|spheroid|discocyte|curve", "initial shape"},
+    {"shape", "points", KEY_STRING, OFF(points), "none", 0, 0, NULL,
+     "curve: file of points 'R Z' from the north to the south pole (relative to the problem "
+     "file's folder), scaled to area 4 pi"},
+    {"shape", "radius", KEY_DOUBLE, OFF(radius), "1.0", 1e-3, 100, NULL,
+     "sphere radius (units R0)"},
+    {"shape", "reduced_volume", KEY_DOUBLE, OFF(reduced_volume), "0.9", 0.3, 1.0, NULL,
+     "spheroid reduced volume v = V / (4 pi R0^3 / 3)"},
+    {"shape", "orientation", KEY_STRING, OFF(orientation), "oblate", 0, 0, "oblate|prolate",
+     "spheroid: oblate (short axis along Z) or prolate (long axis along Z)"},
+    {"shape", "mode", KEY_INT, OFF(mode), "0", 0, 40, NULL,
+     "radial perturbation 1 + delta P_mode(cos t); 0 for none"},
+    {"shape", "delta", KEY_DOUBLE, OFF(delta), "0", -0.49, 0.49, NULL, "perturbation amplitude"},
+    {"material", "k", KEY_DOUBLE, OFF(k), "1", 1e-12, 1e12, NULL,
+     "bending stiffness (the energy unit)"},
+    {"material", "mu", KEY_DOUBLE, OFF(mu), "1", 1e-12, 1e12, NULL, "viscosity (the unit)"},
+    {"material", "lambda_ratio", KEY_DOUBLE, OFF(lambda_ratio), "100", 10, 1e8, NULL,
+     "compressibility penalty lambda/mu (>= 10)"},
+    {"material", "c0", KEY_DOUBLE, OFF(c0), "0", -100, 100, NULL, "spontaneous curvature C0 R0"},
+    {"time", "t_end", KEY_DOUBLE, OFF(t_end), "1.0", 1e-12, 1e12, NULL, "final time (t*)"},
+    {"time", "dt_initial", KEY_DOUBLE, OFF(dt_initial), "1e-4", 1e-14, 1e6, NULL,
+     "first time step (t*)"},
+    {"time", "dt_max", KEY_DOUBLE, OFF(dt_max), "0.1", 1e-14, 1e6, NULL, "largest time step (t*)"},
+    {"time", "dt_min", KEY_DOUBLE, OFF(dt_min), "1e-10", 1e-16, 1e6, NULL,
+     "smallest step when halving a rejected one; below it the run stops (t*)"},
+    {"time", "adaptive", KEY_INT, OFF(adaptive), "1", 0, 1, NULL,
+     "1: adapt dt to keep |dE*| per step near dE_target; 0: constant dt"},
+    {"time", "dE_target", KEY_DOUBLE, OFF(dE_target), "0.02", 1e-12, 1e6, NULL,
+     "target energy decrement per step (units k)"},
+    {"time", "growth_max", KEY_DOUBLE, OFF(growth_max), "2", 1, 100, NULL,
+     "largest factor between consecutive steps"},
+    {"time", "iter_target", KEY_INT, OFF(iter_target), "8", 1, 10000, NULL,
+     "above this many solver iterations (nlopt: Hessians) dt is not grown"},
+    {"time", "factor_target", KEY_INT, OFF(factor_target), "2", 0, 10000, NULL,
+     "above this many KKT factorizations in a step (newton with freeze_hessian >= 1: matrix "
+     "builds and inertia corrections) dt is not grown; 0: no such rule"},
+    {"time", "factor_shrink", KEY_INT, OFF(factor_shrink), "0", 0, 10000, NULL,
+     "above this many KKT factorizations in a step (newton with freeze_hessian >= 1) the next "
+     "dt is at most half this one, and the step counts as a rejection for retry_memory and "
+     "retry_cap; 0: no such rule"},
+    {"time", "predictor", KEY_INT, OFF(predictor), "1", 0, 1, NULL,
+     "1: a step starts from the linear extrapolation of the last two states (y^{n-1} is kept in "
+     "the snapshots: restarts stay bit-exact); 0: from y^n"},
+    {"time", "retry_memory", KEY_INT, OFF(retry_memory), "10", 0, 1000000, NULL,
+     "after a rejected attempt at dt_r, this many accepted steps keep dt <= retry_cap dt_r"},
+    {"time", "retry_cap", KEY_DOUBLE, OFF(retry_cap), "0.7", 0.01, 1, NULL,
+     "factor of that cap (1: up to the rejected dt)"},
+    {"constraints", "area", KEY_INT, OFF(area), "1", 0, 1, NULL, "1: hold the area at A0"},
+    {"constraints", "volume", KEY_INT, OFF(volume), "1", 0, 1, NULL,
+     "1: hold the volume at its target (V0, or the protocol's ramp)"},
+    {"protocol", "volume_rate", KEY_DOUBLE, OFF(volume_rate), "0", -1e6, 1e6, NULL,
+     "volume ramp dV/dt / V0 (1/t*; < 0 deflates; 0: none)"},
+    {"protocol", "volume_final", KEY_DOUBLE, OFF(volume_final), "1", 0.05, 20, NULL,
+     "V/V0 at which the ramp stops and the volume is held"},
+    {"protocol", "c0_time", KEY_DOUBLE, OFF(c0_time), "-1", -1, 1e12, NULL,
+     "time of a step change of C0 (t*; -1: none)"},
+    {"protocol", "c0_after", KEY_DOUBLE, OFF(c0_after), "0", -100, 100, NULL,
+     "C0 R0 from c0_time on"},
+    {"protocol", "c0_until", KEY_DOUBLE, OFF(c0_until), "-1", -1, 1e12, NULL,
+     "time C0 returns to [material] c0, ending a pulse (t*; -1: never)"},
+    {"protocol", "c0_ramp_start", KEY_DOUBLE, OFF(c0_ramp_start), "-1", -1, 1e12, NULL,
+     "start of a C0 ramp: C0 rises linearly from [material] c0 at this time to c0_ramp_to at "
+     "c0_ramp_end, then stays (t*; -1: none; not with c0_time)"},
+    {"protocol", "c0_ramp_end", KEY_DOUBLE, OFF(c0_ramp_end), "-1", -1, 1e12, NULL,
+     "end of the C0 ramp (t*; after c0_ramp_start)"},
+    {"protocol", "c0_ramp_to", KEY_DOUBLE, OFF(c0_ramp_to), "0", -100, 100, NULL,
+     "C0 R0 at the end of the ramp and after it"},
+    {"solver", "backend", KEY_STRING, OFF(backend), "newton", 0, 0, "ipopt|nlopt|newton|euler",
+     "step solver (euler: explicit, the paper's comparison)"},
+    {"solver", "tol", KEY_DOUBLE, OFF(tol), "1e-9", 1e-16, 1e-2, NULL,
+     "optimality tolerance of the step solve (relative)"},
+    {"solver", "ctol", KEY_DOUBLE, OFF(ctol), "1e-10", 1e-16, 1e-2, NULL,
+     "constraint tolerance, relative to A0 and V"},
+    {"solver", "max_iter", KEY_INT, OFF(max_iter), "40", 1, 100000, NULL,
+     "iterations per attempt of a step; an attempt that needs more is retried at dt/2"},
+    {"solver", "max_builds", KEY_INT, OFF(max_builds), "0", 0, 100000, NULL,
+     "newton (freeze_hessian >= 1): matrix builds (Hessian + factorization) per attempt of a "
+     "step; an attempt that needs more is given up and retried at dt/2 (0: no limit)"},
+    {"solver", "max_correction", KEY_DOUBLE, OFF(max_correction), "0", 0, 1e6, NULL,
+     "newton: the largest inertia correction delta (the matrix H + delta K, K the dissipation) "
+     "an attempt of a step may need (the correction ladder's last rung); a matrix that needs "
+     "more gives the attempt up, retried at dt/2 (0: no limit)"},
+    {"solver", "freeze_hessian", KEY_INT, OFF(freeze_hessian), "1", 0, 2, NULL,
+     "newton: 0 a fresh Hessian every iteration; 1 assembled once per step, rebuilt when "
+     "the chord stalls (paper); 2 also kept across steps while the chord converges"},
+    {"solver", "factor_precision", KEY_STRING, OFF(factor_precision), "single", 0, 0,
+     "single|double",
+     "newton, euler: precision of the KKT factorization (single: half the memory, ~1.7x "
+     "faster at eps 0.01, each solve refined in double to 1e-6 relative, newton's chord solves "
+     "to 1e-3; double: MUMPS in double)"},
+    {"solver", "drift_damping", KEY_DOUBLE, OFF(drift_damping), "0", 0, 1e6, NULL,
+     "viscous penalty alpha on the rate of the coefficient drift y^a - y(X_a), added to the "
+     "dissipation (0: off; see bench/RESULTS.md)"},
+    {"reconnect", "every", KEY_INT, OFF(reconnect_every), "0", 0, 1000000, NULL,
+     "reset the reference configuration to the current positions every this many accepted "
+     "steps (paper Fig. 5: 20; 0: off)"},
+    {"reconnect", "cond_max", KEY_DOUBLE, OFF(reconnect_cond_max), "0", 0, 1e12, NULL,
+     "reset when max cond_2 F (distortion of the meridian motion since the last reset, "
+     "dimensionless, >= 1) exceeds this; 0: off, else > 1"},
+    {"reconnect", "det_min", KEY_DOUBLE, OFF(reconnect_det_min), "0", 0, 1, NULL,
+     "reset when min det F (meridian area ratio since the last reset) drops below this; 0: "
+     "off, else below 1"},
+    {"reconnect", "nodes", KEY_STRING, OFF(reconnect_nodes), "coefficients", 0, 0,
+     "coefficients|motion",
+     "new reference nodes: the nodal coefficients y^a (paper) or the motion y(X_a) of the "
+     "old nodes"},
+    {"remesh", "every", KEY_INT, OFF(remesh_every), "0", 0, 1000000, NULL,
+     "full remeshing (new adapted nodes, quadrature, phi projected, A and V restored) every "
+     "this many accepted steps (paper Fig. 6; 0: off; each is stored in the output's "
+     "/remeshes, and a restart continues across it)"},
+    {"remesh", "cond_max", KEY_DOUBLE, OFF(remesh_cond_max), "0", 0, 1e12, NULL,
+     "remesh when max cond_2 F since the last reference exceeds this; 0: off, else > 1"},
+    {"remesh", "det_min", KEY_DOUBLE, OFF(remesh_det_min), "0", 0, 1, NULL,
+     "remesh when min det F since the last reference drops below this; 0: off, else below 1"},
+    {"remesh", "on_failed_reset", KEY_INT, OFF(remesh_on_failed_reset), "0", 0, 1, NULL,
+     "1: remesh when a reset of the reference configuration was due and failed"},
+    {"output", "snapshot_every", KEY_INT, OFF(snapshot_every), "10", 1, 1000000, NULL,
+     "accepted steps between snapshots of nodes and phi"},
+};
+#define NKEYS ((int)(sizeof KEYS / sizeof KEYS[0]))
+
+/* Parse text into the field of spec k; 0 on success, -1 with a reason. */
+static int set_value(ves_config *cfg, const key_spec *k, const char *text, const char **why) {
+  char *end;
+  void *field = (char *)cfg + k->offset;
+  while (*text == ' ' || *text == '\t') text++;
+  if (k->type == KEY_STRING) {
+    size_t len = strlen(text);
+    if (len == 0 || len >= VES_CONFIG_STR) return *why = "empty or too long", -1;
+    const char *c = k->choice;
+    int ok = c == NULL; /* free text when no choices are listed */
+    while (c && *c) {   /* one of the '|'-separated choices */
+      size_t l = strcspn(c, "|");
+      if (l == len && !strncasecmp(c, text, l)) ok = 1;
+      c += l + (c[l] == '|');
+    }
+    if (!ok) return *why = "not one of the allowed values", -1;
+    memcpy(field, text, len + 1);
+    return 0;
+  }
+  errno = 0;
+  double v = strtod(text, &end);
+  while (*end == ' ' || *end == '\t') end++;
+  if (end == text || *end || errno || !isfinite(v)) return *why = "not a number", -1;
+  if (k->type == KEY_INT && v != floor(v)) return *why = "not an integer", -1;
+  if (v < k->min || v > k->max) return *why = "out of range", -1;
+  if (k->type == KEY_INT)
+    *(int *)field = (int)v;
+  else
+    *(double *)field = v;
+  return 0;
+}
+
+static const key_spec *find_key(const char *section, const char *key) {
+  for (int i = 0; i < NKEYS; i++)
+    if (!strcasecmp(KEYS[i].section, section) && !strcasecmp(KEYS[i].key, key)) return &KEYS[i];
+  return NULL;
+}
+
+/* 1 + the index of the section's first key in KEYS, 0 for an unknown one. */
+static int known_section(const char *section) {
+  for (int i = 0; i < NKEYS; i++)
+    if (!strcasecmp(KEYS[i].section, section)) return i + 1;
+  return 0;
+}
+
+void ves_config_default(ves_config *cfg) {
+  memset(cfg, 0, sizeof *cfg);
+  for (int i = 0; i < NKEYS; i++) {
+    const char *why;
+    (void)set_value(cfg, &KEYS[i], KEYS[i].def, &why); /* defaults are valid by construction */
+  }
+}
+
+static ves_status range_msg(char *err, size_t errlen, const char *src, const key_spec *k,
+                            const char *val, const char *why) {
+  if (k->type == KEY_STRING)
+    ves_error_say(err, errlen, "%s: [%s] %s = '%s': %s (allowed: %s)", src, k->section, k->key, val,
+                  why, k->choice);
+  else
+    ves_error_say(err, errlen, "%s: [%s] %s = '%s': %s (allowed: %g to %g)", src, k->section,
+                  k->key, val, why, k->min, k->max);
+  return VES_ERR_CONFIG;
+}
+
+/* The largest problem file read (a problem file is a few KiB; anything
+ * larger is not one). */
+#define INI_MAX_BYTES (1 << 20)
+
+/* Lower-case copy of s[0, n) into out (INI names are case-insensitive, as
+ * iniparser had them); 0 when it does not fit. */
+static int ini_name(char *out, size_t len, const char *s, size_t n) {
+  if (n == 0 || n >= len) return 0;
+  for (size_t i = 0; i < n; i++) out[i] = (char)tolower((unsigned char)s[i]);
+  out[n] = 0;
+  return 1;
+}
+
+/* s[0, *n) without leading and trailing blanks. */
+static const char *ini_trim(const char *s, size_t *n) {
+  while (*n && isspace((unsigned char)*s)) s++, (*n)--;
+  while (*n && isspace((unsigned char)s[*n - 1])) (*n)--;
+  return s;
+}
+
+/* Parse the text of a problem file over cfg; messages name `name` and the
+ * line. The format: "[section]" headers, "key = value" lines (a value in
+ * double or single quotes is taken verbatim; otherwise it ends at a ';' or
+ * '#'), comment lines starting with ';' or '#', blank lines, CRLF line ends
+ * and a UTF-8 byte-order mark accepted. Refused, with the line and the
+ * cause: a key outside a section, an unknown or repeated section, an
+ * unknown or repeated key, a header without its ']', a line without '=',
+ * a NUL byte (not a text file). One pass over the lines: the state
+ * (section, line number, the keys seen) is the loop's, hence one function. */
+static ves_status parse_ini(const char *text, size_t len, const char *name, ves_config *cfg,
+                            char *err, size_t errlen) {
+  int sec_line[NKEYS] = {0}; /* where each section began (by known_section - 1) */
+  int key_line[NKEYS] = {0}; /* where each key was set */
+  char sec[64] = "";         /* the current section ("" before the first) */
+  int line = 0;
+  if (len >= 3 && !memcmp(text, "\xef\xbb\xbf", 3)) text += 3, len -= 3; /* UTF-8 BOM */
+  if (memchr(text, 0, len)) {
+    size_t at = (const char *)memchr(text, 0, len) - text;
+    int l = 1;
+    for (size_t i = 0; i < at; i++) l += text[i] == '\n';
+    ves_error_say(err, errlen, "%s: line %d: a NUL byte: not a text file", name, l);
+    return VES_ERR_CONFIG;
+  }
+  for (size_t pos = 0; pos < len;) {
+    const char *ln = text + pos, *nl = memchr(ln, '\n', len - pos);
+    size_t n = nl ? (size_t)(nl - ln) : len - pos;
+    pos += n + (nl ? 1 : 0);
+    line++;
+    const char *t = ini_trim(ln, &n);
+    if (n == 0 || t[0] == ';' || t[0] == '#') continue;
+    if (t[0] == '[') { /* a section header */
+      if (t[n - 1] != ']') {
+        ves_error_say(err, errlen, "%s: line %d: '%.*s': a section header needs a closing ']'",
+                      name, line, (int)(n > 60 ? 60 : n), t);
+        return VES_ERR_CONFIG;
+      }
+      size_t m = n - 2;
+      const char *sn = ini_trim(t + 1, &m);
+      if (!ini_name(sec, sizeof sec, sn, m)) {
+        ves_error_say(err, errlen, "%s: line %d: '%.*s': not a section name", name, line,
+                      (int)(n > 60 ? 60 : n), t);
+        return VES_ERR_CONFIG;
+      }
+      int k = known_section(sec);
+      if (!k) {
+        ves_error_say(err, errlen, "%s: line %d: [%s]: unknown section", name, line, sec);
+        return VES_ERR_CONFIG;
+      }
+      if (sec_line[k - 1]) {
+        ves_error_say(err, errlen, "%s: line %d: [%s]: duplicate section (first at line %d)", name,
+                      line, sec, sec_line[k - 1]);
+        return VES_ERR_CONFIG;
+      }
+      sec_line[k - 1] = line;
+      continue;
+    }
+    const char *eq = memchr(t, '=', n);
+    if (!eq) {
+      ves_error_say(err, errlen, "%s: line %d: '%.*s%s': expected key = value", name, line,
+                    (int)(n > 60 ? 60 : n), t, n > 60 ? "..." : "");
+      return VES_ERR_CONFIG;
+    }
+    size_t kn = (size_t)(eq - t), vn = n - kn - 1;
+    const char *kt = ini_trim(t, &kn), *v = ini_trim(eq + 1, &vn);
+    char key[64], val[VES_CONFIG_STR];
+    if (!ini_name(key, sizeof key, kt, kn)) {
+      ves_error_say(err, errlen, "%s: line %d: '%.*s': not a key name", name, line,
+                    (int)(n > 60 ? 60 : n), t);
+      return VES_ERR_CONFIG;
+    }
+    if (!sec[0]) {
+      ves_error_say(err, errlen, "%s: line %d: %s: key outside a section", name, line, key);
+      return VES_ERR_CONFIG;
+    }
+    if (vn >= 2 && (v[0] == '"' || v[0] == '\'') && v[vn - 1] == v[0]) {
+      v++, vn -= 2; /* quoted: verbatim */
+    } else {
+      size_t c = 0; /* an inline comment (searched within the line only: the text of a
+                       file is not NUL-terminated at the line's end) */
+      while (c < vn && v[c] != ';' && v[c] != '#') c++;
+      vn = c;
+      v = ini_trim(v, &vn);
+    }
+    const key_spec *k = find_key(sec, key);
+    if (!k) {
+      ves_error_say(err, errlen, "%s: line %d: [%s] %s: unknown key", name, line, sec, key);
+      return VES_ERR_CONFIG;
+    }
+    const size_t ki = (size_t)(k - KEYS);
+    if (key_line[ki]) {
+      ves_error_say(err, errlen, "%s: line %d: [%s] %s: duplicate key (first at line %d)", name,
+                    line, sec, key, key_line[ki]);
+      return VES_ERR_CONFIG;
+    }
+    key_line[ki] = line;
+    if (vn >= sizeof val) {
+      ves_error_say(err, errlen, "%s: line %d: [%s] %s: value longer than %d characters", name,
+                    line, sec, key, (int)sizeof val - 1);
+      return VES_ERR_CONFIG;
+    }
+    memcpy(val, v, vn);
+    val[vn] = 0;
+    const char *why;
+    if (set_value(cfg, k, val, &why)) {
+      char where[600];
+      snprintf(where, sizeof where, "%s: line %d", name, line);
+      return range_msg(err, errlen, where, k, val, vn ? why : "no value");
+    }
+  }
+  return VES_OK;
+}
+
+/* Read the problem file `path` over cfg: a regular file of at most
+ * INI_MAX_BYTES (a folder or a device is refused); messages name `name`. */
+static ves_status load_ini(const char *path, const char *name, ves_config *cfg, char *err,
+                           size_t errlen) {
+  FILE *f = fopen(path, "rb");
+  if (!f) {
+    ves_error_say(err, errlen, "%s: cannot open: %s", name, strerror(errno));
+    return VES_ERR_IO;
+  }
+  struct stat sb;
+  memset(&sb, 0, sizeof sb);
+  if (fstat(fileno(f), &sb) != 0 || !S_ISREG(sb.st_mode)) {
+    ves_error_say(err, errlen, "%s: %s", name,
+                  S_ISDIR(sb.st_mode) ? "is a folder, not a problem file" : "not a regular file");
+    fclose(f);
+    return VES_ERR_IO;
+  }
+  if (sb.st_size > INI_MAX_BYTES) {
+    ves_error_say(err, errlen, "%s: %lld bytes: too large for a problem file (at most %d)", name,
+                  (long long)sb.st_size, INI_MAX_BYTES);
+    fclose(f);
+    return VES_ERR_CONFIG;
+  }
+  char *text = malloc((size_t)sb.st_size + 1);
+  size_t len = text ? fread(text, 1, (size_t)sb.st_size, f) : 0;
+  int bad = !text || ferror(f);
+  fclose(f);
+  if (bad) {
+    free(text);
+    ves_error_say(err, errlen, "%s: cannot read: %s", name,
+                  text ? strerror(errno) : "out of memory");
+    return text ? VES_ERR_IO : VES_ERR_ALLOC;
+  }
+  text[len] = 0;
+  ves_status s = parse_ini(text, len, name, cfg, err, errlen);
+  free(text);
+  return s;
+}
+
+/* Apply the overrides "section.key=value". */
+static ves_status apply_overrides(int nset, const char *const *set, ves_config *cfg, char *err,
+                                  size_t errlen) {
+  for (int i = 0; i < nset; i++) {
+    char sec[64], key[64];
+    const char *dot = strchr(set[i], '.'), *eq = strchr(set[i], '=');
+    if (!dot || !eq || dot > eq || dot - set[i] >= 64 || eq - dot - 1 >= 64 || eq == dot + 1) {
+      ves_error_say(err, errlen, "--set '%s': expected section.key=value", set[i]);
+      return VES_ERR_CONFIG;
+    }
+    memcpy(sec, set[i], (size_t)(dot - set[i]));
+    sec[dot - set[i]] = 0;
+    memcpy(key, dot + 1, (size_t)(eq - dot - 1));
+    key[eq - dot - 1] = 0;
+    const key_spec *k = find_key(sec, key);
+    const char *why;
+    if (!k) {
+      ves_error_say(err, errlen, "--set: [%s] %s: unknown key", sec, key);
+      return VES_ERR_CONFIG;
+    }
+    if (set_value(cfg, k, eq + 1, &why)) return range_msg(err, errlen, "--set", k, eq + 1, why);
+  }
+  return VES_OK;
+}
+
+ves_status ves_config_load(const char *path, int nset, const char *const *set, ves_config *cfg,
+                           char *err, size_t errlen) {
+  VES_CHECK(cfg && (nset == 0 || set), VES_ERR_ARG);
+  ves_config_default(cfg);
+  if (path) {
+    snprintf(cfg->source, sizeof cfg->source, "%s", path);
+    VES_CALL(load_ini(path, path, cfg, err, errlen));
+  }
+  VES_CALL(apply_overrides(nset, set, cfg, err, errlen));
+  return ves_config_validate(cfg, err, errlen);
+}
+
+ves_status ves_config_set(ves_config *cfg, int nset, const char *const *set, char *err,
+                          size_t errlen) {
+  VES_CHECK(cfg && (nset == 0 || set), VES_ERR_ARG);
+  VES_CALL(apply_overrides(nset, set, cfg, err, errlen));
+  return ves_config_validate(cfg, err, errlen);
+}
+
+ves_status ves_config_load_text(const char *text, const char *name, ves_config *cfg, char *err,
+                                size_t errlen) {
+  VES_CHECK(text && name && cfg, VES_ERR_ARG);
+  ves_config_default(cfg);
+  snprintf(cfg->source, sizeof cfg->source, "%s", name);
+  ves_status s = parse_ini(text, strlen(text), name, cfg, err, errlen);
+  if (s != VES_OK) return s;
+  return ves_config_validate(cfg, err, errlen);
+}
+
+/* A list of independent checks, one a key or a pair of keys, each with its
+ * message: long, but read line by line. */
+ves_status ves_config_validate(const ves_config *cfg, char *err, size_t errlen) {
+  const char *src = cfg->source[0] ? cfg->source : "(defaults)";
+  if (!strcasecmp(cfg->shape_type, "curve") && !strcmp(cfg->points, "none")) {
+    ves_error_say(err, errlen, "%s: [shape] points: a curve needs a points file", src);
+    return VES_ERR_CONFIG;
+  }
+  if (cfg->dt_initial > cfg->dt_max || cfg->dt_min > cfg->dt_initial) {
+    ves_error_say(err, errlen,
+                  "%s: [time] dt_initial = %g: must lie in [dt_min, dt_max] = [%g, %g]", src,
+                  cfg->dt_initial, cfg->dt_min, cfg->dt_max);
+    return VES_ERR_CONFIG;
+  }
+  if (cfg->epsilon * 10 > fmin(cfg->box_r, cfg->box_z)) {
+    ves_error_say(err, errlen,
+                  "%s: [geometry] epsilon = %g: too large for the box (needs 10 eps <= %g)", src,
+                  cfg->epsilon, fmin(cfg->box_r, cfg->box_z));
+    return VES_ERR_CONFIG;
+  }
+  /* spheres: the radius is known here; every shape is checked exactly
+   * against the box (with its band) when the setup builds it */
+  double size = cfg->radius * (1 + fabs(cfg->delta));
+  if (!strcasecmp(cfg->shape_type, "sphere") &&
+      size + (cfg->band + 1) * cfg->epsilon >= fmin(cfg->box_r, cfg->box_z)) {
+    ves_error_say(err, errlen,
+                  "%s: [geometry] box_r/box_z = %g/%g: the sphere (radius %g) and its band of "
+                  "(band + 1) eps = %g do not fit in the box",
+                  src, cfg->box_r, cfg->box_z, size, (cfg->band + 1) * cfg->epsilon);
+    return VES_ERR_CONFIG;
+  }
+  if (cfg->h_far < cfg->h_band * cfg->epsilon) {
+    ves_error_say(err, errlen, "%s: [geometry] h_far = %g: smaller than the band spacing %g", src,
+                  cfg->h_far, cfg->h_band * cfg->epsilon);
+    return VES_ERR_CONFIG;
+  }
+  /* protocols that would silently do nothing */
+  if (cfg->volume_rate != 0 && !cfg->volume) {
+    ves_error_say(err, errlen,
+                  "%s: [protocol] volume_rate = %g: a volume ramp needs [constraints] volume = 1",
+                  src, cfg->volume_rate);
+    return VES_ERR_CONFIG;
+  }
+  if ((cfg->volume_rate < 0 && cfg->volume_final >= 1) ||
+      (cfg->volume_rate > 0 && cfg->volume_final <= 1)) {
+    ves_error_say(err, errlen,
+                  "%s: [protocol] volume_final = %g: must be %s 1 for volume_rate = %g", src,
+                  cfg->volume_final, cfg->volume_rate < 0 ? "below" : "above", cfg->volume_rate);
+    return VES_ERR_CONFIG;
+  }
+  if (cfg->c0_time < 0 && cfg->c0_after != 0) {
+    ves_error_say(err, errlen, "%s: [protocol] c0_after = %g: has no effect without c0_time >= 0",
+                  src, cfg->c0_after);
+    return VES_ERR_CONFIG;
+  }
+  if (cfg->c0_until >= 0 && !(cfg->c0_time >= 0 && cfg->c0_until > cfg->c0_time)) {
+    ves_error_say(err, errlen,
+                  "%s: [protocol] c0_until = %g: needs c0_time >= 0 before it (c0_time = %g)", src,
+                  cfg->c0_until, cfg->c0_time);
+    return VES_ERR_CONFIG;
+  }
+  if (cfg->c0_ramp_start < 0 && (cfg->c0_ramp_end != -1 || cfg->c0_ramp_to != 0)) {
+    ves_error_say(err, errlen, "%s: [protocol] %s: has no effect without c0_ramp_start >= 0", src,
+                  cfg->c0_ramp_end != -1 ? "c0_ramp_end" : "c0_ramp_to");
+    return VES_ERR_CONFIG;
+  }
+  if (cfg->c0_ramp_start >= 0) {
+    const char *why = cfg->c0_ramp_end <= cfg->c0_ramp_start ? "c0_ramp_end must come after it"
+                      : cfg->c0_time >= 0                    ? "a ramp excludes c0_time"
+                      : cfg->c0_ramp_to == cfg->c0
+                          ? "c0_ramp_to equals [material] c0: nothing to do"
+                      : cfg->c0_ramp_start >= cfg->t_end ? "not before [time] t_end"
+                                                         : NULL;
+    if (why) {
+      ves_error_say(err, errlen, "%s: [protocol] c0_ramp_start = %g: %s", src, cfg->c0_ramp_start,
+                    why);
+      return VES_ERR_CONFIG;
+    }
+  }
+  if (cfg->reconnect_cond_max > 0 && cfg->reconnect_cond_max <= 1) {
+    ves_error_say(err, errlen,
+                  "%s: [reconnect] cond_max = %g: must be 0 (off) or above 1 (cond F >= 1)", src,
+                  cfg->reconnect_cond_max);
+    return VES_ERR_CONFIG;
+  }
+  if (cfg->reconnect_det_min >= 1) {
+    ves_error_say(err, errlen, "%s: [reconnect] det_min = %g: must be below 1 (0: off)", src,
+                  cfg->reconnect_det_min);
+    return VES_ERR_CONFIG;
+  }
+  if (cfg->remesh_cond_max > 0 && cfg->remesh_cond_max <= 1) {
+    ves_error_say(err, errlen,
+                  "%s: [remesh] cond_max = %g: must be 0 (off) or above 1 (cond F >= 1)", src,
+                  cfg->remesh_cond_max);
+    return VES_ERR_CONFIG;
+  }
+  if (cfg->remesh_det_min >= 1) {
+    ves_error_say(err, errlen, "%s: [remesh] det_min = %g: must be below 1 (0: off)", src,
+                  cfg->remesh_det_min);
+    return VES_ERR_CONFIG;
+  }
+  if (cfg->c0_time > cfg->t_end) {
+    ves_error_say(err, errlen, "%s: [protocol] c0_time = %g: after [time] t_end = %g", src,
+                  cfg->c0_time, cfg->t_end);
+    return VES_ERR_CONFIG;
+  }
+  return VES_OK;
+}
+
+int ves_config_count(void) { return NKEYS; }
+
+void ves_config_entry_get(const ves_config *cfg, int i, ves_config_entry *e) {
+  const key_spec *k = &KEYS[i];
+  const void *field = (const char *)cfg + k->offset;
+  memset(e, 0, sizeof *e);
+  e->section = k->section, e->key = k->key;
+  e->type = k->type == KEY_DOUBLE ? VES_KEY_REAL : k->type == KEY_INT ? VES_KEY_INT : VES_KEY_TEXT;
+  if (k->type == KEY_DOUBLE)
+    e->real = *(const double *)field;
+  else if (k->type == KEY_INT)
+    e->integer = *(const int *)field;
+  else
+    e->text = field;
+}
+
+void ves_config_format_real(double v, char *buf, size_t len) {
+  for (int digits = 15; digits <= 17; digits++) { /* 17 always reads back exactly */
+    snprintf(buf, len, "%.*g", digits, v);
+    if (strtod(buf, NULL) == v) return;
+  }
+}
+
+ves_status ves_config_to_text(const ves_config *cfg, char **text) {
+  VES_CHECK(cfg && text, VES_ERR_ARG);
+  *text = NULL;
+  size_t len = 0;
+  FILE *f = open_memstream(text, &len);
+  if (!f) return VES_ERR_ALLOC;
+  fprintf(f, "; every key of the run (reals in their shortest exact form)\n");
+  const char *section = "";
+  for (int i = 0; i < NKEYS; i++) {
+    ves_config_entry e;
+    ves_config_entry_get(cfg, i, &e);
+    if (strcmp(e.section, section)) fprintf(f, "%s[%s]\n", i ? "\n" : "", e.section);
+    section = e.section;
+    char num[32];
+    ves_config_format_real(e.real, num, sizeof num);
+    if (e.type == VES_KEY_REAL)
+      fprintf(f, "%s = %s\n", e.key, num);
+    else if (e.type == VES_KEY_INT)
+      fprintf(f, "%s = %d\n", e.key, e.integer);
+    else
+      fprintf(f, "%s = \"%s\"\n", e.key, e.text); /* quoted: ';' and '#' stay text */
+  }
+  if (fclose(f) != 0 || !*text) {
+    free(*text);
+    *text = NULL;
+    return VES_ERR_ALLOC;
+  }
+  return VES_OK;
+}
+
+/* Print text with '|' escaped for a Markdown table cell. */
+static void cell(FILE *f, const char *t) {
+  fputs("| ", f);
+  for (; *t; t++) {
+    if (*t == '|') fputc('\\', f);
+    fputc(*t, f);
+  }
+  fputc(' ', f);
+}
+
+void ves_config_print_keys(FILE *f) {
+  fprintf(f, "| section | key | type | default | allowed | meaning |\n|---|---|---|---|---|---|\n");
+  for (int i = 0; i < NKEYS; i++) {
+    const key_spec *k = &KEYS[i];
+    char range[96];
+    if (k->type == KEY_STRING)
+      snprintf(range, sizeof range, "%s", k->choice ? k->choice : "text");
+    else
+      snprintf(range, sizeof range, "%.10g to %.10g", k->min, k->max);
+    cell(f, k->section), cell(f, k->key);
+    cell(f, k->type == KEY_DOUBLE ? "real" : k->type == KEY_INT ? "integer" : "text");
+    cell(f, k->def), cell(f, range), cell(f, k->doc);
+    fputs("|\n", f);
+  }
+}
+
+/* Orientation of the triangle a, b, c: > 0 counter-clockwise. */
+static double orient(const double *a, const double *b, const double *c) {
+  return (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
+}
+
+/* Whether the closed segments [a, b] and [c, d] share a point. */
+static int segments_meet(const double *a, const double *b, const double *c, const double *d) {
+  const double o1 = orient(a, b, c), o2 = orient(a, b, d), o3 = orient(c, d, a),
+               o4 = orient(c, d, b);
+  if (((o1 > 0 && o2 < 0) || (o1 < 0 && o2 > 0)) && ((o3 > 0 && o4 < 0) || (o3 < 0 && o4 > 0)))
+    return 1; /* a proper crossing */
+  /* touching or collinear overlap: an endpoint on the other segment */
+  const double *e[4][3] = {{a, b, c}, {a, b, d}, {c, d, a}, {c, d, b}};
+  const double o[4] = {o1, o2, o3, o4};
+  for (int i = 0; i < 4; i++)
+    if (o[i] == 0 && fmin(e[i][0][0], e[i][1][0]) <= e[i][2][0] &&
+        e[i][2][0] <= fmax(e[i][0][0], e[i][1][0]) && fmin(e[i][0][1], e[i][1][1]) <= e[i][2][1] &&
+        e[i][2][1] <= fmax(e[i][0][1], e[i][1][1]))
+      return 1;
+  return 0;
+}
+
+/* A generating curve the shape can use: from the north pole (larger Z) to
+ * the south pole, on the axis only at its ends, no point repeated, and
+ * not crossing or touching itself (the polygon through the points; the
+ * spline through them follows it). Names the lines of the points at fault. */
+static ves_status check_curve(const char *path, int n, const double *p, const int *lines, char *err,
+                              size_t errlen) {
+  if (p[1] <= p[2 * n - 1]) {
+    ves_error_say(
+        err, errlen,
+        "%s: the points run from Z = %g (line %d) to Z = %g (line %d): a curve goes from the "
+        "north pole (the larger Z) to the south pole; reverse the file's lines",
+        path, p[1], lines[0], p[2 * n - 1], lines[n - 1]);
+    return VES_ERR_CONFIG;
+  }
+  for (int i = 1; i < n; i++) {
+    if (i < n - 1 && p[2 * i] == 0.0) {
+      ves_error_say(
+          err, errlen,
+          "%s: line %d: R = 0 inside the curve: it meets the axis only at its first and last "
+          "points",
+          path, lines[i]);
+      return VES_ERR_CONFIG;
+    }
+    if (p[2 * i] == p[2 * i - 2] && p[2 * i + 1] == p[2 * i - 1]) {
+      ves_error_say(err, errlen, "%s: line %d: repeats the point of line %d", path, lines[i],
+                    lines[i - 1]);
+      return VES_ERR_CONFIG;
+    }
+  }
+  for (int i = 0; i + 1 < n; i++) /* segment i: points i, i + 1 */
+    for (int j = i + 2; j + 1 < n; j++)
+      if (segments_meet(p + 2 * i, p + 2 * i + 2, p + 2 * j, p + 2 * j + 2)) {
+        ves_error_say(
+            err, errlen,
+            "%s: the curve crosses itself: the segment of lines %d-%d meets that of lines %d-%d",
+            path, lines[i], lines[i + 1], lines[j], lines[j + 1]);
+        return VES_ERR_CONFIG;
+      }
+  return VES_OK;
+}
+
+ves_status ves_config_read_points(const ves_config *cfg, int *n, double **pts, char *err,
+                                  size_t errlen) {
+  VES_CHECK(cfg && n && pts, VES_ERR_ARG);
+  *n = 0, *pts = NULL;
+  char path[2 * VES_CONFIG_STR + 8];
+  const char *slash = strrchr(cfg->source, '/');
+  if (cfg->points[0] != '/' && slash) /* relative to the problem file's folder */
+    snprintf(path, sizeof path, "%.*s/%s", (int)(slash - cfg->source), cfg->source, cfg->points);
+  else
+    snprintf(path, sizeof path, "%s", cfg->points);
+  FILE *f = fopen(path, "r");
+  if (!f) {
+    ves_error_say(err, errlen, "%s: [shape] points = %s: cannot open %s: %s", cfg->source,
+                  cfg->points, path, strerror(errno));
+    return VES_ERR_IO;
+  }
+  int cap = 0, cnt = 0, line = 0, *lines = NULL; /* lines[i]: the file line of point i */
+  double *p = NULL;
+  char buf[512];
+  ves_status st = VES_OK;
+  while (fgets(buf, sizeof buf, f)) {
+    line++;
+    if (!strchr(buf, '\n') && !feof(f)) {
+      ves_error_say(err, errlen, "%s: line %d: longer than %d characters", path, line,
+                    (int)sizeof buf - 2);
+      st = VES_ERR_CONFIG;
+      break;
+    }
+    char *s = buf;
+    while (*s == ' ' || *s == '\t') s++;
+    if (*s == '#' || *s == '\n' || *s == 0) continue;
+    double R, Z;
+    char extra;
+    if (sscanf(s, "%lf %lf %c", &R, &Z, &extra) != 2 || !isfinite(R) || !isfinite(Z) || R < 0) {
+      ves_error_say(err, errlen, "%s: line %d: expected two numbers 'R Z' with R >= 0", path, line);
+      st = VES_ERR_CONFIG;
+      break;
+    }
+    if (cnt == cap) {
+      cap = cap ? 2 * cap : 256;
+      double *q = realloc(p, 2 * (size_t)cap * sizeof *q);
+      int *ql = realloc(lines, (size_t)cap * sizeof *ql);
+      if (q) p = q;
+      if (ql) lines = ql;
+      if (!q || !ql) {
+        st = VES_ERR_ALLOC;
+        break;
+      }
+    }
+    p[2 * cnt] = R, p[2 * cnt + 1] = Z, lines[cnt] = line;
+    cnt++;
+  }
+  fclose(f);
+  if (st == VES_OK && (cnt < 4 || p[0] != 0.0 || p[2 * cnt - 2] != 0.0)) {
+    ves_error_say(err, errlen, "%s: %d points: need at least 4, the first and the last with R = 0",
+                  path, cnt);
+    st = VES_ERR_CONFIG;
+  }
+  if (st == VES_OK) st = check_curve(path, cnt, p, lines, err, errlen);
+  free(lines);
+  if (st != VES_OK) {
+    free(p);
+    return st;
+  }
+  *n = cnt, *pts = p;
+  return VES_OK;
+}
