@@ -9,6 +9,8 @@
 #   make run        the default problem (results/oblate.h5, .xdmf, PNG figures)
 #   make deps       install missing Debian packages (root) or print the command
 #   make format     clang-format every C/C++ file (format-check: only report)
+#   make check-layers   the include graph against the layers (tests/check_layers.py)
+#   make check-history  no words about the making of the code in tracked files
 #   make clean
 
 CC      ?= gcc
@@ -48,7 +50,7 @@ CXXFLAGS_CGAL = -std=c++17 -O2 -g -fopenmp -frounding-math -DCGAL_DISABLE_ROUNDI
 LDLIBS   = $(PKG_LIBS) -lnlopt -ldmumps_seq -lsmumps_seq -liniparser -lcholmod -llapacke -lopenblas -lgmp -lstdc++ -lm
 LDFLAGS += $(SANFLAGS) -fopenmp
 
-# The library's layers, lowest first (docs/design.md, "Layers"); the program
+# The library's layers, lowest first (docs/design.md, "Layers and interfaces"); the program
 # (command line, problem files, output, plots, studies) in solver/app.
 LAYERS   = core linalg discret model step backends time analysis
 LIB_C    = $(foreach l,$(LAYERS),$(wildcard solver/$(l)/*.c))
@@ -56,7 +58,7 @@ LIB_CXX  = $(foreach l,$(LAYERS),$(wildcard solver/$(l)/*.cpp))
 APP_C    = $(wildcard solver/app/*.c)
 CLI_OBJ  = $(APP_C:solver/%.c=$(BUILD)/obj/%.o)
 LIB_OBJ  = $(LIB_C:solver/%.c=$(BUILD)/obj/%.o) $(LIB_CXX:solver/%.cpp=$(BUILD)/obj/%.o)
-# the longest first (by their times under SAN=1, session 39): tests/run.sh
+# the longest first (by their times under SAN=1): tests/run.sh
 # runs them two at a time, each lane taking the next one not yet taken
 TESTS_LONG = test_integrate test_cli test_backend test_spectrum test_model test_remesh
 TESTS    = $(addprefix $(BUILD)/tests/,$(TESTS_LONG)) \
@@ -64,11 +66,12 @@ TESTS    = $(addprefix $(BUILD)/tests/,$(TESTS_LONG)) \
              $(patsubst tests/%.c,$(BUILD)/tests/%,$(wildcard tests/test_*.c)))
 BENCHES  = $(patsubst bench/%.c,$(BUILD)/bench/%,$(wildcard bench/bench_*.c))
 # make bench runs them all with their defaults (hours: bench_table1 and
-# bench_robust include explicit Euler and NLopt); bench/RESULTS.md gives the
+# bench_robust include explicit Euler and NLopt); docs/results.md gives the
 # command of every table, e.g. make bench BENCH_ONLY=bench_mode.
 BENCH_ONLY ?= 
 
-.PHONY: all deps test test-build test-slow test-slurm valgrind bench run paper clean format format-check
+.PHONY: all deps test test-build test-slow test-slurm valgrind bench run paper clean format format-check \
+        check-layers check-history
 # (a sub-make, as test and run do: the pkg-config flags above are read when
 # this Makefile is parsed, i.e. before deps installs ipopt and hdf5 on a
 # fresh machine)
@@ -205,7 +208,7 @@ bench: deps
 	  sh bench/scale_plot.sh $(BUILD)/scale.tsv $(BUILD)/scale_step.png && exit $$rc;; esac
 
 # The default run: the oblate relaxation of problems/oblate.ini (paper
-# Figs. 3-4, ~1.5 min on 2 cores) to results/oblate.h5 (+ .xdmf) and its
+# Figs. 3-4, under a minute on 2 cores) to results/oblate.h5 (+ .xdmf) and its
 # figures results/oblate_*.png (replacing those of an earlier make run:
 # --force).
 run: deps
@@ -240,6 +243,22 @@ format-check: deps
 	  awk '/error:/ {n++; split($$0, p, ":"); f[p[1]]++} {print} \
 	       END {if (n) {printf "format-check: %d place(s) in %d file(s) differ from .clang-format " \
 	            "(make format fixes them)\n", n, length(f); exit 1} else print "format-check: ok"}'
+
+# The layer rules of docs/design.md, "Layers and interfaces": no library
+# folder includes a program header (solver/app) or a private header of another
+# folder, every arrow of the include graph points down (make check-layers;
+# tests/check_layers.py --dot draws the graph).
+check-layers:
+	@python3 tests/check_layers.py
+
+# The repository speaks of the software only: tracked files name no work
+# periods or tracker numbers (the pattern is split so this line does not
+# match itself).
+HISTORY_RE = \bsess''ion|iss''ue [0-9]
+check-history:
+	@if git grep -nIiE '$(HISTORY_RE)' -- . ; then \
+	  echo "check-history: the lines above speak of the making of the code, not of the code"; exit 1; \
+	else echo "check-history: ok"; fi
 
 clean:
 	rm -rf build build-san

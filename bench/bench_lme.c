@@ -102,7 +102,7 @@ static double run(const point *pts, const ves_lme_params *par, int nder, int war
 int main(void) {
   ves_lme_params par;
   ves_lme_params_default(&par);
-  par.gamma = 0.8; /* the paper's, as in bench/RESULTS.md (tol0 1e-6) */
+  par.gamma = 0.8; /* the paper's (tol0 1e-6) */
   int cap = 8000;
   double *x = malloc(2 * (size_t)cap * sizeof(double));
   point *pts = malloc(NPTS * sizeof(point));

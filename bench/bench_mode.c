@@ -1,4 +1,4 @@
-/* vesica — the hydrodynamic time scale (issue 4): relaxation of a P_l shape
+/* vesica — the hydrodynamic time scale: relaxation of a P_l shape
  * mode of a sphere with bending alone (problems/mode2.ini, mode3.ini), timed
  * through the shape itself rather than the energy.
  *

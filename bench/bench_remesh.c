@@ -1,4 +1,4 @@
-/* vesica — remeshing benchmark (issue 18, item 1): a problem run twice
+/* vesica — remeshing benchmark: a problem run twice
  * with the same integrator, once without remeshing and once remeshed every
  * N accepted steps (remesh.h), printing each remeshing (nodes before and
  * after, dE*, dA/A, dV/V before the correction, the correction, the

@@ -1,4 +1,4 @@
-/* vesica — robustness of the step solvers (issue 4): for every backend, one
+/* vesica — robustness of the step solvers: for every backend, one
  * step of constant dt from the initial out-of-equilibrium oblate vesicle
  * (problems/oblate.ini) for dt* = 1e-4 ... 1e2, without halving (dt_min =
  * dt). A step counts as converged when the backend reports convergence and

@@ -28,8 +28,9 @@
  * Usage: bench_table1 [CONFIG] [--set section.key=value]... [--t1 T]
  *        [--t2 T] [--vti dt,dt,...] [--fe dt,dt,...] [--backends b,b,...]
  *        [--fe-watch N] [--fe-limit N [--limit-only]]
- * Default: problems/oblate.ini at eps = 0.02, h_band = 0.5 (bench/RESULTS.md
- * gives the command of the eps = 0.01 table). Threads: OMP_NUM_THREADS. */
+ * Default: problems/oblate.ini at eps = 0.02, h_band = 0.5 (docs/results.md,
+ * "The paper's figures and tables", gives the command of the eps = 0.01 table). Threads:
+ * OMP_NUM_THREADS. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>

@@ -1,6 +1,6 @@
 #!/usr/bin/python3
 """
-vesica bench: how far a slowly creeping run is from rest (issue 18, Fig. 5 right at eps 0.01).
+vesica bench: how far a slowly creeping run is from rest (e.g. Fig. 5 right at eps 0.01).
 Usage: /usr/bin/python3 bench/creep.py RUN.h5 [T_FROM] [T_WINDOW]
   RUN.h5    a run's file (read-only; HDF5_USE_FILE_LOCKING=FALSE lets it read a file a run
             still writes: the rows are flushed at every step)

@@ -1,10 +1,10 @@
 #!/usr/bin/python3
 """
-vesica bench: sharp-interface energies of the limit shapes of Fig. 5 right (issue 18): which end
+vesica bench: sharp-interface energies of the limit shapes of Fig. 5 right: which end
 state does the spontaneous-curvature model prefer at the paper's C0 R0 = 10, v = 0.8?
 Usage: /usr/bin/python3 bench/fig5_limit.py [C0] [v]        (defaults 10 and 0.8; no dependencies)
 
-Normalization (DESIGN.md 1): E* = (1/2) int (H - C0)^2 dA, H = (c1 + c2)/2, lengths in R0, so
+Normalization (docs/design.md, "The model"): E* = (1/2) int (H - C0)^2 dA, H = (c1 + c2)/2, lengths in R0, so
 A = 4 pi and V = v 4 pi/3. A sphere of radius R: E* = 2 pi (1 - C0 R)^2 (zero at R = 1/C0); a
 cylinder of radius rho: E* per unit length pi rho (1/(2 rho) - C0)^2 (zero at rho = 1/(2 C0)).
 

@@ -1,6 +1,6 @@
 #!/bin/sh
 # The sphere at rest: mu_1..mu_3 of the linearized flow and the counts below
-# 0 and -1e-3 (issue 22). Usage: bench/modes_sphere.sh LABEL [--set k=v]...
+# 0 and -1e-3. Usage: bench/modes_sphere.sh LABEL [--set k=v]...
 # Prints one table row: label | t* | dissipation | nodes | triangles | mu_1 mu_2 mu_3 | material_1 |
 # count < -1e-3 | count < 0 | E*/2pi - 1. The modes are those just above
 # ABOVE (default -0.01: resolves mu_1 near 0, where -1 left Ritz errors of
@@ -8,7 +8,8 @@
 # T_REST (t*, default 0): 0 takes the initial state (snapshot 0, the tanh
 # profile, which is not at rest in the eps model: it flows, spectrum's
 # 'dissipation'; the run makes one step of 1e-4); T_REST > 0 first relaxes the sphere to t* = T_REST (dt_max
-# 1) and takes the last snapshot (bench/RESULTS.md, issue 22, session 18).
+# 1) and takes the last snapshot (docs/results.md, "Accuracy against the
+# sharp-interface references").
 set -e
 label=$1; shift
 V=${VESICA:-./build/vesica}

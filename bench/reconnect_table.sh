@@ -1,5 +1,5 @@
 #!/bin/sh
-# The effect of the reconnection frequency (issue 6): one problem run with
+# The effect of the reconnection frequency: one problem run with
 # the reference reset every N = 5, 20, 100 steps, by the distortion
 # threshold (max cond F > 2 or min det F < 0.5: reconnect.c's defaults), all
 # with the paper's new nodes (y^a; NODES=motion: y(X_a)), every 20 steps with the new nodes at

@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """
 vesica bench: sharp-interface Helfrich (C0 = 0, no ADE) axisymmetric equilibria at fixed
-reduced volume, an independent check of the phase-field energies (bench/RESULTS.md, issue 22).
+reduced volume, an independent check of the phase-field energies (docs/results.md, "Accuracy against the sharp-interface references").
 Usage: /usr/bin/python3 bench/sharp_axi.py [V] [K]   (V = 0.9, K = 16: converged to ~13 digits)
 Prints E* of the oblate and the prolate equilibria (sphere E* = 2 pi) and their R_eq and half-height
 at A = 4 pi. numpy only (Debian python3-numpy).

@@ -1,5 +1,5 @@
 #!/bin/sh
-# Sphere convergence (issue 3): relative errors of E* (vs 2 pi, exact for every
+# Sphere convergence: relative errors of E* (vs 2 pi, exact for every
 # eps), A and V (vs the phase-field values 4 pi (1 + (pi^2/6 - 1) eps^2) and
 # (4 pi / 3)(1 + (pi^2/2) eps^2)) for eps in {0.04, 0.02, 0.01} and
 # h_band/eps in {0.75, 0.5, 0.4}; the last rows use sampled phi0 coefficients

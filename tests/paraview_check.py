@@ -5,8 +5,7 @@ python3-paraview) and FILE.h5 with h5py, and checks them against each other:
 every snapshot time, and at each both grids (the nodes as points, the
 triangles of the node set in force) with the material positions x, phi and
 the flow (velocity, from the second snapshot on) of the file, bit for bit. Not part of make test (ParaView is ~80 MB of
-Debian packages, not in make deps): run by hand, as bench/RESULTS.md
-("Issue 21: the defects before and after") records.
+Debian packages, not in make deps): run by hand (docs/results.md, "Reliability and fuzzing").
 
 Usage: pvpython tests/paraview_check.py FILE.xdmf  (exit 0: both readers
 read every time and agree; 1 with the reason otherwise)."""

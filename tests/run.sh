@@ -7,9 +7,8 @@
 # (mkdir is the lock), so give the longest first. With more than one lane
 # each program gets one OpenMP thread unless OMP_NUM_THREADS says otherwise
 # (the tests that compare thread counts set theirs: test_model, test_quad,
-# test_project, test_geom). On 2 cores, 2 lanes of one thread ran the suite
-# in 163 s, 2 lanes of two threads in 185 s, one lane of two threads (the
-# runner before) in 237 s (session 39). The outputs are printed whole, in
+# test_project, test_geom). On 2 cores two lanes of one thread are the
+# fastest layout (docs/contributing.md, "Tests"). The outputs are printed whole, in
 # the order given, each as soon as it and those before it are done, with
 # its wall time. The programs share nothing but /tmp, where each makes its
 # own folder (mkdtemp), and no test's result depends on the thread count,

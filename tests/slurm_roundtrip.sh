@@ -1,6 +1,6 @@
 #!/bin/sh
 # The Slurm round trip of `vesica study` against a real Slurm on this machine
-# (make test-slurm; issue 19, item 4): installs Debian's slurm-wlm and munge
+# (make test-slurm): installs Debian's slurm-wlm and munge
 # if missing, starts a private munged and a single-node slurmctld + slurmd
 # with a generated configuration in a temporary folder, runs a 4-cell study
 # on the tiny problem of tests/test_study.c locally, submits the same study

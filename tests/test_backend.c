@@ -239,8 +239,8 @@ static void test_ipopt_converges(void **state) {
 static void test_nlopt_matches_ipopt(void **state) {
   (void)state;
   if (!FX.have_ipopt) skip();
-  /* 28 gradients on this 3.4k-dof step since the exact factor (was ~1,000,
-   * 2.5 min): ~10 s on a loaded machine, still behind the flag; every make
+  /* 28 gradients on this 3.4k-dof step with the exact factor (~1,000
+   * without it): ~10 s on a loaded machine, behind the flag; every make
    * test compares NLopt with newton on the smaller step of
    * test_nlopt_small_step */
   const char *slow = getenv("VESICA_SLOW_TESTS");
@@ -377,19 +377,17 @@ static void test_nlopt_small_step(void **state) {
  * even at 1e4). Newton does not converge on this step (100 iterations, 94
  * Hessians; bench_robust with this grid's keys), Ipopt does (16
  * iterations). Measured against Ipopt's: 3.9e-6 to 4.1e-6 of the
- * displacement (E* to 3e-10), multipliers to 1.1e-7, while the last
- * stages' metric was M + 1e-3 diag(M) (M the Lagrangian's Hessian,
- * indefinite there): at dt* 1e4 the step's metric K / dt is 1e-4 of the
- * small step's beside dt Hess E, and the shift left the soft directions of
- * E (tangential motions) ~1e2 x looser in position than L-BFGS's test
- * suggests. With the constraint metric M + J^T S J (backend_nlopt.c,
- * session 35): 7.8e-8 of the displacement on the machine of session 35,
- * but 9.1e-7 on another (OpenBLAS SkylakeX kernels; 8.2e-7 with Haswell's)
- * and 1.02e-6 on CI's, where built without the metric (-DNLB_DENSE_N=0)
- * it gave 1.8e-6 and 5.6e-7: the metric changes the cost (gradients), not
+ * displacement (E* to 3e-10), multipliers to 1.1e-7. A metric
+ * M + 1e-3 diag(M) (M the Lagrangian's Hessian, indefinite there) would
+ * not do: at dt* 1e4 the step's metric K / dt is 1e-4 of the small step's
+ * beside dt Hess E, and the shift leaves the soft directions of E
+ * (tangential motions) ~1e2 x looser in position than L-BFGS's test
+ * suggests. With the constraint metric M + J^T S J (backend_nlopt.c) the
+ * error is 7.8e-8 to 1.02e-6 of the displacement depending on the machine
+ * and OpenBLAS's kernels: the metric changes the cost (gradients), not
  * the accuracy, which the stopping rule sets. The last stage ends on
  * AUGLAG's outer xtol, sqrt(tol) = 3.2e-5 of u, with the KKT residual at
- * 5e-8 of its start (NLB_TRACE), not at tol's 1e-9; the multipliers agree
+ * 5e-8 of its start, not at tol's 1e-9; the multipliers agree
  * to 1e-7. Asserted: 1e-5 of the displacement (10x the spread of the
  * measurements across machines; 1e-7 of max |y|, inside the issue's 1e-6
  * agreement of all backends), multipliers to 1e-6 as above.

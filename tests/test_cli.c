@@ -192,7 +192,8 @@ static int stored_check(const char *file, double v[5]) {
  * quadrature points and the L2 projection's refined solve vary with the
  * thread count and BLAS kernels at ~1e-12, while any change of the
  * discretization moves E* by more than 1e-5: a node spacing 1% coarser
- * changes it by ~1e-4 at these resolutions, DESIGN.md §2); the area and
+ * changes it by ~1e-4 at these resolutions, docs/results.md, "Convergence
+ * in ε and h"); the area and
  * volume ratios and the reduced volume to 1e-10 (printed to 1e-12 and
  * 1e-9; the same sums). */
 static void test_problem_files_check(void **state) {
@@ -355,8 +356,8 @@ static void test_malformed_input(void **state) {
   BAD("[reconnect]\nevery = -1\n", "[reconnect] every = '-1'", "out of range");
   BAD("[reconnect]\nnodes = random\n", "nodes = 'random'", "coefficients|motion");
   BAD("[constraints]\nvolume = 2\n", "[constraints] volume = '2'", "out of range");
-  /* curves the shape cannot use: named before any setup (issue 21: a
-   * self-crossing curve ran with band_layers = 0, area 63.6 for 12.57) */
+  /* curves the shape cannot use: named before any setup (a self-crossing
+   * curve would otherwise run with band_layers = 0 and a wrong area) */
   char cross[160], north[160];
   snprintf(cross, sizeof cross, "%s/cross.txt", tmpdir);
   snprintf(north, sizeof north, "%s/north.txt", tmpdir);
@@ -380,7 +381,7 @@ static void test_malformed_input(void **state) {
   BADX("[geometry]\n", "--frobnicate", "unknown option", "--frobnicate");
   BADX("[geometry]\n", "--restart", "no CONFIG.ini", "--restart", "x.h5");
   printf("# %d malformed runs\n", cases);
-  assert_true(cases >= 60); /* issue 21: each exit 2, the cause named, no output left */
+  assert_true(cases >= 60); /* each exit 2, the cause named, no output left */
 
   /* --out into a missing folder: named, exit 2 */
   write_file(ini, "[geometry]\n");
@@ -1669,7 +1670,7 @@ static void test_full_disk(void **state) {
   fsize_limit = 400 * 1024;
   expect_full(out, "file size limit reached");
   rm_run(out);
-  /* a real full disk: a 440 KiB tmpfs (needs root; issue 21's case) */
+  /* a real full disk: a 440 KiB tmpfs (needs root) */
   char mnt[128];
   tmp_path(mnt, sizeof mnt, "tmpfs");
   assert_int_equal(mkdir(mnt, 0755), 0);
@@ -1721,7 +1722,7 @@ static void snapshot_bytes(hid_t h, int k, long *lo, long *hi) {
  * run from the last snapshot whose data the cut left whole — the final
  * state and the series then bit for bit those of the uninterrupted run, no
  * silent wrong state — or refuses with exit 3 and the cause; never a crash
- * and never "in use by a running vesica?" (issue 21). */
+ * and never "in use by a running vesica?". */
 static void test_torn_file(void **state) {
   (void)state;
   enum { SPREAD = 12, LAST = 9, CUTS = SPREAD + LAST };
@@ -1848,8 +1849,8 @@ static void run_prog(result *r, const char *prog, char *const *args) {
  * whose name holds ':' (tests/xdmf_check.py: the times, triangles and phi
  * meshio sees are the file's snapshots; units and description on every
  * object). Names the XDMF file could not refer to (':', '|', a leading
- * space, a control character, a byte that is not UTF-8: issue 21, an
- * output name with ':' broke its data items) are refused with exit 2 and
+ * space, a control character, a byte that is not UTF-8: an output name
+ * with ':' would break its data items) are refused with exit 2 and
  * nothing written, for a new run and for a restart. */
 static void test_external_readers(void **state) {
   (void)state;

@@ -272,9 +272,8 @@ static void test_points_file(void **state) {
  * file's text, which is not NUL-terminated (a heap over-read that
  * AddressSanitizer reports: run with make test SAN=1); (2) a curve whose
  * polygon is valid but whose spline swings across the axis (a long last
- * segment after short ones): it was accepted with an area of NaN (vesica
- * check: 874 nodes, energy 0, energy_sharp nan); the shape now refuses it,
- * and the setup says why with exit code 2. */
+ * segment after short ones), whose area would be NaN: the shape refuses
+ * it, and the setup says why with exit code 2. */
 static void test_fuzz_regressions(void **state) {
   (void)state;
   char path[64], err[512] = "";

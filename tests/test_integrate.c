@@ -231,10 +231,10 @@ static void test_nlopt_hessian_rule(void **state) {
 
 /* Near equilibrium without constraints (as problems/mode2.ini): the step's
  * objective (1/2) d^T K d + dt E is ~dt 2 pi while its decrease per Newton
- * iteration falls below the rounding of E, so a strict Armijo test rejected
- * converging iterations (two halvings and ~28 iterations per step were
- * measured on mode2.ini). Every step must now converge at once, in the few
- * iterations of the frozen-Hessian chord method. */
+ * iteration falls below the rounding of E, so a strict Armijo test would
+ * reject converging iterations (two halvings and ~28 iterations per step on
+ * mode2.ini). Every step must converge at once, in the few iterations of
+ * the frozen-Hessian chord method. */
 static void test_near_equilibrium(void **state) {
   (void)state;
   ves_setup *s = bump_setup("shape.delta=0.02");
@@ -302,11 +302,11 @@ static int euler_adaptive_run(ves_setup *s, int memory) {
 
 /* Explicit Euler under the adaptive controller: dt grows until a step
  * raises E (the explicit instability), which is rejected and halved, so the
- * run stays near its stability limit with E never rising. Before Euler's
- * steps were checked, this run's E rose (measured on problems/oblate.ini:
- * E* 7.94 -> 175 by t* = 0.013). Remembering the rejected dt for 10 steps
- * (the default) keeps the controller below it: measured 4 retried steps of
- * 40 against 15 when only the next step is held (retry_memory 0). */
+ * run stays near its stability limit with E never rising (unchecked
+ * explicit steps take problems/oblate.ini's E* from 7.94 to 175 by
+ * t* = 0.013). Remembering the rejected dt for 10 steps (the default)
+ * keeps the controller below it: 4 retried steps of 40 against 15 when
+ * only the next step is held (retry_memory 0). */
 static void test_euler_adaptive(void **state) {
   (void)state;
   ves_setup *s = small_setup();
@@ -495,7 +495,7 @@ static void relax_params(ves_integrate_params *ip, int every, double cond_max, d
   ip->reconnect_every = every, ip->reconnect_cond_max = cond_max, ip->reconnect_det_min = det_min;
 }
 
-/* The default stabilization ([geometry] stabilization = 1e-2, issue 22)
+/* The default stabilization ([geometry] stabilization = 1e-2)
  * across a reset: E_s is measured from the reference, so the reset keeps
  * the paper's E and drops E_s. Two steps without resets give y on the
  * setup's reference; the run with a reset after step 2 takes the same two
@@ -672,15 +672,15 @@ static void test_reconnect_failure(void **state) {
   ves_setup_destroy(&s);
 }
 
-/* Defaults: reconnection off, and the trajectory that of the code before
- * reconnection existed. The values were printed (%a) by that code, this
- * problem and parameters (t, dt, E*, sum_i y_i (1 + i mod 7)). t and dt come
- * from the controller's own arithmetic and must be equal; E* and the
- * checksum of y go through MUMPS and OpenBLAS, whose kernels depend on the
- * CPU: on the machine that printed them they were identical (1 and 2
- * threads) and 5e-14 after the other tests of this process; on an AMD EPYC
- * (2026-12-01) E* agrees to 1.3e-15 and the checksum to 2.5e-13, growing by
- * ~4e-14 a step. Tolerances: E* 1e-14, the checksum 2e-12 (8x that). */
+/* Defaults: reconnection off, and the trajectory of the integrator without
+ * reconnection, stored as printed (%a) for this problem and parameters (t,
+ * dt, E*, sum_i y_i (1 + i mod 7)). t and dt come from the controller's own
+ * arithmetic and must be equal; E* and the checksum of y go through MUMPS
+ * and OpenBLAS, whose kernels depend on the CPU: on the machine that
+ * printed them they are identical (1 and 2 threads) and 5e-14 after the
+ * other tests of this process; on an AMD EPYC (2026-12-01) E* agrees to
+ * 1.3e-15 and the checksum to 2.5e-13, growing by ~4e-14 a step.
+ * Tolerances: E* 1e-14, the checksum 2e-12 (8x that). */
 static void test_reconnect_off(void **state) {
   (void)state;
   static const double want[6][4] = {
@@ -697,9 +697,8 @@ static void test_reconnect_off(void **state) {
   assert_true(def.reconnect_cond_max == 0 && def.reconnect_det_min == 0);
   ves_integrate_params_default(&ip);
   ip.t_end = 0.2, ip.dt_initial = 2e-3, ip.dt_max = 0.1, ip.dE_target = 0.05;
-  /* the stored trajectory was made with newton's Hessian fresh at every
-   * iteration, the library default then (freeze_hessian 0; now the problem
-   * file's 1) */
+  /* the stored trajectory takes newton's Hessian fresh at every iteration
+   * (freeze_hessian 0, the library default; problem files default to 1) */
   ves_backend_options bo;
   ves_backend_options_default(&bo);
   bo.freeze_hessian = 0;

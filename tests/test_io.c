@@ -737,8 +737,8 @@ static char self[4096]; /* this program, re-executed for the child below */
  * files it writes to the current size plus 1 KiB (RLIMIT_FSIZE: a real
  * failing write, EFBIG, as a full disk's ENOSPC), and append rows past the
  * room check until a write fails. Prints what it saw; exits 0 unless it
- * crashes on the way out (HDF5's exit-time cleanup after the failed
- * H5Fclose segfaulted, issue 21). */
+ * crashes on the way out (HDF5's exit-time cleanup after a failed
+ * H5Fclose must not segfault). */
 static int write_fail_child(const char *path) {
   char err[512] = "";
   ves_io *io = NULL;
@@ -791,7 +791,7 @@ static void test_write_failure(void **state) {
 }
 
 /* A file cut short (a copy interrupted, a full disk) is named damaged and
- * truncated, not "in use by a running vesica" (issue 21), writable or not. */
+ * truncated, not "in use by a running vesica", writable or not. */
 static void test_truncated(void **state) {
   (void)state;
   fake f;

@@ -59,7 +59,7 @@ static void nodeset_free(nodeset *ns) {
 
 /* Hex lattice of spacing h, columns at R = k (sqrt3/2) h (k = -K..K), rows at
  * Z = j h (+ h/2 on odd columns), |Z| <= L: mirror-symmetric about R = 0 with
- * a column of nodes on the axis (DESIGN.md section 1). */
+ * a column of nodes on the axis (docs/design.md, "Discretization"). */
 static void hex_lattice(nodeset *ns, double h, int K, double L) {
   nodeset_alloc(ns, (2 * K + 1) * (int)(2 * L / h + 3));
   for (int k = -K; k <= K; k++) {
@@ -194,8 +194,8 @@ static void assert_consist(const consist *c) {
   assert_true(c->pmin >= 0.0); /* p_a = exp(.)/Z >= 0 by construction */
 }
 
-/* The defaults with the paper's gamma = 0.8, which these tests were
- * written for (the default is the problem file's 0.6). */
+/* The defaults with the paper's gamma = 0.8, the value these tests' bounds
+ * are set for (the default is the problem file's 0.6). */
 static void paper_params(ves_lme_params *par) {
   ves_lme_params_default(par);
   par->gamma = 0.8;
@@ -235,7 +235,7 @@ static void test_consistency_hex(void **state) {
   printf("  hex lattice h = 0.1: mean m = %.1f\n", (double)msum / 200);
   consist_report("hex interior", &c);
   assert_consist(&c);
-  /* DESIGN.md: ~3 Newton iterations (<= 6) at interior points; 10 allows
+  /* docs/design.md, "Discretization": ~3 Newton iterations (<= 6) at interior points; 10 allows
    * for the points that fall close to a node. */
   assert_true(c.it_max <= 10);
   free(H);

@@ -188,9 +188,9 @@ static int select_dofs(const problem *P, uint64_t *rng, int nsel, int *sel) {
 
 /* The problem of most tests: the unit sphere with C0 = 1 (so the C0 terms of
  * W are exercised), eps = 0.12, in a 1.8 x 1.8 box: ~1700 nodes, ~20000
- * points. (An oblate spheroid v = 0.9 was used first; the node generator now
- * refuses bands wider than its smallest radius of curvature, 0.35, and the
- * band is 5.5 eps; the deformed state below is far from spherical anyway.)
+ * points. (Not the oblate spheroid v = 0.9: the node generator refuses
+ * bands wider than its smallest radius of curvature, 0.35, and the band is
+ * 5.5 eps; the deformed state below is far from spherical anyway.)
  * Deformed state: motion_smooth with amplitude 0.08, which keeps
  * det F >= 0.5 (checked). */
 static problem *P1;
@@ -548,7 +548,7 @@ static void test_hessian_direction(void **state) {
 }
 
 /* The dissipation of a nodal velocity field computed directly from the
- * definition (DESIGN.md §1, paper Appendix A):
+ * definition (docs/design.md, "The model"; paper Appendix A):
  *   Diss = 2 pi sum_alpha w [mu |d|^2 + (lambda/2)(div v)^2] r det F,
  *   L = Fdot F^-1, |d|^2 = |sym L|^2 + (rdot/r)^2, div v = tr L + rdot/r. */
 static double dissipation_direct(const problem *P, const double *y, const double *vel) {

@@ -47,7 +47,7 @@ static int setup_tables(void **state) {
   np.h_ctx = &eps;
   ves_lme_params lp;
   ves_lme_params_default(&lp);
-  lp.gamma = 0.8; /* the paper's, which this test was written with */
+  lp.gamma = 0.8; /* the paper's, the value this test's bounds are set for */
   if (ves_nodes_generate(&np, &fx->nodes) != VES_OK ||
       ves_quad_create(fx->nodes, &fx->q) != VES_OK ||
       ves_quad_tables(fx->q, fx->nodes, &lp, NULL) != VES_OK)
@@ -185,7 +185,7 @@ static void test_pattern(void **state) {
   ves_quad *qn = NULL;
   ves_lme_params lp;
   ves_lme_params_default(&lp);
-  lp.gamma = 0.8; /* the paper's, which this test was written with */
+  lp.gamma = 0.8; /* the paper's, the value this test's bounds are set for */
   assert_int_equal(ves_quad_create_at_nodes(fx->nodes, &qn), VES_OK);
   assert_int_equal(ves_quad_tables(qn, fx->nodes, &lp, NULL), VES_OK);
   for (int al = 0; al < qn->nq; al++)

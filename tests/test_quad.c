@@ -261,7 +261,7 @@ static void test_tables(void **state) {
   assert_int_equal(ves_quad_create(nodes, &q), VES_OK);
   ves_lme_params lp;
   ves_lme_params_default(&lp);
-  lp.gamma = 0.8; /* the paper's, which this test was written with */
+  lp.gamma = 0.8; /* the paper's, the value this test's bounds are set for */
   ves_quad_info info;
   assert_int_equal(ves_quad_tables(q, nodes, &lp, &info), VES_OK);
   printf("# tables: %d nodes, %d ghosts, %d points, m mean %.1f max %d, Newton mean %.2f max %d, "
@@ -341,7 +341,7 @@ static void test_tables_threads(void **state) {
   assert_int_equal(ves_nodes_generate(&np, &nodes), VES_OK);
   ves_lme_params lp;
   ves_lme_params_default(&lp);
-  lp.gamma = 0.8; /* the paper's, which this test was written with */
+  lp.gamma = 0.8; /* the paper's, the value this test's bounds are set for */
   const int n = nodes->n, ne = n + nodes->ng;
   double *xe = malloc(2 * (size_t)ne * sizeof *xe), *rad = malloc((size_t)ne * sizeof *rad);
   double *beta_e = malloc((size_t)ne * sizeof *beta_e);

@@ -187,7 +187,7 @@ static void test_initial(void **state) {
  * scale of the old model's (the scale is measured at rest; the deformed
  * state sits on a sheared basis, whose error is larger: measured 2.0x;
  * 4x = 1.7e-4 absolute, 2.2e-5 relative, still an order below the
- * relative E error of h_band = 0.5 eps, 3e-4 at eps 0.04, DESIGN.md §2),
+ * relative E error of h_band = 0.5 eps, 3e-4 at eps 0.04, docs/results.md),
  * A and V restored to rounding by a correction far below a spacing, the
  * interface moved by less than 1% of eps. */
 static void test_deformed(void **state) {
@@ -295,9 +295,8 @@ static void test_sim(void **state) {
  * does not hold the resets back: with a reset and a remeshing both due
  * every 2 steps, the remeshing fails at step 2 and after every step from
  * then on (a failed one is tried again every max(1, every/4) steps), and
- * the resets are made at steps 2 and 4 all the same (until session 32 a
- * due remeshing replaced the reset even when it failed, and the reference
- * was never renewed). */
+ * the resets are made at steps 2 and 4 all the same (a failed remeshing
+ * must not leave the reference unrenewed). */
 static void test_failed_remesh_resets(void **state) {
   (void)state;
   ves_integrate_params ip;
@@ -324,8 +323,7 @@ static void test_failed_remesh_resets(void **state) {
   assert_int_equal(ves_sim_remeshings(sim), 0);
   assert_int_equal(ves_sim_reconnections(sim), 2);
   ves_sim_destroy(&sim);
-  /* every 8 steps: due at step 8, then tried again every 8/4 = 2 steps
-   * (before session 32: after every step) */
+  /* every 8 steps: due at step 8, then tried again every 8/4 = 2 steps */
   ip.reconnect_every = 0;
   assert_int_equal(ves_sim_create(P->su->model, ves_backend_find("newton"), &bo, &ip, &sim),
                    VES_OK);
@@ -463,7 +461,7 @@ static void test_errors(void **state) {
  * the setup refuses its layers, `vesica check` says so) set up without
  * layers, then remeshed by keys that ask for them, as a run's are when the
  * shape develops a neck or a thin tube after a layered setup (Fig. 6,
- * bench/RESULTS.md). The remeshing fills the band without layers instead
+ * docs/results.md, "Resets and remeshing"). The remeshing fills the band without layers instead
  * of failing, and restores A and V to rounding. */
 static void test_folded_layers(void **state) {
   (void)state;
@@ -517,9 +515,9 @@ static void test_folded_layers(void **state) {
  * thin cells' points are replaced by a finer rule on the old field, and the
  * projected field is the old one at the new points. (Where the projection
  * fails without this: the core of a thinning neck, old points stretched
- * ~4.5x along the axis at ~2 per new node, where the coefficients oscillated
- * by +-10 from node to node and E* jumped by 2.4%: Fig. 6 at eps 0.01,
- * bench/RESULTS.md. An isotropic density as here still fits: measured
+ * ~4.5x along the axis at ~2 per new node, where the coefficients oscillate
+ * by +-10 from node to node and E* jumps by 2.4%: Fig. 6 at eps 0.01,
+ * docs/results.md, "Resets and remeshing". An isotropic density as here still fits: measured
  * max |new - old| 1.2e-5 without the refinement at eps/6.) */
 static void test_thin_cells(void **state) {
   (void)state;
@@ -568,7 +566,7 @@ static void test_thin_cells(void **state) {
   assert_true(dmax <= 1e-4 && sqrt(d2 / w2) <= 2e-5);
   /* measured |dE*| 3.2e-4 (5e-5 relative: the old field on the finer basis and
    * quadrature); bound 1e-4 relative, below the h_band = 0.5 eps
-   * discretization error (3e-4, DESIGN.md §2) */
+   * discretization error (3e-4, docs/results.md, "Convergence in ε and h") */
   assert_true(fabs(in.E_proj - in.E_old) <= 1e-4 * in.E_old);
   assert_true(fabs(in.dA) <= 1e-5 && fabs(in.dV) <= 1e-6);
   ves_remesh_destroy(&r);

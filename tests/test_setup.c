@@ -39,8 +39,8 @@ static void test_sphere(void **state) {
   double eV = V / (4 * M_PI / 3 * (1 + pi2 / 2 * eps * eps)) - 1;
   printf("# sphere eps=0.04: %d nodes, E*/2pi-1 = %.2e, A/A_pf-1 = %.2e, V/V_pf-1 = %.2e\n", n, eE,
          eA, eV);
-  /* the independent prototype reached 3e-4 here (DESIGN.md); we measure
-   * ~7e-5 (bench/RESULTS.md): 3e-4 is the figure to match or beat */
+  /* an independent prototype of the method reaches 3e-4 here, vesica ~7e-5
+   * (docs/results.md, "Convergence in ε and h"): 3e-4 is the bound */
   assert_true(fabs(eE) <= 3e-4);
   /* the phase-field asymptotic itself is O(eps^4) ~ 3e-6 off, the rest is
    * discretization: 2e-5 */
@@ -66,7 +66,7 @@ static void test_sphere(void **state) {
   }
   printf("# W: max error near the axis %.2e, in the bulk of the band %.2e (max |W| %.2f)\n", e_axis,
          e_bulk, wmax);
-  /* issue 3: near-axis pointwise error no worse than 3x the bulk's */
+  /* near-axis pointwise error no worse than 3x the bulk's */
   assert_true(e_axis <= 3 * e_bulk);
   free(y);
   free(W);

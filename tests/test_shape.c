@@ -173,7 +173,7 @@ static void test_discocyte(void **state) {
  * Shapes with near-ties and pinched necks (a pearled curve, a discocyte's
  * dimple, a prolate's poles) and points where ties are likely (the axis, the
  * equator, the curve itself, far away). A search that skips a block it
- * needs fails it (tried: blocks whose bound exceeds half the window); slips
+ * needs fails it (e.g. blocks whose bound exceeds half the window); slips
  * that only matter at near-ties (the window without ds_max, radii 10% short)
  * passed these points, so the exactness rests on the bounds' argument in
  * shape.c, and this test guards the code around it. */
@@ -302,17 +302,16 @@ static void arc_points(double *pts, int *k, double cx, double cz, double rad, do
   }
 }
 
-/* A tether thinner than the band (issue 18, session 33: the remeshed Fig. 5
- * right run at eps 0.01): a sphere of radius 0.8 with a tube of radius
+/* A tether thinner than the band (as in the remeshed Fig. 5 right run at
+ * eps 0.01): a sphere of radius 0.8 with a tube of radius
  * 0.036 up to a bead of radius 0.12, joined by fillets of radius 0.06 (>
  * the band's half-width: no fold), at its own scale; h = 0.005, half-width
  * 0.04 (eps 0.01). The tube's eighth inner layer runs along the axis at r =
  * 0.036 - 8 dl = 0.0014 < dl/2: those nodes go onto the axis (flag AXIS, r
  * exactly 0), so no band node lies within dl/2 of the axis off it (without
- * the snap 108 do here, the nearest at r 0.0004 from its ghost 0.0008 away;
- * in a run of such a tether, `vesica spectrum` found a mode of -705 per t*
- * on them, axis share 0.88, material share 0.035, gone with the snap:
- * bench/RESULTS.md, session 33). */
+ * the snap 108 do here, the nearest at r 0.0004 from its ghost 0.0008 away,
+ * and `vesica spectrum` finds a spurious mode of -705 per t* on them in a
+ * run of such a tether: docs/results.md, "Resets and remeshing"). */
 static void test_band_nodes_tether(void **state) {
   (void)state;
   enum { NA = 300, NF = 150, NT = 300, NB = 1200 };

@@ -15,8 +15,8 @@
 /* The small vesicle's configuration: the unit sphere with a P2 bump of
  * amplitude `delta` ("shape.delta=..."), eps = 0.15, band 3 eps, in a 1.9 x
  * 1.9 box; `stab` the [geometry] stabilization ("geometry.stabilization=0":
- * the paper's E, as the stored trajectories and the reset identities of the
- * tests were made). VES_OK, or the status with the reason in err. */
+ * the paper's E, which the stored trajectories and the reset identities of
+ * the tests assume). VES_OK, or the status with the reason in err. */
 static inline ves_status bump_config(const char *delta, const char *stab, ves_config *cfg,
                                      char *err, size_t errlen) {
   const char *set[] = {"geometry.epsilon=0.15",

@@ -1,7 +1,8 @@
 #!/bin/bash
-# The seven defects of issue 21 rerun (the "after" column of bench/RESULTS.md,
-# "Issue 21: the defects before and after"). Root (tmpfs mounts), from the
-# repository root: bash bench/issue21_defects.sh [VESICA]; ~2 min.
+# Seven ways to lose or damage a run's output, rerun against a build: a full
+# disk, overwrites, malformed inputs, torn files, other readers
+# (docs/results.md, "Reliability and fuzzing"). Root (tmpfs mounts), from the
+# repository root: bash bench/defects.sh [VESICA]; ~2 min.
 V=$(readlink -f "${1:-build/vesica}")
 P=$(readlink -f problems); X=$(readlink -f tests/xdmf_check.py)
 export OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1
