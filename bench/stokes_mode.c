@@ -1,6 +1,10 @@
 /* bench/stokes_mode.c -- independent prediction of the relaxation rate of a
  * slightly perturbed, bending-only spherical vesicle (vesica's hydrodynamic
  * time-scale check). Self-contained: shares no code with vesica's model.
+ * It stays one file of ~2,100 lines on purpose: an independent reference
+ * that compiles with one command, reads from top to bottom with its
+ * derivation inline, and cannot pick up vesica's code or headers by
+ * accident.
  *
  * Build: gcc -std=c11 -O2 -Wall -Wextra -Werror -o /tmp/stokes_mode \
  *            bench/stokes_mode.c -ldmumps_seq -llapacke -lopenblas -lm

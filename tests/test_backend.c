@@ -281,7 +281,7 @@ static void test_nlopt_matches_ipopt(void **state) {
  * the keys set[nset] give: x within xtol of the displacement, the rest as
  * below. test_nlopt_small_step: newton on a step small enough for every
  * make test, the same
- * mode-2 sphere (delta 0.15) on the coarse grid of test_cli.c (eps 0.2, box 2,
+ * mode-2 sphere (delta 0.15) on the coarse grid of cli_test_impl.h (eps 0.2, box 2,
  * band 2, h_band 0.7, h_far 0.3: 331 nodes), one
  * step of DT. Both solve the same first-order conditions to the default
  * tolerances (tol 1e-9 relative on the gradient, ctol 1e-10): newton by

@@ -33,7 +33,7 @@
 static char vesica[PATH_MAX]; /* the program under test */
 static char tmpdir[64];       /* this test's scratch folder */
 
-/* The tiny problem of test_cli.c (331 nodes, ~1 s a one-step cell). */
+/* The tiny problem of cli_test_impl.h (331 nodes, ~1 s a one-step cell). */
 static const char TINY_SET[] = "geometry.epsilon = 0.2\ngeometry.box_r = 2\ngeometry.box_z = 2\n"
                                "geometry.band = 2\ngeometry.h_band = 0.7\ngeometry.h_far = 0.3\n"
                                "shape.mode = 2\nshape.delta = 0.15\n";

@@ -22,7 +22,7 @@ command -v valgrind >/dev/null 2>&1 || {
 export OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 OPENBLAS_CORETYPE=Prescott
 D=$(mktemp -d "${TMPDIR:-/tmp}/vesica_vg_XXXXXX")
 trap 'rm -rf "$D"' EXIT
-# the small vesicle of tests/test_cli.c (TINY): 331 nodes, ~0.3 s a step
+# the small vesicle of tests/cli_test_impl.h (TINY): 331 nodes, ~0.3 s a step
 TINY="--set geometry.epsilon=0.2 --set geometry.box_r=2 --set geometry.box_z=2
  --set geometry.band=2 --set geometry.h_band=0.7 --set geometry.h_far=0.3
  --set shape.mode=2 --set shape.delta=0.15 --set time.dt_initial=5e-3"
