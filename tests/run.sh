@@ -8,7 +8,7 @@
 # each program gets one OpenMP thread unless OMP_NUM_THREADS says otherwise
 # (the tests that compare thread counts set theirs: test_model, test_quad,
 # test_project, test_geom). On 2 cores two lanes of one thread are the
-# fastest layout (docs/contributing.md, "Tests"). The outputs are printed whole, in
+# fastest layout (docs/contributing.md, "Testing"). The outputs are printed whole, in
 # the order given, each as soon as it and those before it are done, with
 # its wall time. The programs share nothing but /tmp, where each makes its
 # own folder (mkdtemp), and no test's result depends on the thread count,
