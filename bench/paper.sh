@@ -96,13 +96,13 @@ run() {
 }
 
 # The default scale of each result: the largest eps at which it is still
-# qualitatively right (bench/RESULTS.md): the relaxation at 0.08 (oblate.ini
-# with band 4), the Fig. 5 runs at 0.04 (their files), Fig. 7 at 0.08.
+# qualitatively right (docs/results.md, "The paper's figures and tables"):
+# the relaxation at 0.08 (oblate.ini with band 4), the Fig. 5 runs at 0.04
+# (their files), Fig. 7 at 0.08.
 # Fig. 7 at any eps: an energy target of 1 per step instead of the files' 0.25
 # (4x fewer steps while E* rises by 8-54) and a snapshot every step (the
-# shape at the energy's maximum; RESULTS "Fig. 7: deflation at three
-# rates"); at eps >= 0.08 band 4 (the files' 5.5 does not fit the oblate's
-# curvature there).
+# shape at the energy's maximum); at eps >= 0.08 band 4 (the files' 5.5 does
+# not fit the oblate's curvature there).
 band4=""
 [ -z "$PAPER_EPS" ] && band4="--set geometry.band=4"
 fig7set="--set time.dE_target=1 --set output.snapshot_every=1"
@@ -114,16 +114,16 @@ run fig34 problems/oblate.ini 0.08
 # with a PAPER_EPS, where fig34 itself runs at that eps.
 [ -z "$PAPER_EPS" ] && run fig34_eps001 problems/oblate.ini 0.01
 run fig5left problems/stomatocyte_discocyte.ini 0.04
-# Fig. 5 right to its end state: in a box 4.5 high (the file's 3 is reached
-# by the upper tether's bud at t* ~2.8, where the steps fail: RESULTS "The
-# prolate vesicle after the C0 jump") with a remeshing every 40 steps (the
-# tethers stay resolved), to t* 8 (at eps 0.04 the buds are absorbed into the
-# tethers by t* ~3.7 and E* falls 0.6 per t* at t* 8: RESULTS "Fig. 5 right
-# with remeshing in a taller box" and "... in make paper"), and factor_shrink 4 (the
-# bud phase's rejected attempts: "The halving remembered"). At the default
-# eps the controller keys the file gained in session 37 (measured at eps 0.01)
-# are set back to those of the recorded run (PAPER.md), which they would
-# otherwise change; at another PAPER_EPS the file's keys hold.
+# Fig. 5 right to its end state: in a box 4.5 high (in the file's box 3 high
+# the upper tether's bud reaches the wall at t* ~2.8, where the steps fail)
+# with a remeshing every 40 steps (the tethers stay resolved), to t* 8 (at
+# eps 0.04 the buds are absorbed into the tethers by t* ~3.7), and
+# factor_shrink 4 (the bud phase's rejected attempts); docs/results.md, "The
+# paper's figures and tables". At the default eps the file's controller keys
+# for the paper's scale (growth_max, iter_target, max_builds, max_correction:
+# docs/results.md, "Long runs at ε = 0.01") are set back to the defaults the
+# recorded run (bench/PAPER.md) used, which they would otherwise change; at
+# another PAPER_EPS the file's keys hold.
 f5r_controller=""
 [ -z "$PAPER_EPS" ] && f5r_controller="--set time.growth_max=2 --set time.iter_target=8
   --set solver.max_builds=0 --set solver.max_correction=0"
@@ -215,21 +215,13 @@ lane_wall() { # the sum of the wall seconds of lane $1's finished runs
 {
   echo "# The paper's results by \`make paper\`"
   echo
-  echo "Written by bench/paper.sh from the runs in \`$OUT\` (PAPER_EPS=${PAPER_EPS:-per result})."
+  echo "Written by bench/paper.sh (\`make paper\`) from its runs (PAPER_OUT; PAPER_EPS=${PAPER_EPS:-per result})."
   echo "Figures: bench/figures/paper/NAME_{energy,snapshots,constraints,flow}.png. The"
   echo "columns are \`vesica info\` keys (dt growth: dt_largest / dt_first; wall s over"
-  echo "restarts). What each result shows against the paper, and why ours differs"
-  echo "where it does: bench/RESULTS.md (sections named below)."
-  echo
-  echo "Not in the default set: Fig. 5 right at eps 0.01 (run by hand in the taller"
-  echo "box with remeshing to t* 7.22, 6.4 h: at rest within ~1e-4 of E* as a sphere of"
-  echo "0.923 with two beaded tethers, E* 425.98, E_inf 425.92-425.99 by bench/creep.py;"
-  echo "RESULTS \"Fig. 5 right at eps 0.01 ... to t* 7.22\"). Not possible yet: Fig. 6 (problems/pearling.ini) has been run"
-  echo "to t* 3 at eps 0.04, not to a settled end (RESULTS \"Fig. 6: deflation with rising"
-  echo "C0, pearling (issue 18)\"), and at eps 0.01 (not in the default set) to t* 3"
-  echo "(5.9 h: five pearls by t* 0.48, seven by 0.72, nine by 0.98, thirteen by 3, necks"
-  echo "at 2.6-3 eps; RESULTS \"Fig. 6 at eps 0.01 to t* 3\"), not to a settled end either;"
-  echo "the Fig. 3-4 figure is ours in the README's layout, not the paper's panels at its"
+  echo "restarts). What each result shows against the paper, why ours differs where it"
+  echo "does, and the runs at the paper's eps 0.01 made by hand (Fig. 5 right, Fig. 6):"
+  echo "docs/results.md, \"The paper's figures and tables\" and \"Long runs at ε = 0.01\"."
+  echo "The Fig. 3-4 figure is ours in the README's layout, not the paper's panels at its"
   echo "times."
   echo
   echo "Run time: lane 1 (fig34, fig34_eps001, fig6, fig5left, table1) $(lane_wall 1) s, lane 2"
@@ -248,30 +240,30 @@ lane_wall() { # the sum of the wall seconds of lane $1's finished runs
   echo
   if [ -n "$fig5md" ]; then grep -v '^figure: ' "$fig5md"; else echo "not run"; fi
   echo
-  echo "Fig. 6 (bench/fig6.py; figure bench/figures/paper/fig6_epsE.png):"
+  echo "Fig. 6 (bench/fig6.py; figure bench/figures/paper/fig6_eps$(key geometry.epsilon fig6).png):"
   echo
   if [ -n "$fig6md" ]; then grep -v '^figure: ' "$fig6md"; else echo "not run"; fi
   echo
   echo "| Fig. 6 | the paper states | ours |"
   echo "|---|---|---|"
-  echo "| protocol | prolate v 0.9 deflated to v 0.55 at constant area, C0 R0 raised to 12 (no rates, no times given) | problems/pearling.ini: V/V0 1 -> 0.55/0.9 = 0.611 at -0.778 V0 per t* and C0 R0 0 -> 12 linearly, both over t* [0, 0.5], then held |"
+  echo "| protocol | prolate v 0.9 deflated to v 0.55 at constant area, C0 R0 raised to 12 (no rates, no times given) | problems/pearling.ini: V/V0 1 -> $(key protocol.volume_final fig6) at $(key protocol.volume_rate fig6) V0 per t* and C0 R0 $(key material.c0 fig6) -> $(key protocol.c0_ramp_to fig6) linearly over t* [$(key protocol.c0_ramp_start fig6), $(key protocol.c0_ramp_end fig6)], then held |"
   echo "| resolution | eps/R0 0.01, 12,650 nodes | eps $(key geometry.epsilon fig6), $(key nodes fig6) -> $(key nodes_final fig6) nodes |"
-  echo "| resets | frequent | $(key reconnections fig6) (every 20 steps) |"
+  echo "| resets | frequent | $(key reconnections fig6) (every $(key reconnect.every fig6) steps) |"
   echo "| remeshings | four, at later stages | $(key remeshings fig6) |"
-  echo "| outcome | elongation and pearling | the table above: pearls and necks against t* (RESULTS \"Fig. 6: deflation with rising C0, pearling (issue 18)\") |"
+  echo "| outcome | elongation and pearling | the table above: pearls and necks against t* |"
   echo
-  echo "Fig. 7 (bench/fig7.py; figure bench/figures/paper/fig7_epsE.png):"
+  echo "Fig. 7 (bench/fig7.py; figure bench/figures/paper/fig7_eps$(key geometry.epsilon fig7_fast).png):"
   echo
   if [ -n "$fig7md" ]; then grep -v '^figure: ' "$fig7md"; else echo "not run"; fi
   echo
   echo "| result | the paper states | ours (where measured) |"
   echo "|---|---|---|"
-  echo "| Fig. 3-4 (oblate relaxation) | E* decreases monotonically to the equilibrium; dt grows ~2048x over the run; 6,124 nodes at eps 0.01 | run fig34 above, and fig34_eps001 at the paper's eps (its E* at t* 4 against the sharp equilibrium 7.652042: RESULTS \"The stabilization on by default\") |"
-  echo "| Table 1 (VTI vs forward Euler) | VTI stable at dt* 1e-2..1e-4 with E*(t2) 9.243/9.240/9.239; FE needs dt* 1e-5 | $( [ -f "$OUT/table1.txt.done" ] && echo "$OUT/table1.txt" || echo "not run") ; at eps 0.01 RESULTS \"The paper's Table 1\" |"
-  echo "| Fig. 5 left (stomatocyte -> discocyte) | a C0 pulse pushes the stomatocyte past the barrier into a discocyte | RESULTS \"The two Fig. 5 runs with drift damping\" (eps 0.04: a discocyte with damping and resets) |"
-  echo "| Fig. 5 right (prolate, C0 R0 = 10) | two dissimilar spheres joined by a narrow neck | run fig5right above (eps $(key geometry.epsilon fig5right), a box 4.5 high, a remeshing every 40 steps; its shape in the Fig. 5 right table): a sphere with a tether up and down, the buds that led them absorbed, E* $(key energy_final fig5right) at t* $(key t_final fig5right): the sharp model's preferred state (sphere + tube of radius 1/(2 C0) 426.7 against 471.8 for two spheres: bench/fig5_limit.py; the phase field at eps 0.04, C0 eps 0.4, lies below both); in the file's box 3 high the upper bud reaches the wall at t* ~2.8 and the steps fail (RESULTS \"The prolate vesicle after the C0 jump\"). At eps 0.01 (not in the default set, 6.4 h): the end state, the same sphere (radius 0.923) with beaded tethers, 17 beads of 0.055-0.092 on necks of 0.027-0.049, at rest within ~1e-4 of E* by t* 7.2, E* 425.98 (between the sharp sphere + tube 426.67 and sphere + beads of radius 1/C0 425.08, 46 below the two spheres; RESULTS \"Fig. 5 right at eps 0.01 ... to t* 7.22\") |"
-  echo "| Fig. 6 (pearling: v 0.9 -> 0.55, C0 R0 -> 12, four remeshings, 12,650 nodes) | elongation and pearling | the Fig. 6 tables above (bench/fig6.py; RESULTS \"Fig. 6: deflation with rising C0, pearling (issue 18)\") |"
-  echo "| Fig. 7 (deflation at three rates) | E* peaks at the end of deflation; the faster the rate, the further from equilibrium at that instant (shape and E*); all reach the same equilibrium shape D by t* ~ 1 | E* peaks at each ramp's end (within the step crossing it), fast / medium / slow 40.5 / 31.8 / 22.0 at eps 0.08, 61.8 / 31.5 / 16.4 at 0.04; the shapes at the maxima ordered as the paper's A, B, C (distance from the final shape 0.13 / 0.088 / 0.028 R0 at eps 0.08, 0.19 / 0.15 / 0.064 at 0.04); one final shape, a discocyte (the three within 3e-4 R0), 6e-3 R0 from the sharp discocyte at eps 0.04 (0.06 at 0.08); but not by t* ~ 1: E* still falls at t* 6 (0.1 per t* at eps 0.08, 0.03 at 0.04): most of the peak is the interface profile compressed with the fluid, which relaxes at a rate set by the penalty viscosity lambda (fast rate at eps 0.08, t* 1.5: E* 12.7 / 14.5 / 21.9 at lambda/mu 10 / 100 / 1000, the interface within 8e-3 R0; the paper does not give its lambda) (tables above; figures fig7_eps0.08.png, fig7_eps0.04.png; RESULTS \"Fig. 7: deflation at three rates\") |"
+  echo "| Fig. 3-4 (oblate relaxation) | E* decreases monotonically to the equilibrium; dt grows ~2048x over the run; 6,124 nodes at eps 0.01 | runs fig34 and fig34_eps001 above; against the sharp equilibrium: docs/results.md, \"Convergence in ε and h\" |"
+  echo "| Table 1 (VTI vs forward Euler) | VTI stable at dt* 1e-2..1e-4 with E*(t2) 9.243/9.240/9.239; FE needs dt* 1e-5 | $( [ -f "$OUT/table1.txt.done" ] && echo "bench_table1's table, table1.txt beside the runs" || echo "not run"); at eps 0.04 and 0.01: docs/results.md, \"Robustness at large Δt\" |"
+  echo "| Fig. 5 left (stomatocyte -> discocyte) | a C0 pulse pushes the stomatocyte past the barrier into a discocyte | run fig5left above (eps $(key geometry.epsilon fig5left), to t* $(key t_final fig5left)); docs/results.md, \"The paper's figures and tables\" |"
+  echo "| Fig. 5 right (prolate, C0 R0 = 10) | two dissimilar spheres joined by a narrow neck | run fig5right above (eps $(key geometry.epsilon fig5right), box_z $(key geometry.box_z fig5right), a remeshing every $(key remesh.every fig5right) steps) and its shape table: a sphere with a tether up and down, E* $(key energy_final fig5right) at t* $(key t_final fig5right); the sharp model's limit shapes (bench/fig5_limit.py) and the end state at eps 0.01: docs/results.md, \"The paper's figures and tables\" |"
+  echo "| Fig. 6 (pearling: v 0.9 -> 0.55, C0 R0 -> 12, four remeshings, 12,650 nodes) | elongation and pearling | the Fig. 6 tables above; at eps 0.01: docs/results.md, \"Long runs at ε = 0.01\" |"
+  echo "| Fig. 7 (deflation at three rates) | E* peaks at the end of deflation; the faster the rate, the further from equilibrium at that instant (shape and E*); all reach the same equilibrium shape D by t* ~ 1 | the Fig. 7 tables above (E* max per rate, the shapes at the maxima and at the end against D); at eps 0.04, and what sets the relaxation after the peak: docs/results.md, \"The paper's figures and tables\" |"
 } > "$MD.part" && mv "$MD.part" "$MD"
 echo "paper: wrote $MD"
 exit $failed
