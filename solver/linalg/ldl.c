@@ -1,6 +1,11 @@
-/* vesica — the sparse symmetric direct solver on sequential MUMPS (LDL^T or
- * Cholesky of a matrix given by lower triplets) and the incomplete Cholesky
- * factor IC(0) on the pattern of such a matrix. Knows only status codes. */
+/* vesica — the sparse symmetric direct solver on sequential MUMPS: A = L D L^T
+ * (indefinite, 2x2 pivots) or A = L L^T (positive definite) of a matrix given
+ * by its lower triplets, in double precision, or in single precision with
+ * each solve refined against the double values by flexible GMRES
+ * preconditioned by the single factors (x = x0 + Z_k y, y minimizing
+ * |b - A x| over the Krylov space). The KKT systems and the L2 projection
+ * solve with it (docs/design.md, "Numerical choices and why"). Knows only
+ * status codes. */
 #include "ves/ldl.h"
 
 #include <dmumps_c.h>
@@ -25,9 +30,7 @@
 #define LDL_GMRES_M 20           /* single precision: Krylov vectors of the refinement */
 #define LDL_GMRES_MAX 60         /* ... and its iterations before the double fallback */
 #define LDL_MATVEC_CHUNKS 4      /* the residual's products: fixed chunks of the triplets */
-#ifndef LDL_SINGLE_PIVOT
 #define LDL_SINGLE_PIVOT 0.0 /* single precision LDL^T: MUMPS's CNTL(1), no numerical pivoting */
-#endif
 
 struct ves_ldl {
   int single;                      /* 1: the factors in single precision (SMUMPS), solves refined */
@@ -53,8 +56,9 @@ struct ves_ldl {
   void *wk;           /* the factorization's workspace (MUMPS WK_USER), kept across
                          factorizations: MUMPS would free and allocate its own at
                          every one, and the kernel zero the fresh pages (a third of
-                         the factorization at eps 0.01: bench/RESULTS.md, "MUMPS's
-                         workspace kept"); the factors live in it until the next one */
+                         the factorization at eps 0.01: docs/results.md,
+                         "Performance and its scaling"); the factors live in it
+                         until the next one */
   size_t lwk;         /* its entries */
   double est;         /* the analysis's estimate of it (INFO(8), in entries) */
 };
@@ -151,22 +155,21 @@ static ves_status mumps_setup(ves_ldl *f) {
    * instead of the compressed one built on the matching. On the Newton KKT
    * matrix at eps = 0.02 (25k unknowns) the analysis takes 0.7 s against
    * 3-4 s, the factorization ~15% less, the factors are the same size
-   * (bench/RESULTS.md, "MUMPS options"); the pivoting within the fronts,
+   * (docs/results.md, "Performance and its scaling"); the pivoting within the fronts,
    * and so the inertia, are unaffected. */
   if (!f->spd) {
     f->ICNTL(6) = 0;
     f->ICNTL(12) = 1;
   }
-  /* single precision LDL^T without numerical pivoting (CNTL(1) = 0 instead
-   * of 0.01): the KKT matrices are K/dt + Hess E (positive definite on the
+  /* single precision LDL^T without numerical pivoting (CNTL(1) = 0, MUMPS's
+   * default being 0.01): the KKT matrices are K/dt + Hess E (positive definite on the
    * constraints' null space, mostly positive definite) bordered by the two
    * dense constraint rows, which the ordering puts last, where their pivots
    * are the Schur complement -J H^-1 J^T. Without the pivot searches the
-   * factorization of the eps 0.02 KKT matrix took 0.77 s against 0.97 s
-   * (bench/RESULTS.md, session 36); the inertia is still the pivots' signs
-   * (Sylvester), and a factorization that meets a zero pivot, or whose
-   * solve cannot be refined against the double values, is redone in double
-   * precision, with pivoting (to_double). */
+   * factorization of the eps 0.02 KKT matrix takes 0.77 s against 0.97 s
+   * with them (docs/results.md, "Performance and its scaling"); the inertia is still the pivots'
+   * signs (Sylvester), and a factorization that meets a zero pivot, or whose solve cannot be
+   * refined against the double values, is redone in double precision, with pivoting (to_double). */
   if (!f->spd && f->single) f->sid.cntl[0] = (float)LDL_SINGLE_PIVOT;
   ID_SET(f, n, f->n);
   ID_SET(f, nnz, f->nnz);
@@ -345,9 +348,9 @@ static double dot(int n, const double *x, const double *y) {
  * below the tolerance. Returns VES_OK with *done = 1 when it was reached.
  * Classical iterative refinement (x += M^-1 r) is the first iteration's
  * direction; it contracts by |I - A M^-1| per correction, ~0.1 on the KKT
- * matrices at large dt (eps 0.01, dt* 0.1-0.8: from 3e-2 it needed 5
- * corrections, and the solver fell back to double precision for the rest of
- * the run), where GMRES, minimizing over the Krylov space, needs a few. */
+ * matrices at large dt (eps 0.01, dt* 0.1-0.8: 5 corrections from 3e-2),
+ * where GMRES, minimizing over the
+ * Krylov space, needs a few. */
 static ves_status gmres(ves_ldl *f, double *x, double beta, double bn, double tol, int *done) {
   const int n = f->n, m = LDL_GMRES_M;
   double H[(LDL_GMRES_M + 1) * LDL_GMRES_M], cs[LDL_GMRES_M], sn[LDL_GMRES_M], g[LDL_GMRES_M + 1],
@@ -455,129 +458,4 @@ int ves_ldl_size(const ves_ldl *f) { return f ? f->n : 0; }
 
 void ves_ldl_get_info(const ves_ldl *f, ves_ldl_info *info) {
   if (f && info) *info = f->info_, info->single = f->single;
-}
-
-/* ---- IC(0) ---- */
-
-void ves_ldl_ic_destroy(ves_ldl_ic **L) {
-  if (!L || !*L) return;
-  free((*L)->ptr), free((*L)->col), free((*L)->a), free((*L)->l), free((*L)->map);
-  free(*L);
-  *L = NULL;
-}
-
-/* Pattern of the lower triplets (irow >= jcol) in compressed rows, columns
- * ascending, the diagonal forced in, duplicates merged; map[k] the slot of
- * triplet k. */
-ves_status ves_ldl_ic_create(int n, int nnz, const int *irow, const int *jcol, ves_ldl_ic **out) {
-  VES_CHECK(out, VES_ERR_ARG);
-  *out = NULL;
-  VES_CHECK(n > 0 && nnz >= 0 && (nnz == 0 || (irow && jcol)), VES_ERR_ARG);
-  for (int k = 0; k < nnz; k++)
-    VES_CHECK(irow[k] >= 0 && irow[k] < n && jcol[k] >= 0 && jcol[k] <= irow[k], VES_ERR_ARG);
-  ves_ldl_ic *L = calloc(1, sizeof *L);
-  if (!L) return VES_ERR_ALLOC;
-  L->n = n, L->nnz = nnz;
-  L->ptr = calloc((size_t)n + 1, sizeof(int));
-  L->map = malloc((size_t)(nnz > 0 ? nnz : 1) * sizeof(int));
-  int *cnt = calloc((size_t)n + 1, sizeof(int));
-  int *tmp = malloc((size_t)(nnz + n + 1) * sizeof(int));
-  ves_status rc = VES_ERR_ALLOC;
-  if (!L->ptr || !L->map || !cnt || !tmp) goto out;
-  /* rows with the diagonal forced in: count, fill, sort, merge */
-  for (int k = 0; k < nnz; k++) cnt[irow[k] + 1]++;
-  for (int i = 0; i < n; i++) cnt[i + 1] += cnt[i] + 1; /* + 1: the diagonal */
-  int *pos = L->ptr;                                    /* fill positions */
-  for (int i = 0; i < n; i++) pos[i] = cnt[i], tmp[pos[i]++] = i;
-  for (int k = 0; k < nnz; k++) tmp[pos[irow[k]]++] = jcol[k];
-  int w = 0;
-  for (int i = 0; i < n; i++) {
-    int b = cnt[i], e = cnt[i + 1];
-    for (int p = b + 1; p < e; p++) /* insertion sort (rows are short) */
-      for (int q = p; q > b && tmp[q - 1] > tmp[q]; q--) {
-        int t = tmp[q];
-        tmp[q] = tmp[q - 1], tmp[q - 1] = t;
-      }
-    L->ptr[i] = w;
-    for (int p = b; p < e; p++)
-      if (p == b || tmp[p] != tmp[p - 1]) tmp[w++] = tmp[p];
-  }
-  L->ptr[n] = w;
-  L->col = malloc((size_t)w * sizeof(int));
-  L->a = malloc((size_t)w * sizeof(double));
-  L->l = malloc((size_t)w * sizeof(double));
-  if (!L->col || !L->a || !L->l) goto out;
-  memcpy(L->col, tmp, (size_t)w * sizeof(int));
-  for (int k = 0; k < nnz; k++) { /* binary search of the slot */
-    int lo = L->ptr[irow[k]], hi = L->ptr[irow[k] + 1] - 1;
-    while (lo < hi) {
-      int mid = (lo + hi) / 2;
-      if (L->col[mid] < jcol[k])
-        lo = mid + 1;
-      else
-        hi = mid;
-    }
-    L->map[k] = lo;
-  }
-  rc = VES_OK;
-  *out = L;
-  L = NULL;
-out:
-  free(cnt), free(tmp);
-  ves_ldl_ic_destroy(&L);
-  return rc;
-}
-
-/* a = sum_k val_k at slot map[k] */
-void ves_ldl_ic_set(ves_ldl_ic *L, const double *val) {
-  memset(L->a, 0, (size_t)L->ptr[L->n] * sizeof(double));
-  for (int k = 0; k < L->nnz; k++) L->a[L->map[k]] += val[k];
-}
-
-/* Row-wise IC(0) of M + alpha diag(M) (ldl.h). */
-ves_status ves_ldl_ic_factor(ves_ldl_ic *L, double alpha) {
-  const int *ptr = L->ptr, *col = L->col;
-  for (int i = 0; i < L->n; i++) {
-    int bi = ptr[i], ei = ptr[i + 1] - 1; /* ei: the diagonal */
-    for (int p = bi; p <= ei; p++) {
-      int j = col[p];
-      double sum = L->a[p] * (j == i ? 1.0 + alpha : 1.0);
-      /* sparse dot of rows i and j over columns < j */
-      int q = bi, r = ptr[j], er = ptr[j + 1] - 1;
-      while (q < p && r < er) {
-        if (col[q] == col[r])
-          sum -= L->l[q++] * L->l[r++];
-        else if (col[q] < col[r])
-          q++;
-        else
-          r++;
-      }
-      if (j < i) {
-        L->l[p] = sum / L->l[er];
-      } else {
-        if (!(sum > 0.0) || !isfinite(sum)) return VES_ERR_SINGULAR;
-        L->l[p] = sqrt(sum);
-      }
-    }
-  }
-  return VES_OK;
-}
-
-/* v = L^{-1} v (forward substitution, in place). */
-void ves_ldl_ic_lsolve(const ves_ldl_ic *L, double *v) {
-  for (int i = 0; i < L->n; i++) {
-    int e = L->ptr[i + 1] - 1;
-    double s = v[i];
-    for (int p = L->ptr[i]; p < e; p++) s -= L->l[p] * v[L->col[p]];
-    v[i] = s / L->l[e];
-  }
-}
-
-/* v = L^{-T} v (backward substitution, in place). */
-void ves_ldl_ic_ltsolve(const ves_ldl_ic *L, double *v) {
-  for (int i = L->n - 1; i >= 0; i--) {
-    int e = L->ptr[i + 1] - 1;
-    v[i] /= L->l[e];
-    for (int p = L->ptr[i]; p < e; p++) v[L->col[p]] -= L->l[p] * v[i];
-  }
 }
