@@ -1,7 +1,8 @@
 /* vesica — the sharp interface {phi = 0} of a nodal field on a
  * triangulation: the volume inside and the area of the zero line, in the
  * axisymmetric measure, exact for the piecewise-linear interpolant
- * (post-processing: what the nodes show, against the phase field's A, V). */
+ * (post-processing: what the nodes show, against the phase field's A, V;
+ * docs/design.md, "Analysis"). */
 #include "ves/level_set.h"
 
 #include <math.h>

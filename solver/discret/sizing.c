@@ -1,6 +1,7 @@
 /* vesica — the node sizing field: h = h_band within band eps of the
  * interface, growing with `slope` to h_far, from |d| (ves_shape_distance)
- * tabulated on a grid and interpolated bilinearly (O(1) an evaluation). */
+ * tabulated on a grid and interpolated bilinearly (O(1) an evaluation;
+ * docs/design.md, "Discretization"). */
 #include "ves/sizing.h"
 
 #include <math.h>

@@ -1,7 +1,8 @@
 /* vesica — the node-level block pattern of the model's matrices (plain data,
  * built from a quadrature by ves_pattern_create in project.c): lookup, values
- * as triplets, products and the compressed-row form over the free degrees of
- * freedom. */
+ * as triplets, y = A x with A symmetric from its lower triplets, and the
+ * compressed-row form over the free degrees of freedom (docs/design.md,
+ * "Discretization"). */
 #include "ves/sparse.h"
 
 #include <stdlib.h>

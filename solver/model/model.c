@@ -1,6 +1,6 @@
 /* vesica — the discrete model: E, A, V, their gradients and Hessians, and the
  * dissipation matrix K, through ONE per-point assembly over the local
- * kinematic variables (DESIGN.md §2):
+ * kinematic variables (docs/design.md, "Discretization"):
  *   q_alpha = B_alpha y,  F = 2 pi sum_alpha w_alpha c e(q_alpha),
  *   grad F = 2 pi sum w c B^T de/dq,  Hess F = 2 pi sum w c B^T (d2e/dq2) B,
  * with c = f_E = 3k/(16 sqrt2 eps) for E, f_A = 3/(2 sqrt2) for A, 1 for V.

@@ -22,7 +22,7 @@
  * (for one BLAS kernel: OpenBLAS picks it from the CPU). E, A, V are summed
  * in point order and their gradients in point order; the Hessian and K
  * differ from a per-point assembly by rounding only (sums regrouped per
- * triangle). */
+ * triangle). docs/design.md, "Numerical choices and why". */
 #include "model/model_core_impl.h"
 
 #include <assert.h>
