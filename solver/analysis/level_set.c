@@ -18,6 +18,9 @@ static double poly_r_moment(int k, const double *p) {
   return s / 6;
 }
 
+/* Per triangle, the linear interpolant's zero segment and the part with
+ * phi > 0: V += 2 pi int r dA over that part, A += 2 pi int r ds along the
+ * segment (exact for piecewise-linear phi). */
 ves_status ves_level_set_eval(int n, int ntri, const int *tri, const double *x, const double *phi,
                               ves_level_set *out) {
   VES_CHECK(tri && x && phi && out && ntri >= 1 && n >= 3, VES_ERR_ARG);

@@ -162,6 +162,8 @@ static void sharp_integrals(const ves_shape *s, double *area, double *vol) {
   *area = A, *vol = V;
 }
 
+/* (1/2) int (H - C0)^2 dA / k, H = (k1 + k2)/2, by 4-point Gauss-Legendre
+ * on panels of t. */
 double ves_shape_sharp_energy(const ves_shape *s, double c0) {
   static const double gx[4] = {-0.8611363115940526, -0.3399810435848563, 0.3399810435848563,
                                0.8611363115940526};
@@ -394,6 +396,7 @@ void ves_shape_axes(const ves_shape *s, double *a, double *c) {
   *c = P[1];
 }
 
+/* A = 2 pi int R |P'| dt, V = pi int R^2 (-Z') dt (sharp_integrals). */
 void ves_shape_sharp(const ves_shape *s, double *area, double *volume) {
   sharp_integrals(s, area, volume);
 }
@@ -520,6 +523,7 @@ double ves_shape_distance_reference(const ves_shape *s, const double X[2]) {
   return signed_distance(s, X, best, tb);
 }
 
+/* phi0 = tanh(d / (sqrt2 eps)), the equilibrium profile across the interface. */
 double ves_shape_phi0(const ves_shape *s, double eps, const double X[2]) {
   return tanh(ves_shape_distance(s, X) / (M_SQRT2 * eps));
 }

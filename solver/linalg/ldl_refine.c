@@ -35,6 +35,7 @@ static void matvec(ves_ldl *f, const double *x, double *y) {
   }
 }
 
+/* x . y, summed in index order. */
 static double dot(int n, const double *x, const double *y) {
   double s = 0;
   for (int i = 0; i < n; i++) s += x[i] * y[i];

@@ -33,10 +33,12 @@ long ves_pattern_find(const ves_pattern *p, int a, int b) {
   return -1;
 }
 
+/* v_k = blk[src_k]: the free-dof entries of the blocks. */
 void ves_pattern_extract(const ves_pattern *p, const double *blk, double *v) {
   for (int k = 0; k < p->nnz; k++) v[k] = blk[p->src[k]];
 }
 
+/* y = A x with A = L + L^T - diag(L), L the lower triplets v. */
 void ves_pattern_symv(const ves_pattern *p, const double *v, const double *x, double *y) {
   for (int i = 0; i < p->nfree; i++) y[i] = 0.0;
   for (int k = 0; k < p->nnz; k++) {
