@@ -49,15 +49,15 @@ ves_status ves_ldl_create(int n, int nnz, const int *irow, const int *jcol, int 
 
 /* As ves_ldl_create; single != 0 factors in single precision (SMUMPS: half
  * the factors' memory and bandwidth, ~1.7x faster on the KKT matrix at eps
- * 0.01) and refines each solve with the double precision values to
- * |b - A x| <= 1e-6 |b|: flexible GMRES preconditioned by the single
- * precision factors (one iteration on most KKT matrices: 5e-5 -> 5e-8; a
- * few where plain iterative refinement contracts by only ~0.1 per
- * correction), at most 60 iterations. A factorization whose float values
- * fail (singular, overflow), or whose solve cannot be refined, is redone in
- * double precision (a new analysis; info.fallbacks), and the next
- * ves_ldl_factor is single precision again. The inertia is that of the
- * factorization in use. */
+ * 0.01: docs/results.md, "Performance and its scaling") and refines each
+ * solve with the double precision values to |b - A x| <= 1e-6 |b|: flexible
+ * GMRES preconditioned by the single precision factors (one iteration on
+ * most KKT matrices: 5e-5 -> 5e-8; a few where plain iterative refinement
+ * contracts by only ~0.1 per correction), at most 60 iterations. A
+ * factorization whose float values fail (singular, overflow), or whose
+ * solve cannot be refined, is redone in double precision (a new analysis;
+ * info.fallbacks), and the next ves_ldl_factor is single precision again. The inertia is that of
+ * the factorization in use. */
 ves_status ves_ldl_create_prec(int n, int nnz, const int *irow, const int *jcol, int spd,
                                int single, ves_ldl **out);
 

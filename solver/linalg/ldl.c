@@ -111,7 +111,8 @@ static ves_status mumps_setup(ves_ldl *f) {
   f->info_.icntl14 = f->ICNTL(14);
   /* ordering: approximate minimum fill. On the projection matrix at eps =
    * 0.01 (21k nodes, 2.9M entries) its analysis takes 0.15 s against 2.5 s for
-   * the default choice (SCOTCH), and the factors come out 8% smaller. */
+   * the default choice (SCOTCH), and the factors come out 8% smaller
+   * (docs/results.md, "Performance and its scaling"). */
   f->ICNTL(7) = 2;
   /* symmetric indefinite (the KKT matrices): no maximum weighted matching
    * (ICNTL(6) = 0) and the plain ordering of the graph (ICNTL(12) = 1)

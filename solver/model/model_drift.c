@@ -248,8 +248,8 @@ done:
  * carries -u_r, +u_z). Per component i, S_i = sum_a c_a d_ia d_ia^T with
  * d_ia = e_a - N_i(a, .): r and z decouple, so only the rr and zz entries of
  * the blocks are set. The rows are cut to the quadrature's couplings and
- * refit, as the stabilization's (node_row): uncut, they coupled every pair
- * of a node's neighbours beyond the points' pattern (+0.07% blocks on
+ * refit, as the stabilization's (node_row): uncut, they would couple every
+ * pair of a node's neighbours beyond the points' pattern (+0.07% blocks on
  * test_model's problem). M_a is node a's share of the r-weighted reference
  * measure (the lumped mass of the basis; > 0 on the axis too). Wall nodes
  * (fixed, no drift) have no term: their points at the nodes lie 1e-3 h_a
@@ -275,7 +275,7 @@ ves_status model_drift_build(ves_model *m) {
 
 /* The stabilization of E (model.h, ves_model_params.stab): the defect rows
  * of the nodes off the wall, cut to the quadrature's pattern (so E_s adds
- * no fill to the step matrix: the uncut rows grew the KKT factorization by
+ * no fill to the step matrix: the uncut rows grow the KKT factorization by
  * 21% at eps 0.01) and refit (refit_row), c_a = stab k 2 pi M_a / h_a^2, and the constant
  * Hessian sum_a c_a d_a d_a^T (per component) in the pattern. */
 ves_status model_stab_build(ves_model *m) {
