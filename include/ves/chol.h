@@ -5,7 +5,7 @@
  * fill-reducing permutation P chosen once at create, and G = P^T L; or
  * densely (LAPACK) for M plus a rank-m term that a sparse factor cannot
  * hold. MUMPS (ldl.h) offers full solves M^{-1} v only. Knows only status
- * codes: no quadrature, no model. */
+ * codes: no quadrature, no model (docs/design.md, "Backends"). */
 #ifndef VES_CHOL_H
 #define VES_CHOL_H
 

@@ -1,7 +1,8 @@
 /* vesica — geometry behind CGAL: Delaunay triangulation, exact neighbour search
  * with node-wise radii, local spacing, and adapted node sets on the meridian
  * rectangle [0, LR] x [-LZ, LZ] with mirrored ghost nodes across the axis R = 0.
- * The implementation (solver/discret/geom.cpp) is the project's only C++ file. */
+ * The implementation (solver/discret/geom.cpp) is the project's only C++ file
+ * (docs/design.md, "Discretization"). */
 #ifndef VES_GEOM_H
 #define VES_GEOM_H
 

@@ -1,11 +1,11 @@
-/* vesica — sparse symmetric factorizations of a matrix given by its lower
- * triplets (0-based): the direct solver LDL^T / Cholesky on sequential MUMPS
- * (the KKT systems, the L2 projection) and the incomplete Cholesky factor
- * IC(0) (the nlopt backend's change of variables). Knows only status codes:
- * no quadrature, no model. */
+/* vesica — the sparse symmetric direct solver of a matrix given by its lower
+ * triplets (0-based): A = L D L^T or A = L L^T on sequential MUMPS, for the
+ * KKT systems and the L2 projection (docs/design.md, "Numerical choices and
+ * why"). Knows only status codes: no quadrature, no model. */
 #ifndef VES_LDL_H
 #define VES_LDL_H
 
+#include "ves/ic0.h" /* the incomplete Cholesky factor, for the users of both */
 #include "ves/status.h"
 
 /* ---- Sparse symmetric direct solver (MUMPS, sequential) ----
@@ -16,7 +16,8 @@
  * object is opaque: it owns a MUMPS instance and 1-based copies of the
  * indices, and borrows the values of the last factorization (ves_ldl_factor).
  * MUMPS prints nothing; ordering: approximate minimum fill (ICNTL(7) = 2,
- * measured faster than SCOTCH/AMD/QAMD/PORD on our matrices). */
+ * faster than SCOTCH/AMD/QAMD/PORD on these matrices: docs/results.md,
+ * "Performance and its scaling"). */
 typedef struct ves_ldl ves_ldl;
 
 /* Diagnostics of the last MUMPS call (create, factor or solve). */
@@ -30,7 +31,7 @@ typedef struct {
   int retries;           /* workspace retries (INFOG(1) = -8/-9) in the last factorization */
   int single;            /* 1: the factorization in use is single precision */
   int refinements;       /* single precision: refinement (FGMRES) iterations of the last
-                            solve, 0 when the single precision solve was enough */
+                            solve, 0 when the single precision solve is enough */
   int fallbacks;         /* single precision: factorizations redone in double precision so
                             far (values that float cannot factor, or a solve that could not
                             be refined); each lasts until the next ves_ldl_factor */
@@ -48,15 +49,15 @@ ves_status ves_ldl_create(int n, int nnz, const int *irow, const int *jcol, int 
 
 /* As ves_ldl_create; single != 0 factors in single precision (SMUMPS: half
  * the factors' memory and bandwidth, ~1.7x faster on the KKT matrix at eps
- * 0.01) and refines each solve with the double precision values to
- * |b - A x| <= 1e-6 |b|: flexible GMRES preconditioned by the single
- * precision factors (one iteration on most KKT matrices: 5e-5 -> 5e-8; a
- * few where plain iterative refinement contracts by only ~0.1 per
- * correction), at most 60 iterations. A factorization whose float values
- * fail (singular, overflow), or whose solve cannot be refined, is redone in
- * double precision (a new analysis; info.fallbacks), and the next
- * ves_ldl_factor is single precision again. The inertia is that of the
- * factorization in use. */
+ * 0.01: docs/results.md, "Performance and its scaling") and refines each
+ * solve with the double precision values to |b - A x| <= 1e-6 |b|: flexible
+ * GMRES preconditioned by the single precision factors (one iteration on
+ * most KKT matrices: 5e-5 -> 5e-8; a few where plain iterative refinement
+ * contracts by only ~0.1 per correction), at most 60 iterations. A
+ * factorization whose float values fail (singular, overflow), or whose
+ * solve cannot be refined, is redone in double precision (a new analysis;
+ * info.fallbacks), and the next ves_ldl_factor is single precision again. The inertia is that of
+ * the factorization in use. */
 ves_status ves_ldl_create_prec(int n, int nnz, const int *irow, const int *jcol, int spd,
                                int single, ves_ldl **out);
 
@@ -64,7 +65,7 @@ ves_status ves_ldl_create_prec(int n, int nnz, const int *irow, const int *jcol,
  * of the triplets given to create, borrowed, not copied: val must stay valid
  * and unchanged until the next ves_ldl_factor or ves_ldl_destroy (the
  * single precision solves' refinement and a double fallback read it; at
- * eps 0.01 a copy was ~0.3 GB). Retries with twice the workspace
+ * eps 0.01 a copy would take ~0.3 GB). Retries with twice the workspace
  * relaxation ICNTL(14) when MUMPS runs out of workspace (up to
  * VES_LDL_MAX_RETRIES times; the larger value is kept for later calls).
  * Returns VES_OK, VES_ERR_ARG, VES_ERR_SINGULAR (a zero pivot: INFOG(1) = -10
@@ -99,45 +100,5 @@ void ves_ldl_get_info(const ves_ldl *f, ves_ldl_info *info);
 void ves_ldl_destroy(ves_ldl **f);
 
 #define VES_LDL_MAX_RETRIES 3 /* workspace retries in ves_ldl_factor */
-
-/* ---- Incomplete Cholesky IC(0) ----
- *
- * L L^T ~= M + alpha diag(M) with L restricted to the lower pattern of M
- * (row-wise IC(0), no fill). Plain data: the factor in compressed rows, open
- * so a caller can read M's diagonal before factoring. */
-typedef struct {
-  int n;     /* order */
-  int nnz;   /* triplets the pattern was built from */
-  int *ptr;  /* n + 1 row offsets */
-  int *col;  /* ptr[n] columns, ascending in each row, the diagonal last */
-  double *a; /* ptr[n] values of M (the triplets summed, ves_ldl_ic_set) */
-  double *l; /* ptr[n] values of L (ves_ldl_ic_factor) */
-  int *map;  /* nnz: the slot in col of triplet k */
-} ves_ldl_ic;
-
-/* The pattern of the lower triplets irow[nnz] >= jcol[nnz] (copied; the
- * diagonal added where missing, duplicates merged). *out taken by the caller.
- * Returns VES_OK, VES_ERR_ARG (n < 1, nnz < 0, an index out of range or above
- * the diagonal), VES_ERR_ALLOC. */
-ves_status ves_ldl_ic_create(int n, int nnz, const int *irow, const int *jcol, ves_ldl_ic **out);
-
-/* M = the triplet values val[nnz] (in the order given to create) summed into
- * the pattern: L->a. */
-void ves_ldl_ic_set(ves_ldl_ic *L, const double *val);
-
-/* L L^T = M + alpha diag(M) on the pattern of M (M from ves_ldl_ic_set):
- *   L_ij = (M_ij - sum_{k<j} L_ik L_jk) / L_jj,
- *   L_ii = sqrt(M_ii (1 + alpha) - sum_{k<i} L_ik^2).
- * Returns VES_OK, VES_ERR_SINGULAR (a breakdown: a pivot <= 0 or not finite). */
-ves_status ves_ldl_ic_factor(ves_ldl_ic *L, double alpha);
-
-/* v = L^{-1} v (forward substitution, in place). */
-void ves_ldl_ic_lsolve(const ves_ldl_ic *L, double *v);
-
-/* v = L^{-T} v (backward substitution, in place). */
-void ves_ldl_ic_ltsolve(const ves_ldl_ic *L, double *v);
-
-/* Free; accepts NULL and sets *L to NULL. */
-void ves_ldl_ic_destroy(ves_ldl_ic **L);
 
 #endif

@@ -1,5 +1,6 @@
 /* vesica — the sharp interface a nodal field carries on a triangulation
- * (post-processing, paper Sec. 4: the area and volume the nodes show). */
+ * (post-processing, paper Sec. 4: the area and volume the nodes show;
+ * docs/design.md, "Analysis"). */
 #ifndef VES_LEVEL_SET_H
 #define VES_LEVEL_SET_H
 

@@ -3,7 +3,8 @@
  * p_a(X) = exp(-beta_a |X - X_a|^2 + lambda . (X - X_a)) / Z(X, lambda),
  * with lambda(X) the minimizer of log Z (so that sum_a p_a (X - X_a) = 0:
  * exact reproduction of affine functions). beta_a = gamma / h_a^2 is node-wise.
- * See solver/discret/lme.c for the derivative formulas in use and the Newton safeguard. */
+ * See solver/discret/lme.c for the derivative formulas in use and the Newton safeguard
+ * (docs/design.md, "Discretization"). */
 #ifndef VES_LME_H
 #define VES_LME_H
 

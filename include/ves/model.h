@@ -1,8 +1,8 @@
 /* vesica — the discrete Lagrangian phase-field model: energy E, area A and
- * volume V of DESIGN.md §1 as functions of the nodal positions y, with
- * gradients and exact sparse Hessians, and the dissipation matrix K(y), all
- * from one per-point assembly over the local kinematic variables
- * q_alpha = B_alpha y (DESIGN.md §2).
+ * volume V (docs/design.md, "The model") as functions of the nodal positions
+ * y, with gradients and exact sparse Hessians, and the dissipation matrix
+ * K(y), all from one per-point assembly over the local kinematic variables
+ * q_alpha = B_alpha y (docs/design.md, "Discretization").
  *
  * y has 2n entries (r_a, z_a) for the real nodes; ghosts carry (-r_a, z_a).
  * Every integral is 2 pi sum_alpha w_alpha (density at alpha). */
@@ -32,15 +32,16 @@ typedef struct {
                     rate of the coefficients' departure from the motion at
                     their nodes. Zero on affine motions (LME reproduces
                     them), O((h/L)^2) of the dissipation on smooth ones,
-                    stiff on grid-scale coefficient patterns (bench/RESULTS.md,
-                    "Drift damping") */
+                    stiff on grid-scale coefficient patterns (docs/results.md,
+                    "Resets and remeshing") */
   double stab;   /* coefficient-mode stabilization kappa >= 0 (0: off): E gets
                     E_s = (1/2) sum_a kappa k 2 pi M_a / h_a^2 |y^a - y(X_a)|^2
                     over the nodes off the wall (M_a as for drift): zero on
                     affine maps, so at the reference; O(kappa (h/L)^2) on
                     smooth motions; positive curvature along the grid-scale
                     coefficient patterns on which the discrete E has negative
-                    curvature (bench/RESULTS.md, issue 22). Its Hessian is
+                    curvature (docs/results.md, "Accuracy against the
+                    sharp-interface references"). Its Hessian is
                     constant, added to Hess E */
 } ves_model_params;
 
@@ -117,7 +118,7 @@ ves_status ves_model_dissipation(ves_model *m, const double *y, double *blk);
  * local matrices and the sums over the triangles stay double), for a matrix
  * that is factored in single precision anyway: entries to ~1e-6 of the
  * terms summed into them (float rounding of the 36-42 term products), ~1.5x
- * faster (bench/RESULTS.md, session 36). */
+ * faster (docs/results.md, "Performance and its scaling"). */
 ves_status ves_model_dissipation_ref(ves_model *m, const double *y, double *qn);
 size_t ves_model_dissipation_ref_size(const ves_model *m); /* doubles in qn: 5 nq */
 ves_status ves_model_eval_step(ves_model *m, const double *y, int which, const double *qn,

@@ -2,7 +2,7 @@
  * quadrature (quad.h) and factorization (ldl.h): the node-level block pattern
  * of the model's matrices built from the quadrature tables (its type and the
  * operations that need no quadrature are in sparse.h), and the L2 projection
- * of a field onto the LME space (DESIGN.md §2). */
+ * of a field onto the LME space (docs/design.md, "Discretization"). */
 #ifndef VES_PROJECT_H
 #define VES_PROJECT_H
 
@@ -13,8 +13,8 @@
 /* Build the pattern from the quadrature tables: a and b are coupled when some
  * point has both in its (ghost-folded) neighbour list. q2 (may be NULL): a
  * second point set with tables against the same n nodes whose couplings are
- * added (the union; the model no longer uses it: its defect rows are cut
- * to the points' own pattern, model_drift.c).
+ * added (the union; the model passes NULL: its defect rows are cut to the
+ * points' own pattern, model_drift.c).
  * fixed[2n] flags the fixed dofs (borrowed). *out taken by the caller.
  * Named for its type: the constructor of sparse.h's ves_pattern, the pair
  * of ves_pattern_destroy there (GSL's _alloc/_free by type); it stands here

@@ -1,6 +1,7 @@
 /* vesica — quadrature on the Delaunay triangles of the reference nodes, and the
  * discretization tables: for every quadrature point its neighbour list and the
- * 6 x m table [p; dp/dR; dp/dZ; d2p/dR2; d2p/dRdZ; d2p/dZ2] of the LME basis. */
+ * 6 x m table [p; dp/dR; dp/dZ; d2p/dR2; d2p/dRdZ; d2p/dZ2] of the LME basis
+ * (docs/design.md, "Discretization"). */
 #ifndef VES_QUAD_H
 #define VES_QUAD_H
 
@@ -102,7 +103,7 @@ ves_status ves_quad_cells(const ves_quad *q, int *ncell, int **cells);
  * VES_QUAD_NPT ntri), the unit of assembly of the model; ntri = 0 (tri NULL)
  * gives a point set for evaluation only (ves_quad_tables, ves_quad_field,
  * ves_quad_motion), which ves_model_create refuses. Used by the reset of the
- * reference configuration (reconnect.h): the old triangles with the moved
+ * reference configuration (reconnect.h): the current triangles with the moved
  * points and weights. *out is taken by the caller. VES_ERR_ARG for nq < 1, a
  * non-finite coordinate, a weight <= 0 or non-finite, or a triangle index < 0. */
 ves_status ves_quad_create_points(int nq, const double *x, const double *w, int ntri,

@@ -1,6 +1,7 @@
 /* vesica — initial vesicle shapes: axisymmetric generating curves with an exact
  * signed distance d(R, Z) (> 0 inside), their sharp area and volume, the
- * phase-field phi0 = tanh(d / (sqrt2 eps)) (the node sizing field: sizing.h). */
+ * phase-field phi0 = tanh(d / (sqrt2 eps)) (the node sizing field: sizing.h;
+ * docs/design.md, "Discretization"). */
 #ifndef VES_SHAPE_H
 #define VES_SHAPE_H
 

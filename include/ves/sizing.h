@@ -1,6 +1,6 @@
 /* vesica — the node sizing field of an initial shape: the target spacing
- * h(X) of the adapted node set (DESIGN.md §2, "Nodes"), from the shape's
- * signed distance. */
+ * h(X) of the adapted node set, from the shape's signed distance
+ * (docs/design.md, "Discretization"). */
 #ifndef VES_SIZING_H
 #define VES_SIZING_H
 

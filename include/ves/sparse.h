@@ -8,7 +8,8 @@
  * quadrature point, one dense 2x2 block (r, z) x (r, z), row-major. The
  * pattern is computed once per reference configuration. For the solvers it is
  * mapped to triplets over the FREE degrees of freedom only (fixed ones
- * eliminated), lower triangle, in a fixed order (Ipopt and MUMPS both take it). */
+ * eliminated), lower triangle, in a fixed order (Ipopt and MUMPS both take it;
+ * docs/design.md, "Discretization"). */
 #ifndef VES_SPARSE_H
 #define VES_SPARSE_H
 

@@ -1,4 +1,6 @@
-/* vesica — the project's single status enum and the error-propagation macros. */
+/* vesica — the project's single status enum and the error-propagation
+ * macros, with a per-thread record of where an error arose and the calls it
+ * passed (docs/design.md, "Layers and interfaces"). */
 #ifndef VES_STATUS_H
 #define VES_STATUS_H
 

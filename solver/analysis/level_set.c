@@ -1,7 +1,8 @@
 /* vesica — the sharp interface {phi = 0} of a nodal field on a
  * triangulation: the volume inside and the area of the zero line, in the
  * axisymmetric measure, exact for the piecewise-linear interpolant
- * (post-processing: what the nodes show, against the phase field's A, V). */
+ * (post-processing: what the nodes show, against the phase field's A, V;
+ * docs/design.md, "Analysis"). */
 #include "ves/level_set.h"
 
 #include <math.h>
@@ -17,6 +18,9 @@ static double poly_r_moment(int k, const double *p) {
   return s / 6;
 }
 
+/* Per triangle, the linear interpolant's zero segment and the part with
+ * phi > 0: V += 2 pi int r dA over that part, A += 2 pi int r ds along the
+ * segment (exact for piecewise-linear phi). */
 ves_status ves_level_set_eval(int n, int ntri, const int *tri, const double *x, const double *phi,
                               ves_level_set *out) {
   VES_CHECK(tri && x && phi && out && ntri >= 1 && n >= 3, VES_ERR_ARG);

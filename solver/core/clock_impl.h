@@ -1,4 +1,5 @@
-/* vesica — private: wall-clock time for the timings the library reports. */
+/* vesica — private: wall-clock time for the timings the library reports
+ * (monotonic seconds; docs/design.md, "Layers and interfaces"). */
 #ifndef VES_CLOCK_IMPL_H
 #define VES_CLOCK_IMPL_H
 

@@ -1,18 +1,13 @@
 /* vesica — large arrays on transparent huge pages.
  *
- * The arrays a run streams or scatters into at every pass are large: the
- * LME tables (~1.4 GB at eps 0.01), the Hessian's block array, MUMPS's
- * factor workspace. On 4 KiB pages every first touch of them is a page
- * fault (about a million in an eps 0.01 run's setup and first steps, each
- * costly under a hypervisor) and a pass over them misses the TLB on every
- * few rows. Debian's kernel leaves transparent huge pages to the program
- * ("madvise" mode): an array aligned to 2 MiB and advised MADV_HUGEPAGE is
- * backed by 2 MiB pages, 512 times fewer faults and TLB entries. Measured
- * on the eps 0.01 oblate relaxation (bench/RESULTS.md, session 27): -13% CPU
- * time (setup -20%), the same iterates. The advice is a hint: where the
- * kernel has no huge page (or THP is off) the memory is plain, and nothing
- * computed depends on it. Arrays below VES_BIG_MIN, and what MUMPS,
- * CHOLMOD and Ipopt allocate themselves, stay on plain malloc. */
+ * The LME tables (~1.4 GB at eps 0.01), the Hessian's block array and
+ * MUMPS's factor workspace are aligned to 2 MiB and advised MADV_HUGEPAGE:
+ * 512 times fewer page faults and TLB entries than on 4 KiB pages, -13% CPU
+ * time (setup -20%) on the eps 0.01 oblate relaxation with the same iterates
+ * (docs/results.md, "Performance and its scaling"; docs/design.md, "Numerical
+ * choices and why"). The advice is a hint: without huge pages the memory is
+ * plain, and nothing computed depends on it. Arrays below VES_BIG_MIN, and
+ * what MUMPS, CHOLMOD and Ipopt allocate themselves, stay on plain malloc. */
 #define _DEFAULT_SOURCE /* MADV_HUGEPAGE (Linux) beside the build's _XOPEN_SOURCE */
 #include <malloc.h>
 #include <stdint.h>
@@ -51,18 +46,18 @@ void *ves_big_realloc(void *old, size_t old_bytes, size_t new_bytes) {
 }
 
 /* Ipopt 3.11 hands MUMPS no workspace (WK_USER), so MUMPS allocates its
- * factor workspace anew at every factorization, i.e. at every Ipopt
- * iteration. glibc serves a block above its mmap threshold (dynamic, at most
- * 32 MiB) with fresh pages and unmaps it on free, so every factorization
- * faulted its workspace in and zero-filled it again: 1.5 million page faults
- * and ~20% of Ipopt's CPU over the default relaxation (bench/RESULTS.md,
- * session 27). Raising the mmap and trim thresholds to VES_HEAP_KEEP makes
+ * factor workspace anew at every Ipopt iteration. glibc serves a block above
+ * its mmap threshold (dynamic, at most 32 MiB) with fresh pages and unmaps it
+ * on free, so with the default thresholds every factorization faults its
+ * workspace in and zero-fills it again: 1.5 million page faults and ~20% of
+ * Ipopt's CPU over the default relaxation (docs/results.md, "Performance and
+ * its scaling"). Raising the mmap and trim thresholds to VES_HEAP_KEEP makes
  * such blocks come from the heap and stay there for the next factorization.
  * Process-wide and lasting: it changes where glibc places large blocks (and
  * keeps up to VES_HEAP_KEEP bytes of freed memory resident), never a
  * result; a refused setting costs only the faults. newton's own MUMPS
- * (ldl.c, with WK_USER) measured no gain from it (eps 0.02, a dt* 100 step
- * of 23 factorizations: 77.2 / 76.0 CPU s), so only the ipopt backend calls
+ * (ldl.c, with WK_USER) gains nothing from it (eps 0.02, a dt* 100 step of
+ * 23 factorizations: 77.2 / 76.0 CPU s), so only the ipopt backend calls
  * it. */
 void ves_mem_keep_heap(void) {
   (void)mallopt(M_MMAP_THRESHOLD, VES_HEAP_KEEP);

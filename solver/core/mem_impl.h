@@ -1,4 +1,5 @@
-/* vesica — private: large arrays on transparent huge pages (mem.c). */
+/* vesica — private: large arrays on transparent huge pages (mem.c;
+ * docs/design.md, "Numerical choices and why"). */
 #ifndef VES_MEM_IMPL_H
 #define VES_MEM_IMPL_H
 

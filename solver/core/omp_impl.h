@@ -1,5 +1,6 @@
 /* vesica — private: the OpenMP queries the threaded modules share (model,
- * quad, sparse), with their one-thread values when built without OpenMP. */
+ * quad, sparse), with their one-thread values when built without OpenMP
+ * (docs/design.md, "Layers and interfaces"). */
 #ifndef VES_OMP_IMPL_H
 #define VES_OMP_IMPL_H
 

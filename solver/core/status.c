@@ -1,5 +1,6 @@
 /* vesica — text of the status codes (from the X-macro list) and the
- * per-thread record of the last error (status.h). */
+ * per-thread record of the last error: its origin and the VES_CALL places it
+ * passed (status.h; docs/design.md, "Layers and interfaces"). */
 #include "ves/status.h"
 
 #include <stdarg.h>

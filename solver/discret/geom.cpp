@@ -1,4 +1,10 @@
-/* vesica — CGAL behind a C API: Delaunay, spacing, exact node-wise-radius search, adapted nodes. */
+/* vesica — CGAL behind a C API: Delaunay triangulation, the local spacing
+ * h_a (mean Delaunay edge length, smoothed over the neighbours), the exact
+ * search |X - x_a| <= radius_a (a kd-tree on points lifted to 3D), and adapted
+ * node sets: graded walls, a hexagonal strip along the axis, free nodes
+ * sampled with density 2/(sqrt3 h^2) and moved by Lloyd iterations to the
+ * centroids of their Voronoi cells under rho = h^-4 (docs/design.md,
+ * "Discretization"). */
 #include "ves/geom.h"
 
 #include <CGAL/Delaunay_triangulation_2.h>
@@ -95,8 +101,8 @@ const int SPACING_PASSES = 2; /* smoothing passes of the measured spacing */
 /* h_a = mean |x_a - x_b| over the Delaunay edges ab of a finished triangulation,
  * then smoothed over the Delaunay neighbours. Every sum runs over the neighbours
  * in increasing index order, not in CGAL's edge order: that order depends on the
- * process's history (measured: h differing by 1 ulp between the same reset made
- * in a run and in its restart), and the spacing must be a function of the nodes
+ * process's history (h differs by 1 ulp between the same reset made in a run
+ * and in its restart), and the spacing must be a function of the nodes
  * alone, bit for bit (a restart rebuilds the same reference). */
 ves_status spacing_of_dt(const DT &dt, int n, const double *x, double *h) {
   std::vector<std::vector<int>> nb((std::size_t)n);
@@ -115,8 +121,9 @@ ves_status spacing_of_dt(const DT &dt, int n, const double *x, double *h) {
   /* SPACING_PASSES passes of h_a <- (h_a + (1/2) sum_b h_b) / (1 + deg_a / 2) over
    * the Delaunay neighbours b: the raw mean edge length jitters by ~+-10% from
    * node to node where lattices meet, and that jitter in beta_a = gamma/h_a^2
-   * alone multiplied the sphere's energy error by 7 (4.2e-4 vs 6.6e-5 at
-   * eps = 0.04, bench/RESULTS.md). A uniform lattice keeps h_a exact. */
+   * alone multiplies the sphere's energy error by 7 (4.2e-4 vs 6.6e-5 at
+   * eps = 0.04, docs/results.md, "Convergence in ε and h"). A
+   * uniform lattice keeps h_a exact. */
   std::vector<double> next((std::size_t)n);
   for (int pass = 0; pass < SPACING_PASSES; pass++) {
     for (int i = 0; i < n; i++) {
@@ -348,7 +355,8 @@ const double SQ3 = 1.7320508075688772; /* sqrt(3) */
 
 /* Density exponent of the Lloyd centroids: rho = h^-RHO_EXP. A CVT with density rho has
  * cell size ~ rho^(-1/(d+2)) (Du, Faber & Gunzburger 1999), so spacing ~ h needs rho = h^-4
- * in 2D; rho = h^-2 drifts nodes out of the fine band (measured, see the report). */
+ * in 2D; rho = h^-2 drifts nodes out of the fine band (docs/results.md, "Approaches
+ * measured and not adopted"). */
 const double RHO_EXP = 4.0;
 
 /* splitmix64: deterministic seeded uniform numbers in [0, 1). */

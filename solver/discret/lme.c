@@ -1,4 +1,6 @@
-/* vesica — local max-ent (LME) basis functions, gradients, Hessians in 2D. */
+/* vesica — local max-ent (LME) basis functions, gradients, Hessians in 2D:
+ * the dual Newton iteration for lambda(X) and the closed-form derivatives
+ * below (docs/design.md, "Discretization"). */
 
 /* Notation. X the evaluation point, X_a the m neighbours, d_a = X - X_a,
  * beta_a = gamma / h_a^2 with h_a supplied by the caller (the mean Delaunay
@@ -23,7 +25,7 @@
  * Armijo test is meaningless; the step is then accepted if it does not
  * increase |r| (near the minimum Newton is quadratically convergent).
  * Convergence: |r| <= newton_tol * h_loc, h_loc = min_a sqrt(gamma / beta_a).
- * Measured iterations from lambda = 0: ~3-4 at interior points of a
+ * Iterations from lambda = 0: ~3-4 at interior points of a
  * perturbed lattice, 1 on a regular hex lattice; 1e-3 h from the hull ~11
  * (each step advances lambda . n by O(1/h) in the exponential tail).
  *
@@ -34,13 +36,13 @@
  * convex hull of the neighbours: lambda diverges; detected when
  * |lambda| max_a |d_a| exceeds LME_LAMBDA_MAX (legitimate points, even 1e-12 h
  * from the hull, stay below ~200) or the line search stalls
- * -> VES_ERR_NOCONV (measured: after ~35 iterations). X on the hull (or
+ * -> VES_ERR_NOCONV (after ~35 iterations). X on the hull (or
  * numerically on it): Newton may reach |r| <= tol with lambda -> infinity and J
  * singular in the normal direction; a converged J with smallest/largest
  * eigenvalue below LME_RCOND_MIN
  * -> VES_ERR_ARG. Iteration limit reached -> VES_ERR_NOCONV.
  *
- * Derivatives (node-wise beta; DESIGN.md section 2, re-derived here).
+ * Derivatives (node-wise beta; docs/design.md, "Discretization").
  * Implicit differentiation of r(X, lambda(X)) = 0 with dr/dX|_lambda =
  * I - J_beta (at r = 0) and dr/dlambda = J gives
  *   dlambda/dX = J^{-1} (J_beta - I),
@@ -54,8 +56,7 @@
  *            - sum_b p_b (1 + d_a . v_b) M_b (x) M_b
  *            + r_beta (x) v_a + v_a (x) r_beta + r_beta (x) r_beta,
  *   Hess p_a = p_a [g_a (x) g_a + grad g_a],
- * which is the DESIGN formula unchanged (confirmed by finite differences in
- * tests/test_lme.c). It is O(m): with d_a . v_b = v_a . d_b,
+ * (checked by finite differences in tests/test_lme.c). It is O(m): with d_a . v_b = v_a . d_b,
  *   sum_b p_b (1 + d_a . v_b) M_b (x) M_b = S + v_a,R T_R + v_a,Z T_Z,
  *   S = sum_b p_b M_b (x) M_b,  T_k = sum_b p_b d_b,k M_b (x) M_b,
  * so the sums over b are formed once and each node costs O(1).
@@ -65,7 +66,7 @@
  * done in long double, with the weights renormalized (sum p = 1) and the d_a
  * re-centred on their p-mean (so sum p d = 0 and J = sum p d (x) d hold to
  * ~1e-19); in plain double the affine-reproduction error of the Hessians is
- * ~1e-10 at 1e-3 h from the hull, with this treatment ~1e-12 (measured). */
+ * ~1e-10 at 1e-3 h from the hull, with this treatment ~1e-12. */
 #include "ves/lme.h"
 
 #include <float.h>
@@ -77,7 +78,7 @@
 #define LME_RCOND_REG 1e-13
 /* A converged J whose eigenvalue ratio is below this is declared singular
  * (X on the hull or a degenerate neighbourhood). At a distance delta from a
- * straight hull edge the ratio is ~0.8 delta/h (measured), so points within
+ * straight hull edge the ratio is ~0.8 delta/h, so points within
  * ~1e-10 h of the hull are rejected; exactly on it the ratio is ~1e-14.
  * Closer than ~1e-6 h the Hessians lose accuracy anyway (~1e-10 / h^2). */
 #define LME_RCOND_MIN 1e-10
@@ -391,8 +392,8 @@ ves_status ves_lme_eval(const ves_lme_params *par, const double X[2], int m, con
   ves_status st = lme_newton(par, m, q, d, dmax, par->newton_tol * hloc, lambda, p, r, Jx, &iters);
   if (st == VES_ERR_NOCONV && warm) {
     /* a guess from another point can start far out (|lambda| dmax above
-     * LME_LAMBDA_MAX at once: measured at a node set made by a reset,
-     * where the previous point was unrelated): again from lambda = 0 */
+     * LME_LAMBDA_MAX at once, as at a node set made by a reset, where the
+     * previous point is unrelated): again from lambda = 0 */
     int more = 0;
     lambda[0] = lambda[1] = 0.0;
     st = lme_newton(par, m, q, d, dmax, par->newton_tol * hloc, lambda, p, r, Jx, &more);

@@ -1,7 +1,9 @@
 /* vesica — the structures that need a quadrature: the node-level block
  * pattern of the model's matrices (nodes coupled through a common point) and
- * the L2 projection of a field onto the LME space (DESIGN.md §2), solved with
- * the Cholesky factorization of ldl.h. */
+ * the L2 projection of a field onto the LME space, the normal equations
+ * M c = b, M_ab = sum_alpha w_alpha P_alpha,a P_alpha,b, solved with the
+ * Cholesky factorization of ldl.h and iterative refinement (docs/design.md,
+ * "Discretization"). */
 #include "ves/project.h"
 
 #include <math.h>

@@ -1,5 +1,6 @@
 /* vesica — 6-point degree-4 quadrature on Delaunay triangles and the LME
- * discretization tables at the quadrature points (DESIGN.md §2).
+ * discretization tables at the quadrature points (docs/design.md,
+ * "Discretization").
  *
  * The rule is the symmetric degree-4 rule of Strang–Fix/Dunavant: two orbits of
  * three points with barycentric coordinates (1-2a, a, a); its four parameters

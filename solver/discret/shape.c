@@ -14,7 +14,8 @@
  * the neighbouring samples. The sign comes from the inward normal at the
  * closest point, n_in = (Z', -R') / |P'| for this orientation, so it is exact
  * (a sampled polygon would get the sign wrong within its sagitta, which at
- * eps = 0.01 would spoil phi0 by ~1e-3 next to the interface). */
+ * eps = 0.01 would spoil phi0 by ~1e-3 next to the interface).
+ * docs/design.md, "Discretization". */
 #include "ves/shape.h"
 
 #include "ves/geom.h"
@@ -161,6 +162,8 @@ static void sharp_integrals(const ves_shape *s, double *area, double *vol) {
   *area = A, *vol = V;
 }
 
+/* (1/2) int (H - C0)^2 dA / k, H = (k1 + k2)/2, by 4-point Gauss-Legendre
+ * on panels of t. */
 double ves_shape_sharp_energy(const ves_shape *s, double c0) {
   static const double gx[4] = {-0.8611363115940526, -0.3399810435848563, 0.3399810435848563,
                                0.8611363115940526};
@@ -274,6 +277,34 @@ static ves_status curve_setup(ves_shape *s, int np, const double *pts) {
   return VES_OK;
 }
 
+/* The curve at VES_SHAPE_NS parameter values t_i = pi i / (NS - 1), its
+ * polygon length and largest chord, and each block's bounding circle: centre
+ * of its box, radius to its farthest sample (the coarse search's lower
+ * bounds, ves_shape_distance). */
+static void sample_curve(ves_shape *s) {
+  s->ds_max = 0, s->length = 0;
+  for (int i = 0; i < VES_SHAPE_NS; i++) {
+    double D[2], DD[2];
+    s->ts[i] = M_PI * i / (VES_SHAPE_NS - 1);
+    curve(s, s->ts[i], s->ps + 2 * i, D, DD);
+    if (i > 0) {
+      double l = hypot(s->ps[2 * i] - s->ps[2 * i - 2], s->ps[2 * i + 1] - s->ps[2 * i - 1]);
+      if (l > s->ds_max) s->ds_max = l;
+      s->length += l;
+    }
+  }
+  for (int b = 0, w = VES_SHAPE_NS / VES_SHAPE_NB; b < VES_SHAPE_NB; b++) {
+    double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY}, rad = 0;
+    for (int i = b * w; i < (b + 1) * w; i++)
+      for (int k = 0; k < 2; k++)
+        lo[k] = fmin(lo[k], s->ps[2 * i + k]), hi[k] = fmax(hi[k], s->ps[2 * i + k]);
+    for (int k = 0; k < 2; k++) s->bc[2 * b + k] = 0.5 * (lo[k] + hi[k]);
+    for (int i = b * w; i < (b + 1) * w; i++)
+      rad = fmax(rad, hypot(s->ps[2 * i] - s->bc[2 * b], s->ps[2 * i + 1] - s->bc[2 * b + 1]));
+    s->br[b] = rad;
+  }
+}
+
 ves_status ves_shape_create(const ves_shape_params *par, ves_shape **out) {
   VES_CHECK(par && out, VES_ERR_ARG);
   *out = NULL;
@@ -341,29 +372,7 @@ ves_status ves_shape_create(const ves_shape_params *par, ves_shape **out) {
     sharp_integrals(s, &A, &V);
     s->scale = sqrt(4 * M_PI / A);
   }
-  s->ds_max = 0, s->length = 0;
-  for (int i = 0; i < VES_SHAPE_NS; i++) {
-    double D[2], DD[2];
-    s->ts[i] = M_PI * i / (VES_SHAPE_NS - 1);
-    curve(s, s->ts[i], s->ps + 2 * i, D, DD);
-    if (i > 0) {
-      double l = hypot(s->ps[2 * i] - s->ps[2 * i - 2], s->ps[2 * i + 1] - s->ps[2 * i - 1]);
-      if (l > s->ds_max) s->ds_max = l;
-      s->length += l;
-    }
-  }
-  /* each block's bounding circle: centre of its box, radius to its farthest
-   * sample (the coarse search's lower bounds, ves_shape_distance) */
-  for (int b = 0, w = VES_SHAPE_NS / VES_SHAPE_NB; b < VES_SHAPE_NB; b++) {
-    double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY}, rad = 0;
-    for (int i = b * w; i < (b + 1) * w; i++)
-      for (int k = 0; k < 2; k++)
-        lo[k] = fmin(lo[k], s->ps[2 * i + k]), hi[k] = fmax(hi[k], s->ps[2 * i + k]);
-    for (int k = 0; k < 2; k++) s->bc[2 * b + k] = 0.5 * (lo[k] + hi[k]);
-    for (int i = b * w; i < (b + 1) * w; i++)
-      rad = fmax(rad, hypot(s->ps[2 * i] - s->bc[2 * b], s->ps[2 * i + 1] - s->bc[2 * b + 1]));
-    s->br[b] = rad;
-  }
+  sample_curve(s);
   *out = s;
   return VES_OK;
 }
@@ -387,6 +396,7 @@ void ves_shape_axes(const ves_shape *s, double *a, double *c) {
   *c = P[1];
 }
 
+/* A = 2 pi int R |P'| dt, V = pi int R^2 (-Z') dt (sharp_integrals). */
 void ves_shape_sharp(const ves_shape *s, double *area, double *volume) {
   sharp_integrals(s, area, volume);
 }
@@ -449,7 +459,7 @@ double ves_shape_distance(const ves_shape *s, const double X[2]) {
    * of the nearest (dmin + ds_max, the seeds' window) are scanned, on squared
    * distances; hypot only where a seed test could go either way. The seeds,
    * and so the distance, are bit for bit those of a hypot at every sample
-   * (which was ~10% of the setup's CPU at eps 0.01); SAMPLE_SLACK covers the
+   * (which would be ~10% of the setup's CPU at eps 0.01); SAMPLE_SLACK covers the
    * bounds' rounding. */
   const int w = VES_SHAPE_NS / VES_SHAPE_NB;
   double bd[VES_SHAPE_NB], ub = INFINITY;
@@ -513,6 +523,7 @@ double ves_shape_distance_reference(const ves_shape *s, const double X[2]) {
   return signed_distance(s, X, best, tb);
 }
 
+/* phi0 = tanh(d / (sqrt2 eps)), the equilibrium profile across the interface. */
 double ves_shape_phi0(const ves_shape *s, double eps, const double X[2]) {
   return tanh(ves_shape_distance(s, X) / (M_SQRT2 * eps));
 }

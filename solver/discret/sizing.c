@@ -1,6 +1,7 @@
 /* vesica — the node sizing field: h = h_band within band eps of the
  * interface, growing with `slope` to h_far, from |d| (ves_shape_distance)
- * tabulated on a grid and interpolated bilinearly (O(1) an evaluation). */
+ * tabulated on a grid and interpolated bilinearly (O(1) an evaluation;
+ * docs/design.md, "Discretization"). */
 #include "ves/sizing.h"
 
 #include <math.h>
@@ -66,6 +67,7 @@ static double grid_abs_d(const ves_sizing *z, const double X[2]) {
          fu * fw * a[z->nr + 1];
 }
 
+/* h(X) = min(h_far, h_band + slope max(0, |d(X)| - band eps)). */
 double ves_sizing_eval(const double X[2], void *ctx) {
   const ves_sizing *z = ctx;
   double d = grid_abs_d(z, X);
@@ -73,6 +75,7 @@ double ves_sizing_eval(const double X[2], void *ctx) {
   return h < z->par.h_far ? h : z->par.h_far;
 }
 
+/* 1 where |d(X)| < reserve: the band left to the caller's layered nodes. */
 int ves_sizing_reserved(const double X[2], void *ctx) {
   const ves_sizing *z = ctx;
   return z->par.reserve > 0 && grid_abs_d(z, X) < z->par.reserve;

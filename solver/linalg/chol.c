@@ -1,5 +1,7 @@
 /* vesica — the exact sparse Cholesky factor with half solves (chol.h), on
- * CHOLMOD. The pattern goes to CHOLMOD once, as a lower (stype -1) packed
+ * CHOLMOD: P M P^T = L L^T, G = P^T L, v -> G^{-1} v, v -> G^{-T} v; or the
+ * dense factor of M + sum s_i w_i w_i^T (docs/design.md, "Backends").
+ * The pattern goes to CHOLMOD once, as a lower (stype -1) packed
  * column matrix with sorted rows; map[k] is the slot of triplet k, so each
  * factorization only sums the values into A->x. CHOLMOD's own ordering
  * (AMD, METIS when AMD's fill is poor) and supernodal/simplicial choice are
@@ -126,8 +128,9 @@ ves_status ves_chol_create(int n, int nnz, const int *irow, const int *jcol, ves
   F->c.final_ll = 1; /* L L^T also from a simplicial factorization */
   /* A failed factorization's partial factor is never used: without this,
    * CHOLMOD refactors the failing supernode so that L(:,1:minor) is valid,
-   * which doubled the cost of a late failure (the nlopt backend's shifts:
-   * 0.27 s against 0.14 s at 2.8k unknowns, bench/RESULTS.md session 35). */
+   * which doubles the cost of a late failure (the nlopt backend's shifts:
+   * 0.27 s against 0.14 s at 2.8k unknowns, docs/results.md, "The backends
+   * compared"). */
   F->c.quick_return_if_not_posdef = 1;
   if ((rc = chol_pattern(F, irow, jcol)) != VES_OK) goto fail;
   F->L = cholmod_analyze(F->A, &F->c);

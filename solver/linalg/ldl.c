@@ -1,10 +1,12 @@
-/* vesica — the sparse symmetric direct solver on sequential MUMPS (LDL^T or
- * Cholesky of a matrix given by lower triplets) and the incomplete Cholesky
- * factor IC(0) on the pattern of such a matrix. Knows only status codes. */
-#include "ves/ldl.h"
+/* vesica — the sparse symmetric direct solver on sequential MUMPS: A = L D L^T
+ * (indefinite, 2x2 pivots) or A = L L^T (positive definite) of a matrix given
+ * by its lower triplets, factored in double or in single precision (then
+ * each solve is refined against the double values: ldl_refine.c), with the
+ * workspace kept across factorizations and the fallback from single to
+ * double precision. The KKT systems and the L2 projection solve with it
+ * (docs/design.md, "Numerical choices and why"). Knows only status codes. */
+#include "linalg/ldl_impl.h"
 
-#include <dmumps_c.h>
-#include <smumps_c.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -22,42 +24,7 @@
 #define JOB_FACTOR 2
 #define JOB_SOLVE 3
 #define USE_COMM_WORLD (-987654) /* the Fortran MPI_COMM_WORLD of the sequential fake MPI */
-#define LDL_GMRES_M 20           /* single precision: Krylov vectors of the refinement */
-#define LDL_GMRES_MAX 60         /* ... and its iterations before the double fallback */
-#define LDL_MATVEC_CHUNKS 4      /* the residual's products: fixed chunks of the triplets */
-#ifndef LDL_SINGLE_PIVOT
 #define LDL_SINGLE_PIVOT 0.0 /* single precision LDL^T: MUMPS's CNTL(1), no numerical pivoting */
-#endif
-
-struct ves_ldl {
-  int single;                      /* 1: the factors in single precision (SMUMPS), solves refined */
-  int spd;                         /* 1: Cholesky (SYM = 1), 0: LDL^T (SYM = 2) */
-  DMUMPS_STRUC_C did;              /* the MUMPS instance, double precision */
-  SMUMPS_STRUC_C sid;              /* the MUMPS instance, single precision */
-  MUMPS_INT *icntl, *infog, *info; /* the live instance's arrays */
-  int n;                           /* order */
-  int nnz;                         /* triplets */
-  int *irn, *jcn;     /* nnz 1-based row and column indices (MUMPS keeps the pointers) */
-  const double *a;    /* nnz values of the last factorization (the caller's: borrowed) */
-  float *as;          /* single: the values MUMPS factors */
-  float *xs;          /* single: n, the right-hand side MUMPS solves */
-  double *b, *r;      /* single: n each, the right-hand side and the residual */
-  double *V, *Z;      /* single: the refinement's Krylov basis ((LDL_GMRES_M + 1) n) and
-                         its preconditioned vectors (LDL_GMRES_M n), allocated when
-                         first needed */
-  double *yc;         /* single: LDL_MATVEC_CHUNKS n, the products' partial sums */
-  int prefer_single;  /* 1: created single; a double fallback lasts one factorization */
-  int live;           /* 1 once JOB = -1 succeeded (JOB = -2 needed) */
-  int factored;       /* 1 after a successful factorization */
-  ves_ldl_info info_; /* diagnostics of the last call */
-  void *wk;           /* the factorization's workspace (MUMPS WK_USER), kept across
-                         factorizations: MUMPS would free and allocate its own at
-                         every one, and the kernel zero the fresh pages (a third of
-                         the factorization at eps 0.01: bench/RESULTS.md, "MUMPS's
-                         workspace kept"); the factors live in it until the next one */
-  size_t lwk;         /* its entries */
-  double est;         /* the analysis's estimate of it (INFO(8), in entries) */
-};
 
 /* Run one MUMPS job and record INFOG(1), INFOG(2). */
 static void mumps_run(ves_ldl *f, int job) {
@@ -144,29 +111,31 @@ static ves_status mumps_setup(ves_ldl *f) {
   f->info_.icntl14 = f->ICNTL(14);
   /* ordering: approximate minimum fill. On the projection matrix at eps =
    * 0.01 (21k nodes, 2.9M entries) its analysis takes 0.15 s against 2.5 s for
-   * the default choice (SCOTCH), and the factors come out 8% smaller. */
+   * the default choice (SCOTCH), and the factors come out 8% smaller
+   * (docs/results.md, "Performance and its scaling"). */
   f->ICNTL(7) = 2;
   /* symmetric indefinite (the KKT matrices): no maximum weighted matching
    * (ICNTL(6) = 0) and the plain ordering of the graph (ICNTL(12) = 1)
    * instead of the compressed one built on the matching. On the Newton KKT
    * matrix at eps = 0.02 (25k unknowns) the analysis takes 0.7 s against
    * 3-4 s, the factorization ~15% less, the factors are the same size
-   * (bench/RESULTS.md, "MUMPS options"); the pivoting within the fronts,
+   * (docs/results.md, "Performance and its scaling"); the pivoting within the fronts,
    * and so the inertia, are unaffected. */
   if (!f->spd) {
     f->ICNTL(6) = 0;
     f->ICNTL(12) = 1;
   }
-  /* single precision LDL^T without numerical pivoting (CNTL(1) = 0 instead
-   * of 0.01): the KKT matrices are K/dt + Hess E (positive definite on the
-   * constraints' null space, mostly positive definite) bordered by the two
-   * dense constraint rows, which the ordering puts last, where their pivots
-   * are the Schur complement -J H^-1 J^T. Without the pivot searches the
-   * factorization of the eps 0.02 KKT matrix took 0.77 s against 0.97 s
-   * (bench/RESULTS.md, session 36); the inertia is still the pivots' signs
-   * (Sylvester), and a factorization that meets a zero pivot, or whose
-   * solve cannot be refined against the double values, is redone in double
-   * precision, with pivoting (to_double). */
+  /* single precision LDL^T without numerical pivoting (CNTL(1) = 0, MUMPS's
+   * default being 0.01): the KKT matrices are K/dt + Hess E (positive
+   * definite on the constraints' null space, mostly positive definite)
+   * bordered by the two dense constraint rows, which the ordering puts last,
+   * where their pivots are the Schur complement -J H^-1 J^T. Without the
+   * pivot searches the factorization of the eps 0.02 KKT matrix takes 0.77 s
+   * against 0.97 s with them (docs/results.md, "Performance and its
+   * scaling"); the inertia is still the pivots' signs (Sylvester), and a
+   * factorization that meets a zero pivot, or whose solve cannot be refined
+   * against the double values, is redone in double precision, with pivoting
+   * (ldl_to_double). */
   if (!f->spd && f->single) f->sid.cntl[0] = (float)LDL_SINGLE_PIVOT;
   ID_SET(f, n, f->n);
   ID_SET(f, nnz, f->nnz);
@@ -267,7 +236,7 @@ static ves_status factor_values(ves_ldl *f) {
  * overflowing) or could not give |b - A x| <= tol |b| in a solve: this
  * factorization is redone in double precision (a new analysis); the next
  * one is single again (ves_ldl_factor). */
-static ves_status to_double(ves_ldl *f) {
+ves_status ldl_to_double(ves_ldl *f) {
   f->info_.fallbacks++;
   VES_CALL(switch_precision(f, 0));
   return factor_values(f);
@@ -280,11 +249,11 @@ ves_status ves_ldl_factor(ves_ldl *f, const double *val) {
   if (f->prefer_single && !f->single) VES_CALL(switch_precision(f, 1)); /* after a fallback */
   ves_status s = factor_values(f);
   if (s == VES_OK || s == VES_ERR_ALLOC || !f->single) return s;
-  return to_double(f); /* the values rounded to float are singular or overflow */
+  return ldl_to_double(f); /* the values rounded to float are singular or overflow */
 }
 
 /* One MUMPS solve (JOB = 3) of the live instance, in place on x[n]. */
-static ves_status mumps_solve(ves_ldl *f, double *x) {
+ves_status ldl_mumps_solve(ves_ldl *f, double *x) {
   ID_SET(f, nrhs, 1);
   ID_SET(f, lrhs, f->n);
   f->ICNTL(20) = 0; /* dense right-hand side */
@@ -303,281 +272,8 @@ static ves_status mumps_solve(ves_ldl *f, double *x) {
   return s == VES_ERR_SINGULAR ? VES_ERR_SOLVER : s;
 }
 
-/* y <- A x for the symmetric A of the lower triplets (double values): the
- * triplets in LDL_MATVEC_CHUNKS fixed chunks, each summed into its own
- * vector (the chunks shared out over the OpenMP threads), then the chunks
- * added in order: the same result for any thread count. */
-static void matvec(ves_ldl *f, const double *x, double *y) {
-  const int n = f->n, nnz = f->nnz;
-  double *yc = f->yc;
-#pragma omp parallel for schedule(static)
-  for (int c = 0; c < LDL_MATVEC_CHUNKS; c++) {
-    double *u = yc + (size_t)c * n;
-    memset(u, 0, (size_t)n * sizeof *u);
-    const int k0 = (int)((long long)nnz * c / LDL_MATVEC_CHUNKS),
-              k1 = (int)((long long)nnz * (c + 1) / LDL_MATVEC_CHUNKS);
-    for (int k = k0; k < k1; k++) {
-      const int i = f->irn[k] - 1, j = f->jcn[k] - 1;
-      u[i] += f->a[k] * x[j];
-      if (i != j) u[j] += f->a[k] * x[i];
-    }
-  }
-  for (int i = 0; i < n; i++) {
-    double v = yc[i];
-    for (int c = 1; c < LDL_MATVEC_CHUNKS; c++) v += yc[(size_t)c * n + i];
-    y[i] = v;
-  }
-}
-
-static double dot(int n, const double *x, const double *y) {
-  double s = 0;
-  for (int i = 0; i < n; i++) s += x[i] * y[i];
-  return s;
-}
-
-/* x += correction of A x = b, right-preconditioned by the single precision
- * factors M (flexible GMRES: FGMRES(LDL_GMRES_M) keeping z_k = M^-1 v_k),
- * until |b - A x| <= tol |b| or LDL_GMRES_MAX iterations. On
- * entry f->r holds r0 = b - A x, |r0| = beta. The residual is the GMRES
- * recurrence's, r = V_{k+1} Q^T (0, .., 0, g_k), of norm |g_k| (V
- * orthonormal: classical Gram-Schmidt twice); it differs from b - A x by
- * the rounding of A's products in double precision (~1e-16 |A| |x|), far
- * below the tolerance. Returns VES_OK with *done = 1 when it was reached.
- * Classical iterative refinement (x += M^-1 r) is the first iteration's
- * direction; it contracts by |I - A M^-1| per correction, ~0.1 on the KKT
- * matrices at large dt (eps 0.01, dt* 0.1-0.8: from 3e-2 it needed 5
- * corrections, and the solver fell back to double precision for the rest of
- * the run), where GMRES, minimizing over the Krylov space, needs a few. */
-static ves_status gmres(ves_ldl *f, double *x, double beta, double bn, double tol, int *done) {
-  const int n = f->n, m = LDL_GMRES_M;
-  double H[(LDL_GMRES_M + 1) * LDL_GMRES_M], cs[LDL_GMRES_M], sn[LDL_GMRES_M], g[LDL_GMRES_M + 1],
-      y[LDL_GMRES_M + 1];
-  *done = 0;
-  if (!f->V) {
-    f->V = malloc((size_t)(m + 1) * n * sizeof *f->V);
-    f->Z = malloc((size_t)m * n * sizeof *f->Z);
-    if (!f->V || !f->Z) return VES_ERR_ALLOC;
-  }
-  while (f->info_.refinements < LDL_GMRES_MAX) {
-    for (int i = 0; i < n; i++) f->V[i] = f->r[i] / beta;
-    g[0] = beta;
-    int k = 0, breakdown = 0;
-    while (k < m && f->info_.refinements < LDL_GMRES_MAX) {
-      double *z = f->Z + (size_t)k * n, *w = f->V + (size_t)(k + 1) * n;
-      memcpy(z, f->V + (size_t)k * n, (size_t)n * sizeof *z);
-      VES_CALL(mumps_solve(f, z));
-      matvec(f, z, w);
-      f->info_.refinements++;
-      for (int pass = 0; pass < 2; pass++) /* classical Gram-Schmidt, twice */
-        for (int i = 0; i <= k; i++) {
-          const double *v = f->V + (size_t)i * n, h = dot(n, w, v);
-          H[i * m + k] = pass ? H[i * m + k] + h : h;
-          for (int j = 0; j < n; j++) w[j] -= h * v[j];
-        }
-      const double hn = sqrt(dot(n, w, w));
-      breakdown = !(hn > 0); /* the Krylov space is invariant: the solution is in it */
-      if (!breakdown)
-        for (int j = 0; j < n; j++) w[j] /= hn;
-      for (int i = 0; i < k; i++) { /* the earlier rotations on column k */
-        const double a = H[i * m + k], c = H[(i + 1) * m + k];
-        H[i * m + k] = cs[i] * a + sn[i] * c, H[(i + 1) * m + k] = -sn[i] * a + cs[i] * c;
-      }
-      const double a = H[k * m + k], rho = hypot(a, hn);
-      cs[k] = rho > 0 ? a / rho : 1, sn[k] = rho > 0 ? hn / rho : 0;
-      H[k * m + k] = rho;
-      g[k + 1] = -sn[k] * g[k], g[k] *= cs[k];
-      k++;
-      if (fabs(g[k]) <= tol * bn || breakdown) break;
-    }
-    for (int i = k - 1; i >= 0; i--) { /* R y = g, upper triangular k x k */
-      double d = g[i];
-      for (int j = i + 1; j < k; j++) d -= H[i * m + j] * y[j];
-      y[i] = H[i * m + i] != 0 ? d / H[i * m + i] : 0;
-    }
-    for (int i = 0; i < k; i++) {
-      const double *z = f->Z + (size_t)i * n;
-      for (int j = 0; j < n; j++) x[j] += y[i] * z[j];
-    }
-    beta = fabs(g[k]);
-    if (!isfinite(beta)) return VES_OK;
-    if (beta <= tol * bn) {
-      *done = 1;
-      return VES_OK;
-    }
-    if (breakdown) return VES_OK; /* a breakdown short of the tolerance: rounding */
-    /* restart from r = V_{k+1} Q^T (0, .., 0, g_k) */
-    for (int i = 0; i < k; i++) y[i] = 0;
-    y[k] = g[k];
-    for (int i = k - 1; i >= 0; i--) { /* the rotations transposed, last first */
-      const double a = y[i], c = y[i + 1];
-      y[i] = cs[i] * a - sn[i] * c, y[i + 1] = sn[i] * a + cs[i] * c;
-    }
-    memset(f->r, 0, (size_t)n * sizeof *f->r);
-    for (int i = 0; i <= k; i++) {
-      const double *v = f->V + (size_t)i * n;
-      for (int j = 0; j < n; j++) f->r[j] += y[i] * v[j];
-    }
-  }
-  return VES_OK;
-}
-
-/* rhs <- A^-1 rhs. With single precision factors: x0 = M^-1 b, then, when
- * |b - A x0| > tol |b| (it is 1e-5..2e-4 on the KKT matrices), FGMRES
- * preconditioned by M (gmres) to that tolerance, usually in one iteration;
- * a solve that cannot get there redoes the factorization in double
- * precision (to_double) and solves with it. */
-ves_status ves_ldl_solve_tol(ves_ldl *f, double *rhs, double tol) {
-  VES_CHECK(f && rhs && f->factored, VES_ERR_ARG);
-  VES_CHECK(tol > 0 && tol < 1, VES_ERR_ARG);
-  f->info_.refinements = 0;
-  if (!f->single) return mumps_solve(f, rhs);
-  const int n = f->n;
-  memcpy(f->b, rhs, (size_t)n * sizeof *f->b);
-  VES_CALL(mumps_solve(f, rhs));
-  const double bn = sqrt(dot(n, f->b, f->b));
-  matvec(f, rhs, f->r);
-  for (int j = 0; j < n; j++) f->r[j] = f->b[j] - f->r[j];
-  const double rn = sqrt(dot(n, f->r, f->r));
-  if (rn <= tol * bn) return VES_OK; /* also b = 0 */
-  int done = 0;
-  if (isfinite(rn)) VES_CALL(gmres(f, rhs, rn, bn, tol, &done));
-  if (done) return VES_OK;
-  memcpy(rhs, f->b, (size_t)n * sizeof *rhs);
-  VES_CALL(to_double(f));
-  return mumps_solve(f, rhs);
-}
-
-ves_status ves_ldl_solve(ves_ldl *f, double *rhs) {
-  return ves_ldl_solve_tol(f, rhs, VES_LDL_REFINE_TOL);
-}
-
 int ves_ldl_size(const ves_ldl *f) { return f ? f->n : 0; }
 
 void ves_ldl_get_info(const ves_ldl *f, ves_ldl_info *info) {
   if (f && info) *info = f->info_, info->single = f->single;
-}
-
-/* ---- IC(0) ---- */
-
-void ves_ldl_ic_destroy(ves_ldl_ic **L) {
-  if (!L || !*L) return;
-  free((*L)->ptr), free((*L)->col), free((*L)->a), free((*L)->l), free((*L)->map);
-  free(*L);
-  *L = NULL;
-}
-
-/* Pattern of the lower triplets (irow >= jcol) in compressed rows, columns
- * ascending, the diagonal forced in, duplicates merged; map[k] the slot of
- * triplet k. */
-ves_status ves_ldl_ic_create(int n, int nnz, const int *irow, const int *jcol, ves_ldl_ic **out) {
-  VES_CHECK(out, VES_ERR_ARG);
-  *out = NULL;
-  VES_CHECK(n > 0 && nnz >= 0 && (nnz == 0 || (irow && jcol)), VES_ERR_ARG);
-  for (int k = 0; k < nnz; k++)
-    VES_CHECK(irow[k] >= 0 && irow[k] < n && jcol[k] >= 0 && jcol[k] <= irow[k], VES_ERR_ARG);
-  ves_ldl_ic *L = calloc(1, sizeof *L);
-  if (!L) return VES_ERR_ALLOC;
-  L->n = n, L->nnz = nnz;
-  L->ptr = calloc((size_t)n + 1, sizeof(int));
-  L->map = malloc((size_t)(nnz > 0 ? nnz : 1) * sizeof(int));
-  int *cnt = calloc((size_t)n + 1, sizeof(int));
-  int *tmp = malloc((size_t)(nnz + n + 1) * sizeof(int));
-  ves_status rc = VES_ERR_ALLOC;
-  if (!L->ptr || !L->map || !cnt || !tmp) goto out;
-  /* rows with the diagonal forced in: count, fill, sort, merge */
-  for (int k = 0; k < nnz; k++) cnt[irow[k] + 1]++;
-  for (int i = 0; i < n; i++) cnt[i + 1] += cnt[i] + 1; /* + 1: the diagonal */
-  int *pos = L->ptr;                                    /* fill positions */
-  for (int i = 0; i < n; i++) pos[i] = cnt[i], tmp[pos[i]++] = i;
-  for (int k = 0; k < nnz; k++) tmp[pos[irow[k]]++] = jcol[k];
-  int w = 0;
-  for (int i = 0; i < n; i++) {
-    int b = cnt[i], e = cnt[i + 1];
-    for (int p = b + 1; p < e; p++) /* insertion sort (rows are short) */
-      for (int q = p; q > b && tmp[q - 1] > tmp[q]; q--) {
-        int t = tmp[q];
-        tmp[q] = tmp[q - 1], tmp[q - 1] = t;
-      }
-    L->ptr[i] = w;
-    for (int p = b; p < e; p++)
-      if (p == b || tmp[p] != tmp[p - 1]) tmp[w++] = tmp[p];
-  }
-  L->ptr[n] = w;
-  L->col = malloc((size_t)w * sizeof(int));
-  L->a = malloc((size_t)w * sizeof(double));
-  L->l = malloc((size_t)w * sizeof(double));
-  if (!L->col || !L->a || !L->l) goto out;
-  memcpy(L->col, tmp, (size_t)w * sizeof(int));
-  for (int k = 0; k < nnz; k++) { /* binary search of the slot */
-    int lo = L->ptr[irow[k]], hi = L->ptr[irow[k] + 1] - 1;
-    while (lo < hi) {
-      int mid = (lo + hi) / 2;
-      if (L->col[mid] < jcol[k])
-        lo = mid + 1;
-      else
-        hi = mid;
-    }
-    L->map[k] = lo;
-  }
-  rc = VES_OK;
-  *out = L;
-  L = NULL;
-out:
-  free(cnt), free(tmp);
-  ves_ldl_ic_destroy(&L);
-  return rc;
-}
-
-/* a = sum_k val_k at slot map[k] */
-void ves_ldl_ic_set(ves_ldl_ic *L, const double *val) {
-  memset(L->a, 0, (size_t)L->ptr[L->n] * sizeof(double));
-  for (int k = 0; k < L->nnz; k++) L->a[L->map[k]] += val[k];
-}
-
-/* Row-wise IC(0) of M + alpha diag(M) (ldl.h). */
-ves_status ves_ldl_ic_factor(ves_ldl_ic *L, double alpha) {
-  const int *ptr = L->ptr, *col = L->col;
-  for (int i = 0; i < L->n; i++) {
-    int bi = ptr[i], ei = ptr[i + 1] - 1; /* ei: the diagonal */
-    for (int p = bi; p <= ei; p++) {
-      int j = col[p];
-      double sum = L->a[p] * (j == i ? 1.0 + alpha : 1.0);
-      /* sparse dot of rows i and j over columns < j */
-      int q = bi, r = ptr[j], er = ptr[j + 1] - 1;
-      while (q < p && r < er) {
-        if (col[q] == col[r])
-          sum -= L->l[q++] * L->l[r++];
-        else if (col[q] < col[r])
-          q++;
-        else
-          r++;
-      }
-      if (j < i) {
-        L->l[p] = sum / L->l[er];
-      } else {
-        if (!(sum > 0.0) || !isfinite(sum)) return VES_ERR_SINGULAR;
-        L->l[p] = sqrt(sum);
-      }
-    }
-  }
-  return VES_OK;
-}
-
-/* v = L^{-1} v (forward substitution, in place). */
-void ves_ldl_ic_lsolve(const ves_ldl_ic *L, double *v) {
-  for (int i = 0; i < L->n; i++) {
-    int e = L->ptr[i + 1] - 1;
-    double s = v[i];
-    for (int p = L->ptr[i]; p < e; p++) s -= L->l[p] * v[L->col[p]];
-    v[i] = s / L->l[e];
-  }
-}
-
-/* v = L^{-T} v (backward substitution, in place). */
-void ves_ldl_ic_ltsolve(const ves_ldl_ic *L, double *v) {
-  for (int i = L->n - 1; i >= 0; i--) {
-    int e = L->ptr[i + 1] - 1;
-    v[i] /= L->l[e];
-    for (int p = L->ptr[i]; p < e; p++) v[L->col[p]] -= L->l[p] * v[i];
-  }
 }

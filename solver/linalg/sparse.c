@@ -1,7 +1,8 @@
 /* vesica — the node-level block pattern of the model's matrices (plain data,
  * built from a quadrature by ves_pattern_create in project.c): lookup, values
- * as triplets, products and the compressed-row form over the free degrees of
- * freedom. */
+ * as triplets, y = A x with A symmetric from its lower triplets, and the
+ * compressed-row form over the free degrees of freedom (docs/design.md,
+ * "Discretization"). */
 #include "ves/sparse.h"
 
 #include <stdlib.h>
@@ -32,10 +33,12 @@ long ves_pattern_find(const ves_pattern *p, int a, int b) {
   return -1;
 }
 
+/* v_k = blk[src_k]: the free-dof entries of the blocks. */
 void ves_pattern_extract(const ves_pattern *p, const double *blk, double *v) {
   for (int k = 0; k < p->nnz; k++) v[k] = blk[p->src[k]];
 }
 
+/* y = A x with A = L + L^T - diag(L), L the lower triplets v. */
 void ves_pattern_symv(const ves_pattern *p, const double *v, const double *x, double *y) {
   for (int i = 0; i < p->nfree; i++) y[i] = 0.0;
   for (int k = 0; k < p->nnz; k++) {

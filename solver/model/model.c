@@ -1,6 +1,6 @@
 /* vesica — the discrete model: E, A, V, their gradients and Hessians, and the
  * dissipation matrix K, through ONE per-point assembly over the local
- * kinematic variables (DESIGN.md §2):
+ * kinematic variables (docs/design.md, "Discretization"):
  *   q_alpha = B_alpha y,  F = 2 pi sum_alpha w_alpha c e(q_alpha),
  *   grad F = 2 pi sum w c B^T de/dq,  Hess F = 2 pi sum w c B^T (d2e/dq2) B,
  * with c = f_E = 3k/(16 sqrt2 eps) for E, f_A = 3/(2 sqrt2) for A, 1 for V.
@@ -158,6 +158,8 @@ const ves_nodes *ves_model_nodes(const ves_model *m) { return m->nodes; }
 
 const ves_quad *ves_model_quad(const ves_model *m) { return m->q; }
 
+/* F = 2 pi sum_alpha w_alpha c e(q_alpha), grad F = 2 pi sum w c B^T de/dq
+ * for the selected F in {E, A, V} (model_eval_points). */
 ves_status ves_model_eval(ves_model *m, const double *y, int which, double *E, double *A, double *V,
                           double *gE, double *gA, double *gV) {
   return model_eval_points(m, y, which, NULL, 1.0, E, A, V, NULL, gE, gA, gV);
@@ -202,6 +204,7 @@ static void add_rz(const ves_model *m, double c, const double *src, int stride, 
     blk[4 * t] += c * src[stride * t], blk[4 * t + 3] += c * src[stride * t + stride - 1];
 }
 
+/* sum_F c_F 2 pi sum_alpha w_alpha f_F B^T (d2e_F/dq2) B, plus cE Hess E_s. */
 ves_status ves_model_hessian(ves_model *m, const double *y, double cE, double cA, double cV,
                              double *blk) {
   VES_CHECK(m && y && blk, VES_ERR_ARG);
@@ -226,6 +229,8 @@ ves_status ves_model_hessian_step(ves_model *m, const double *y, const double *q
 
 const double *ves_model_drift_blocks(const ves_model *m) { return m ? m->dblk : NULL; }
 
+/* K = 2 pi sum_alpha w_alpha B_v^T D(q_alpha) B_v over the velocity
+ * variables, plus the drift damping S. */
 ves_status ves_model_dissipation(ves_model *m, const double *y, double *blk) {
   VES_CHECK(m && y && blk, VES_ERR_ARG);
   const double fac[3] = {0, 0, 0};
@@ -240,6 +245,7 @@ static ves_status w_point(const ves_model *m, int al, const double q[VES_NQ], vo
   return ves_model_local_energy_ex(&m->lp, &m->pt[al], q, &e, NULL, NULL, (double *)ctx + al, NULL);
 }
 
+/* W = eps Lap phi + (phi0/eps + sqrt2 C0)(1 - phi0^2) at every point. */
 ves_status ves_model_pointwise_W(ves_model *m, const double *y, double *W) {
   VES_CHECK(m && y && W, VES_ERR_ARG);
   return model_each_point(m, y, w_point, W);

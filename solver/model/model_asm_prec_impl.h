@@ -7,7 +7,7 @@
  * single), ASM_SFX(name) the functions' names for that type and ASM_GEMM
  * its BLAS product. The local Hessians (Hs) and the pattern's blocks (blk)
  * stay double: only the per-triangle products are rounded. No include
- * guard: included once per type. */
+ * guard: included once per type. docs/design.md, "Discretization". */
 /* The triangle's matrices B over its union, stacked point by point, and
  * their products with the local Hessians (workspace X, Y; nu x K
  * column-major: one contiguous column per row (p, k) of B, over the union
@@ -124,8 +124,8 @@ static void ASM_SFX(triangle_scatter)(const ves_model *m, const int *U, int nu, 
  * (P + 1) / 2P of the full product's flops (5/8 for 4 panels). Entries
  * below the diagonal are partly left unset: triangle_scatter reads Mrr and
  * Mzz only at rows <= column. Each entry is the same dot product over K
- * as in the full product (the Hessian measured bitwise the same:
- * bench/RESULTS.md, session 23). */
+ * as in the full product (the Hessian is bitwise the same:
+ * docs/results.md, "Performance and its scaling"). */
 static void ASM_SFX(upper_product)(int nu, int K, const ASM_REAL *X, const ASM_REAL *Y,
                                    ASM_REAL *M) {
   for (int c = 0; c < ASM_PANELS; c++) {

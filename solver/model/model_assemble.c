@@ -1,28 +1,21 @@
 /* vesica — the model's assembly kernel (model.c holds the API; the object
  * in model_core_impl.h): the folding of a point's table onto its real nodes,
- * the kinematics q = B y, the gradient scatter, and per triangle the
- * Hessian and K blocks, with the loops that share the triangles out over
- * the threads.
- *
- * Assembly of the Hessians and K, per triangle: its 6 points share nearly
- * all their nodes, so the products c B^T H B of all 6 are summed into one
- * block matrix over the union of their node lists, formed by the BLAS as
- * three dense products X^T diag_p(c H_p) X (the rr, rz and zz parts; X the
- * points' B stacked, K = 36 / 30 deep; one BLAS thread per triangle, the
- * triangles in parallel; the symmetric rr and zz parts by panels over one
- * triangle only), and each lower block is added to the pattern
- * once, not once per point (~6x fewer scattered updates). The products run
- * in double, or for a matrix factored in single precision (the newton
- * backend's chord matrix: ves_step_eval_hess_single) in single precision,
- * sgemm at twice dgemm's rate (model_asm_prec_impl.h holds the code of
- * both); the points' local matrices and the pattern's sums stay double. The triangles
- * are visited in the order and by the slabs of model_threads.c: every
- * block and gradient entry receives its contributions in the same order for
- * any thread count, so results are bitwise the same for 1, 2, ... threads
- * (for one BLAS kernel: OpenBLAS picks it from the CPU). E, A, V are summed
- * in point order and their gradients in point order; the Hessian and K
- * differ from a per-point assembly by rounding only (sums regrouped per
- * triangle). */
+ * the kinematics q = B y, the gradient scatter, and per triangle the Hessian
+ * and K blocks
+ *   sum_p c_p B_p^T H_p B_p = X^T diag_p(c H_p) X   (p the triangle's points),
+ * over the union of the points' node lists (X their B stacked, K = 36 / 30
+ * deep), formed by the BLAS as the rr, rz and zz parts (one BLAS thread per
+ * triangle, the triangles in parallel) and added to the pattern once per
+ * triangle, not once per point (~6x fewer scattered updates). The products
+ * run in double, or in single precision for a matrix factored in single
+ * precision (ves_step_eval_hess_single; model_asm_prec_impl.h holds both);
+ * the points' local matrices and the pattern's sums stay double. The
+ * triangles are visited in the order and by the slabs of model_threads.c, so
+ * every entry receives its contributions in the same order and results are
+ * bitwise the same for any thread count (for one BLAS kernel). E, A, V and
+ * their gradients are summed in point order; the Hessian and K differ from a
+ * per-point assembly by rounding only (docs/design.md, "Numerical choices
+ * and why"). */
 #include "model/model_core_impl.h"
 
 #include <assert.h>

@@ -4,7 +4,7 @@
  * kinematics, the per-triangle products and their scatter, the threaded
  * loops), model_threads.c (the thread scheduling: the Morton order of the
  * triangles and the slabs in Z) and model_drift.c (the constant drift-damping
- * and stabilization matrices). */
+ * and stabilization matrices). docs/design.md, "Discretization". */
 #ifndef VES_MODEL_CORE_IMPL_H
 #define VES_MODEL_CORE_IMPL_H
 
@@ -103,7 +103,7 @@ typedef enum { ASM_HESS, ASM_DISS } asm_kind;
 
 /* The prefactors of the integrands of E, A and V: 2 pi (the axisymmetric
  * measure) times f_E = 3k/(16 sqrt2 eps), f_A = 3/(2 sqrt2), f_V = 1
- * (DESIGN.md §1), each times its coefficient c[i]. */
+ * (docs/design.md, "The model"), each times its coefficient c[i]. */
 static inline void model_functional_factors(const ves_model *m, double cE, double cA, double cV,
                                             double fac[3]) {
   fac[0] = 2 * M_PI * 3 * m->par.k / (16 * M_SQRT2 * m->par.eps) * cE;

@@ -1,33 +1,29 @@
 /* vesica — the model's constant matrices of the motion of the coefficients
- * relative to the material (model.c holds the API).
+ * relative to the material (model.c holds the API), both over the nodes a
+ * off the wall with M_a = sum_alpha w_alpha R_alpha P_a(X_alpha) the node's
+ * r-weighted reference measure:
  *
- * Drift damping (not in the paper; ves_model_params.drift, off by default):
- * LME smooths, so coefficient patterns at the grid scale barely move the
- * material (~1% on a sphere) and K, which sees only the motion at the
- * points, hardly resists them; the discrete E has directions of negative
- * curvature among them (relabeling modes, bench/RESULTS.md), and the
- * coefficients drift from the material by up to 1e6 h over long runs. A
- * constant S (model_drift_build) added to K penalizes the rate of y^a - y(X_a):
- * zero on affine motions, O((h/L)^2) of K on smooth ones. Measured effect
- * in bench/RESULTS.md, "Drift damping".
+ * Drift damping (ves_model_params.drift = alpha, off by default): a constant S
+ * added to K, ydot^T S ydot = sum_a alpha mu 2 pi M_a / h_a^2 |ydot^a - ydot(X_a)|^2
+ * (model_drift_build): zero on affine motions, O((h/L)^2) of K on smooth
+ * ones, stiff on the grid-scale coefficient patterns that K hardly resists
+ * and along which the coefficients drift from the material over long runs
+ * (docs/results.md, "Resets and remeshing").
  *
- * Coefficient-mode stabilization (ves_model_params.stab; the problem file's
- * [geometry] stabilization, 0.1 by default since session 19, 1e-2 before):
- * the same defect in E instead
- * of K, E_s = (1/2) sum_a c_a |y^a - y(X_a)|^2 (model_stab_build,
- * model_stab_eval), zero on affine maps (so at the reference), O(h^2) on
- * smooth motions, and of the size of the coefficients on the grid-scale
- * patterns along which the discrete E has negative curvature: it removes
- * them (the relaxed sphere at eps 0.1 becomes a minimum), and the
- * oblate at eps 0.01 relaxes to the sharp equilibrium's E* within 1.2e-5
- * instead of falling through it (bench/RESULTS.md, issue 22). The default
- * kappa: the sphere relaxed to rest at eps 0.04 has mu_1 = -6.5e-4 /
- * -1.6e-4 / -1.1e-5 per t* at h_band 0.35 / 0.5 / 0.7 eps with 0.1, against
- * -2.5e-3 / -1.4e-3 / -6.0e-4 with 1e-2; the sphere's E, the l = 2 rate and
- * the oblate's E* at eps 0.01 move by less than their discretization
- * errors, and the Fig. 5 left run keeps its steps, resets and end shape
- * (bench/RESULTS.md, sessions 18-19). E_s is measured from the reference: a
- * reset or a remeshing drops it to 0. */
+ * Coefficient-mode stabilization (ves_model_params.stab = kappa; the problem
+ * file's [geometry] stabilization, 0.1 by default): the same defect in E,
+ * E_s = (1/2) sum_a kappa k 2 pi M_a / h_a^2 |y^a - y(X_a)|^2 (model_stab_build,
+ * model_stab_eval): zero on affine maps (so at the reference), O(h^2) on
+ * smooth motions, of the size of the coefficients on the grid-scale patterns
+ * along which the discrete E has negative curvature, which it removes (the
+ * relaxed sphere at eps 0.1 is a minimum; the oblate at eps 0.01 relaxes to
+ * the sharp equilibrium's E* within 1.2e-5). With kappa = 0.1 the sphere at
+ * rest at eps 0.04 has mu_1 = -6.5e-4 / -1.6e-4 / -1.1e-5 per t* at h_band
+ * 0.35 / 0.5 / 0.7 eps (-2.5e-3 / -1.4e-3 / -6.0e-4 with 1e-2), and the
+ * sphere's E, the l = 2 rate and the oblate's E* move by less than their
+ * discretization errors (docs/results.md, "Accuracy against the
+ * sharp-interface references"). E_s is measured from the reference: a reset
+ * or a remeshing drops it to 0 (docs/design.md, "Discretization"). */
 #include "model/model_core_impl.h"
 #include "core/omp_impl.h"
 
@@ -252,8 +248,8 @@ done:
  * carries -u_r, +u_z). Per component i, S_i = sum_a c_a d_ia d_ia^T with
  * d_ia = e_a - N_i(a, .): r and z decouple, so only the rr and zz entries of
  * the blocks are set. The rows are cut to the quadrature's couplings and
- * refit, as the stabilization's (node_row): uncut, they coupled every pair
- * of a node's neighbours beyond the points' pattern (+0.07% blocks on
+ * refit, as the stabilization's (node_row): uncut, they would couple every
+ * pair of a node's neighbours beyond the points' pattern (+0.07% blocks on
  * test_model's problem). M_a is node a's share of the r-weighted reference
  * measure (the lumped mass of the basis; > 0 on the axis too). Wall nodes
  * (fixed, no drift) have no term: their points at the nodes lie 1e-3 h_a
@@ -279,7 +275,7 @@ ves_status model_drift_build(ves_model *m) {
 
 /* The stabilization of E (model.h, ves_model_params.stab): the defect rows
  * of the nodes off the wall, cut to the quadrature's pattern (so E_s adds
- * no fill to the step matrix: the uncut rows grew the KKT factorization by
+ * no fill to the step matrix: the uncut rows grow the KKT factorization by
  * 21% at eps 0.01) and refit (refit_row), c_a = stab k 2 pi M_a / h_a^2, and the constant
  * Hessian sum_a c_a d_a d_a^T (per component) in the pattern. */
 ves_status model_stab_build(ves_model *m) {

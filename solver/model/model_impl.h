@@ -1,7 +1,7 @@
 /* vesica — private: the local densities of the model at one quadrature point
  * (energy, area, volume, dissipation) as functions of the 11 local kinematic
- * variables q, with their analytic gradients and Hessians (DESIGN.md §2,
- * "Local kinematic variables"; derivation in solver/model/model_local.c). */
+ * variables q, with their analytic gradients and Hessians (docs/design.md,
+ * "Discretization"; derivation in solver/model/model_local.c). */
 #ifndef VES_MODEL_IMPL_H
 #define VES_MODEL_IMPL_H
 
@@ -46,7 +46,7 @@ typedef struct {
 } ves_model_point;
 
 /* Physical parameters the local densities need (dimensionless units of
- * DESIGN.md §1: lengths in R0, time in mu R0^3 / k). */
+ * docs/design.md, "The model": lengths in R0, time in mu R0^3 / k). */
 typedef struct {
   double eps;    /* interface width eps, units R0 (> 0; paper: 0.01) */
   double C0;     /* spontaneous curvature C0, units 1/R0 */

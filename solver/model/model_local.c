@@ -1,6 +1,6 @@
 /* vesica — local densities of energy, area, volume and dissipation at one
  * quadrature point, with analytic gradients and Hessians in the 11 local
- * kinematic variables q = (r, F, G) (DESIGN.md §2).
+ * kinematic variables q = (r, F, G) (docs/design.md, "Discretization").
  *
  * Notation. F = F-tilde, F_iI = dy_i/dX_I (spatial i in {r,z}, material I in
  * {R,Z}); H = F^-1 indexed H_Ii (material, spatial); J = det F; G_nJK =

@@ -5,7 +5,8 @@
  * split into slabs in Z of equal work, each thread writes only the rows of
  * its slab and visits the triangles whose unions meet it (those straddling
  * two slabs are computed by both, ~a few %). Every block and gradient entry
- * thus receives its contributions in the same order for any thread count. */
+ * thus receives its contributions in the same order for any thread count
+ * (docs/design.md, "Numerical choices and why"). */
 #include "model/model_core_impl.h"
 
 #include <stdlib.h>
