@@ -4,8 +4,8 @@
  *   [ H + delta K   J^T ] [ dx   ]     [ g + J^T lam ]
  *   [ J             0   ] [ dlam ] = - [ c           ],   H = Hess_x L,
  *
- * factorized by MUMPS (LDL^T, backend_kkt_impl.h). Inertia correction: the
- * matrix must have exactly KKT_NROWS negative pivots (H positive definite on
+ * factorized by MUMPS (LDL^T, kkt.h). Inertia correction: the
+ * matrix must have exactly VES_KKT_NROWS negative pivots (H positive definite on
  * null J), else delta K is added on a ladder delta = 0, NEWTON_DELTA0, x10
  * (K the dissipation metric: the correction is a larger viscosity). Line
  * search on the l1 merit f + mu sum |c_i| with a second-order correction.
@@ -24,7 +24,7 @@
 #include <time.h>
 
 #include "backends/anderson_impl.h"
-#include "backends/backend_kkt_impl.h"
+#include "ves/kkt.h"
 #include "ves/backend.h"
 #include "core/clock_impl.h"
 
@@ -43,13 +43,13 @@
 
 typedef struct {
   ves_backend_options opt; /* copied */
-  kkt_system kkt;          /* KKT structure, values, factorization */
+  ves_kkt kkt;             /* KKT structure, values, factorization */
   int nvar;                /* free dofs */
   double *g;               /* nvar grad f at x */
-  double *J;               /* KKT_NROWS nvar Jacobian at x */
+  double *J;               /* VES_KKT_NROWS nvar Jacobian at x */
   double *r;               /* nvar g + J^T lam */
-  double *sol;             /* nvar + KKT_NROWS right-hand side / solution */
-  double *soc;             /* nvar + KKT_NROWS second-order correction */
+  double *sol;             /* nvar + VES_KKT_NROWS right-hand side / solution */
+  double *soc;             /* nvar + VES_KKT_NROWS second-order correction */
   double *xt;              /* nvar trial point */
   double noise;            /* eps_mach (|H| |x|)_inf at the last assembly */
   int have_factor;         /* the KKT factorization holds a usable chord matrix */
@@ -66,7 +66,7 @@ typedef struct {
 static void newton_destroy(void **state) {
   if (!state || !*state) return;
   newton_state *w = *state;
-  kkt_destroy(&w->kkt);
+  ves_kkt_destroy(&w->kkt);
   free(w->g), free(w->J), free(w->r), free(w->sol), free(w->soc), free(w->xt), free(w->xn);
   anderson_destroy(&w->aa);
   free(w);
@@ -82,14 +82,14 @@ static ves_status newton_create(const ves_backend_options *opt, ves_step *s, voi
   if (!w) return VES_ERR_ALLOC;
   w->opt = *opt;
   w->nvar = ves_step_nvar(s);
-  ves_status st = kkt_create(s, opt->factor_single, &w->kkt);
+  ves_status st = ves_kkt_create(s, opt->factor_single, &w->kkt);
   if (st != VES_OK) {
     free(w);
     return st;
   }
-  const size_t nv = (size_t)w->nvar, na = nv + KKT_NROWS;
+  const size_t nv = (size_t)w->nvar, na = nv + VES_KKT_NROWS;
   w->g = malloc(nv * sizeof *w->g);
-  w->J = calloc(KKT_NROWS * nv, sizeof *w->J);
+  w->J = calloc(VES_KKT_NROWS * nv, sizeof *w->J);
   w->r = malloc(nv * sizeof *w->r);
   w->sol = malloc(na * sizeof *w->sol);
   w->soc = malloc(na * sizeof *w->soc);
@@ -112,7 +112,7 @@ static double norm_inf(int n, const double *v) {
 
 /* Assemble H at (x, lam) into the KKT values' (1,1) block (no copy of its
  * own: at eps 0.01 the block has 1.5e7 entries), the rows, and factorize
- * with the inertia correction: exactly KKT_NROWS negative pivots. A rung
+ * with the inertia correction: exactly VES_KKT_NROWS negative pivots. A rung
  * of the ladder adds (delta - the last rung's delta) K in place. The ladder
  * remembers (as Ipopt's): after a corrected factorization with delta the
  * next correction starts at delta/10, a step's first build at the
@@ -131,7 +131,7 @@ static ves_status assemble_factor(newton_state *w, ves_step *s, const double *x,
                                 : ves_step_eval_hess(s, x, 1.0, lam, H));
   stt->h_evals++;
   w->noise = ves_step_hess_floor(s, x, H, w->xt); /* the residual's floor, w->xt scratch */
-  kkt_fill_rows(&w->kkt, w->J, ncon);
+  ves_kkt_fill_rows(&w->kkt, w->J, ncon);
   const double *K = NULL;              /* assembled only for a correction (ves_step_K) */
   const int first = stt->h_evals == 1; /* the step's first build */
   const double d0 = fmax(fmax(NEWTON_DELTA0, w->delta_last / 10), first ? w->delta_hint : 0);
@@ -152,9 +152,9 @@ static ves_status assemble_factor(newton_state *w, ves_step *s, const double *x,
       for (int t = 0; t < w->kkt.nh; t++) H[t] += (delta - in) * K[t];
       in = delta;
     }
-    ves_status st = kkt_factor(&w->kkt);
+    ves_status st = ves_kkt_factor(&w->kkt);
     stt->factorizations++;
-    if (st == VES_OK && w->kkt.neg == KKT_NROWS) {
+    if (st == VES_OK && w->kkt.neg == VES_KKT_NROWS) {
       if (delta > 0) w->delta_last = delta;
       w->delta_build = delta;
       if (first) w->delta_hint = delta;
@@ -165,7 +165,7 @@ static ves_status assemble_factor(newton_state *w, ves_step *s, const double *x,
     if (st != VES_OK && st != VES_ERR_SINGULAR) return st; /* not an inertia problem */
     /* the next rung: x10, or x100 when many directions are still negative
      * (50 extra negative pivots at delta 0 need delta ~1e3) */
-    const int extra = st == VES_OK ? w->kkt.neg - KKT_NROWS : 0;
+    const int extra = st == VES_OK ? w->kkt.neg - VES_KKT_NROWS : 0;
     delta = delta == 0 ? d0 : (extra > NEWTON_NEG_JUMP ? 100 : 10) * delta;
     /* the limit itself is the last rung: a matrix that needs no more than
      * max_correction is not given up for the ladder's grid */
@@ -243,7 +243,7 @@ static ves_status tail_step(newton_state *w, ves_step *s, double *x, double *lam
                             const double *dlam, int ncon, double res, double *f, double *c, int *ok,
                             ves_backend_stats *stt) {
   const int nv = w->nvar;
-  double ft, ct[KKT_NROWS] = {0, 0};
+  double ft, ct[VES_KKT_NROWS] = {0, 0};
   *ok = 0;
   for (int j = 0; j < nv; j++) w->xt[j] = x[j] + dx[j];
   ves_step_eager_gradients(s, 1);
@@ -325,9 +325,9 @@ static ves_status line_search(newton_state *w, ves_step *s, const double *x, con
       return VES_OK;
     }
     if (ls == 0 && ncon > 0) {
-      memset(w->soc, 0, (size_t)(nv + KKT_NROWS) * sizeof *w->soc);
+      memset(w->soc, 0, (size_t)(nv + VES_KKT_NROWS) * sizeof *w->soc);
       for (int i = 0; i < ncon; i++) w->soc[nv + i] = -ct[i];
-      VES_CALL(kkt_solve_tol(&w->kkt, w->soc, solve_tol(w)));
+      VES_CALL(ves_kkt_solve_tol(&w->kkt, w->soc, solve_tol(w)));
       for (int j = 0; j < nv; j++) w->xt[j] = x[j] + dx[j] + w->soc[j];
       e = eval_fc(s, w->xt, ft, ct, stt);
       if (e != VES_ERR_DOMAIN) VES_CALL(e);
@@ -372,8 +372,8 @@ static ves_status newton_solve(void *state, ves_step *s, double *x, double *lamb
   anderson_reset(&w->aa);            /* a new step: a new residual */
   VES_CHECK(nv == ves_step_nvar(s), VES_ERR_ARG);
   VES_CHECK(ncon == 0 || lambda, VES_ERR_ARG);
-  double tgt[KKT_NROWS] = {1, 1}, lam[KKT_NROWS] = {0, 0}, c[KKT_NROWS] = {0, 0},
-         ct[KKT_NROWS] = {0, 0};
+  double tgt[VES_KKT_NROWS] = {1, 1}, lam[VES_KKT_NROWS] = {0, 0}, c[VES_KKT_NROWS] = {0, 0},
+         ct[VES_KKT_NROWS] = {0, 0};
   ves_step_get_targets(s, tgt);
   ves_step_x0(s, w->xn);
   for (int i = 0; i < ncon; i++) lam[i] = lambda[i];
@@ -426,13 +426,13 @@ static ves_status newton_solve(void *state, ves_step *s, double *x, double *lamb
     /* Newton direction: [H J^T; J 0][dx; dlam] = -[r; c] */
     w->at_floor = 0;
     for (int j = 0; j < nv; j++) w->sol[j] = -w->r[j];
-    for (int i = 0; i < KKT_NROWS; i++) w->sol[nv + i] = i < ncon ? -c[i] : 0.0;
-    if ((st = kkt_solve_tol(&w->kkt, w->sol, solve_tol(w))) != VES_OK) break;
+    for (int i = 0; i < VES_KKT_NROWS; i++) w->sol[nv + i] = i < ncon ? -c[i] : 0.0;
+    if ((st = ves_kkt_solve_tol(&w->kkt, w->sol, solve_tol(w))) != VES_OK) break;
     if (floor_direction(w, x, w->sol, res, scale)) { /* again, refined */
       w->at_floor = 1;
       for (int j = 0; j < nv; j++) w->sol[j] = -w->r[j];
-      for (int i = 0; i < KKT_NROWS; i++) w->sol[nv + i] = i < ncon ? -c[i] : 0.0;
-      if ((st = kkt_solve_tol(&w->kkt, w->sol, solve_tol(w))) != VES_OK) break;
+      for (int i = 0; i < VES_KKT_NROWS; i++) w->sol[nv + i] = i < ncon ? -c[i] : 0.0;
+      if ((st = ves_kkt_solve_tol(&w->kkt, w->sol, solve_tol(w))) != VES_OK) break;
     }
     const double *dx = w->sol, *dlam = w->sol + nv;
     int accel = 0;
