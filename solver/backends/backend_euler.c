@@ -14,7 +14,7 @@
  * (kkt.h); no inertia correction is made. The input x is
  * ignored (the step starts from y^n); iterations = 1, g_evals = 1 (grad E and
  * J at y^n), f_evals = 1 (values at the new state, for the violation),
- * h_evals = 0. */
+ * h_evals = 0. docs/design.md, "Backends". */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>

@@ -55,8 +55,8 @@ typedef struct {
   int have_factor;         /* the KKT factorization holds a usable chord matrix */
   double dt_factor;        /* the dt of the step whose matrix it is */
   int ncon_factor;         /* the constraints held in it */
-  double delta_last;       /* the last inertia correction (0: none since the matrix was fresh) */
-  double delta_build;      /* the correction of the last build (0: none was needed) */
+  double delta_last;       /* the last inertia correction (0: none since the fresh matrix) */
+  double delta_build;      /* the correction of the last build (0: none needed) */
   double delta_hint;       /* the correction the last step's first build needed (0: none) */
   int at_floor;            /* a loose direction's error would hide under the floor (solve_tol) */
   double *xn;              /* the step's start x^n (ves_step_x0): the displacement's origin */
@@ -471,8 +471,8 @@ static ves_status newton_solve(void *state, ves_step *s, double *x, double *lamb
     /* Armijo with a rounding allowance (as Ipopt's line search): f holds
      * dt E ~ dt 2 pi k, summed over all points, so near the solution the
      * predicted decrease a D falls below the rounding of f itself and a
-     * strict test rejects every step of a converging iteration (measured:
-     * problems/mode2.ini at dt* = 0.04, 28 iterations and two halvings). */
+     * strict test rejects every step of a converging iteration
+     * (problems/mode2.ini at dt* 0.04: 28 iterations and two halvings). */
     const double fnoise = NEWTON_FNOISE * DBL_EPSILON * fabs(phi0);
     double a = 1;
     int accepted = 0, used_soc = 0;

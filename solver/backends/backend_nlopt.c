@@ -96,7 +96,7 @@ typedef struct {
   int dense_fail;                    /* the last factorization tried that term in vain */
   double rdiag;                      /* max_i |M_ii - K_ii| / K_ii of the last Hessian M */
   double *dg;                        /* 2 n scratch: diagonals */
-  int pass;                          /* 0: M was the Hessian of the Lagrangian; 1: K */
+  int pass;                          /* 0: M is the Hessian of the Lagrangian; 1: K */
   double kkt, jtl, noise;            /* max |grad f + J^T lambda|, max |J^T lambda|, its
                                         rounding floor (nlb_finish) */
   nlb_ctx ctx;
@@ -460,7 +460,7 @@ static ves_status nlb_start(nlb_state *st, ves_step *s, const double *x, const d
     if (rc == VES_OK) {
       const int probe = c->gate || c->need_pd; /* may stop at the Hessian */
       /* at the same x with other multipliers: no second try of a dense
-       * metric that failed (its reduced Hessian was indefinite) */
+       * metric that failed (its reduced Hessian is indefinite) */
       rc = nlb_precondition(st, s, x, m > 0 ? lam_m : NULL, m, st->J, pass == 0 || !st->dense_fail);
       if (rc == VES_OK || (rc == VES_ERR_DOMAIN && probe)) c->g_evals++, c->h_evals++;
     }
@@ -749,9 +749,9 @@ static ves_status nlb_solve(void *state, ves_step *s, double *x, double *lambda,
     out = nlb_direct(st, s, x, lam, tgt, st->opt.tol, st->opt.ctol, 1, gS, &r, &viol);
     c->gate = 0;
   }
-  /* A near-quadratic step that one phase did not solve (measured: L-BFGS
-   * stalled on the rounding of f from a warm start in the default
-   * relaxation, 2 retried steps): again from x_start in two phases. */
+  /* A near-quadratic step that one phase did not solve (L-BFGS stalls on
+   * the rounding of f from some warm starts: 2 steps of the default
+   * relaxation): again from x_start in two phases. */
   if (c->promoted && (out == VES_ERR_NOCONV || out == VES_MAXITER)) {
     memcpy(x, xs, (size_t)n * sizeof *x);
     lam[0] = m > 0 ? lambda[0] : 0.0, lam[1] = m > 1 ? lambda[1] : 0.0;
