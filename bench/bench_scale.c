@@ -33,7 +33,7 @@
 #include "app/problem.h"
 #include "ves/setup.h"
 #include "ves/step.h"
-#include "backends/backend_kkt_impl.h"
+#include "ves/kkt.h"
 #include "app/blas_core_impl.h"
 
 #define NREP 3 /* repeats of each single evaluation (the median is reported) */
@@ -83,7 +83,7 @@ static int measure(const ves_config *cfg, ves_setup *s, int nsteps, row *r) {
   ves_status st = VES_OK;
   ves_step *step = NULL;
   ves_sim *sim = NULL;
-  kkt_system k;
+  ves_kkt k;
   memset(&k, 0, sizeof k);
   double *H = NULL, *J = NULL, *x0 = NULL;
   double *y = malloc(2 * (size_t)n * sizeof *y), *g = malloc(6 * (size_t)n * sizeof *g);
@@ -168,38 +168,38 @@ static int measure(const ves_config *cfg, ves_setup *s, int nsteps, row *r) {
     goto done;
   }
   double t0 = now();
-  st = kkt_create(step, pp.bopt.factor_single, &k); /* structure and the MUMPS analysis */
+  st = ves_kkt_create(step, pp.bopt.factor_single, &k); /* structure and the MUMPS analysis */
   r->analysis = now() - t0;
   if (st != VES_OK) {
-    rc = fail("kkt_create (MUMPS analysis)", st);
+    rc = fail("ves_kkt_create (MUMPS analysis)", st);
     goto done;
   }
   for (int i = 0; i < NREP; i++) {
-    kkt_fill(&k, H, 0, NULL, J, ncon); /* the values, outside the timing */
+    ves_kkt_fill(&k, H, 0, NULL, J, ncon); /* the values, outside the timing */
     t0 = now();
-    st = kkt_factor(&k);
+    st = ves_kkt_factor(&k);
     t[i] = now() - t0;
     if (st != VES_OK) {
-      rc = fail("kkt_factor", st);
+      rc = fail("ves_kkt_factor", st);
       goto done;
     }
   }
   r->factor = median(t);
   r->kkt_nnz = k.nnz;
   for (int i = 0; i < NREP; i++) { /* a solve, x0 as the right-hand side */
-    for (int j = 0; j < nvar + KKT_NROWS; j++) g[j] = j < nvar ? x0[j] : 0.0;
+    for (int j = 0; j < nvar + VES_KKT_NROWS; j++) g[j] = j < nvar ? x0[j] : 0.0;
     t0 = now();
-    st = kkt_solve(&k, g);
+    st = ves_kkt_solve(&k, g);
     t[i] = now() - t0;
     if (st != VES_OK) {
-      rc = fail("kkt_solve", st);
+      rc = fail("ves_kkt_solve", st);
       goto done;
     }
   }
   r->solve = median(t);
   /* the steps below build their own step problem and KKT system: free these
    * first, so that the peak memory is a run's, not a run's plus this copy */
-  kkt_destroy(&k);
+  ves_kkt_destroy(&k);
   ves_step_destroy(&step);
   free(H), free(J), free(x0), free(g), free(y);
   H = J = x0 = g = y = NULL;
@@ -236,7 +236,7 @@ static int measure(const ves_config *cfg, ves_setup *s, int nsteps, row *r) {
   rc = 0;
 done:
   ves_sim_destroy(&sim);
-  kkt_destroy(&k);
+  ves_kkt_destroy(&k);
   ves_step_destroy(&step);
   free(H), free(J), free(x0), free(g), free(y), free(blk);
   return rc;

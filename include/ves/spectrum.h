@@ -1,12 +1,12 @@
-/* vesica — the linearized flow at a state (DESIGN.md §5: an analysis above
- * the step problem, not part of it): the gradient flow K ydot = -grad E -
+/* vesica — the linearized flow at a state (an analysis above the step
+ * problem, not part of it; docs/design.md, "Analysis"): the gradient flow K ydot = -grad E -
  * sum_i sigma_i grad c_i on the held constraints' tangent space, the
  * spectrum of its linearization A v = mu K v (A = Hess E + sum_i sigma_i
  * Hess c_i) by Lanczos in the K inner product, the stiffness mu_max of the
  * explicit step, the Ritz vectors and how the functionals share each mu;
  * and, on a simulation's state, the whole analysis `vesica spectrum`
  * prints (dissipation, where each mode lives, its cosine with the drift of
- * the coefficients). Every KKT matrix here is the backends' (backend_kkt_impl.h). */
+ * the coefficients). Every KKT matrix here is a step problem's (kkt.h). */
 #ifndef VES_SPECTRUM_H
 #define VES_SPECTRUM_H
 

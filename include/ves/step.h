@@ -1,5 +1,5 @@
 /* vesica — one time step as a generic constrained nonlinear program
- * (DESIGN.md §3, paper Eq. 11): given y^n and dt,
+ * (paper Eq. 11; docs/design.md, "The time step"): given y^n and dt,
  *
  *   minimize   f(x) = (1/2)(y - y^n)^T K(y^n) (y - y^n) + dt E(y)
  *   subject to c_A(x) = A(y) - A0 = 0            (when the area is held)
@@ -105,10 +105,14 @@ const double *ves_step_K(ves_step *s);
 /* dt E(y) alone and its gradient (the Euler backend's force). */
 ves_status ves_step_eval_energy_grad(ves_step *s, const double *x, double *E, double *gE);
 
-/* The parameters of the current step (NULL before ves_step_set). The
- * model the step problem is built on is not public: the backends see the
- * step problem only (step_impl.h gives it to the analysis above). */
+/* The parameters of the current step (NULL before ves_step_set). */
 const ves_step_params *ves_step_get_params(const ves_step *s);
+
+/* The model the step problem is built on (borrowed: the one given to
+ * ves_step_create; NULL for a NULL s), for the analysis of the linearized
+ * flow (spectrum.h), which needs its Hessian and pattern. The backends use
+ * the step problem only. */
+ves_model *ves_step_model(ves_step *s);
 
 /* The targets of the held constraints, area first: tgt[k] = A0, then
  * V_target (both > 0: ves_step_set checks), the scale of the relative

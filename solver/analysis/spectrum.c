@@ -1,9 +1,11 @@
-/* vesica — the linearized flow at a state (spectrum.h): the gradient flow,
- * Lanczos in the K inner product on the held constraints' tangent space
- * (stiffness, shift-and-invert modes), the functionals' curvatures, and the
- * analysis of a simulation's state that `vesica spectrum` prints. Every
- * KKT matrix [M J^T; J D] is built and factorized by the backends' builder
- * (backend_kkt_impl.h: two constraint rows always, D = -1 on an unused one). */
+/* vesica — the linearized flow at a state (spectrum.h): the gradient flow
+ * K ydot = -grad E - J^T sigma, J ydot = 0; Lanczos for A v = mu K v (A =
+ * Hess E + sum_i sigma_i Hess c_i) in the K inner product on the held
+ * constraints' tangent space (stiffness, shift-and-invert modes); the
+ * functionals' curvatures; and the analysis of a simulation's state that
+ * `vesica spectrum` prints. Every KKT matrix [M J^T; J D] is a step
+ * problem's (kkt.h: two constraint rows always, D = -1 on an unused one).
+ * docs/design.md, "Analysis". */
 #include "ves/spectrum.h"
 
 #include <lapacke.h>
@@ -11,8 +13,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "backends/backend_kkt_impl.h"
-#include "step/step_impl.h"
+#include "ves/kkt.h"
 
 /* The pieces of a step problem set at y^n that the analysis reads. */
 typedef struct {
@@ -78,12 +79,12 @@ static ves_status flow_matrices(flow *f, const double *sigma, double *A, double 
 /* Create and factorize the KKT matrix [M J^T; J D] into *k (the caller
  * destroys it): M in the step pattern's lower triplets, J row-major
  * ncon x nvar. k->neg counts M's negative eigenvalues on {v : J v = 0}
- * plus KKT_NROWS (one per held row with J of full rank, one per unused
+ * plus VES_KKT_NROWS (one per held row with J of full rank, one per unused
  * row's -1). */
-static ves_status kkt_of(const flow *f, const double *M, const double *J, kkt_system *k) {
-  VES_CALL(kkt_create(f->s, 0, k));
-  kkt_fill(k, M, 0.0, NULL, J, f->nc);
-  return kkt_factor(k);
+static ves_status kkt_of(const flow *f, const double *M, const double *J, ves_kkt *k) {
+  VES_CALL(ves_kkt_create(f->s, 0, k));
+  ves_kkt_fill(k, M, 0.0, NULL, J, f->nc);
+  return ves_kkt_factor(k);
 }
 
 /* Ritz pairs of a K-symmetric operator on {v : J v = 0}. */
@@ -107,9 +108,9 @@ typedef struct {
 static ves_status lanczos(const flow *f, const double *M, const double *B, const double *J,
                           int kmax, int nvec, double *vec, ritz *out) {
   const ves_pattern *p = f->pat;
-  const int nv = f->nv, nk = nv + KKT_NROWS;
+  const int nv = f->nv, nk = nv + VES_KKT_NROWS;
   ves_status st = VES_ERR_ALLOC;
-  kkt_system kkt;
+  ves_kkt kkt;
   memset(&kkt, 0, sizeof kkt);
   double *rhs = malloc((size_t)nk * sizeof *rhs);
   double *V = malloc((size_t)(kmax + 1) * nv * sizeof *V), *w = malloc((size_t)nv * sizeof *w);
@@ -127,7 +128,7 @@ static ves_status lanczos(const flow *f, const double *M, const double *B, const
   }
   ves_pattern_symv(p, f->K, tmp, rhs); /* [K r; 0] */
   for (int i = nv; i < nk; i++) rhs[i] = 0.0;
-  if ((st = kkt_solve(&kkt, rhs)) != VES_OK) goto done;
+  if ((st = ves_kkt_solve(&kkt, rhs)) != VES_OK) goto done;
   double nrm = sqrt(fmax(k_dot(p, f->K, rhs, rhs, tmp), 0.0));
   st = VES_ERR_NOCONV;
   if (!(nrm > 0)) goto done;
@@ -137,7 +138,7 @@ static ves_status lanczos(const flow *f, const double *M, const double *B, const
     double *vk = V + (size_t)k * nv;
     ves_pattern_symv(p, B, vk, rhs); /* [B v; 0] */
     for (int i = nv; i < nk; i++) rhs[i] = 0.0;
-    if ((st = kkt_solve(&kkt, rhs)) != VES_OK) goto done;
+    if ((st = ves_kkt_solve(&kkt, rhs)) != VES_OK) goto done;
     memcpy(w, rhs, (size_t)nv * sizeof *w); /* w = Op v_k */
     for (int pass = 0; pass < 2; pass++) {
       ves_pattern_symv(p, f->K, w, tmp); /* K w */
@@ -178,7 +179,7 @@ static ves_status lanczos(const flow *f, const double *M, const double *B, const
     }
   }
 done:
-  kkt_destroy(&kkt);
+  ves_kkt_destroy(&kkt);
   free(rhs), free(V), free(w), free(tmp);
   free(al), free(be), free(e), free(Z);
   return st;
@@ -234,7 +235,7 @@ ves_status ves_spectrum_stiffness(ves_step *s, const double *sigma, int iters, d
  * on Op = P (A - mu_lo K)^-1 K, whose eigenvalues are th = 1 / (mu - mu_lo):
  * the largest th are the mu nearest above mu_lo; the KKT matrix of A - mu_lo
  * K has the negative eigenvalues of A - mu_lo K on the null space of J plus
- * KKT_NROWS (kkt_of). */
+ * VES_KKT_NROWS (kkt_of). */
 ves_status ves_spectrum_modes(ves_step *s, const double *sigma, double mu_lo, int iters, int nwant,
                               double *mu, double *err, double *vec, int *nbelow) {
   VES_CHECK(s && ves_step_get_params(s) && mu && iters >= 2 && nwant >= 1 && nwant <= iters,
@@ -250,7 +251,7 @@ ves_status ves_spectrum_modes(ves_step *s, const double *sigma, double mu_lo, in
   if (st != VES_OK || (st = flow_matrices(&f, sigma, w.A, w.J)) != VES_OK) goto done;
   for (int i = 0; i < f.pat->nnz; i++) w.A[i] -= mu_lo * f.K[i]; /* A - mu_lo K */
   if ((st = lanczos(&f, w.A, f.K, w.J, kmax, vec ? nwant : 0, vec, &w.rz)) != VES_OK) goto done;
-  if (nbelow) *nbelow = w.rz.neg - KKT_NROWS;
+  if (nbelow) *nbelow = w.rz.neg - VES_KKT_NROWS;
   for (int j = 0; j < nwant; j++) {
     const int i = w.rz.k - 1 - j; /* the j-th largest th */
     const int ok = i >= 0 && w.rz.th[i] > 0;
@@ -289,22 +290,22 @@ ves_status ves_spectrum_flow(ves_step *s, double *ydot, double *sigma) {
   VES_CALL(flow_open(s, &f));
   const int nv = f.nv, nc = f.nc;
   ves_status st = VES_ERR_ALLOC;
-  kkt_system kkt;
+  ves_kkt kkt;
   memset(&kkt, 0, sizeof kkt);
   double *J = malloc(((size_t)nc * nv + 1) * sizeof *J),
-         *rhs = malloc((size_t)(nv + KKT_NROWS) * sizeof *rhs);
+         *rhs = malloc((size_t)(nv + VES_KKT_NROWS) * sizeof *rhs);
   if (!J || !rhs) goto done;
   if ((st = ves_step_eval_jac(s, f.x0, J)) != VES_OK ||
       (st = ves_step_eval_energy_grad(s, f.x0, NULL, rhs)) != VES_OK ||
       (st = kkt_of(&f, f.K, J, &kkt)) != VES_OK)
     goto done;
   for (int i = 0; i < nv; i++) rhs[i] /= -f.par->dt; /* -grad E (the step's is dt grad E) */
-  for (int i = nv; i < nv + KKT_NROWS; i++) rhs[i] = 0.0;
-  if ((st = kkt_solve(&kkt, rhs)) != VES_OK) goto done;
+  for (int i = nv; i < nv + VES_KKT_NROWS; i++) rhs[i] = 0.0;
+  if ((st = ves_kkt_solve(&kkt, rhs)) != VES_OK) goto done;
   if (ydot) memcpy(ydot, rhs, (size_t)nv * sizeof *ydot);
   for (int i = 0; i < nc; i++) sigma[i] = rhs[nv + i];
 done:
-  kkt_destroy(&kkt);
+  ves_kkt_destroy(&kkt);
   free(J), free(rhs);
   flow_close(&f);
   return st;

@@ -11,30 +11,30 @@
  * J d = 0), so they agree with Newton's to O(dt). The constraints are held
  * only to first order: the drift |c(x)| = O(dt^2) is reported as the violation.
  * K is SPD on the free dofs, so the KKT matrix has exactly 2 negative pivots
- * (see backend_kkt_impl.h); no inertia correction is made. The input x is
+ * (kkt.h); no inertia correction is made. The input x is
  * ignored (the step starts from y^n); iterations = 1, g_evals = 1 (grad E and
  * J at y^n), f_evals = 1 (values at the new state, for the violation),
- * h_evals = 0. */
+ * h_evals = 0. docs/design.md, "Backends". */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
 
-#include "backends/backend_kkt_impl.h"
+#include "ves/kkt.h"
 #include "ves/backend.h"
 #include "core/clock_impl.h"
 
 typedef struct {
-  kkt_system kkt; /* KKT structure and factorization */
-  int nvar;       /* free dofs */
-  double *J;      /* KKT_NROWS nvar constraint Jacobian at x0 */
-  double *sol;    /* nvar + KKT_NROWS right-hand side / solution */
+  ves_kkt kkt; /* KKT structure and factorization */
+  int nvar;    /* free dofs */
+  double *J;   /* VES_KKT_NROWS nvar constraint Jacobian at x0 */
+  double *sol; /* nvar + VES_KKT_NROWS right-hand side / solution */
 } euler_state;
 
 static void euler_destroy(void **state) {
   if (!state || !*state) return;
   euler_state *w = *state;
-  kkt_destroy(&w->kkt);
+  ves_kkt_destroy(&w->kkt);
   free(w->J), free(w->sol);
   free(w);
   *state = NULL;
@@ -47,13 +47,13 @@ static ves_status euler_create(const ves_backend_options *opt, ves_step *s, void
   euler_state *w = calloc(1, sizeof *w);
   if (!w) return VES_ERR_ALLOC;
   w->nvar = ves_step_nvar(s);
-  ves_status st = kkt_create(s, opt->factor_single, &w->kkt);
+  ves_status st = ves_kkt_create(s, opt->factor_single, &w->kkt);
   if (st != VES_OK) {
     free(w);
     return st;
   }
-  w->J = calloc(KKT_NROWS * (size_t)w->nvar, sizeof *w->J);
-  w->sol = malloc(((size_t)w->nvar + KKT_NROWS) * sizeof *w->sol);
+  w->J = calloc(VES_KKT_NROWS * (size_t)w->nvar, sizeof *w->J);
+  w->sol = malloc(((size_t)w->nvar + VES_KKT_NROWS) * sizeof *w->sol);
   *state = w;
   if (!w->J || !w->sol) {
     euler_destroy(state);
@@ -79,22 +79,22 @@ static ves_status euler_solve(void *state, ves_step *s, double *x, double *lambd
   stt->g_evals = 1;
   VES_CALL(ves_step_eval_energy_grad(s, x, NULL, w->sol)); /* dt grad E(y^n) */
   VES_CALL(ves_step_eval_jac(s, x, w->J));
-  kkt_fill(&w->kkt, K, 0.0, NULL, w->J, ncon);
-  ves_status st = kkt_factor(&w->kkt);
+  ves_kkt_fill(&w->kkt, K, 0.0, NULL, w->J, ncon);
+  ves_status st = ves_kkt_factor(&w->kkt);
   stt->factorizations = 1;
-  if (st != VES_OK || w->kkt.neg != KKT_NROWS) {
+  if (st != VES_OK || w->kkt.neg != VES_KKT_NROWS) {
     stt->solver_status = st != VES_OK ? (int)st : w->kkt.neg;
     stt->seconds = ves_wall_seconds() - t0;
     return VES_ERR_SOLVER; /* K not SPD or J rank deficient: no Euler step */
   }
   for (int j = 0; j < nv; j++) w->sol[j] = -w->sol[j];
-  for (int i = 0; i < KKT_NROWS; i++) w->sol[nv + i] = 0.0;
-  if ((st = kkt_solve(&w->kkt, w->sol)) != VES_OK) return VES_ERR_SOLVER;
+  for (int i = 0; i < VES_KKT_NROWS; i++) w->sol[nv + i] = 0.0;
+  if ((st = ves_kkt_solve(&w->kkt, w->sol)) != VES_OK) return VES_ERR_SOLVER;
   for (int j = 0; j < nv; j++) x[j] += w->sol[j]; /* x = x0 + dt ydot */
   for (int i = 0; i < ncon; i++) lambda[i] = w->sol[nv + i];
   stt->iterations = 1;
   /* constraint drift at the new state */
-  double c[KKT_NROWS] = {0, 0}, tgt[KKT_NROWS] = {1, 1};
+  double c[VES_KKT_NROWS] = {0, 0}, tgt[VES_KKT_NROWS] = {1, 1};
   ves_step_get_targets(s, tgt);
   stt->f_evals = 1;
   st = ves_step_eval_c(s, x, c);

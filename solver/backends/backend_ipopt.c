@@ -1,48 +1,20 @@
-/* vesica — the "ipopt" backend: one step problem (step.h) solved by Ipopt 3.11
- * (C interface, MUMPS inside) with the exact sparse Hessian of the Lagrangian
- * obj_factor f + lambda^T c and warm-started constraint multipliers
- * (DESIGN.md §3).
- *
- * Options honoured (ves_backend_options):
- *   tol       Ipopt "tol", applied to a problem whose objective is scaled by
- *             1 / max_i |df/dx_i (x_start)| (so tol is relative to the size of
- *             the initial force) and whose constraints are scaled by
- *             1 / target (c_A / A0, c_V / V_target); "acceptable_tol" = 100 tol.
- *   ctol      relative constraint violation: "constr_viol_tol" (absolute, on
- *             the unscaled c) = ctol * min(A0, V_target), and the same for
- *             "acceptable_constr_viol_tol" (Ipopt's default 1e-2 would accept
- *             visibly wrong areas); the final max |c_i| / target_i is checked
- *             again here and a solve above ctol is not reported as VES_OK.
- *   max_iter  Ipopt "max_iter".
- *   verbose   0: print_level 0 and "sb yes" (silent); v > 0: print_level
- *             min(4 + v, 12).
- * The rounding floor: as in newton's test (backend_newton.c), a solve is
- * also converged when Ipopt's scaled dual infeasibility is within the
- * rounding floor eps_mach (|H| |x|)_inf of the last Hessian H it was handed
- * (the Hessian of the scaled Lagrangian: the units of inf_du) and the
- * constraints are within ctol: x holds absolute positions to eps_mach, and
- * no iteration resolves the residual below that. Measured over the default
- * relaxation: the third iteration of the first two steps only went from
- * inf_du 1.3e-9 to 4.6e-10 against tol 1e-9; with the floor 83 iterations
- * instead of 85, the same E* to 12 digits (bench/RESULTS.md, session 28).
- * The intermediate callback stops Ipopt there (User_Requested_Stop,
- * reported as converged).
- * Gradients with the values: Ipopt evaluates f and c at a trial point and,
- * once it is accepted, their gradients there; its steps are nearly always
- * accepted whole (one trial an iteration over the default relaxation), so
- * every point's values are computed with their gradients in one model pass
- * (ves_step_eager_gradients: ~3 values passes' cost, against ~4 for a
- * values pass and then a gradient pass at the same point).
- * The Jacobian of the (at most two) constraints is passed as dense rows:
- * ncon * nvar entries, exact and simple; grad A and grad V are nonzero only
- * near the interface, so a sparse pattern would save memory at large nvar,
- * but it would have to be guessed from x0 and could miss entries later.
- *
- * The heap: Ipopt 3.11's MUMPS interface allocates MUMPS's factor workspace
- * anew at every factorization, i.e. at every Ipopt iteration; create calls
- * ves_mem_keep_heap (mem.c) so that it is reused instead of faulted in
- * again (-21% CPU over the default relaxation; bench/RESULTS.md, session
- * 27). */
+/* vesica — the "ipopt" backend: the step problem (step.h) solved by Ipopt
+ * 3.11 (C interface, MUMPS inside) with the exact sparse Hessian of the
+ * Lagrangian sigma_f f + lambda^T c and warm-started multipliers
+ * (docs/design.md, "Backends"). Scaling: f by 1 / max_i |df/dx_i(x_start)|,
+ * so "tol" is relative to the initial force, c_i by 1 / target_i;
+ * "constr_viol_tol" = ctol min(A0, V_target) (Ipopt's acceptable default
+ * 1e-2 would accept visibly wrong areas) and the final max |c_i| / target_i
+ * is checked again here. A solve is also converged when the scaled dual
+ * infeasibility is within the rounding floor eps_mach (|H| |x|)_inf of the
+ * last Hessian and the constraints within ctol (newton's test; the
+ * intermediate callback stops Ipopt there). Every point's values come with
+ * their gradients in one model pass (ves_step_eager_gradients: Ipopt's
+ * trial points are nearly always accepted), the constraint Jacobian goes
+ * as dense rows (exact; a sparse pattern guessed from x0 could miss
+ * entries later), and create keeps the heap (ves_mem_keep_heap) so that
+ * the MUMPS workspace Ipopt allocates at every factorization is reused
+ * (docs/results.md, "Performance and its scaling"). */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -163,13 +135,13 @@ static Bool ipopt_eval_h(Index n, Number *x, Bool new_x, Number obj_factor, Inde
   }
   c->h_evals++;
   ves_status st = ves_step_eval_hess(c->s, x, obj_factor, m > 0 ? lambda : NULL, val);
-  if (st == VES_OK) c->noise = ves_step_hess_floor(c->s, x, val, c->acc); /* header comment */
+  if (st == VES_OK) c->noise = ves_step_hess_floor(c->s, x, val, c->acc); /* the banner */
   return ipopt_map(c, st);
 }
 
 /* Once per iteration, before Ipopt's convergence test: remember the count
  * (Ipopt 3.11's C interface has no other access to it), and stop at the
- * rounding floor (header comment). inf_du is the scaled dual infeasibility
+ * rounding floor (the banner). inf_du is the scaled dual infeasibility
  * |obj_scale grad f + J^T lambda|_inf. */
 static Bool ipopt_intermediate(Index alg_mod, Index iter, Number obj, Number inf_pr, Number inf_du,
                                Number mu, Number d_norm, Number reg, Number alpha_du,
@@ -250,7 +222,7 @@ static void ipopt_destroy(void **state) {
 static ves_status ipopt_create(const ves_backend_options *opt, ves_step *s, void **state) {
   VES_CHECK(opt && s && state, VES_ERR_ARG);
   VES_CHECK(opt->tol > 0 && opt->ctol > 0 && opt->max_iter >= 0, VES_ERR_ARG);
-  ves_mem_keep_heap(); /* header comment */
+  ves_mem_keep_heap(); /* the banner */
   ipopt_state *st = calloc(1, sizeof *st);
   VES_CHECK(st, VES_ERR_ALLOC);
   st->opt = *opt;
@@ -290,6 +262,28 @@ static ves_status ipopt_status(enum ApplicationReturnStatus ars, double viol, do
   }
 }
 
+/* The solve's scales and options: the objective by its initial force
+ * (1 / max |st->grad|), the constraints by their targets tgt, so tol and
+ * ctol act as relative tolerances (the banner); a warm start only with
+ * multipliers to start from (all zero means none). */
+static ves_status ipopt_scale(ipopt_state *st, const double *lambda, const double tgt[2]) {
+  const int n = st->n, m = st->m;
+  double gmax = 0.0;
+  for (int i = 0; i < n; i++) gmax = fmax(gmax, fabs(st->grad[i]));
+  double obj_scale = gmax > 0.0 ? 1.0 / gmax : 1.0;
+  double g_scale[2] = {1.0 / fmax(tgt[0], 1e-300), 1.0 / fmax(tgt[1], 1e-300)};
+  double tmin = m == 2 ? fmin(tgt[0], tgt[1]) : tgt[0];
+  int ok = SetIpoptProblemScaling(st->prob, obj_scale, NULL, m > 0 ? g_scale : NULL);
+  ok &= AddIpoptNumOption(st->prob, (char *)"constr_viol_tol", st->opt.ctol * tmin);
+  ok &= AddIpoptNumOption(st->prob, (char *)"acceptable_constr_viol_tol", st->opt.ctol * tmin);
+  /* Warm start only with multipliers to start from (all zero means none). */
+  int warm = 0;
+  for (int i = 0; i < m; i++) warm |= lambda[i] != 0.0;
+  ok &= AddIpoptStrOption(st->prob, (char *)"warm_start_init_point", (char *)(warm ? "yes" : "no"));
+  VES_CHECK(ok, VES_ERR_SOLVER);
+  return VES_OK;
+}
+
 static ves_status ipopt_solve(void *state, ves_step *s, double *x, double *lambda,
                               ves_backend_stats *stats) {
   VES_CHECK(state && s && x, VES_ERR_ARG);
@@ -313,33 +307,20 @@ static ves_status ipopt_solve(void *state, ves_step *s, double *x, double *lambd
                    .viol = HUGE_VAL,
                    .acc = st->acc};
 
-  /* Scales: the objective by its initial force, the constraints by their
-   * targets, so tol and ctol act as relative tolerances (header comment). */
+  /* the initial force, the objective's scale */
   ves_status rc = ves_step_eval_grad(s, x, st->grad);
   c->g_evals++;
   if (rc != VES_OK) {
     if (stats) stats->g_evals = 1, stats->seconds = ves_wall_seconds() - t0;
     return rc;
   }
-  double gmax = 0.0;
-  for (int i = 0; i < n; i++) gmax = fmax(gmax, fabs(st->grad[i]));
-  double obj_scale = gmax > 0.0 ? 1.0 / gmax : 1.0;
-  double g_scale[2] = {1.0 / fmax(tgt[0], 1e-300), 1.0 / fmax(tgt[1], 1e-300)};
-  double tmin = m == 2 ? fmin(tgt[0], tgt[1]) : tgt[0];
-  int ok = SetIpoptProblemScaling(st->prob, obj_scale, NULL, m > 0 ? g_scale : NULL);
-  ok &= AddIpoptNumOption(st->prob, (char *)"constr_viol_tol", st->opt.ctol * tmin);
-  ok &= AddIpoptNumOption(st->prob, (char *)"acceptable_constr_viol_tol", st->opt.ctol * tmin);
-  /* Warm start only with multipliers to start from (all zero means none). */
-  int warm = 0;
-  for (int i = 0; i < m; i++) warm |= lambda[i] != 0.0;
-  ok &= AddIpoptStrOption(st->prob, (char *)"warm_start_init_point", (char *)(warm ? "yes" : "no"));
-  VES_CHECK(ok, VES_ERR_SOLVER);
+  VES_CALL(ipopt_scale(st, lambda, tgt));
 
   double mult_g[2] = {0.0, 0.0}, obj = 0.0;
   for (int i = 0; i < m; i++) mult_g[i] = lambda[i];
   memset(st->mult_x_L, 0, (size_t)n * sizeof(double));
   memset(st->mult_x_U, 0, (size_t)n * sizeof(double));
-  ves_step_eager_gradients(s, 1); /* header comment */
+  ves_step_eager_gradients(s, 1); /* the banner */
   enum ApplicationReturnStatus ars =
       IpoptSolve(st->prob, x, st->g, &obj, mult_g, st->mult_x_L, st->mult_x_U, c);
   ves_step_eager_gradients(s, 0);

@@ -1,139 +1,28 @@
-/* vesica — the "nlopt" backend: one step problem (step.h) solved by NLopt 2.7's
- * augmented Lagrangian (NLOPT_AUGLAG) around limited-memory BFGS
- * (NLOPT_LD_LBFGS) (DESIGN.md §3). SLSQP is dense (useless at 1e4 variables)
- * and LD_MMA refuses equality constraints, so LBFGS is the sub-solver.
+/* vesica — the "nlopt" backend: the step problem (step.h) solved by NLopt's
+ * augmented Lagrangian (NLOPT_AUGLAG) around L-BFGS (NLOPT_LD_LBFGS), in
+ * preconditioned variables u (docs/design.md, "Backends"):
  *
- * Preconditioning by a change of variables (the part that decides whether it
- * converges at all). NLopt's LBFGS takes no preconditioner, so the problem is
- * handed to it in variables u with
- *     x = x_start + root L^{-T} u,      F(u) = f(x) / root^2,
- * where L L^T = M, M = the Hessian of the Lagrangian at the start
- * (K + dt Hess E + lambda Hess c; K alone if that has a non-positive
- * diagonal), with a diagonal shift M + alpha diag(M), alpha = 0, 1e-3, 1e-2,
- * ... until it is positive definite. L is the exact sparse Cholesky factor
- * (ves_chol, chol.h: CHOLMOD, L = P^T L_c with P the fill-reducing
- * permutation) at every size. The Hessian of F in u is then the identity at
- * the start, and LBFGS's unit step a Newton step. The wrapper ves_ldl
- * (MUMPS) that newton uses cannot serve: it offers A^{-1} v only, not the
- * half solves L^{-1} v, L^{-T} v that a change of variables needs. Until
- * session 26 L was dense (LAPACK dpotrf, up to 12,000 variables, IC(0)
- * above): at 2.9k dofs a factor ~0.3 s and two O(n^2) triangular solves at
- * every evaluation (a read of the 67 MB factor each; dtrsv ~10% of the
- * profile); the sparse factor costs ~3% and cut the steps' CPU time by
- * 10-20% at equal gradient counts (bench/RESULTS.md, session 26).
- * The constraint metric (session 35). At large dt M is often indefinite
- * while its restriction to the constraints' tangent space is not: at the
- * continuation's later stages of the robustness problem (dt* 100 to 1e4)
- * M had one negative eigenvalue (-0.5 to -19 against a largest 1.8e6) and
- * P M P (P the projector onto null(J)) none, its least 0.42-0.77. There
- * the diagonal shift (~1e-3 diag(M), up to ~600 on the stiff entries)
- * distorts every soft direction, and the last phase's L-BFGS paid for it
- * (127 of 253 gradients at dt* 1e3). AUGLAG's subproblem has the Hessian M
- * + rho J^T J, so before any shift the metric M + J^T S J is tried, s_i =
- * tau mean(diag M) / |J_i|^2, tau = 1e-2, 1e-1, ..., 10, the least that
- * factors; the rank-2 term fills a factor completely, so this one is dense
- * (LAPACK, ves_chol_factor_dense) and tried up to NLB_DENSE_N unknowns only
- * (8 n^2 bytes, ~n^3 / 3 flops: 0.25 s at 2.8k unknowns, where CHOLMOD's
- * own factor is already 81% full; 6,000 is ~2 s and 290 MB). Where the
- * reduced Hessian is itself indefinite (the oblate's x_start at dt* 1e3:
- * 8 negative eigenvalues) no tau helps; the ladder stops when a larger tau
- * leaves the failing pivot where it was, and the diagonal shifts follow.
- * Measured (bench/RESULTS.md, session 35): dt* 1e3 237 -> 136 gradients;
- * the answer's distance to Ipopt's is the stopping rule's, not the
- * metric's (test_backend's large step: 5.6e-7 to 1.02e-6 of the
- * displacement with or without it, by machine; RESULTS, session 36).
- * Two phases: AUGLAG to the loose relative tolerance NLB_TOL1 (constraints
- * NLB_CTOL1) in the metric of the start, then a new factor where it ended and
- * AUGLAG to the requested tolerances (the Hessian far from the start is the
- * metric that matters at large dt). One phase, to the requested tolerances,
- * when the step is near-quadratic: r = max_i |M_ii - K_ii| / K_ii <=
- * NLB_ONE_PHASE_R at the start (r grows as dt: 4e-3 at dt* 1e-4, 0.41 at
- * 1e-2, 41 at 1 on the robustness problem), where the metric of the start
- * holds along the whole step and a second phase paid a Hessian and a
- * restart of AUGLAG's multipliers and penalty for nothing (dt* 1e-4: 23
- * gradients and 2 Hessians against 63 and 3; 1e-2: 47 / 2 against 39 / 3,
- * equal CPU; bench/RESULTS.md session 26). From a warm start in the time
- * loop one phase can stall (L-BFGS's line search on the rounding of f, or
- * AUGLAG stopping feasible short of the first-order test): such a step is
- * solved again from x_start in two phases (nlb_solve; without it the
- * default relaxation retried 2 steps and took 50 instead of 40).
- * Multipliers: AUGLAG restarts its own from zero at every call, so the
- * objective carries f + lambda0^T c (the same minimizer on c = 0) with
- * lambda0 the multipliers of the quadratic model's step (the KKT system of
- * M, solved with the factor: (A A^T) lambda = c - A b, A = L^{-1} grad c,
- * b = L^{-1} grad f), and M is rebuilt once at those when they differ from
- * the ones it was built with by more than NLB_LAMBDA_RTOL.
- * Measured (bench/RESULTS.md, issue 17): on the 3.4k-dof test step 28
- * gradients and 1e-9 of the displacement from Ipopt's point, against 964
- * gradients and 1.2e-2 with IC(0) alone (compile with -DNLB_PRECOND_IC0 to
- * repeat; -DNLB_DIAGONAL_ONLY for the diagonal scaling, 3,604 gradients).
- * root: LBFGS (Luksan's code) stops on a fixed absolute test
- * max |dF/du_i| <= LBFGS_GTOL = 1e-8. The gradient in u is
- * root^-1 L^{-1} grad f, so root = tol * gmax / LBFGS_GTOL, gmax = the largest
- * component of L^{-1} grad f(x_start), turns it into the relative test
- * max |L^{-1} grad L| <= tol gmax, without changing the Hessian of F in u.
+ *   x = x_start + root L^{-T} u,   F(u) = (f(x) + lambda0^T c(x)) / root^2,
+ *   r_i(u) = c_i(x) / sigma_i,     sigma_i = root |L^{-1} grad c_i| / NLB_CSCALE,
  *
- * Constraints: r_i = c_i / sigma_i with sigma_i = root |L^{-1} grad c_i| /
- * NLB_CSCALE (|grad_u r_i| = NLB_CSCALE at the start: AUGLAG's penalty rho
- * r^2 / 2 is then 100 rho times F's unit curvature along them, so each outer
- * iteration cuts the violation by ~1e3 instead of ~10), each with tolerance
- * ctol target_i / sigma_i, so AUGLAG's feasibility test is the relative test
- * of ves_backend_options.
- * Stopping: no f tolerance (ftol_rel = 0: f contains dt E, whose roundoff
- * swamps the small decrease of one step); xtol_rel = tol on u for the LBFGS
- * sub-solves (their gradient test is the one that acts) and sqrt(tol) for
- * AUGLAG's outer iterates (with tol the outer loop ran 29 sub-solves without
- * gaining accuracy: the sub-solves' own noise); AUGLAG stops once feasible and
- * the outer iterate has settled, or when LBFGS fails (its line search limited
- * by roundoff near the solution). maxeval = NLB_EVALS_PER_ITER * max_iter
- * objective evaluations in all (a gradient method needs many more than a
- * Newton method). AUGLAG's verdict is not trusted: after the solve the
- * constraint violation is checked against ctol (VES_ERR_NOCONV if not met).
- * Domain errors (det F <= 0): NLopt has no "cut the step"; the objective
- * returns HUGE_VAL (and a zero gradient) so the line search backs off; after
- * NLB_DOMAIN_MAX consecutive refusals, or at the start, the solve is stopped
- * with nlopt_force_stop and VES_ERR_DOMAIN is returned.
- * Continuation in dt (large steps). When the direct solve from x_start fails
- * because its line search left the domain (VES_ERR_DOMAIN) and x_start
- * itself is admissible, the same step is solved
- * through easier ones: the objective's dt is lowered (ves_step_set_dt: y^n,
- * K and the constraint targets stay) by factors NLB_CONT_DOWN_FACTOR from
- * x_start until a solve converges (at most NLB_CONT_DOWN factors; a stage
- * before the last is skipped, at the cost of its Hessian and one
- * factorization, where M at x_start is not positive definite: there the
- * reduced Hessian was indefinite too and no metric is exact, so L-BFGS
- * crawls; measured at dt* 1e4 the stage at 100 took 120 gradients, the
- * path through dt* 1, 10, 100 73), then
- * raised by NLB_CONT_FACTOR from each converged answer towards dt (the
- * multipliers scaled with dt, a tension times dt), that factor shrunk to its
- * square root after a failed stage, and the last stage is the step itself at
- * the requested tolerances; the step's dt is set back before returning. The
- * answer is the step's own KKT point: only the path to it changes, and a
- * step the direct solve converges on never enters it. A step whose r at
- * the start exceeds NLB_CONT_R skips the direct solve (one Hessian spent):
- * measured on the robustness problem, its direct solve failed at r = 4e4
- * (dt* 1e3) after ~130 gradients and converged at r = 4e3 (dt* 100: 197
- * gradients, 3 Hessians; through the continuation 155 and 9, no cheaper),
- * so the gate sits between (dt* 1e3: 253 gradients against 385; session
- * 26). The threshold is one problem's: a step on another problem that
- * crosses it costs a continuation, never a different answer. Measured on the
- * robustness problem (eps 0.1, 1,483 nodes, bench/RESULTS.md session 25):
- * dt* 1e3 and 1e4 converge (358 and 370 gradients, 7-8 Hessians, 3.1x and
- * 2.1x newton's CPU time, E* to 1e-10 and 5e-10 of newton's) where the
- * direct solve left the domain; searching down by 10 instead of 100 cost
- * 506 and 503 gradients (a second failed direct solve, at dt/10, ~130).
- * lambda out is the least-squares solution of grad f + J^T lambda = 0 at the
- * solution. Every point NLopt evaluates gets its gradient in the same model
- * pass (ves_step_eager_gradients).
- * Statistics: iterations = AUGLAG outer iterations (its objective calls
- * without a gradient, one per outer iteration after the first at the start of
- * each phase); f_evals, g_evals count objective and gradient evaluations;
- * h_evals the Hessians assembled for the factors. */
+ * L L^T = M the Hessian of the Lagrangian at x_start (K when M has a
+ * non-positive diagonal entry) by sparse Cholesky (chol.h), shifted by
+ * alpha diag(M) until positive definite; an indefinite M with constraints
+ * first tries the dense metric M + J^T S J (nlb_dense_metric). The Hessian
+ * of F at the start is then the identity. root = tol max|L^{-1} grad f| /
+ * LBFGS_GTOL turns L-BFGS's fixed absolute gradient test into the relative
+ * one; lambda0 are the multipliers of the quadratic model's step (AUGLAG
+ * starts its own at zero). A solve runs two phases, to NLB_TOL1 in the
+ * metric of the start and to tol in that of the first phase's end, or one
+ * when the step is near-quadratic (max_i |M_ii - K_ii| / K_ii <=
+ * NLB_ONE_PHASE_R). A direct solve that leaves the domain (det F <= 0: the
+ * objective returns HUGE_VAL, NLB_DOMAIN_MAX in a row stop it) is solved
+ * again by continuation in dt (nlb_continue). lambda out: least squares of
+ * grad f + J^T lambda = 0 at the answer. Statistics: iterations = AUGLAG's
+ * outer iterations, h_evals = Hessians factored. Measurements:
+ * docs/results.md, "The backends compared" and "Robustness at large Δt". */
 #include <float.h>
 #include <limits.h>
-#ifdef NLB_TRACE
-#include <stdio.h>
-#endif
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -143,59 +32,34 @@
 
 #include "ves/backend.h"
 #include "ves/chol.h"
-#include "ves/ldl.h"
 #include "core/clock_impl.h"
 
 #define NLB_EVALS_PER_ITER 100 /* maxeval = this * max_iter */
 #define NLB_KKT_SLACK 1e6      /* the final first-order check: tol times this (nlb_solve) */
-#ifndef NLB_DOMAIN_MAX
-#define NLB_DOMAIN_MAX 30 /* consecutive domain errors before giving up */
-#endif
-#define LBFGS_GTOL 1e-8 /* Luksan's fixed gradient tolerance (NLopt plis.c) */
-#define NLB_IC_SHIFTS 8 /* shifts alpha = 0, 1e-3, ..., 1e3 tried */
-#ifndef NLB_INNER
-#define NLB_INNER NLOPT_LD_LBFGS /* the sub-solver */
-#endif
-#ifndef NLB_TOL1
-#define NLB_TOL1 1e-3 /* first phase's relative gradient tolerance (0: one phase) */
-#endif
-#ifndef NLB_ONE_PHASE_R
-#define NLB_ONE_PHASE_R 1.0 /* one phase when max |diag(M - K)| / diag(K) is below this */
-#endif
-#ifndef NLB_CONT_R
-#define NLB_CONT_R 1e4 /* a step's direct solve: straight to the continuation above this r */
-#endif
-#ifndef NLB_CTOL1
-#define NLB_CTOL1 1e-6 /* first phase's relative constraint tolerance */
-#endif
-#ifndef NLB_LAMBDA_RTOL
+#define NLB_DOMAIN_MAX 30      /* consecutive domain errors before giving up */
+#define LBFGS_GTOL 1e-8        /* Luksan's fixed gradient tolerance (NLopt plis.c) */
+#define NLB_SHIFTS 8           /* diagonal shifts alpha = 0, 1e-3, ..., 1e3 tried */
+#define NLB_TOL1 1e-3          /* first phase's relative gradient tolerance (0: one phase) */
+#define NLB_ONE_PHASE_R 1.0    /* one phase when max |diag(M - K)| / diag(K) is below this */
+#define NLB_CONT_R 1e4       /* r = max|M_ii - K_ii| / K_ii above this: straight to nlb_continue */
+#define NLB_CTOL1 1e-6       /* first phase's relative constraint tolerance */
 #define NLB_LAMBDA_RTOL 1e-2 /* rebuild the Hessian at the model multipliers beyond this */
-#endif
-#ifndef NLB_DENSE_N
-#define NLB_DENSE_N 6000 /* the dense constraint metric up to this many unknowns */
-#endif
-#define NLB_JT_TAU0 1e-2  /* ... its first tau (nlb_precondition) */
-#define NLB_JT_TAU_MAX 10 /* ... and its last */
-#define NLB_RHO0 10.0     /* AUGLAG's first penalty (NLopt auglag.c, from a feasible start) */
-#ifndef NLB_CSCALE
-#define NLB_CSCALE 10.0 /* constraint scale: |grad_u r_i| at the start */
-#endif
-#ifndef NLB_CONT_FACTOR
-#define NLB_CONT_FACTOR 10.0 /* continuation in dt: first factor between stages up */
-#endif
-#ifndef NLB_CONT_DOWN_FACTOR
+#define NLB_DENSE_N 6000     /* the dense constraint metric up to this many unknowns */
+#define NLB_JT_TAU0 1e-2     /* ... its first tau (nlb_precondition) */
+#define NLB_JT_TAU_MAX 10    /* ... and its last */
+#define NLB_CSCALE                                                                                 \
+  10.0 /* |grad_u r_i| at the start: AUGLAG's penalty (rho0 10) 100 rho F's curvature */
+#define NLB_CONT_FACTOR 10.0       /* continuation in dt: first factor between stages up */
 #define NLB_CONT_DOWN_FACTOR 100.0 /* ... the factor of the search down from dt */
-#endif
-#define NLB_CONT_DOWN 3  /* ... down from dt at most this many factors */
-#define NLB_CONT_MIN 1.2 /* ... a stage factor shrunk below this: give up */
+#define NLB_CONT_DOWN 3            /* ... down from dt at most this many factors */
+#define NLB_CONT_MIN 1.2           /* ... a stage factor shrunk below this: give up */
 
 /* The typed context of the callbacks. */
 typedef struct {
   ves_step *s;          /* the step problem (borrowed) */
   nlopt_opt opt;        /* the outer optimizer (for nlopt_force_stop) */
   int n, m;             /* nvar, ncon */
-  const ves_ldl_ic *L;  /* the factor of the change of variables (IC(0)) */
-  ves_chol *C;          /* or the exact one (NULL: IC(0)) */
+  ves_chol *C;          /* the factor L of the change of variables (borrowed) */
   const double *xs;     /* n the start x_start */
   double root;          /* x = x_start + root L^{-T} u */
   double f_scale;       /* root^2 */
@@ -206,7 +70,7 @@ typedef struct {
   double *uc;           /* n: the u of the constraints cached by the objective */
   double rc[2];         /* ... their values r_i(uc) */
   int cached;           /* 0 none, 1 the values, 2 also their gradients (in B + n) */
-  double tgt[2];        /* constraint scales sigma_i (header comment) */
+  double tgt[2];        /* constraint scales sigma_i (the banner) */
   double lam0[2];       /* multipliers folded into the objective (warm start) */
   int f_evals, g_evals; /* objective evaluations, with gradient */
   int h_evals;          /* Hessians assembled for the factor */
@@ -226,35 +90,23 @@ typedef struct {
   double *x, *g, *J, *u, *xs, *hval; /* scratch, u, start, Hessian values */
   double *B, *uc;                    /* 3 n, n: the callbacks' cache (nlb_ctx) */
   int *hi, *hj;                      /* Hessian structure (lower triplets) */
-  ves_ldl_ic *L;                     /* preconditioner: IC(0) on the Hessian pattern */
-  ves_chol *C;                       /* or the exact sparse Cholesky factor (NULL: IC(0)) */
+  ves_chol *C;                       /* the factor L: sparse Cholesky on the Hessian pattern */
   double shift;                      /* the diagonal shift alpha of the last factorization */
   double tau;                        /* ... or the weight of its dense J^T S J term (0: none) */
   int dense_fail;                    /* the last factorization tried that term in vain */
   double rdiag;                      /* max_i |M_ii - K_ii| / K_ii of the last Hessian M */
   double *dg;                        /* 2 n scratch: diagonals */
-  int pass;                          /* 0: M was the Hessian of the Lagrangian; 1: K */
+  int pass;                          /* 0: M is the Hessian of the Lagrangian; 1: K */
   double kkt, jtl, noise;            /* max |grad f + J^T lambda|, max |J^T lambda|, its
                                         rounding floor (nlb_finish) */
   nlb_ctx ctx;
 } nlb_state;
 
-/* v = L^{-1} v with the factor in use: the exact one C when there is one,
- * else IC(0). The exact one fails only on arguments it was never given. */
-static void nlb_lsolve(const ves_ldl_ic *L, ves_chol *C, double *v) {
-  if (C)
-    (void)ves_chol_lsolve(C, v);
-  else
-    ves_ldl_ic_lsolve(L, v);
-}
+/* v = L^{-1} v; fails only on arguments it is never given. */
+static void nlb_lsolve(ves_chol *C, double *v) { (void)ves_chol_lsolve(C, v); }
 
-/* v = L^{-T} v with the factor in use. */
-static void nlb_ltsolve(const ves_ldl_ic *L, ves_chol *C, double *v) {
-  if (C)
-    (void)ves_chol_ltsolve(C, v);
-  else
-    ves_ldl_ic_ltsolve(L, v);
-}
+/* v = L^{-T} v. */
+static void nlb_ltsolve(ves_chol *C, double *v) { (void)ves_chol_ltsolve(C, v); }
 
 /* ---- callbacks ---------------------------------------------------------- */
 
@@ -267,7 +119,7 @@ static void nlb_stop(nlb_ctx *c, ves_status st) {
 /* c->x = x_start + root L^{-T} u */
 static void nlb_x_of_u(nlb_ctx *c, const double *u) {
   for (int i = 0; i < c->n; i++) c->x[i] = c->root * u[i];
-  nlb_ltsolve(c->L, c->C, c->x);
+  nlb_ltsolve(c->C, c->x);
   for (int i = 0; i < c->n; i++) c->x[i] += c->xs[i];
 }
 
@@ -289,10 +141,9 @@ static void nlb_cache(nlb_ctx *c, const double *u, const double *cv, int with_gr
 /* F(u) = f(x(u)) / root^2 and grad_u F = L^{-1} grad f / root. With
  * constraints, their values and gradients at the same point are computed
  * here too and kept for nlb_constraints, which AUGLAG calls next at the same
- * u: x(u) is then solved for once, and with the exact factor the gradient
- * and the constraints' gradients go through one batched half solve (the
- * factor read once instead of three times; the half solves were ~11% of a
- * dt* 1e3 step, bench/RESULTS.md session 35). */
+ * u: x(u) is then solved for once, and the gradient and the constraints'
+ * gradients go through one batched half solve (the factor read once instead
+ * of three times; docs/results.md, "Robustness at large Δt"). */
 static double nlb_objective(unsigned n, const double *u, double *grad, void *data) {
   nlb_ctx *c = data;
   c->cached = 0;
@@ -309,11 +160,6 @@ static double nlb_objective(unsigned n, const double *u, double *grad, void *dat
   if (st == VES_OK && c->m > 0) {
     st = ves_step_eval_c(c->s, c->x, cv);
     if (st == VES_OK && grad) st = ves_step_eval_jac(c->s, c->x, c->J);
-#ifdef NLB_TRACE
-    if (st == VES_OK && !grad)
-      fprintf(stderr, "nlopt outer %d: f %.15g  g_evals %d  c/sigma %.3e %.3e\n", c->outer, f,
-              c->g_evals, cv[0] / c->tgt[0], c->m > 1 ? cv[1] / c->tgt[1] : 0.0);
-#endif
     /* f + lam0^T c (same minimizer on c = 0) */
     for (int i = 0; i < c->m && st == VES_OK; i++) {
       f += c->lam0[i] * cv[i];
@@ -333,7 +179,7 @@ static double nlb_objective(unsigned n, const double *u, double *grad, void *dat
     return HUGE_VAL;
   }
   c->domain_run = 0;
-  if (grad && c->C && c->m > 0) { /* [grad, J^T] in one solve */
+  if (grad && c->m > 0) { /* [grad, J^T] in one solve */
     memcpy(c->B, grad, n * sizeof *grad);
     memcpy(c->B + n, c->J, (size_t)c->m * n * sizeof *grad);
     if (ves_chol_lsolve_cols(c->C, 1 + c->m, c->B) == VES_OK) {
@@ -343,7 +189,7 @@ static double nlb_objective(unsigned n, const double *u, double *grad, void *dat
     }
   }
   if (grad) {
-    nlb_lsolve(c->L, c->C, grad);
+    nlb_lsolve(c->C, grad);
     for (unsigned i = 0; i < n; i++) grad[i] /= c->root;
   }
   if (c->m > 0) nlb_cache(c, u, cv, 0);
@@ -366,17 +212,10 @@ static void nlb_constraints(unsigned m, double *r, unsigned n, const double *u, 
   if (st != VES_OK) {
     /* AUGLAG asks for the constraints at every point it evaluated, also one
      * the objective refused as outside the domain, so a domain error stops
-     * the solve here at its first refusal. Tolerated instead (-DNLB_DOMAIN_SOFT),
-     * L-BFGS backs off and goes on, but at dt* = 1e3 and 1e4 it did not
-     * converge (bench/RESULTS.md, issue 17) and a hopeless step then costs
-     * maxeval gradients before the integrator may halve dt. */
-#ifdef NLB_DOMAIN_SOFT
-    if (st == VES_ERR_DOMAIN) {
-      for (unsigned i = 0; i < m; i++) r[i] = 0.0;
-      if (grad) memset(grad, 0, (size_t)m * n * sizeof *grad);
-      return;
-    }
-#endif
+     * the solve here at its first refusal: tolerated, L-BFGS does not
+     * converge at dt* 1e3 and 1e4 and a hopeless step costs maxeval
+     * gradients before the integrator may halve dt (docs/results.md,
+     * "Approaches measured and not adopted"). */
     for (unsigned i = 0; i < m; i++) r[i] = HUGE_VAL;
     nlb_stop(c, st);
     return;
@@ -384,7 +223,7 @@ static void nlb_constraints(unsigned m, double *r, unsigned n, const double *u, 
   for (unsigned i = 0; i < m; i++) {
     r[i] /= c->tgt[i];
     if (grad) {
-      nlb_lsolve(c->L, c->C, grad + (size_t)i * n);
+      nlb_lsolve(c->C, grad + (size_t)i * n);
       for (unsigned j = 0; j < n; j++) grad[i * n + j] *= c->root / c->tgt[i];
     }
   }
@@ -398,7 +237,6 @@ static void nlb_free_arrays(nlb_state *st) {
   ves_chol_destroy(&st->C);
   st->x = st->g = st->J = st->u = st->xs = st->hval = NULL;
   st->hi = st->hj = NULL, st->dg = st->B = st->uc = NULL;
-  ves_ldl_ic_destroy(&st->L);
   st->n = 0, st->nnz = 0;
 }
 
@@ -421,15 +259,7 @@ static ves_status nlb_alloc(nlb_state *st, ves_step *s) {
     return VES_ERR_ALLOC;
   }
   ves_step_hess_structure(s, st->hi, st->hj);
-  ves_status rc = VES_OK;
-#ifndef NLB_PRECOND_IC0 /* measurement: the IC(0) change of variables at every size */
-  rc = ves_chol_create(n, nnz, st->hi, st->hj, &st->C);
-  if (rc != VES_OK) {
-    nlb_free_arrays(st);
-    return rc;
-  }
-#endif
-  rc = ves_ldl_ic_create(n, nnz, st->hi, st->hj, &st->L);
+  ves_status rc = ves_chol_create(n, nnz, st->hi, st->hj, &st->C);
   if (rc != VES_OK) {
     nlb_free_arrays(st);
     return rc;
@@ -464,7 +294,8 @@ static ves_status nlb_create(const ves_backend_options *opt, ves_step *s, void *
 
 /* max_i |M_ii - K_ii| / K_ii of the Hessian in st->hval against K (the
  * triplets' diagonal entries summed; HUGE_VAL where K_ii <= 0): how far the
- * step is from quadratic (nlb_phase, the header comment). */
+ * step is from quadratic (nlb_phase, the banner). The diagonals
+ * stay in st->dg (M's, then K's) for nlb_precondition. */
 static double nlb_rdiag(nlb_state *st, const double *K) {
   double *dh = st->dg, *dk = st->dg + st->n, r = 0.0;
   memset(st->dg, 0, 2 * (size_t)st->n * sizeof *st->dg);
@@ -496,10 +327,6 @@ static ves_status nlb_dense_metric(nlb_state *st, int m, const double *J) {
     const double sw[2] = {tau * sc[0], tau * sc[1]};
     int fail = 0;
     ves_status rc = ves_chol_factor_dense(st->C, st->hval, m, J, sw, &fail);
-#ifdef NLB_TRACE
-    fprintf(stderr, "nlopt dense metric: tau %g -> %s (column %d)\n", tau, ves_status_str(rc),
-            fail);
-#endif
     if (rc == VES_OK) {
       st->tau = tau;
       return VES_OK;
@@ -510,54 +337,40 @@ static ves_status nlb_dense_metric(nlb_state *st, int m, const double *J) {
   return VES_ERR_SINGULAR;
 }
 
-/* Factor the preconditioner at x (header comment): M = Hessian of the
- * Lagrangian, or K if that has a non-positive diagonal entry; the exact
- * sparse Cholesky factor when st->C exists, else IC(0). With constraints
+/* Factor the preconditioner at x (the banner): M = Hessian of the
+ * Lagrangian, or K if that has a non-positive diagonal entry, by sparse
+ * Cholesky with diagonal shifts. With constraints
  * (J: their m gradients at x) and an indefinite M, first the dense metric
  * M + J^T S J (nlb_dense_metric; up to NLB_DENSE_N unknowns, and not when
  * dense is 0), then the diagonal shifts. */
 static ves_status nlb_precondition(nlb_state *st, ves_step *s, const double *x,
                                    const double *lambda, int m, const double *J, int dense) {
-  ves_ldl_ic *L = st->L;
   const double *K = ves_step_K(s);
   VES_CHECK(K != NULL, VES_ERR_ARG);
   VES_CALL(ves_step_eval_hess(s, x, 1.0, lambda, st->hval));
   st->rdiag = nlb_rdiag(st, K);
-#ifdef NLB_TRACE
-  fprintf(stderr, "nlopt precondition: max |diag(M - K)| / diag(K) = %.3e\n", st->rdiag);
-#endif
   /* a step's direct solve that goes to the continuation needs no factor */
   if (st->ctx.gate && st->rdiag > NLB_CONT_R) return VES_ERR_DOMAIN;
-  if (st->ctx.need_pd && st->C) { /* a stage of the search down: M itself or nothing */
+  if (st->ctx.need_pd) { /* a stage of the search down: M itself or nothing */
     st->ctx.need_pd = 0;
-    if (ves_chol_factor(st->C, st->hval, 0.0) != VES_OK) {
-#ifdef NLB_TRACE
-      fprintf(stderr, "nlopt precondition: not positive definite, stage skipped\n");
-#endif
-      return VES_ERR_DOMAIN;
-    }
+    if (ves_chol_factor(st->C, st->hval, 0.0) != VES_OK) return VES_ERR_DOMAIN;
     st->shift = 0.0, st->tau = 0.0, st->pass = 0, st->dense_fail = 0;
     return VES_OK;
   }
   for (int pass = 0; pass < 2; pass++) {
     const double *v = pass == 0 ? st->hval : K;
-    ves_ldl_ic_set(L, v);
+    const double *dv = st->dg + (size_t)pass * st->n; /* its diagonal (nlb_rdiag) */
     int posdiag = 1;
-    for (int i = 0; i < L->n; i++) posdiag &= L->a[L->ptr[i + 1] - 1] > 0.0;
-#ifdef NLB_DIAGONAL_ONLY /* measurement: the diagonal scaling alone */
-    for (int i = 0; i < L->n; i++)
-      for (int p = L->ptr[i]; p < L->ptr[i + 1] - 1; p++) L->a[p] = 0.0;
-#endif
+    for (int i = 0; i < st->n; i++) posdiag &= dv[i] > 0.0;
     if (!posdiag) continue;
     double alpha = 0.0;
     st->tau = 0.0, st->dense_fail = 0;
-    for (int t = 0; t < NLB_IC_SHIFTS; t++, alpha = alpha == 0.0 ? 1e-3 : 10.0 * alpha) {
-      if (st->C ? ves_chol_factor(st->C, v, alpha) == VES_OK
-                : ves_ldl_ic_factor(L, alpha) == VES_OK) {
+    for (int t = 0; t < NLB_SHIFTS; t++, alpha = alpha == 0.0 ? 1e-3 : 10.0 * alpha) {
+      if (ves_chol_factor(st->C, v, alpha) == VES_OK) {
         st->shift = alpha, st->pass = pass;
         return VES_OK;
       }
-      if (t == 0 && pass == 0 && dense && st->C && m > 0 && st->n <= NLB_DENSE_N) {
+      if (t == 0 && pass == 0 && dense && m > 0 && st->n <= NLB_DENSE_N) {
         ves_status rc = nlb_dense_metric(st, m, J);
         if (rc == VES_OK) {
           st->shift = 0.0, st->pass = pass;
@@ -647,14 +460,14 @@ static ves_status nlb_start(nlb_state *st, ves_step *s, const double *x, const d
     if (rc == VES_OK) {
       const int probe = c->gate || c->need_pd; /* may stop at the Hessian */
       /* at the same x with other multipliers: no second try of a dense
-       * metric that failed (its reduced Hessian was indefinite) */
+       * metric that failed (its reduced Hessian is indefinite) */
       rc = nlb_precondition(st, s, x, m > 0 ? lam_m : NULL, m, st->J, pass == 0 || !st->dense_fail);
       if (rc == VES_OK || (rc == VES_ERR_DOMAIN && probe)) c->g_evals++, c->h_evals++;
     }
     if (rc != VES_OK) break;
-    nlb_lsolve(st->L, st->C, st->g); /* the gradient in u at root = 1 */
-    for (int i = 0; i < m; i++) nlb_lsolve(st->L, st->C, st->J + (size_t)i * n);
-    *have_qp = m > 0 && st->C != NULL; /* an estimate, also from a shifted factor */
+    nlb_lsolve(st->C, st->g); /* the gradient in u at root = 1 */
+    for (int i = 0; i < m; i++) nlb_lsolve(st->C, st->J + (size_t)i * n);
+    *have_qp = m > 0; /* an estimate, also from a shifted factor */
     if (!*have_qp) break;
     nlb_multipliers(n, m, st->J, st->g, c0, lam_qp);
     double dl = 0.0, lm = 0.0;
@@ -690,11 +503,7 @@ static void nlb_scales(nlb_state *st, const double *x, const double *lambda, con
     for (int j = 0; j < n; j++) nrm += Ji[j] * Ji[j];
     c->tgt[i] = nrm > 0.0 ? c->root * sqrt(nrm) / NLB_CSCALE : tgt[i];
     ctol[i] = ctol_rel * tgt[i] / c->tgt[i];
-#ifdef NLB_LAMBDA_IN /* measurement: the multipliers handed in */
-    c->lam0[i] = lambda[i];
-#else
     c->lam0[i] = have_qp ? lam_qp[i] : lambda[i];
-#endif
   }
 }
 
@@ -744,19 +553,12 @@ static ves_status nlb_phase(nlb_state *st, ves_step *s, double *x, double *lambd
   c->gate = 0;
   if (!*last && c->one_phase && st->rdiag <= NLB_ONE_PHASE_R) *last = 1, c->promoted = 1;
   if (!*last) tol = NLB_TOL1, ctol_rel = NLB_CTOL1;
-#ifdef NLB_TRACE
-  fprintf(stderr,
-          "nlopt start: tol %g lambda in %.6e %.6e  qp %.6e %.6e (have %d, pass %d, shift %g, "
-          "tau %g)\n",
-          tol, m > 0 ? lambda[0] : 0.0, m > 1 ? lambda[1] : 0.0, lam_qp[0], lam_qp[1], have_qp,
-          st->pass, st->shift, st->tau);
-#endif
   double ctol[2];
   nlb_scales(st, x, lambda, tgt, tol, ctol_rel, lam_qp, have_qp, ctol);
   memset(st->u, 0, (size_t)n * sizeof(double)); /* u = 0 is x_start */
 
   nlopt_opt opt = nlopt_create(NLOPT_AUGLAG, (unsigned)n);
-  nlopt_opt local = nlopt_create(NLB_INNER, (unsigned)n);
+  nlopt_opt local = nlopt_create(NLOPT_LD_LBFGS, (unsigned)n);
   ves_status out = VES_ERR_SOLVER;
   double F = 0.0;
   int maxeval = st->opt.max_iter > INT_MAX / NLB_EVALS_PER_ITER
@@ -779,9 +581,7 @@ static ves_status nlb_phase(nlb_state *st, ves_step *s, double *x, double *lambd
   if (m > 0 && nlopt_add_equality_mconstraint(opt, (unsigned)m, nlb_constraints, c, ctol) < 0)
     goto done;
 
-#ifndef NLB_NO_EAGER
   ves_step_eager_gradients(s, 1); /* every point NLopt evaluates gets its gradient */
-#endif
   *r = nlopt_optimize(opt, st->u, &F);
   ves_step_eager_gradients(s, 0);
   nlb_x_of_u(c, st->u);
@@ -801,10 +601,6 @@ done:
     else if (out == VES_OK && !(*viol <= ctol_rel))
       out = VES_ERR_NOCONV;
   }
-#ifdef NLB_TRACE
-  fprintf(stderr, "nlopt end: %s lambda %.6e %.6e viol %.3e\n", ves_status_str(out),
-          m > 0 ? lambda[0] : 0.0, m > 1 ? lambda[1] : 0.0, *viol);
-#endif
   nlopt_destroy(local);
   nlopt_destroy(opt);
   return out;
@@ -813,13 +609,13 @@ done:
 /* The phases of one solve from x (in/out) at the step's current dt, with
  * multipliers lam (in/out), to tolerances tol and ctol: a first phase to
  * the loose NLB_TOL1 in the metric of the start, then the last one in the
- * metric of the Hessian where the first ended (header comment); with check,
+ * metric of the Hessian where the first ended (the banner); with check,
  * the first-order test against gS (below). *r, *viol: the last phase's. */
 static ves_status nlb_direct(nlb_state *st, ves_step *s, double *x, double lam[2],
                              const double *tgt, double tol, double ctol, int check, double gS,
                              nlopt_result *r, double *viol) {
   ves_status out = VES_OK;
-  const int phases = st->C && NLB_TOL1 > tol ? 2 : 1;
+  const int phases = NLB_TOL1 > tol ? 2 : 1;
   st->ctx.reason = VES_OK; /* a domain stop of an earlier solve is that solve's */
   for (int ph = 0, last = 0; ph < phases && out == VES_OK && !last; ph++) {
     last = ph == phases - 1;
@@ -832,21 +628,26 @@ static ves_status nlb_direct(nlb_state *st, ves_step *s, double *x, double lam[2
    * S = max of |grad f(x_start)| and |J^T lambda|, N the rounding floor),
    * NLB_KKT_SLACK times looser: a test against a step that did not move
    * (residual ~ S), not of accuracy, which is L-BFGS's test in the metric of
-   * the factor (measured: 2.9e-6 S at dt* 1e-4, 1.3e-8 S at 1, 0.8 S for
-   * the start point of a dt* 1e4 step). */
+   * the factor (2.9e-6 S at dt* 1e-4, 1.3e-8 S at 1, 0.8 S for the start
+   * point of a dt* 1e4 step; docs/results.md, "Robustness at large Δt"). */
   if (check && out == VES_OK &&
       !(st->kkt <= NLB_KKT_SLACK * fmax(tol * fmax(gS, st->jtl), st->noise)))
     out = VES_ERR_NOCONV;
-#ifdef NLB_TRACE
-  fprintf(stderr, "nlopt kkt: %.3e of S = %.3e, floor %.3e\n", st->kkt / fmax(gS, st->jtl),
-          fmax(gS, st->jtl), st->noise);
-#endif
   return out;
 }
 
-/* The continuation in dt (header comment) after the direct solve at dt
- * failed: x (in: x_start; out: the answer) and lam (in: the multipliers
- * handed in). The step's dt is set back before returning. */
+/* The continuation in dt after the direct solve at dt failed: x (in:
+ * x_start; out: the answer) and lam (in: the multipliers handed in). The
+ * objective's dt is lowered (ves_step_set_dt: y^n, K and the targets stay)
+ * by NLB_CONT_DOWN_FACTOR from x_start until a solve converges (at most
+ * NLB_CONT_DOWN factors; a stage before the last is skipped where M at
+ * x_start is not positive definite, since no metric is exact there), then
+ * raised by NLB_CONT_FACTOR from each converged answer towards dt, the
+ * multipliers scaled with dt (a tension times dt), the factor shrunk to its
+ * square root after a failed stage; the last stage is the step itself at
+ * the requested tolerances. The answer is the step's own KKT point: only
+ * the path to it changes. The step's dt is set back before returning
+ * (docs/results.md, "Robustness at large Δt"). */
 static ves_status nlb_continue(nlb_state *st, ves_step *s, double *x, double lam[2],
                                const double *tgt, double dt, double gS, nlopt_result *r,
                                double *viol) {
@@ -865,10 +666,6 @@ static ves_status nlb_continue(nlb_state *st, ves_step *s, double *x, double lam
     st->ctx.need_pd = j < NLB_CONT_DOWN; /* the last one: whatever M is */
     ves_status e = nlb_direct(st, s, xk, lk, tgt, NLB_TOL1, NLB_CTOL1, 0, gS, r, viol);
     st->ctx.need_pd = 0;
-#ifdef NLB_TRACE
-    fprintf(stderr, "nlopt continuation down: dt %g from x_start: %s (%d gradients so far)\n", dk,
-            ves_status_str(e), st->ctx.g_evals);
-#endif
     if (e == VES_OK)
       ok = 1;
     else if (e != VES_ERR_DOMAIN && e != VES_ERR_NOCONV && e != VES_MAXITER)
@@ -887,10 +684,6 @@ static ves_status nlb_continue(nlb_state *st, ves_step *s, double *x, double lam
     ves_status e =
         last ? nlb_direct(st, s, x, xn_lam, tgt, st->opt.tol, st->opt.ctol, 1, gS, r, viol)
              : nlb_direct(st, s, x, xn_lam, tgt, NLB_TOL1, NLB_CTOL1, 0, gS, r, viol);
-#ifdef NLB_TRACE
-    fprintf(stderr, "nlopt continuation up: dt %g from dt %g: %s (%d gradients so far)\n", dn, dk,
-            ves_status_str(e), st->ctx.g_evals);
-#endif
     if (e == VES_OK) {
       memcpy(xk, x, (size_t)n * sizeof *xk);
       dk = dn, lk[0] = xn_lam[0], lk[1] = xn_lam[1];
@@ -907,6 +700,11 @@ static ves_status nlb_continue(nlb_state *st, ves_step *s, double *x, double lam
   return out;
 }
 
+/* One step: the direct solve from x_start, again in two phases when a
+ * promoted single phase stalled, and the continuation in dt when the direct
+ * solve left the domain or its start is beyond NLB_CONT_R (the robustness
+ * problem's direct solve fails at r = 4e4 and converges at 4e3;
+ * docs/results.md, "Robustness at large Δt"). */
 static ves_status nlb_solve(void *state, ves_step *s, double *x, double *lambda,
                             ves_backend_stats *stats) {
   VES_CHECK(state && s && x, VES_ERR_ARG);
@@ -924,7 +722,6 @@ static ves_status nlb_solve(void *state, ves_step *s, double *x, double *lambda,
   *c = (nlb_ctx){.s = s,
                  .n = n,
                  .m = m,
-                 .L = st->L,
                  .C = st->C,
                  .xs = st->xs,
                  .x = st->x,
@@ -952,9 +749,9 @@ static ves_status nlb_solve(void *state, ves_step *s, double *x, double *lambda,
     out = nlb_direct(st, s, x, lam, tgt, st->opt.tol, st->opt.ctol, 1, gS, &r, &viol);
     c->gate = 0;
   }
-  /* A near-quadratic step that one phase did not solve (measured: L-BFGS
-   * stalled on the rounding of f from a warm start in the default
-   * relaxation, 2 retried steps): again from x_start in two phases. */
+  /* A near-quadratic step that one phase did not solve (L-BFGS stalls on
+   * the rounding of f from some warm starts: 2 steps of the default
+   * relaxation): again from x_start in two phases. */
   if (c->promoted && (out == VES_ERR_NOCONV || out == VES_MAXITER)) {
     memcpy(x, xs, (size_t)n * sizeof *x);
     lam[0] = m > 0 ? lambda[0] : 0.0, lam[1] = m > 1 ? lambda[1] : 0.0;

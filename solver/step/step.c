@@ -1,5 +1,5 @@
-/* vesica — one time step as a constrained NLP over the free dofs (paper Eq. 11,
- * DESIGN.md §3): f(x) = (1/2) d^T K(y^n) d + dt E(y), d = x - x0,
+/* vesica — one time step as a constrained NLP over the free dofs (paper Eq. 11;
+ * docs/design.md, "The time step"): f(x) = (1/2) d^T K(y^n) d + dt E(y), d = x - x0,
  * c = (A(y) - A0, V(y) - V_target) for the held constraints.
  *
  * The model is evaluated once per point x: the last x, its status, E, A, V and
@@ -15,7 +15,6 @@
 #include <string.h>
 
 #include "core/mem_impl.h"
-#include "step/step_impl.h"
 
 struct ves_step {
   ves_model *m;           /* borrowed */
