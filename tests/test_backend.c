@@ -226,7 +226,7 @@ static void test_ipopt_converges(void **state) {
   free(x2);
 }
 
-/* NLopt (AUGLAG + LBFGS, IC(0)-preconditioned) reaches the point Ipopt found.
+/* NLopt (AUGLAG + LBFGS in the metric of the sparse Cholesky factor) reaches the point Ipopt found.
  * Tolerance: Ipopt solves to a relative KKT residual 1e-9 by Newton steps;
  * LBFGS stops on a first-order test only, and its line search is limited by
  * the roundoff of f = (1/2) d^T K d + dt E, where dt E (~0.3) carries an

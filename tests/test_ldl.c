@@ -1,5 +1,5 @@
 /* vesica — tests of the ldl module: the MUMPS LDL^T / Cholesky solver
- * (against dense LAPACK) and the incomplete Cholesky factor IC(0). */
+ * (against dense LAPACK) and its GMRES-refined single-precision solves. */
 #include <stdarg.h>
 #include <stddef.h>
 #include <stdint.h>
@@ -526,142 +526,6 @@ static void test_ldl_errors(void **state) {
   ves_ldl_destroy(NULL);
 }
 
-/* ---- IC(0) ---- */
-
-/* On the full lower pattern IC(0) drops nothing: it is the Cholesky factor,
- * against LAPACK dpotrf entry by entry, and the two half solves solve A x = b.
- * A: the Kac-Murdock-Szego matrix A_ij = rho^|i-j|, dense and SPD, its
- * eigenvalues in ((1 - rho)/(1 + rho), (1 + rho)/(1 - rho)), so cond_2(A) <
- * ((1 + rho)/(1 - rho))^2 = 9 at rho = 1/2. The triplets come with one entry
- * split in two (summed by ves_ldl_ic_set). */
-static void test_ic_full_pattern(void **state) {
-  (void)state;
-  enum { N = 10, NZ = N * (N + 1) / 2 };
-  const double rho = 0.5, cond = 9.0;
-  double A[N * N], L[N * N], x[N], b[N], v[NZ + 1];
-  int ir[NZ + 1], jc[NZ + 1];
-  for (int i = 0; i < N; i++)
-    for (int j = 0; j < N; j++) A[i * N + j] = pow(rho, abs(i - j)); /* exact: powers of 2 */
-  int nnz = split_entry(dense_to_lower(N, A, ir, jc, v), ir, jc, v, 4, 2, 0.25);
-  for (int i = 0; i < N * N; i++) L[i] = A[i];
-  assert_int_equal(LAPACKE_dpotrf(LAPACK_ROW_MAJOR, 'L', N, L, N), 0);
-  ves_ldl_ic *F = NULL;
-  assert_int_equal(ves_ldl_ic_create(N, nnz, ir, jc, &F), VES_OK);
-  assert_int_equal(F->ptr[N], NZ); /* duplicates merged */
-  ves_ldl_ic_set(F, v);
-  assert_int_equal(ves_ldl_ic_factor(F, 0.0), VES_OK);
-  double worst = 0.0;
-  for (int i = 0; i < N; i++) {
-    assert_int_equal(F->col[F->ptr[i + 1] - 1], i); /* the diagonal last */
-    for (int p = F->ptr[i]; p < F->ptr[i + 1]; p++)
-      worst = fmax(worst, fabs(F->l[p] - L[i * N + F->col[p]]) / sqrt(A[i * N + i]));
-  }
-  /* the same algorithm up to the order of the sums: entries of size
-   * sqrt(A_ii) agree to a few N u */
-  assert_true(worst <= 4.0 * N * U);
-  for (int i = 0; i < N; i++) b[i] = x[i] = sin(0.3 + i);
-  ves_ldl_ic_lsolve(F, x);
-  ves_ldl_ic_ltsolve(F, x);
-  double r[N];
-  for (int i = 0; i < N; i++) {
-    r[i] = -b[i];
-    for (int j = 0; j < N; j++) r[i] += A[i * N + j] * x[j];
-  }
-  /* backward stable Cholesky solve: |r| ~ N u |A| |x| <= N u cond(A) |b| */
-  printf("# ic full: |L - L_lapack| %.2e, |Ax - b|/|b| %.2e (cond bound %.1f)\n", worst,
-         norm2(N, r) / norm2(N, b), cond);
-  assert_true(norm2(N, r) <= 4.0 * N * U * cond * norm2(N, b));
-  ves_ldl_ic_destroy(&F);
-  assert_null(F);
-}
-
-/* The defining property of IC(0) where fill is dropped: (L L^T)_ij = M_ij on
- * the pattern of M, here the 5-point Laplacian of a 4 x 4 grid (+ 0.1 I),
- * given by its off-diagonal triplets first and the diagonal after. */
-static void test_ic_laplacian(void **state) {
-  (void)state;
-  enum { G = 4, N = G * G, NZ = N + 2 * G * (G - 1) };
-  int ir[NZ], jc[NZ], nnz = 0;
-  double v[NZ], M[N * N] = {0};
-  for (int i = 0; i < N; i++) {
-    if (i % G > 0) ir[nnz] = i, jc[nnz] = i - 1, v[nnz++] = -1.0;
-    if (i >= G) ir[nnz] = i, jc[nnz] = i - G, v[nnz++] = -1.0;
-  }
-  for (int i = 0; i < N; i++) ir[nnz] = jc[nnz] = i, v[nnz++] = 4.1;
-  assert_int_equal(nnz, NZ);
-  for (int k = 0; k < nnz; k++) M[ir[k] * N + jc[k]] = M[jc[k] * N + ir[k]] = v[k];
-  ves_ldl_ic *F = NULL;
-  assert_int_equal(ves_ldl_ic_create(N, nnz, ir, jc, &F), VES_OK);
-  ves_ldl_ic_set(F, v);
-  for (int i = 0; i < N; i++) assert_true(F->a[F->ptr[i + 1] - 1] == 4.1);
-  assert_int_equal(ves_ldl_ic_factor(F, 0.0), VES_OK);
-  double Ld[N * N] = {0}, worst = 0.0, dropped = 0.0;
-  for (int i = 0; i < N; i++)
-    for (int p = F->ptr[i]; p < F->ptr[i + 1]; p++) Ld[i * N + F->col[p]] = F->l[p];
-  for (int i = 0; i < N; i++)
-    for (int j = 0; j <= i; j++) {
-      double s = 0.0;
-      for (int k = 0; k <= j; k++) s += Ld[i * N + k] * Ld[j * N + k];
-      if (M[i * N + j] != 0.0 || i == j)
-        worst = fmax(worst, fabs(s - M[i * N + j]));
-      else
-        dropped = fmax(dropped, fabs(s)); /* fill outside the pattern: not matched */
-    }
-  printf("# ic laplacian: on the pattern %.2e, off it up to %.2e\n", worst, dropped);
-  /* O(1) entries, sums of at most 3 products: a few u */
-  assert_true(worst <= 16 * U);
-  assert_true(dropped > 0.01); /* the dropped fill is real: this is not Cholesky */
-  ves_ldl_ic_destroy(&F);
-}
-
-/* A breakdown is VES_ERR_SINGULAR; a diagonal shift cures it; the diagonal is
- * forced into the pattern when the triplets lack it. */
-static void test_ic_shift(void **state) {
-  (void)state;
-  int ir[2] = {1, 1}, jc[2] = {0, 1}; /* no (0, 0) triplet */
-  double v[2] = {2.0, 1.0};           /* M = [0 2; 2 1] */
-  ves_ldl_ic *F = NULL;
-  assert_int_equal(ves_ldl_ic_create(2, 2, ir, jc, &F), VES_OK);
-  assert_int_equal(F->ptr[2], 3);
-  ves_ldl_ic_set(F, v);
-  assert_true(F->a[0] == 0.0);
-  assert_int_equal(ves_ldl_ic_factor(F, 0.0), VES_ERR_SINGULAR); /* pivot 0 */
-  int ir2[3] = {0, 1, 1}, jc2[3] = {0, 0, 1};
-  double v2[3] = {1.0, 2.0, 1.0}; /* [1 2; 2 1]: eigenvalues 3, -1 */
-  ves_ldl_ic_destroy(&F);
-  assert_int_equal(ves_ldl_ic_create(2, 3, ir2, jc2, &F), VES_OK);
-  ves_ldl_ic_set(F, v2);
-  assert_int_equal(ves_ldl_ic_factor(F, 0.0), VES_ERR_SINGULAR); /* 1 - 4 < 0 */
-  /* alpha = 10: [11 2; 2 11], L = [sqrt 11, 0; 2/sqrt 11, sqrt(11 - 4/11)] */
-  assert_int_equal(ves_ldl_ic_factor(F, 10.0), VES_OK);
-  assert_true(fabs(F->l[0] - sqrt(11.0)) <= 2 * U * sqrt(11.0));
-  assert_true(fabs(F->l[1] - 2.0 / sqrt(11.0)) <= 4 * U);
-  assert_true(fabs(F->l[2] - sqrt(11.0 - 4.0 / 11.0)) <= 8 * U * sqrt(11.0));
-  ves_ldl_ic_destroy(&F);
-}
-
-static void test_ic_errors(void **state) {
-  (void)state;
-  int ir[2] = {0, 1}, jc[2] = {0, 0}, up[2] = {0, 1}, big[2] = {0, 2}, neg[2] = {0, -1};
-  ves_ldl_ic *F = (ves_ldl_ic *)&F; /* a non-NULL value that must be overwritten */
-  assert_int_equal(ves_ldl_ic_create(0, 2, ir, jc, &F), VES_ERR_ARG);
-  assert_null(F);
-  assert_int_equal(ves_ldl_ic_create(2, -1, ir, jc, &F), VES_ERR_ARG);
-  assert_int_equal(ves_ldl_ic_create(2, 2, NULL, jc, &F), VES_ERR_ARG);
-  assert_int_equal(ves_ldl_ic_create(2, 2, ir, NULL, &F), VES_ERR_ARG);
-  assert_int_equal(ves_ldl_ic_create(2, 2, ir, jc, NULL), VES_ERR_ARG);
-  assert_int_equal(ves_ldl_ic_create(2, 2, jc, up, &F), VES_ERR_ARG); /* (0, 1): upper */
-  assert_int_equal(ves_ldl_ic_create(2, 2, big, jc, &F), VES_ERR_ARG);
-  assert_int_equal(ves_ldl_ic_create(2, 2, ir, neg, &F), VES_ERR_ARG);
-  assert_null(F);
-  assert_int_equal(ves_ldl_ic_create(2, 0, NULL, NULL, &F), VES_OK); /* the diagonal alone */
-  assert_int_equal(F->ptr[2], 2);
-  ves_ldl_ic_destroy(&F);
-  assert_null(F);
-  ves_ldl_ic_destroy(&F);
-  ves_ldl_ic_destroy(NULL);
-}
-
 int main(void) {
   setvbuf(stdout, NULL, _IOLBF, 0); /* keep output in order with cmocka's stderr */
   // clang-format off
@@ -673,9 +537,7 @@ int main(void) {
       cmocka_unit_test(test_ldl_single_solve_fallback),
       cmocka_unit_test(test_ldl_single_fallback),
       cmocka_unit_test(test_ldl_refactor),      cmocka_unit_test(test_ldl_singular),
-      cmocka_unit_test(test_ldl_errors),        cmocka_unit_test(test_ic_full_pattern),
-      cmocka_unit_test(test_ic_laplacian),      cmocka_unit_test(test_ic_shift),
-      cmocka_unit_test(test_ic_errors),
+      cmocka_unit_test(test_ldl_errors),
   };
   // clang-format on
   return cmocka_run_group_tests(tests, NULL, NULL);

@@ -5,7 +5,6 @@
 #ifndef VES_LDL_H
 #define VES_LDL_H
 
-#include "ves/ic0.h" /* the incomplete Cholesky factor, for the users of both */
 #include "ves/status.h"
 
 /* ---- Sparse symmetric direct solver (MUMPS, sequential) ----
