@@ -121,7 +121,7 @@ ves_status io_attr_status(hid_t file, const char *status) {
 }
 
 /* The attributes `units` and `description` every group and dataset carries
- * (added in format_version 2 files without a bump: readers need neither). */
+ * (readers need neither). */
 ves_status io_describe(hid_t obj, const char *units, const char *description) {
   VES_CALL(io_attr_str(obj, "units", units));
   return io_attr_str(obj, "description", description);
@@ -141,8 +141,8 @@ ves_status io_describe_at(hid_t loc, const char *path, const char *units, const 
  * unsigned 64-bit integers, little-endian), between which HDF5 converts
  * safely. Data of any other type is refused unread: a damaged type message
  * (a float with a 51-bit mantissa, say) sends HDF5's conversion code far
- * past its buffers (HDF5 1.10.8, H5T__conv_f_f; found by
- * tests/fuzz/fuzz_h5.c). */
+ * past its buffers (HDF5 1.10.8, H5T__conv_f_f; tests/fuzz/fuzz_h5.c;
+ * docs/results.md, "Reliability and fuzzing"). */
 int io_numeric_type_ok(hid_t obj, int is_attr) {
   hid_t t = is_attr ? H5Aget_type(obj) : H5Dget_type(obj);
   const hid_t ours[] = {H5T_IEEE_F64LE, H5T_STD_I32LE, H5T_STD_I64LE, H5T_STD_U64LE};
@@ -252,7 +252,7 @@ uint64_t io_snap_sum(long n, const double *y, const double *x, const double *phi
   h = io_fnv(h, phi, (size_t)n * sizeof *phi);
   h = io_fnv(h, d, sizeof d);
   h = io_fnv(h, l, sizeof l);
-  if (s->dt_prev > 0) { /* the predictor's state (absent from older files: their sums stand) */
+  if (s->dt_prev > 0) { /* the predictor's state, summed only when held */
     h = io_fnv(h, &s->dt_prev, sizeof s->dt_prev);
     h = io_fnv(h, y_prev, 2 * (size_t)n * sizeof *y_prev);
   }

@@ -85,7 +85,8 @@ ves_status io_read_header(ves_io *io) {
   for (int i = 0; i < IO_NSERIES; i++) {
     char name[64];
     snprintf(name, sizeof name, "series/%s", io_series[i].name);
-    if (io_col_optional(i) && H5Lexists(f, name, H5P_DEFAULT) == 0) continue; /* an older file */
+    if (io_col_optional(i) && H5Lexists(f, name, H5P_DEFAULT) == 0)
+      continue; /* optional: absent here */
     io->series[i] = H5Dopen2(f, name, H5P_DEFAULT);
     if (io->series[i] < 0 || !io_numeric_type_ok(io->series[i], 0)) return VES_ERR_CONFIG;
   }
@@ -147,9 +148,8 @@ ves_status ves_io_open(const char *path, int writable, ves_io **out, char *err, 
                     path, io->info.format_version, VES_IO_FORMAT);
     else if (st == VES_ERR_CONFIG && writable && io->info.format_version >= 1 &&
              io->info.format_version < VES_IO_FORMAT)
-      ves_error_say(err, errlen,
-                    "%s: format_version %d (an older vesica) is read-only: it cannot be continued",
-                    path, io->info.format_version);
+      ves_error_say(err, errlen, "%s: format_version %d is read-only: it cannot be continued", path,
+                    io->info.format_version);
     else if (st == VES_ERR_CONFIG)
       ves_error_say(err, errlen, "%s: not a vesica output file (missing or malformed layout)",
                     path);
@@ -209,12 +209,12 @@ ves_status ves_io_read_snapshot_n(ves_io *io, int k, int nbuf, double *y, double
     if (st == VES_OK) st = io_attr_read(g, "step", H5T_NATIVE_LONG, &s->nstep);
     if (st == VES_OK) st = io_attr_read(g, "rows", H5T_NATIVE_LONG, &si->rows);
     if (st == VES_OK) st = io_attr_read(g, "reconnections", H5T_NATIVE_INT, &si->reconnections);
-    /* the controller's memory of rejected steps (absent before 2026-11-25: none) */
+    /* the controller's memory of rejected steps (optional: none when absent) */
     if (st == VES_OK && H5Aexists(g, "dt_rejected") > 0)
       st = io_attr_read_double(g, "dt_rejected", &s->dt_rejected);
     if (st == VES_OK && H5Aexists(g, "since_rejected") > 0)
       st = io_attr_read(g, "since_rejected", H5T_NATIVE_LONG, &s->since_rejected);
-    /* the predictor's state (absent before 2026-12-02 and when none was held) */
+    /* the predictor's state (optional: absent when none was held) */
     if (st == VES_OK && H5Aexists(g, "dt_prev") > 0)
       st = io_attr_read_double(g, "dt_prev", &s->dt_prev);
     if (st == VES_OK && !(isfinite(s->dt_prev) && s->dt_prev >= 0)) st = VES_ERR_IO;

@@ -81,8 +81,8 @@ static ves_status dset_read_all(hid_t loc, const char *name, double **out, hsize
  * attribute has makes HDF5 decode them one by one, failing cleanly at a
  * damaged one. H5Aiterate2 (and H5Aopen_by_idx) first build a table of
  * them all and, when one fails to decode, crash releasing that table
- * (SIGSEGV in H5A__close under H5A__attr_release_table, HDF5 1.10.8; found
- * by tests/fuzz/fuzz_h5.c). */
+ * (SIGSEGV in H5A__close under H5A__attr_release_table, HDF5 1.10.8;
+ * tests/fuzz/fuzz_h5.c; docs/results.md, "Reliability and fuzzing"). */
 static int attrs_decode(hid_t obj) {
   return H5Aexists(obj, "vesica: no attribute has this name") == 0;
 }
@@ -107,8 +107,8 @@ static int contiguous_size_ok(hid_t d) {
  * levels down) likewise. H5Ocopy copies raw metadata and trusts it: a
  * contiguous dataset whose recorded storage size exceeds its data (one
  * byte of its layout message changed), which H5Dopen2 and H5Dread accept,
- * crashed it (SIGSEGV in H5T_close_real under H5O_copy_header_map, HDF5
- * 1.10.8; found by tests/fuzz/fuzz_h5.c). */
+ * crashes it (SIGSEGV in H5T_close_real under H5O_copy_header_map, HDF5
+ * 1.10.8; tests/fuzz/fuzz_h5.c; docs/results.md, "Reliability and fuzzing"). */
 static int object_readable(hid_t loc, const char *name, int depth) {
   hid_t o = H5Oopen(loc, name, H5P_DEFAULT);
   if (o < 0) return 0;
@@ -306,18 +306,11 @@ static ves_status salvage_write(ves_io *src, const char *path, const char *out, 
   return st;
 }
 
-ves_status ves_io_salvage(const char *path, const char *out, ves_io_salvaged *res, char *err,
-                          size_t errlen) {
-  VES_CHECK(path && out && res, VES_ERR_ARG);
-  memset(res, 0, sizeof *res);
-  io_quiet_hdf5();
-  long long size = 0, stored = 0;
-  if (!ves_io_cut_short(path, &size, &stored)) {
-    ves_error_say(err, errlen, "%s: not cut short (its size is the one its superblock records)",
-                  path);
-    return VES_ERR_ARG;
-  }
-  res->size = size, res->stored_size = stored;
+/* The file at path (size bytes, its superblock recording stored) opened in
+ * memory as *psrc (tolerant: what a salvage reads), its missing end as
+ * zeros. *psrc may be set on failure too (the caller closes it). */
+static ves_status salvage_open(const char *path, long long size, long long stored, ves_io **psrc,
+                               char *err, size_t errlen) {
   /* the image is held in memory, twice at its peak (HDF5 copies it): a
    * recorded end past a quarter of the machine's memory is refused, not
    * allocated (a damaged superblock records any size up to 2^50) */
@@ -341,7 +334,7 @@ ves_status ves_io_salvage(const char *path, const char *out, ves_io_salvaged *re
     return img ? VES_ERR_IO : VES_ERR_ALLOC;
   }
   hid_t fapl = H5Pcreate(H5P_FILE_ACCESS);
-  ves_io *src = io_alloc(path, 0);
+  ves_io *src = *psrc = io_alloc(path, 0);
   ves_status st = fapl >= 0 && src && H5Pset_fapl_core(fapl, 1 << 20, 0) >= 0 &&
                           H5Pset_file_image(fapl, img, (size_t)stored) >= 0
                       ? VES_OK
@@ -355,6 +348,23 @@ ves_status ves_io_salvage(const char *path, const char *out, ves_io_salvaged *re
     if (st != VES_OK) ves_error_say(err, errlen, "%s: its header is lost too", path);
   }
   if (fapl >= 0) H5Pclose(fapl);
+  return st;
+}
+
+ves_status ves_io_salvage(const char *path, const char *out, ves_io_salvaged *res, char *err,
+                          size_t errlen) {
+  VES_CHECK(path && out && res, VES_ERR_ARG);
+  memset(res, 0, sizeof *res);
+  io_quiet_hdf5();
+  long long size = 0, stored = 0;
+  if (!ves_io_cut_short(path, &size, &stored)) {
+    ves_error_say(err, errlen, "%s: not cut short (its size is the one its superblock records)",
+                  path);
+    return VES_ERR_ARG;
+  }
+  res->size = size, res->stored_size = stored;
+  ves_io *src = NULL;
+  ves_status st = salvage_open(path, size, stored, &src, err, errlen);
   /* the last snapshot that is complete and copies whole (a copy can still
    * meet a lost block the checksums do not cover: then the one before) */
   int K = st == VES_OK ? src->nsnap - 1 : -1, found = 0;
@@ -377,11 +387,9 @@ ves_status ves_io_salvage(const char *path, const char *out, ves_io_salvaged *re
       ves_error_say(err, errlen, "%s: its surviving snapshots cannot be copied whole (%s)", path,
                     why);
     else
-      ves_error_say(
-          err, errlen,
-          "%s: none of its %d snapshot(s) survived whole (or they carry no checksums: written "
-          "by an older vesica)",
-          path, src->nsnap);
+      ves_error_say(err, errlen,
+                    "%s: none of its %d snapshot(s) survived whole (or they carry no checksums)",
+                    path, src->nsnap);
   } else if (st != VES_OK && why[0] == '!') {
     ves_error_say(err, errlen, "%s", why + 1);
   }

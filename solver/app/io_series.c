@@ -38,7 +38,7 @@ const series_spec io_series[] = {
     {"retries", COL_INT, ROW(retries), "1", "rejected attempts before the accepted one (each at dt/2)", 14, V_, "retries", "%d"},
     {"status", COL_INT, ROW(status), "1", STATUS_DOC_, 0, TSV_NONE, NULL, NULL},
     {"reconnections", COL_INT, ROW(reconnections), "1", "resets of the reference configuration so far", 15, V_, "resets", "%d"},
-    {"factorizations", COL_INT, ROW(factorizations), "1", "KKT factorizations of the accepted attempt, each rung of an inertia correction one (newton, euler; 0 for ipopt and nlopt, which do not report theirs); absent in files written before 2026-12-05 (read as -1)", 18, V_, "factorizations", "%d"},
+    {"factorizations", COL_INT, ROW(factorizations), "1", "KKT factorizations of the accepted attempt, each rung of an inertia correction one (newton, euler; 0 for ipopt and nlopt, which do not report theirs); optional: a file without it reads as -1", 18, V_, "factorizations", "%d"},
     {"step", COL_LONG, ROW(step), "1", "accepted step number (row i holds step i + 1; written last: a row is complete once its step is)", 1, V_, "step", "%ld"},
     /* the text only */
     {"rejected_iterations", COL_INT, ROW(rejected_iterations), "1", "iterations of the attempts rejected before the accepted one", 16, V_, "rejected_iterations", "%d"},
@@ -47,10 +47,9 @@ const series_spec io_series[] = {
 // clang-format on
 #undef V_
 
-/* A column added to format_version 2 after its first files were written: an
- * older file lacks it (its handle -1 once opened), and appends,
- * truncations, checksums and salvaged copies pass it by; ves_io_read_series
- * reads it as -1. */
+/* An optional column of format_version 2: a file may lack it (its handle
+ * -1 once opened), and appends, truncations, checksums and salvaged copies
+ * pass it by; ves_io_read_series reads it as -1. */
 int io_col_optional(int i) { return !strcmp(io_series[i].name, "factorizations"); }
 
 static hid_t col_file_type(col_type t) {
@@ -396,7 +395,7 @@ ves_status ves_io_summarize(ves_io *io, double c0, ves_io_summary *s) {
     st = !col[c] ? VES_ERR_ALLOC : ves_io_read_series(io, SUM_COLS[c], col[c]);
   }
   if (st == VES_OK) summarize(&io->info, c0, R, col, s);
-  for (int i = 0; i < IO_NSERIES; i++) /* the column absent (an older file): not recorded */
+  for (int i = 0; i < IO_NSERIES; i++) /* the optional column absent: not recorded */
     if (io->series[i] < 0 && io_col_optional(i)) s->factorizations = -1;
   for (int c = 0; c < NSUM; c++) free(col[c]);
   return st;

@@ -380,25 +380,8 @@ ves_status ves_io_room(ves_io *io, int snapshots, int nq) {
 
 const char *ves_io_error(const ves_io *io) { return io && io->error[0] ? io->error : NULL; }
 
-static ves_status write_remesh(ves_io *io, const ves_io_remesh *rm) {
-  const int k = ves_io_remeshes(io);
-  hid_t s, g;
-  VES_CALL(io_counted_open(io->file, "remeshes", k, &s, &g));
-  const hsize_t n = (hsize_t)rm->n, nt = (hsize_t)rm->ntri;
-  const hid_t F = H5T_IEEE_F64LE, M = H5T_NATIVE_DOUBLE;
-  int *v = malloc((size_t)rm->n * sizeof *v);
-  for (int a = 0; v && a < rm->n; a++) v[a] = a;
-  ves_status st = v ? VES_OK : VES_ERR_ALLOC;
-  if (st == VES_OK) st = io_dset_write(g, "x", F, M, n, 2, rm->x);
-  if (st == VES_OK) st = io_dset_write(g, "h", F, M, n, 0, rm->h);
-  if (st == VES_OK) st = io_dset_write(g, "flag", H5T_STD_I32LE, H5T_NATIVE_INT, n, 0, rm->flag);
-  if (st == VES_OK) st = io_dset_write(g, "phi0c", F, M, n, 0, rm->phi0c);
-  if (st == VES_OK)
-    st = io_dset_write(g, "triangles", H5T_STD_I32LE, H5T_NATIVE_INT, nt, 3, rm->tri);
-  if (st == VES_OK) st = io_dset_write(g, "vertices", H5T_STD_I32LE, H5T_NATIVE_INT, n, 0, v);
-  free(v);
-  if (st == VES_OK) st = io_attr_long(g, "step", rm->step);
-  const ves_remesh_info *in = rm->info;
+/* What a remeshing changed (ves_remesh_info), as attributes of its group g. */
+static ves_status remesh_attrs(hid_t g, const ves_remesh_info *in) {
   const struct {
     const char *name;
     double v;
@@ -436,11 +419,17 @@ static ves_status write_remesh(ves_io *io, const ves_io_remesh *rm) {
            {"proj_cells_refined", in->proj_cells_refined},
            {"proj_cells_capped", in->proj_cells_capped},
            {"proj_points_dropped", in->proj_points_dropped}};
+  ves_status st = VES_OK;
   for (size_t i = 0; i < sizeof a / sizeof a[0] && st == VES_OK; i++)
     st = io_attr_double(g, a[i].name, a[i].v);
-  if (st == VES_OK)
-    st = io_describe(s, "per member",
-                     "full remeshings, one per member (groups 0..count-1): the new node sets");
+  return st;
+}
+
+/* The units and descriptions of the group /remeshes (s), its member g and
+ * g's datasets. */
+static ves_status remesh_describe(hid_t s, hid_t g) {
+  ves_status st = io_describe(
+      s, "per member", "full remeshings, one per member (groups 0..count-1): the new node sets");
   if (st == VES_OK)
     st = io_describe(
         g, "R0; E in k",
@@ -470,6 +459,29 @@ static ves_status write_remesh(ves_io *io, const ves_io_remesh *rm) {
     st = io_describe_at(g, "triangles", "1", "ntri x 3 Delaunay triangles of the new nodes");
   if (st == VES_OK)
     st = io_describe_at(g, "vertices", "1", "n int 0..n-1 (the nodes as XDMF points)");
+  return st;
+}
+
+static ves_status write_remesh(ves_io *io, const ves_io_remesh *rm) {
+  const int k = ves_io_remeshes(io);
+  hid_t s, g;
+  VES_CALL(io_counted_open(io->file, "remeshes", k, &s, &g));
+  const hsize_t n = (hsize_t)rm->n, nt = (hsize_t)rm->ntri;
+  const hid_t F = H5T_IEEE_F64LE, M = H5T_NATIVE_DOUBLE;
+  int *v = malloc((size_t)rm->n * sizeof *v);
+  for (int a = 0; v && a < rm->n; a++) v[a] = a;
+  ves_status st = v ? VES_OK : VES_ERR_ALLOC;
+  if (st == VES_OK) st = io_dset_write(g, "x", F, M, n, 2, rm->x);
+  if (st == VES_OK) st = io_dset_write(g, "h", F, M, n, 0, rm->h);
+  if (st == VES_OK) st = io_dset_write(g, "flag", H5T_STD_I32LE, H5T_NATIVE_INT, n, 0, rm->flag);
+  if (st == VES_OK) st = io_dset_write(g, "phi0c", F, M, n, 0, rm->phi0c);
+  if (st == VES_OK)
+    st = io_dset_write(g, "triangles", H5T_STD_I32LE, H5T_NATIVE_INT, nt, 3, rm->tri);
+  if (st == VES_OK) st = io_dset_write(g, "vertices", H5T_STD_I32LE, H5T_NATIVE_INT, n, 0, v);
+  free(v);
+  if (st == VES_OK) st = io_attr_long(g, "step", rm->step);
+  if (st == VES_OK) st = remesh_attrs(g, rm->info);
+  if (st == VES_OK) st = remesh_describe(s, g);
   if (st == VES_OK) /* for a salvage (ves_io_salvage), read back as written */
     st = io_attr_u64(g, "checksum", io_group_sum(g, io_remesh_parts, IO_NREMESH_PARTS));
   return io_counted_close(io->file, s, g, k, st);
