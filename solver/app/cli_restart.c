@@ -1,5 +1,7 @@
-/* vesica run --restart: continue a stored run from its last snapshot,
- * salvaging a file cut short. */
+/* vesica run --restart: continue a stored run from its last snapshot (the
+ * keys a restart may change, the setup rebuilt from the stored problem
+ * text), salvaging a file cut short first. User-facing behaviour:
+ * docs/manual.md; docs/design.md, "The program". */
 
 #include <errno.h>
 #include <limits.h>
@@ -12,13 +14,13 @@
 #include "app/cli_impl.h"
 
 /* The keys a restart may change: how each step is solved, the controller's
- * halving after a hard step (time.factor_shrink: a cost knob for the bud
- * phase of a long run, bench/RESULTS.md session 24) and its largest growth
- * between steps (time.growth_max, the same kind of knob: session 34), its
- * rules that hold dt after a step of many iterations or factorizations
- * (time.iter_target, time.factor_target: session 37), and where the run
- * ends; the rest defines the setup, the physics or the
- * protocol the stored steps followed. */
+ * halving after a hard step (time.factor_shrink), its largest growth
+ * between steps (time.growth_max) and its rules that hold dt after a step
+ * of many iterations or factorizations (time.iter_target,
+ * time.factor_target) — cost knobs for the bud phase of a long run
+ * (docs/results.md, "Long runs at ε = 0.01") — and where the run ends; the
+ * rest defines the setup, the physics or the protocol the stored steps
+ * followed. */
 static const char *const RESTART_KEYS[] = {"solver.tol",
                                            "solver.ctol",
                                            "solver.max_iter",

@@ -1,5 +1,6 @@
 /* vesica — figures of a run: the series and snapshots of an output file
- * turned into one gnuplot script (data inline as datablocks), run by gnuplot. */
+ * turned into one gnuplot script (data inline as datablocks), run by gnuplot
+ * (plot.h; docs/manual.md). */
 #include "app/plot.h"
 
 #include <errno.h>
@@ -229,8 +230,8 @@ static ves_status fig_snapshots(FILE *f, ves_io *io, const ves_plot_params *p, c
  * scaled to its own fastest arrow (the speeds of a relaxation span decades;
  * the title states it), drawn 0.9 of a cell long; arrows under
  * PLOT_ARROW_MIN of it are left out. Mirrored at r = 0 as the points (v_r
- * changes sign). A snapshot without a velocity (the first; a file from
- * before 2026-12-05) shows the points alone, and says so. The points are
+ * changes sign). A snapshot without a velocity (the first; a file that
+ * stores none) shows the points alone, and says so. The points are
  * fig_snapshots' datablocks $snapJ (the same snapshots and x, phi), so this
  * figure follows it in the script. */
 static ves_status fig_flow(FILE *f, ves_io *io, const ves_plot_params *p, const int *sel,
@@ -307,7 +308,7 @@ static ves_status fig_flow(FILE *f, ves_io *io, const ves_plot_params *p, const 
     else if (has[j] == 2)
       fprintf(f, "set title \"t* = %.4g\\nat rest (v = 0)\"\n", ts[j]);
     else
-      fprintf(f, "set title \"t* = %.4g\\nno flow (first snapshot, or an older file)\"\n", ts[j]);
+      fprintf(f, "set title \"t* = %.4g\\nno flow (first snapshot, or none stored)\"\n", ts[j]);
     fprintf(f, /* the points: fig_snapshots' datablocks (a reset keeps them) */
             "plot $snap%d using 1:2:3 with points pt 7 ps %.3f lc palette, "
             "$snap%d using (-$1):2:3 with points pt 7 ps %.3f lc palette",

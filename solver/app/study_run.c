@@ -2,7 +2,8 @@
  * given program with the cell's command), a fixed number at a time, each
  * with a wall-time limit; the .result file of a cell is written when its
  * process has ended, so a study stopped or killed at any point loses no
- * ended cell, and reruns only those that were running. */
+ * ended cell, and reruns only those that were running (study.h;
+ * docs/design.md, "The program"). */
 /* wait4 (one child's own CPU time and peak memory) is a BSD call */
 #define _DEFAULT_SOURCE
 #include "app/study.h"
