@@ -267,6 +267,37 @@ static const char *ini_trim(const char *s, size_t *n) {
   return s;
 }
 
+/* The section header t[n] (starting with '[') at line `line` of file name:
+ * its name into sec[seclen], checked to be known and not given before
+ * (sec_line: where each section began, by known_section - 1). */
+static ves_status ini_section(const char *t, size_t n, const char *name, int line, char *sec,
+                              size_t seclen, int *sec_line, char *err, size_t errlen) {
+  if (t[n - 1] != ']') {
+    ves_error_say(err, errlen, "%s: line %d: '%.*s': a section header needs a closing ']'", name,
+                  line, (int)(n > 60 ? 60 : n), t);
+    return VES_ERR_CONFIG;
+  }
+  size_t m = n - 2;
+  const char *sn = ini_trim(t + 1, &m);
+  if (!ini_name(sec, seclen, sn, m)) {
+    ves_error_say(err, errlen, "%s: line %d: '%.*s': not a section name", name, line,
+                  (int)(n > 60 ? 60 : n), t);
+    return VES_ERR_CONFIG;
+  }
+  int k = known_section(sec);
+  if (!k) {
+    ves_error_say(err, errlen, "%s: line %d: [%s]: unknown section", name, line, sec);
+    return VES_ERR_CONFIG;
+  }
+  if (sec_line[k - 1]) {
+    ves_error_say(err, errlen, "%s: line %d: [%s]: duplicate section (first at line %d)", name,
+                  line, sec, sec_line[k - 1]);
+    return VES_ERR_CONFIG;
+  }
+  sec_line[k - 1] = line;
+  return VES_OK;
+}
+
 /* Parse the text of a problem file over cfg; messages name `name` and the
  * line. The format: "[section]" headers, "key = value" lines (a value in
  * double or single quotes is taken verbatim; otherwise it ends at a ';' or
@@ -298,29 +329,8 @@ static ves_status parse_ini(const char *text, size_t len, const char *name, ves_
     const char *t = ini_trim(ln, &n);
     if (n == 0 || t[0] == ';' || t[0] == '#') continue;
     if (t[0] == '[') { /* a section header */
-      if (t[n - 1] != ']') {
-        ves_error_say(err, errlen, "%s: line %d: '%.*s': a section header needs a closing ']'",
-                      name, line, (int)(n > 60 ? 60 : n), t);
-        return VES_ERR_CONFIG;
-      }
-      size_t m = n - 2;
-      const char *sn = ini_trim(t + 1, &m);
-      if (!ini_name(sec, sizeof sec, sn, m)) {
-        ves_error_say(err, errlen, "%s: line %d: '%.*s': not a section name", name, line,
-                      (int)(n > 60 ? 60 : n), t);
-        return VES_ERR_CONFIG;
-      }
-      int k = known_section(sec);
-      if (!k) {
-        ves_error_say(err, errlen, "%s: line %d: [%s]: unknown section", name, line, sec);
-        return VES_ERR_CONFIG;
-      }
-      if (sec_line[k - 1]) {
-        ves_error_say(err, errlen, "%s: line %d: [%s]: duplicate section (first at line %d)", name,
-                      line, sec, sec_line[k - 1]);
-        return VES_ERR_CONFIG;
-      }
-      sec_line[k - 1] = line;
+      const ves_status st = ini_section(t, n, name, line, sec, sizeof sec, sec_line, err, errlen);
+      if (st != VES_OK) return st;
       continue;
     }
     const char *eq = memchr(t, '=', n);
@@ -474,8 +484,8 @@ ves_status ves_config_load_text(const char *text, const char *name, ves_config *
 
 /* A list of independent checks, one a key or a pair of keys, each with its
  * message: long, but read line by line. */
-ves_status ves_config_validate(const ves_config *cfg, char *err, size_t errlen) {
-  const char *src = cfg->source[0] ? cfg->source : "(defaults)";
+/* The checks of the shape, the time steps and the box (src names the file). */
+static ves_status validate_setup(const ves_config *cfg, const char *src, char *err, size_t errlen) {
   if (!strcasecmp(cfg->shape_type, "curve") && !strcmp(cfg->points, "none")) {
     ves_error_say(err, errlen, "%s: [shape] points: a curve needs a points file", src);
     return VES_ERR_CONFIG;
@@ -508,7 +518,12 @@ ves_status ves_config_validate(const ves_config *cfg, char *err, size_t errlen) 
                   cfg->h_far, cfg->h_band * cfg->epsilon);
     return VES_ERR_CONFIG;
   }
-  /* protocols that would silently do nothing */
+  return VES_OK;
+}
+
+/* Protocols that would silently do nothing. */
+static ves_status validate_protocol(const ves_config *cfg, const char *src, char *err,
+                                    size_t errlen) {
   if (cfg->volume_rate != 0 && !cfg->volume) {
     ves_error_say(err, errlen,
                   "%s: [protocol] volume_rate = %g: a volume ramp needs [constraints] volume = 1",
@@ -551,6 +566,12 @@ ves_status ves_config_validate(const ves_config *cfg, char *err, size_t errlen) 
       return VES_ERR_CONFIG;
     }
   }
+  return VES_OK;
+}
+
+/* The thresholds of resets and remeshings. */
+static ves_status validate_resets(const ves_config *cfg, const char *src, char *err,
+                                  size_t errlen) {
   if (cfg->reconnect_cond_max > 0 && cfg->reconnect_cond_max <= 1) {
     ves_error_say(err, errlen,
                   "%s: [reconnect] cond_max = %g: must be 0 (off) or above 1 (cond F >= 1)", src,
@@ -573,6 +594,15 @@ ves_status ves_config_validate(const ves_config *cfg, char *err, size_t errlen) 
                   cfg->remesh_det_min);
     return VES_ERR_CONFIG;
   }
+  return VES_OK;
+}
+
+ves_status ves_config_validate(const ves_config *cfg, char *err, size_t errlen) {
+  const char *src = cfg->source[0] ? cfg->source : "(defaults)";
+  ves_status st = validate_setup(cfg, src, err, errlen);
+  if (st == VES_OK) st = validate_protocol(cfg, src, err, errlen);
+  if (st == VES_OK) st = validate_resets(cfg, src, err, errlen);
+  if (st != VES_OK) return st;
   if (cfg->c0_time > cfg->t_end) {
     ves_error_say(err, errlen, "%s: [protocol] c0_time = %g: after [time] t_end = %g", src,
                   cfg->c0_time, cfg->t_end);

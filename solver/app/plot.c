@@ -222,6 +222,25 @@ static ves_status fig_snapshots(FILE *f, ves_io *io, const ves_plot_params *p, c
   return VES_OK;
 }
 
+/* The node of each arrow cell (nr x PLOT_ARROW_ROWS cells of side cell
+ * over [0, nr cell] x [-LZ, LZ]): the one nearest the cell's centre among
+ * the n nodes at x with a finite velocity v, or -1, into pick. */
+static void flow_pick(const double *x, const double *v, int n, int nr, double cell, double LZ,
+                      int *pick) {
+  const int nc = nr * PLOT_ARROW_ROWS;
+  for (int c = 0; c < nc; c++) pick[c] = -1;
+  for (int a = 0; a < n; a++) {
+    const double r = x[2 * a], z = x[2 * a + 1];
+    if (!(r >= 0 && r < nr * cell && z >= -LZ && z < LZ) || !isfinite(v[2 * a]) ||
+        !isfinite(v[2 * a + 1]))
+      continue;
+    const int ir = (int)(r / cell), iz = (int)((z + LZ) / cell), c = iz * nr + ir;
+    const double cr = (ir + 0.5) * cell, cz = -LZ + (iz + 0.5) * cell;
+    if (pick[c] < 0 || hypot(r - cr, z - cz) < hypot(x[2 * pick[c]] - cr, x[2 * pick[c] + 1] - cz))
+      pick[c] = a;
+  }
+}
+
 /* The flow at the selected snapshots (paper Fig. 5): the nodes coloured by
  * phi as in fig_snapshots, and arrows of the velocity at the nodes
  * (ves_io_read_snapshot_velocity) on a grid of square cells, PLOT_ARROW_ROWS
@@ -260,18 +279,7 @@ static ves_status fig_flow(FILE *f, ves_io *io, const ves_plot_params *p, const 
     }
     ts[j] = si.state.t, has[j] = got, vmax[j] = 0;
     if (!got) continue;
-    for (int c = 0; c < nc; c++) pick[c] = -1;
-    for (int a = 0; a < n; a++) {
-      const double r = x[2 * a], z = x[2 * a + 1];
-      if (!(r >= 0 && r < nr * cell && z >= -LZ && z < LZ) || !isfinite(v[2 * a]) ||
-          !isfinite(v[2 * a + 1]))
-        continue;
-      const int ir = (int)(r / cell), iz = (int)((z + LZ) / cell), c = iz * nr + ir;
-      const double cr = (ir + 0.5) * cell, cz = -LZ + (iz + 0.5) * cell;
-      if (pick[c] < 0 ||
-          hypot(r - cr, z - cz) < hypot(x[2 * pick[c]] - cr, x[2 * pick[c] + 1] - cz))
-        pick[c] = a;
-    }
+    flow_pick(x, v, n, nr, cell, LZ, pick);
     for (int c = 0; c < nc; c++)
       if (pick[c] >= 0) vmax[j] = fmax(vmax[j], hypot(v[2 * pick[c]], v[2 * pick[c] + 1]));
     const double scale = vmax[j] > 0 ? 0.9 * cell / vmax[j] : 0;
