@@ -2,7 +2,6 @@
  * stack, typed scalar attributes, contiguous datasets, counted groups (a
  * member written whole, then counted) and the FNV-1a checksums a salvage
  * checks. Layout: app/io.h; docs/design.md, "The program". */
-#include <hdf5.h>
 #include <errno.h>
 #include <stdlib.h>
 #include <string.h>
@@ -52,7 +51,6 @@ ves_status io_failed(ves_io *io, ves_status st, int errnum) {
  * begin). Snapshots and references carry one over their data and state, so
  * that a salvage (ves_io_salvage) tells a member whose blocks survived from
  * one whose blocks were lost and read back as zeros. */
-#define FNV_START 0xcbf29ce484222325ULL
 uint64_t io_fnv(uint64_t h, const void *data, size_t len) {
   const unsigned char *p = data;
   for (size_t i = 0; i < len; i++) h = (h ^ p[i]) * 0x100000001b3ULL;

@@ -2,7 +2,6 @@
  * opening and checking the header, snapshots, references, remeshings and
  * the node set each snapshot is on. Layout: app/io.h; docs/design.md,
  * "The program". */
-#include <hdf5.h>
 #include <errno.h>
 #include <math.h>
 #include <stdlib.h>
@@ -47,6 +46,10 @@ static ves_status read_snapshot_times(ves_io *io) {
   return st;
 }
 
+/* The header of the open file io->file into io->info, its series opened
+ * and its snapshots counted; VES_ERR_CONFIG when it is not a vesica file of
+ * a known format (a salvage, io->tolerant, passes a lost status or setup
+ * time). */
 ves_status io_read_header(ves_io *io) {
   hid_t f = io->file;
   ves_io_info *in = &io->info;

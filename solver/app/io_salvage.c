@@ -2,7 +2,6 @@
  * as zeros, keep the last snapshot whose data, series rows, references and
  * remeshings match their checksums, and copy them to a new file. Layout:
  * app/io.h; docs/manual.md for `vesica run --restart`. */
-#include <hdf5.h>
 #include <errno.h>
 #include <stdlib.h>
 #include <string.h>

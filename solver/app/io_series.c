@@ -2,7 +2,6 @@
  * shared by the file's extendible datasets and the --series text; append,
  * truncate, read, the rows' checksum and the run's summary (vesica info).
  * Layout: app/io.h; docs/design.md, "The program". */
-#include <hdf5.h>
 #include <errno.h>
 #include <math.h>
 #include <stdlib.h>

@@ -2,7 +2,6 @@
  * mesh; snapshots, references and remeshings as counted groups; the status
  * and problem text; the room check before a step. Layout: app/io.h;
  * docs/design.md, "The program". */
-#include <hdf5.h>
 #include <errno.h>
 #include <stdlib.h>
 #include <string.h>

@@ -2,7 +2,6 @@
  * over the snapshots (nodes as points, the triangles at the material
  * positions) for ParaView and meshio. Layout: app/io.h; docs/design.md,
  * "The program". */
-#include <hdf5.h>
 #include <stdio.h>
 #include <string.h>
 
