@@ -4,8 +4,8 @@
  * library loads, before main. On a CPU whose model it does not know (virtual
  * Xeons that report "Intel(R) Xeon(R) Processor" with AVX-512) it falls back
  * to its generic "Prescott" kernels: dgemm at ~9 GFLOP/s on one core against
- * ~50 with the SkylakeX kernels on the same machine (bench/RESULTS.md,
- * "OpenBLAS kernels"). MUMPS's dense fronts (the KKT factorization, the phi0
+ * ~50 with the SkylakeX kernels on the same machine (docs/results.md,
+ * "Performance and its scaling"). MUMPS's dense fronts (the KKT factorization, the phi0
  * projection) run on those kernels. The choice can only be made through the
  * environment variable OPENBLAS_CORETYPE, read at load time, so a program
  * that finds the fallback on a CPU with AVX2 or AVX-512 re-executes itself

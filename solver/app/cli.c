@@ -2,7 +2,8 @@
  * file (cli_<command>.c), prints and exits (the library itself never prints
  * or exits). Exit codes: 0 ok, 2 bad input (usage, configuration, files), 3
  * numerical failure (or a write error during a run), 130/143 stopped by
- * SIGINT/SIGTERM (the last state saved). */
+ * SIGINT/SIGTERM (the last state saved). User-facing behaviour:
+ * docs/manual.md; docs/design.md, "The program". */
 
 #include <stdio.h>
 #include <string.h>

@@ -1,4 +1,5 @@
-/* vesica check: the initial state of a problem and its derived quantities. */
+/* vesica check: the initial state of a problem and its derived quantities
+ * (docs/manual.md; docs/design.md, "The program"). */
 
 #include <math.h>
 #include <stdio.h>

@@ -1,5 +1,6 @@
 /* vesica — the command line's shared pieces: options, the problem file, the
- * setup's estimate, output paths, the library's error text (cli_impl.h). */
+ * setup's estimate, output paths, the library's error text (cli_impl.h;
+ * docs/design.md, "The program"). */
 
 #include <errno.h>
 #include <limits.h>
@@ -34,21 +35,16 @@ int cli_exit_for(ves_status st) {
  * at `slope` (width D = (h_far - h0) / slope on each side), and the part of
  * the box [0, box_r] x [-box_z, box_z] beyond that zone at h_far; times
  * EST_FILL, the nodes the layers, the axis lattice and the Lloyd smoothing
- * add, fitted on two measured setups at eps 0.01 (the oblate 19,391 and the
- * prolate of prolate_c0.ini 27,447 nodes: 19,356 and 27,446 estimated).
- * Checked on four more: the oblate at eps 0.08 2,225 (estimate 2,343, +5%),
- * the sphere at 0.04 6,093 (6,463, +6%), pearling.ini 6,076 (6,149, +1%),
- * prolate_c0.ini at 0.04 6,625 (6,759, +2%). Until session 18 the meridian
- * was taken as pi for every shape: the prolate's 27,447 was estimated at
- * 17,017 and its memory at 2.6 GB. Memory scales linearly from the oblate's
- * below (no resets): 4.2 GB for that prolate, whose steps before its first
- * reset peaked at 4.1 GB; a reset or a remeshing builds the new reference's
- * tables beside the old ones (integrate.c), EST_RESET more: the same run
- * peaked at 6.7 GB after its first reset (session 17; +1.1 GB of 2.1 at eps
- * 0.02, session 16), at 8.7 GB by t* 1.0 after 6 resets (session 24;
- * which part grew was not measured), 2.05x the 4.25 GB the steps' scaling
- * gives, and at 8.85 GB by t* 3.6 (session 25, 2.08x); EST_RESET was 1.6
- * until session 24.
+ * add, fitted on two setups at eps 0.01 (the oblate 19,391 and the prolate
+ * of prolate_c0.ini 27,447 nodes: 19,356 and 27,446 estimated) and within
+ * +1% to +6% on four more (docs/results.md, "Performance and its scaling").
+ * L is the shape's own meridian, not pi: a prolate's is longer. Memory
+ * scales linearly from the oblate's below (no resets); a reset or a
+ * remeshing builds the new reference's tables beside the old ones
+ * (integrate.c), EST_RESET more: that prolate peaks at 4.1 GB before its
+ * first reset, 6.7 GB after it and 8.85 GB by t* 3.6 after several, 2.08x
+ * the 4.25 GB the steps' scaling gives (docs/results.md, "Resets and
+ * remeshing").
  * Returns 0 when the shape cannot be built (the setup then says why). */
 #define EST_FILL 1.27
 static double estimate_nodes(const ves_config *c) {
@@ -65,11 +61,11 @@ static double estimate_nodes(const ves_config *c) {
   return EST_FILL * (band + grade) + far;
 }
 
-/* Rates measured at the paper's scale (19,391 nodes, bench/RESULTS.md, the
- * scale table of session 14, one thread, OpenBLAS's own kernels): setup 11 s
- * (+2 s for the stabilization's rows, session 15), peak memory of the run
- * 2.9 GB (+0.1 GB), a Newton step with its matrix 8.3 s growing as n^1.22
- * (a slower machine or AVX2 kernels: up to 1.7x). */
+/* Rates at the paper's scale (19,391 nodes, one thread, OpenBLAS's own
+ * kernels; docs/results.md, "Performance and its scaling"): setup 11 s (+2 s
+ * for the stabilization's rows), peak memory of the run 2.9 GB (+0.1 GB), a
+ * Newton step with its matrix 8.3 s growing as n^1.22 (a slower machine or
+ * AVX2 kernels: up to 1.7x). */
 #define EST_NODES 19391.0
 #define EST_SETUP_S 13.0
 #define EST_PEAK_GB 3.0
@@ -78,7 +74,8 @@ static double estimate_nodes(const ves_config *c) {
 #define EST_RESET 2.1   /* the peak with resets or remeshings against the steps' */
 /* A remeshing builds a new node set adapted to the interface as it is: the
  * Fig. 6 run at eps 0.01 grew from 24,537 to 39,746 nodes over three and its
- * peak from the estimated 8.0 GB to 11.1 GB (bench/RESULTS.md, session 27):
+ * peak from the estimated 8.0 GB to 11.1 GB (docs/results.md, "Resets and
+ * remeshing"):
  * the line says so rather than guessing the growth. */
 
 /* Before a setup: a line with the estimated size and cost when the problem
@@ -103,7 +100,7 @@ int cli_setup_estimate(const char *cmd, const ves_config *c, int quiet) {
     fprintf(stderr,
             "vesica %s: setting up about %.0f nodes (an estimate): ~%.0f s of setup on one thread, "
             "~%.1f GB peak memory in a run%s, ~%.0f s a Newton step (scaled from %.0f nodes: "
-            "bench/RESULTS.md)\n",
+            "docs/results.md)\n",
             cmd, n, EST_SETUP_S * x, gb,
             pp.remesh ? " (with its resets, for this node set: a remeshing that adds nodes raises "
                         "it in proportion)"

@@ -1,6 +1,6 @@
 /* vesica — what the files of the command line share (cli*.c): the run's
- * state, option and file helpers, messages. The program's only header; the
- * library never includes it. */
+ * state, option and file helpers, messages. Private to the program; the
+ * library never includes it (docs/design.md, "The program"). */
 #ifndef VES_CLI_IMPL_H
 #define VES_CLI_IMPL_H
 

@@ -1,4 +1,5 @@
-/* vesica info: the summary of a run, one key = value a line. */
+/* vesica info: the summary of a run, one key = value a line
+ * (docs/manual.md; docs/design.md, "The program"). */
 
 #include <math.h>
 #include <stdio.h>
@@ -26,7 +27,7 @@ static void usage_info(FILE *f) {
              "  reduced_volume_initial, reduced_volume_final, dt_first, dt_largest, retries,\n"
              "  reconnections, newton_iterations (the backend's iterations in all: Newton steps,\n"
              "  Ipopt iterations, ...), hessian_evaluations, kkt_factorizations (newton and\n"
-             "  euler; not in files written before 2026-12-05), wall_seconds (time loop, over\n"
+             "  euler; left out when the file lacks the column), wall_seconds (time loop, over\n"
              "  restarts), setup_seconds;\n"
              "  interface_area, interface_volume, interface_reduced_volume and\n"
              "  node_triangles_inverted, each _initial (first snapshot) and _final (last): the\n"

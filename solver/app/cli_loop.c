@@ -1,5 +1,6 @@
 /* vesica — the time loop of vesica run, new or restarted: steps, the file's
- * rows and snapshots, the --series text, progress, signals, the end. */
+ * rows and snapshots, the --series text, progress, signals, the end
+ * (docs/design.md, "The time loop" and "The program"). */
 
 #include <errno.h>
 #include <math.h>

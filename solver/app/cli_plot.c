@@ -1,4 +1,5 @@
-/* vesica plot: the PNG figures of a run. */
+/* vesica plot: the PNG figures of a run (plot.h; docs/manual.md;
+ * docs/design.md, "The program"). */
 
 #include <errno.h>
 #include <limits.h>
@@ -21,7 +22,7 @@ static void usage_plot(FILE *f) {
           "                        coloured by phi (paper Figs. 3, 5)\n"
           "  FILE_constraints.png  |A/A0 - 1|, |V/V_target - 1| and V/V0 against t*\n"
           "  FILE_flow.png         the flow at the nodes as arrows at the same times\n"
-          "                        (paper Fig. 5; none at t* = 0 or in files before 2026-12-05)\n"
+          "                        (paper Fig. 5; none at t* = 0 or where no flow is stored)\n"
           "--outdir DIR    where (default: the folder of FILE.h5; created if missing)\n"
           "--times LIST    the snapshots nearest to these times t* (at most %d; default: the\n"
           "                first, the last and two between them on a log time scale)\n"

@@ -1,5 +1,7 @@
-/* vesica run --restart: continue a stored run from its last snapshot,
- * salvaging a file cut short. */
+/* vesica run --restart: continue a stored run from its last snapshot (the
+ * keys a restart may change, the setup rebuilt from the stored problem
+ * text), salvaging a file cut short first. User-facing behaviour:
+ * docs/manual.md; docs/design.md, "The program". */
 
 #include <errno.h>
 #include <limits.h>
@@ -12,13 +14,13 @@
 #include "app/cli_impl.h"
 
 /* The keys a restart may change: how each step is solved, the controller's
- * halving after a hard step (time.factor_shrink: a cost knob for the bud
- * phase of a long run, bench/RESULTS.md session 24) and its largest growth
- * between steps (time.growth_max, the same kind of knob: session 34), its
- * rules that hold dt after a step of many iterations or factorizations
- * (time.iter_target, time.factor_target: session 37), and where the run
- * ends; the rest defines the setup, the physics or the
- * protocol the stored steps followed. */
+ * halving after a hard step (time.factor_shrink), its largest growth
+ * between steps (time.growth_max) and its rules that hold dt after a step
+ * of many iterations or factorizations (time.iter_target,
+ * time.factor_target) — cost knobs for the bud phase of a long run
+ * (docs/results.md, "Long runs at ε = 0.01") — and where the run ends; the
+ * rest defines the setup, the physics or the protocol the stored steps
+ * followed. */
 static const char *const RESTART_KEYS[] = {"solver.tol",
                                            "solver.ctol",
                                            "solver.max_iter",
@@ -86,6 +88,25 @@ static int salvage(const char *file, int quiet) {
   return 0;
 }
 
+/* Whether every --set of a restart of file names one of RESTART_KEYS: 0,
+ * else 2 with the allowed keys on stderr. */
+static int restart_sets_ok(const char *file, int nset, const char *const *set) {
+  for (int i = 0; i < nset; i++) {
+    size_t k = 0, nk = sizeof RESTART_KEYS / sizeof RESTART_KEYS[0];
+    const size_t len = strcspn(set[i], "=");
+    while (k < nk && !(strlen(RESTART_KEYS[k]) == len && !strncmp(set[i], RESTART_KEYS[k], len)))
+      k++;
+    if (k == nk) { /* the allowed keys listed from RESTART_KEYS, the one list */
+      fprintf(stderr, "vesica run: --restart %s: --set %s: a restart may change only ", file,
+              set[i]);
+      cli_restart_keys_print(stderr, 0, 0, 0,
+                             "(the other keys define the setup and the steps already taken)\n");
+      return 2;
+    }
+  }
+  return 0;
+}
+
 /* Continue FILE.h5 from its last snapshot, with the overrides set[nset]
  * (RESTART_KEYS only; recorded in the file). */
 int cli_run_restart(run_ctx *r, const char *file, int nset, const char *const *set) {
@@ -119,19 +140,7 @@ int cli_run_restart(run_ctx *r, const char *file, int nset, const char *const *s
     fprintf(stderr, "vesica run: --restart %s: the stored problem: %s\n", file, err);
     return 2;
   }
-  for (int i = 0; i < nset; i++) {
-    size_t k = 0, nk = sizeof RESTART_KEYS / sizeof RESTART_KEYS[0];
-    const size_t len = strcspn(set[i], "=");
-    while (k < nk && !(strlen(RESTART_KEYS[k]) == len && !strncmp(set[i], RESTART_KEYS[k], len)))
-      k++;
-    if (k == nk) { /* the allowed keys listed from RESTART_KEYS, the one list */
-      fprintf(stderr, "vesica run: --restart %s: --set %s: a restart may change only ", file,
-              set[i]);
-      cli_restart_keys_print(stderr, 0, 0, 0,
-                             "(the other keys define the setup and the steps already taken)\n");
-      return 2;
-    }
-  }
+  if ((rc = restart_sets_ok(file, nset, set))) return rc;
   if (nset && ves_config_set(&r->cfg, nset, set, err, sizeof err) != VES_OK) {
     fprintf(stderr, "vesica run: --restart %s: %s\n", file, err);
     return 2;

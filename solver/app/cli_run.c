@@ -1,5 +1,6 @@
-/* vesica run: a new run and the time loop (progress, rows, snapshots, the
- * end of a run). */
+/* vesica run: the command, and a new run: its outputs checked, the setup
+ * built, the file's header written, then the time loop of cli_loop.c
+ * (docs/manual.md; docs/design.md, "The program"). */
 
 #include <errno.h>
 #include <limits.h>

@@ -1,4 +1,5 @@
-/* vesica spectrum: the linearized flow at a stored state. */
+/* vesica spectrum: the linearized flow at a stored state, its slowest and
+ * negative modes (docs/design.md, "Analysis"; docs/manual.md). */
 
 #include <ctype.h>
 #include <errno.h>

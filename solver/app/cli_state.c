@@ -1,6 +1,6 @@
 /* vesica — a run's state for the command line: setup and integrator from the
  * problem, snapshots, references and remeshings written and rebuilt from a
- * file (run, its restart, spectrum). */
+ * file (run, its restart, spectrum; docs/design.md, "The program"). */
 
 #include <math.h>
 #include <stdio.h>

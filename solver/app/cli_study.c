@@ -1,4 +1,5 @@
-/* vesica study: a grid of runs, locally or through Slurm. */
+/* vesica study: a grid of runs, locally or through Slurm (study.h;
+ * docs/manual.md; docs/design.md, "The program"). */
 
 #include <errno.h>
 #include <limits.h>

@@ -1,5 +1,6 @@
 /* vesica — problem-file parsing: one table of keys (type, default, range,
- * documentation) drives defaults, parsing, validation and the key listing. */
+ * documentation) drives defaults, parsing, validation and the key listing
+ * (the keys: docs/manual.md; docs/design.md, "The program"). */
 #include "app/config.h"
 
 #include <ctype.h>
@@ -43,17 +44,17 @@ static const key_spec KEYS[] = {
     {"geometry", "h_far", KEY_DOUBLE, OFF(h_far), "0.2", 1e-4, 10, NULL,
      "largest node spacing (units R0)"},
     {"geometry", "gamma", KEY_DOUBLE, OFF(gamma), "0.6", 0.1, 4.0, NULL,
-     "LME aspect ratio gamma, beta_a = gamma/h_a^2 (0.6: see bench/RESULTS.md)"},
+     "LME aspect ratio gamma, beta_a = gamma/h_a^2 (0.6: see docs/results.md)"},
     {"geometry", "support_tol", KEY_DOUBLE, OFF(support_tol), "1e-6", 1e-14, 1e-2, NULL,
      "LME support truncation tol0"},
     {"geometry", "quadrature", KEY_STRING, OFF(quadrature), "d4", 0, 0,
      "d4|d6|d4x4|d6x4|d4x16|d6x16",
      "rule per Delaunay triangle: base degree 4 (6 points) or 6 (12 points, Dunavant), "
-     "xN on each of N congruent sub-triangles (issue 22; see bench/RESULTS.md)"},
+     "xN on each of N congruent sub-triangles (see docs/results.md)"},
     {"geometry", "stabilization", KEY_DOUBLE, OFF(stabilization), "0.1", 0, 1e6, NULL,
      "kappa (units k/R0^3): E gets (1/2) sum_a kappa 2 pi M_a/h_a^2 |y^a - y(X_a)|^2, positive "
      "curvature on the grid-scale coefficient modes, zero at the reference, O(h^2) on smooth "
-     "motions (0: off, the paper's energy; issue 22, bench/RESULTS.md)"},
+     "motions (0: off, the paper's energy; see docs/results.md)"},
     {"geometry", "axis_spacings", KEY_DOUBLE, OFF(axis_spacings), "10", 8, 50, NULL,
      "width of the regular lattice strip along the axis, in spacings"},
     {"geometry", "lloyd_iterations", KEY_INT, OFF(lloyd_iterations), "60", 0, 10000, NULL,
@@ -153,7 +154,7 @@ static const key_spec KEYS[] = {
      "to 1e-3; double: MUMPS in double)"},
     {"solver", "drift_damping", KEY_DOUBLE, OFF(drift_damping), "0", 0, 1e6, NULL,
      "viscous penalty alpha on the rate of the coefficient drift y^a - y(X_a), added to the "
-     "dissipation (0: off; see bench/RESULTS.md)"},
+     "dissipation (0: off; see docs/results.md)"},
     {"reconnect", "every", KEY_INT, OFF(reconnect_every), "0", 0, 1000000, NULL,
      "reset the reference configuration to the current positions every this many accepted "
      "steps (paper Fig. 5: 20; 0: off)"},
@@ -266,6 +267,37 @@ static const char *ini_trim(const char *s, size_t *n) {
   return s;
 }
 
+/* The section header t[n] (starting with '[') at line `line` of file name:
+ * its name into sec[seclen], checked to be known and not given before
+ * (sec_line: where each section began, by known_section - 1). */
+static ves_status ini_section(const char *t, size_t n, const char *name, int line, char *sec,
+                              size_t seclen, int *sec_line, char *err, size_t errlen) {
+  if (t[n - 1] != ']') {
+    ves_error_say(err, errlen, "%s: line %d: '%.*s': a section header needs a closing ']'", name,
+                  line, (int)(n > 60 ? 60 : n), t);
+    return VES_ERR_CONFIG;
+  }
+  size_t m = n - 2;
+  const char *sn = ini_trim(t + 1, &m);
+  if (!ini_name(sec, seclen, sn, m)) {
+    ves_error_say(err, errlen, "%s: line %d: '%.*s': not a section name", name, line,
+                  (int)(n > 60 ? 60 : n), t);
+    return VES_ERR_CONFIG;
+  }
+  int k = known_section(sec);
+  if (!k) {
+    ves_error_say(err, errlen, "%s: line %d: [%s]: unknown section", name, line, sec);
+    return VES_ERR_CONFIG;
+  }
+  if (sec_line[k - 1]) {
+    ves_error_say(err, errlen, "%s: line %d: [%s]: duplicate section (first at line %d)", name,
+                  line, sec, sec_line[k - 1]);
+    return VES_ERR_CONFIG;
+  }
+  sec_line[k - 1] = line;
+  return VES_OK;
+}
+
 /* Parse the text of a problem file over cfg; messages name `name` and the
  * line. The format: "[section]" headers, "key = value" lines (a value in
  * double or single quotes is taken verbatim; otherwise it ends at a ';' or
@@ -297,29 +329,8 @@ static ves_status parse_ini(const char *text, size_t len, const char *name, ves_
     const char *t = ini_trim(ln, &n);
     if (n == 0 || t[0] == ';' || t[0] == '#') continue;
     if (t[0] == '[') { /* a section header */
-      if (t[n - 1] != ']') {
-        ves_error_say(err, errlen, "%s: line %d: '%.*s': a section header needs a closing ']'",
-                      name, line, (int)(n > 60 ? 60 : n), t);
-        return VES_ERR_CONFIG;
-      }
-      size_t m = n - 2;
-      const char *sn = ini_trim(t + 1, &m);
-      if (!ini_name(sec, sizeof sec, sn, m)) {
-        ves_error_say(err, errlen, "%s: line %d: '%.*s': not a section name", name, line,
-                      (int)(n > 60 ? 60 : n), t);
-        return VES_ERR_CONFIG;
-      }
-      int k = known_section(sec);
-      if (!k) {
-        ves_error_say(err, errlen, "%s: line %d: [%s]: unknown section", name, line, sec);
-        return VES_ERR_CONFIG;
-      }
-      if (sec_line[k - 1]) {
-        ves_error_say(err, errlen, "%s: line %d: [%s]: duplicate section (first at line %d)", name,
-                      line, sec, sec_line[k - 1]);
-        return VES_ERR_CONFIG;
-      }
-      sec_line[k - 1] = line;
+      const ves_status st = ini_section(t, n, name, line, sec, sizeof sec, sec_line, err, errlen);
+      if (st != VES_OK) return st;
       continue;
     }
     const char *eq = memchr(t, '=', n);
@@ -473,8 +484,8 @@ ves_status ves_config_load_text(const char *text, const char *name, ves_config *
 
 /* A list of independent checks, one a key or a pair of keys, each with its
  * message: long, but read line by line. */
-ves_status ves_config_validate(const ves_config *cfg, char *err, size_t errlen) {
-  const char *src = cfg->source[0] ? cfg->source : "(defaults)";
+/* The checks of the shape, the time steps and the box (src names the file). */
+static ves_status validate_setup(const ves_config *cfg, const char *src, char *err, size_t errlen) {
   if (!strcasecmp(cfg->shape_type, "curve") && !strcmp(cfg->points, "none")) {
     ves_error_say(err, errlen, "%s: [shape] points: a curve needs a points file", src);
     return VES_ERR_CONFIG;
@@ -507,7 +518,12 @@ ves_status ves_config_validate(const ves_config *cfg, char *err, size_t errlen) 
                   cfg->h_far, cfg->h_band * cfg->epsilon);
     return VES_ERR_CONFIG;
   }
-  /* protocols that would silently do nothing */
+  return VES_OK;
+}
+
+/* Protocols that would silently do nothing. */
+static ves_status validate_protocol(const ves_config *cfg, const char *src, char *err,
+                                    size_t errlen) {
   if (cfg->volume_rate != 0 && !cfg->volume) {
     ves_error_say(err, errlen,
                   "%s: [protocol] volume_rate = %g: a volume ramp needs [constraints] volume = 1",
@@ -550,6 +566,12 @@ ves_status ves_config_validate(const ves_config *cfg, char *err, size_t errlen) 
       return VES_ERR_CONFIG;
     }
   }
+  return VES_OK;
+}
+
+/* The thresholds of resets and remeshings. */
+static ves_status validate_resets(const ves_config *cfg, const char *src, char *err,
+                                  size_t errlen) {
   if (cfg->reconnect_cond_max > 0 && cfg->reconnect_cond_max <= 1) {
     ves_error_say(err, errlen,
                   "%s: [reconnect] cond_max = %g: must be 0 (off) or above 1 (cond F >= 1)", src,
@@ -572,6 +594,15 @@ ves_status ves_config_validate(const ves_config *cfg, char *err, size_t errlen) 
                   cfg->remesh_det_min);
     return VES_ERR_CONFIG;
   }
+  return VES_OK;
+}
+
+ves_status ves_config_validate(const ves_config *cfg, char *err, size_t errlen) {
+  const char *src = cfg->source[0] ? cfg->source : "(defaults)";
+  ves_status st = validate_setup(cfg, src, err, errlen);
+  if (st == VES_OK) st = validate_protocol(cfg, src, err, errlen);
+  if (st == VES_OK) st = validate_resets(cfg, src, err, errlen);
+  if (st != VES_OK) return st;
   if (cfg->c0_time > cfg->t_end) {
     ves_error_say(err, errlen, "%s: [protocol] c0_time = %g: after [time] t_end = %g", src,
                   cfg->c0_time, cfg->t_end);

@@ -1,7 +1,8 @@
 /* vesica — problem files: INI (iniparser) with a fixed, documented set of
  * sections and keys, each typed, with a default, a range and units.
  * Unknown sections or keys, wrong types and out-of-range values are errors
- * with a message naming the file, the key and the reason. */
+ * with a message naming the file, the key and the reason (the keys:
+ * docs/manual.md; docs/design.md, "The program"). */
 #ifndef VES_CONFIG_H
 #define VES_CONFIG_H
 
@@ -29,7 +30,7 @@ typedef struct {
   int lloyd_iterations; /* CVT smoothing iterations */
   int band_layers;      /* 1: interface-aligned layers in the band */
   int seed;             /* seed of the node sampling */
-  /* the discrete energy (issue 22) */
+  /* the discrete energy */
   char quadrature[VES_CONFIG_STR]; /* rule per triangle (ves_quad_rule_parse) */
   double stabilization;            /* kappa of ves_model_params.stab */
   /* [shape] */

@@ -1,7 +1,7 @@
 /* vesica — run output: one HDF5 file per run (written as the run goes, read
  * back by `vesica info`, `plot` and restart) and an XDMF file beside it so
  * ParaView opens the snapshots as a time series. The module writes files and
- * never prints.
+ * never prints (docs/design.md, "The program"; io_*.c implement it).
  *
  * Layout (format_version 2; HDF5 1.10, default (earliest) format bounds, so a
  * killed writer leaves no "file open for writing" flag behind):
@@ -23,8 +23,8 @@
  *     format_description where this layout is described (this header)
  *   every group and dataset (the root too) has string attributes units and
  *   description (the series' status lists the ves_status codes, and has
- *   them as attribute codes: an HDF5 enumeration of their names); files
- *   without them (older writers) read the same: no format bump
+ *   them as attribute codes: an HDF5 enumeration of their names); optional:
+ *   readers need neither
  *   /parameters          every problem-file key as a typed attribute named
  *                        "section.key" (double, int or string)
  *   /mesh/X              n x 2 reference node positions (R, Z), units R0
@@ -36,9 +36,9 @@
  *                        step: t, dt, E (E*), A, V, V_target, lambda_A,
  *                        lambda_V, c0, iterations, f_evals, g_evals, h_evals,
  *                        violation, solve_seconds, wall_seconds, retries,
- *                        status, reconnections, factorizations (absent in
- *                        files written before 2026-12-05) and last step (row i holds
- *                        step i + 1; the table SERIES in io.c)
+ *                        status, reconnections, factorizations (optional:
+ *                        a file without it reads -1) and last step (row i
+ *                        holds step i + 1; the table io_series in io_series.c)
  *   /snapshots           attribute count; groups "0", "1", ... each with
  *     y                  n x 2 nodal coefficients y^a (r, z) of the motion:
  *                        the state a restart continues from
@@ -56,8 +56,8 @@
  *                        c0), wall_seconds, reconnections; checksum (uint64,
  *                        FNV-1a over y, x, phi and the state) and
  *                        series_checksum (over the series rows up to it), what
- *                        a salvage of a file cut short checks (absent in
- *                        files of older writers: no format bump)
+ *                        a salvage of a file cut short checks (optional: a
+ *                        snapshot without them is not salvaged)
  *   /references          (runs with resets) attribute count; groups "0", "1",
  *                        ... one per reset of the reference configuration,
  *                        what ves_reconnect_restore rebuilds it from:
@@ -256,8 +256,8 @@ typedef struct {
   double area_drift_max, volume_drift_max; /* max |A/A0 - 1|, max |V/V_target - 1| */
   double dt_first, dt_largest;             /* t* (0 without rows) */
   double retries, iterations, h_evals;     /* sums over the rows */
-  double factorizations;                   /* sum over the rows; -1: not recorded (a file
-                                              written before 2026-12-05) */
+  double factorizations;                   /* sum over the rows; -1: not recorded (the
+                                              optional column absent) */
   double reconnections, wall_seconds;      /* the last row's (0 without rows) */
 } ves_io_summary;
 
@@ -370,7 +370,7 @@ ves_status ves_io_read_snapshot_prev(ves_io *io, int k, int nbuf, double *y_prev
 
 /* The flow at the nodes of snapshot k (2 nbuf values, ves_io_snapinfo's
  * velocity) into v. Returns 1 when read, 0 when the snapshot has none (the
- * first one, a file from before 2026-12-05, a state without a last step),
+ * first one, a file without velocities, a state without a last step),
  * negative (a ves_status) on an error or another size. */
 int ves_io_read_snapshot_velocity(ves_io *io, int k, int nbuf, double *v);
 

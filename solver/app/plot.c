@@ -1,5 +1,6 @@
 /* vesica — figures of a run: the series and snapshots of an output file
- * turned into one gnuplot script (data inline as datablocks), run by gnuplot. */
+ * turned into one gnuplot script (data inline as datablocks), run by gnuplot
+ * (plot.h; docs/manual.md). */
 #include "app/plot.h"
 
 #include <errno.h>
@@ -221,6 +222,25 @@ static ves_status fig_snapshots(FILE *f, ves_io *io, const ves_plot_params *p, c
   return VES_OK;
 }
 
+/* The node of each arrow cell (nr x PLOT_ARROW_ROWS cells of side cell
+ * over [0, nr cell] x [-LZ, LZ]): the one nearest the cell's centre among
+ * the n nodes at x with a finite velocity v, or -1, into pick. */
+static void flow_pick(const double *x, const double *v, int n, int nr, double cell, double LZ,
+                      int *pick) {
+  const int nc = nr * PLOT_ARROW_ROWS;
+  for (int c = 0; c < nc; c++) pick[c] = -1;
+  for (int a = 0; a < n; a++) {
+    const double r = x[2 * a], z = x[2 * a + 1];
+    if (!(r >= 0 && r < nr * cell && z >= -LZ && z < LZ) || !isfinite(v[2 * a]) ||
+        !isfinite(v[2 * a + 1]))
+      continue;
+    const int ir = (int)(r / cell), iz = (int)((z + LZ) / cell), c = iz * nr + ir;
+    const double cr = (ir + 0.5) * cell, cz = -LZ + (iz + 0.5) * cell;
+    if (pick[c] < 0 || hypot(r - cr, z - cz) < hypot(x[2 * pick[c]] - cr, x[2 * pick[c] + 1] - cz))
+      pick[c] = a;
+  }
+}
+
 /* The flow at the selected snapshots (paper Fig. 5): the nodes coloured by
  * phi as in fig_snapshots, and arrows of the velocity at the nodes
  * (ves_io_read_snapshot_velocity) on a grid of square cells, PLOT_ARROW_ROWS
@@ -229,8 +249,8 @@ static ves_status fig_snapshots(FILE *f, ves_io *io, const ves_plot_params *p, c
  * scaled to its own fastest arrow (the speeds of a relaxation span decades;
  * the title states it), drawn 0.9 of a cell long; arrows under
  * PLOT_ARROW_MIN of it are left out. Mirrored at r = 0 as the points (v_r
- * changes sign). A snapshot without a velocity (the first; a file from
- * before 2026-12-05) shows the points alone, and says so. The points are
+ * changes sign). A snapshot without a velocity (the first; a file that
+ * stores none) shows the points alone, and says so. The points are
  * fig_snapshots' datablocks $snapJ (the same snapshots and x, phi), so this
  * figure follows it in the script. */
 static ves_status fig_flow(FILE *f, ves_io *io, const ves_plot_params *p, const int *sel,
@@ -259,18 +279,7 @@ static ves_status fig_flow(FILE *f, ves_io *io, const ves_plot_params *p, const 
     }
     ts[j] = si.state.t, has[j] = got, vmax[j] = 0;
     if (!got) continue;
-    for (int c = 0; c < nc; c++) pick[c] = -1;
-    for (int a = 0; a < n; a++) {
-      const double r = x[2 * a], z = x[2 * a + 1];
-      if (!(r >= 0 && r < nr * cell && z >= -LZ && z < LZ) || !isfinite(v[2 * a]) ||
-          !isfinite(v[2 * a + 1]))
-        continue;
-      const int ir = (int)(r / cell), iz = (int)((z + LZ) / cell), c = iz * nr + ir;
-      const double cr = (ir + 0.5) * cell, cz = -LZ + (iz + 0.5) * cell;
-      if (pick[c] < 0 ||
-          hypot(r - cr, z - cz) < hypot(x[2 * pick[c]] - cr, x[2 * pick[c] + 1] - cz))
-        pick[c] = a;
-    }
+    flow_pick(x, v, n, nr, cell, LZ, pick);
     for (int c = 0; c < nc; c++)
       if (pick[c] >= 0) vmax[j] = fmax(vmax[j], hypot(v[2 * pick[c]], v[2 * pick[c] + 1]));
     const double scale = vmax[j] > 0 ? 0.9 * cell / vmax[j] : 0;
@@ -307,7 +316,7 @@ static ves_status fig_flow(FILE *f, ves_io *io, const ves_plot_params *p, const 
     else if (has[j] == 2)
       fprintf(f, "set title \"t* = %.4g\\nat rest (v = 0)\"\n", ts[j]);
     else
-      fprintf(f, "set title \"t* = %.4g\\nno flow (first snapshot, or an older file)\"\n", ts[j]);
+      fprintf(f, "set title \"t* = %.4g\\nno flow (first snapshot, or none stored)\"\n", ts[j]);
     fprintf(f, /* the points: fig_snapshots' datablocks (a reset keeps them) */
             "plot $snap%d using 1:2:3 with points pt 7 ps %.3f lc palette, "
             "$snap%d using (-$1):2:3 with points pt 7 ps %.3f lc palette",

@@ -14,7 +14,8 @@
  *                           coloured by phi, at the snapshots' times (paper
  *                           Fig. 5; each panel scaled to its fastest arrow)
  * gnuplot runs as a child process on a script written to a temporary file;
- * its exit status is checked and its messages returned in err. */
+ * its exit status is checked and its messages returned in err
+ * (docs/manual.md; docs/design.md, "The program"). */
 #ifndef VES_PLOT_H
 #define VES_PLOT_H
 
@@ -57,7 +58,7 @@ typedef struct {
  * with NaN). ls[S] and ok[S] are the caller's (S = ves_io_snapshots). The
  * phase-field A and V are held by the constraints; this geometry is not,
  * and its drift shows a motion the quadrature points no longer resolve
- * (bench/RESULTS.md, "The longer pulse continued"). VES_ERR_ALLOC, or the
+ * (docs/results.md, "Resets and remeshing"). VES_ERR_ALLOC, or the
  * reader's error for an unreadable mesh. */
 ves_status ves_plot_interface(ves_io *io, ves_level_set *ls, unsigned char *ok);
 

@@ -12,7 +12,8 @@
  * Layers: parsing, expansion, naming, resume, the table, the plots and the
  * sbatch file never start a process (ves_study_*); ves_study_run starts the
  * cells (fork/exec of a given program) and waits for them. Nothing here
- * prints; progress goes through a callback. */
+ * prints; progress goes through a callback. User-facing behaviour:
+ * docs/manual.md; docs/design.md, "The program". */
 #ifndef VES_STUDY_H
 #define VES_STUDY_H
 

@@ -2,7 +2,8 @@
  * given program with the cell's command), a fixed number at a time, each
  * with a wall-time limit; the .result file of a cell is written when its
  * process has ended, so a study stopped or killed at any point loses no
- * ended cell, and reruns only those that were running. */
+ * ended cell, and reruns only those that were running (study.h;
+ * docs/design.md, "The program"). */
 /* wait4 (one child's own CPU time and peak memory) is a BSD call */
 #define _DEFAULT_SOURCE
 #include "app/study.h"
@@ -114,6 +115,50 @@ static ves_status finish_cell(const ves_study *s, const ves_study_run_opts *o, c
   return VES_OK;
 }
 
+/* The cells of the slots sl that have ended (finished, each with its
+ * .result and a progress report) and the limits of those still running
+ * (SIGTERM past the time limit, SIGKILL past the grace after it); p, *spent
+ * and *st (the first error, in err) updated. stopping: cells that end
+ * stopped by us are not done. */
+static void reap_cells(const ves_study *s, const ves_study_run_opts *o, slot *sl, int stopping,
+                       long npending, double *spent, ves_study_progress *p, ves_status *st,
+                       char *err, size_t errlen) {
+  const double now = ves_wall_seconds();
+  for (int j = 0; j < o->jobs; j++) {
+    slot *c = &sl[j];
+    if (!c->pid) continue;
+    int status = 0;
+    struct rusage ru;
+    pid_t w = wait4(c->pid, &status, WNOHANG, &ru);
+    if (w == 0) { /* still running: the limit, then the grace */
+      if (!c->term_at && s->time_limit > 0 && now - c->start > s->time_limit) {
+        kill(c->pid, SIGTERM);
+        c->term_at = now, c->timed_out = 1;
+      } else if (c->term_at && now - c->term_at > o->grace) {
+        kill(c->pid, SIGKILL);
+      }
+      continue;
+    }
+    if (w < 0 && errno == EINTR) continue;
+    p->running--;
+    const long k = c->cell;
+    c->pid = 0;
+    if (stopping && !c->timed_out) continue; /* stopped by us: not done */
+    ves_study_result r;
+    if (finish_cell(s, o, c, k, w, status, &ru, now, &r, *st == VES_OK ? err : NULL, errlen) !=
+            VES_OK &&
+        *st == VES_OK)
+      *st = VES_ERR_IO;
+    *spent += r.wall_seconds;
+    p->done++;
+    p->failed += strcmp(r.outcome, "converged") != 0;
+    p->eta = *spent / (double)p->done * (double)(npending - p->done) / (double)o->jobs;
+    p->cell = k, p->result = &r;
+    if (o->progress) o->progress(o->ctx, p);
+    p->cell = -1, p->result = NULL;
+  }
+}
+
 /* The cells as processes, o->jobs at a time (study.h). A little over 80
  * lines, on purpose: one polling loop (stop, start, watch the limits, reap)
  * whose state (the slots, the progress, stopping) all four parts share. */
@@ -166,40 +211,7 @@ ves_status ves_study_run(const ves_study *s, const ves_study_run_opts *o, char *
       }
     if (p.running == 0) break;
     nanosleep(&nap, NULL);
-    const double now = ves_wall_seconds();
-    for (int j = 0; j < o->jobs; j++) {
-      slot *c = &sl[j];
-      if (!c->pid) continue;
-      int status = 0;
-      struct rusage ru;
-      pid_t w = wait4(c->pid, &status, WNOHANG, &ru);
-      if (w == 0) { /* still running: the limit, then the grace */
-        if (!c->term_at && s->time_limit > 0 && now - c->start > s->time_limit) {
-          kill(c->pid, SIGTERM);
-          c->term_at = now, c->timed_out = 1;
-        } else if (c->term_at && now - c->term_at > o->grace) {
-          kill(c->pid, SIGKILL);
-        }
-        continue;
-      }
-      if (w < 0 && errno == EINTR) continue;
-      p.running--;
-      const long k = c->cell;
-      c->pid = 0;
-      if (stopping && !c->timed_out) continue; /* stopped by us: not done */
-      ves_study_result r;
-      if (finish_cell(s, o, c, k, w, status, &ru, now, &r, st == VES_OK ? err : NULL, errlen) !=
-              VES_OK &&
-          st == VES_OK)
-        st = VES_ERR_IO;
-      spent += r.wall_seconds;
-      p.done++;
-      p.failed += strcmp(r.outcome, "converged") != 0;
-      p.eta = spent / (double)p.done * (double)(npending - p.done) / (double)o->jobs;
-      p.cell = k, p.result = &r;
-      if (o->progress) o->progress(o->ctx, &p);
-      p.cell = -1, p.result = NULL;
-    }
+    reap_cells(s, o, sl, stopping, npending, &spent, &p, &st, err, errlen);
   }
   free(pending), free(sl);
   if (st == VES_OK && stopping) st = VES_STEP_REJECTED;

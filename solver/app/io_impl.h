@@ -1,0 +1,118 @@
+/* vesica — what the files of the run output (io_*.c) share: the handle, the
+ * table of series columns, and the HDF5 helpers for attributes, datasets,
+ * counted groups and checksums. The layout is documented in app/io.h; the
+ * output's role in docs/design.md, "The program". Private to solver/app. */
+#ifndef VES_IO_IMPL_H
+#define VES_IO_IMPL_H
+
+#include <hdf5.h>
+#include <limits.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+
+#include "app/io.h"
+
+#define IO_CHUNK 512 /* rows per chunk of a series (4 KiB of doubles) */
+
+typedef enum { COL_LONG, COL_INT, COL_DOUBLE } col_type;
+
+/* How a column of the --series text shows its field (ves_io_tsv_row). */
+typedef enum {
+  TSV_NONE,  /* not in the text */
+  TSV_VALUE, /* the field */
+  TSV_OF_A0, /* field / A0 - 1 (the area's drift) */
+  TSV_OF_VT, /* field / V_target - 1 (the volume's drift) */
+} tsv_kind;
+
+/* The per-step row, one table of columns for the file's series (create,
+ * append, truncate, read, checksum: in this order) and the --series text
+ * (its own order, tsv = 1, 2, ...; its header names and formats). The last
+ * IO_NCOLS - IO_NSERIES columns are in the text only. */
+typedef struct {
+  const char *name;
+  col_type type;
+  size_t offset;                   /* into ves_io_row */
+  const char *units, *description; /* the dataset's attributes */
+  int tsv;                         /* column of the text (1-based; 0: not in it) */
+  tsv_kind how;                    /* how the text shows it */
+  const char *tsv_name, *tsv_fmt;  /* the text's header name and printf format */
+} series_spec;
+
+#define IO_NCOLS 23   /* columns of io_series */
+#define IO_NSERIES 21 /* of them in the file (the first IO_NSERIES) */
+extern const series_spec io_series[IO_NCOLS];
+
+struct ves_io {
+  hid_t file;               /* the HDF5 file */
+  int writable;             /* opened for writing */
+  char path[PATH_MAX];      /* the HDF5 file */
+  char xdmf[PATH_MAX];      /* the XDMF file beside it */
+  hid_t series[IO_NSERIES]; /* open series datasets */
+  ves_io_info info;         /* header */
+  int nsnap;                /* complete snapshots */
+  double *snap_t;           /* nsnap times (for the XDMF file) */
+  int snap_cap;             /* capacity of snap_t */
+  char error[2 * PATH_MAX]; /* the cause of the last failed write ("" none) */
+  uint64_t series_sum;      /* checksum of the first summed_rows series rows */
+  long summed_rows;         /* rows in series_sum */
+  int tolerant;             /* salvage: count the snapshots up to the first unreadable one */
+};
+
+/* ---- the handle and HDF5's errors (io_hdf5.c) ---- */
+ves_io *io_alloc(const char *path, int writable); /* no file open yet */
+void io_quiet_hdf5(void);                         /* HDF5 silent, no exit-time cleanup */
+herr_t io_sys_reason(unsigned n, const H5E_error2_t *e, void *data); /* H5Ewalk2: errno text */
+ves_status io_failed(ves_io *io, ves_status st, int errnum);         /* record io->error */
+
+/* ---- attributes (io_hdf5.c): scalar, overwritten in place ---- */
+ves_status io_attr_double(hid_t obj, const char *name, double v);
+ves_status io_attr_int(hid_t obj, const char *name, int v);
+ves_status io_attr_long(hid_t obj, const char *name, long v);
+ves_status io_attr_u64(hid_t obj, const char *name, uint64_t v);
+ves_status io_attr_str(hid_t obj, const char *name, const char *s);
+ves_status io_attr_status(hid_t file, const char *status);
+ves_status io_describe(hid_t obj, const char *units, const char *description);
+ves_status io_describe_at(hid_t loc, const char *path, const char *units, const char *description);
+int io_numeric_type_ok(hid_t obj, int is_attr);
+ves_status io_attr_read(hid_t obj, const char *name, hid_t mtype, void *v);
+ves_status io_attr_read_double(hid_t obj, const char *name, double *v);
+ves_status io_attr_read_str(hid_t obj, const char *name, char **out);
+ves_status io_attr_read_buf(hid_t obj, const char *name, char *buf, size_t len);
+
+/* ---- datasets (io_hdf5.c) ---- */
+ves_status io_dset_write(hid_t loc, const char *name, hid_t ftype, hid_t mtype, hsize_t d0,
+                         hsize_t d1, const void *data);
+ves_status io_dset_read(hid_t loc, const char *name, hid_t mtype, hsize_t count, void *data);
+hsize_t io_dset_len(hid_t d);
+hsize_t io_dset_rows(hid_t loc, const char *name);
+
+/* ---- counted groups: snapshots, references, remeshes (io_hdf5.c) ---- */
+ves_status io_counted_open(hid_t file, const char *parent, int k, hid_t *ps, hid_t *pg);
+ves_status io_counted_close(hid_t file, hid_t s, hid_t g, int k, ves_status st);
+
+/* ---- checksums, FNV-1a 64 (io_hdf5.c) ---- */
+#define FNV_START 0xcbf29ce484222325ULL
+uint64_t io_fnv(uint64_t h, const void *data, size_t len);
+uint64_t io_snap_sum(long n, const double *y, const double *x, const double *phi,
+                     const double *y_prev, const ves_io_snapinfo *si);
+uint64_t io_ref_sum(long n, long nq, const double *x, const double *h_, const double *xq,
+                    const double *wq, const double *pd, long step);
+uint64_t io_group_sum(hid_t g, const char *const *part, int np);
+#define IO_NREMESH_PARTS 6
+extern const char *const io_remesh_parts[IO_NREMESH_PARTS];
+
+/* ---- series (io_series.c) ---- */
+int io_col_optional(int i);
+hid_t io_col_mem_type(col_type t);
+uint64_t io_rows_sum(uint64_t h, void *const *col, long m);
+ves_status io_cols_read(hid_t const *series, long rows, void **col);
+ves_status io_series_sum(ves_io *io, long rows, uint64_t *out);
+ves_status io_create_series(ves_io *io, const hid_t *like);
+
+/* ---- reading (io_read.c) and the XDMF file (io_xdmf.c) ---- */
+ves_status io_read_header(ves_io *io);
+int io_nodes_now(const ves_io *io);
+ves_status io_xdmf_write(const ves_io *io);
+
+#endif
