@@ -16,7 +16,7 @@
 #include "ves/status.h"
 #include "core/clock_impl.h"
 
-#define VES_VERSION "0.1.0"
+#define VES_VERSION "1.0.0"
 #define MAX_SET 64 /* --set options a command takes */
 
 /* The commands: argc, argv after the command's name; each returns the exit

@@ -44,17 +44,18 @@ static const key_spec KEYS[] = {
     {"geometry", "h_far", KEY_DOUBLE, OFF(h_far), "0.2", 1e-4, 10, NULL,
      "largest node spacing (units R0)"},
     {"geometry", "gamma", KEY_DOUBLE, OFF(gamma), "0.6", 0.1, 4.0, NULL,
-     "LME aspect ratio gamma, beta_a = gamma/h_a^2 (0.6: see docs/results.md)"},
+     "LME aspect ratio gamma, beta_a = gamma/h_a^2 (0.6: docs/design.md, \"Numerical choices and "
+     "why\")"},
     {"geometry", "support_tol", KEY_DOUBLE, OFF(support_tol), "1e-6", 1e-14, 1e-2, NULL,
      "LME support truncation tol0"},
     {"geometry", "quadrature", KEY_STRING, OFF(quadrature), "d4", 0, 0,
      "d4|d6|d4x4|d6x4|d4x16|d6x16",
      "rule per Delaunay triangle: base degree 4 (6 points) or 6 (12 points, Dunavant), "
-     "xN on each of N congruent sub-triangles (see docs/results.md)"},
+     "xN on each of N congruent sub-triangles (docs/design.md, \"Numerical choices and why\")"},
     {"geometry", "stabilization", KEY_DOUBLE, OFF(stabilization), "0.1", 0, 1e6, NULL,
      "kappa (units k/R0^3): E gets (1/2) sum_a kappa 2 pi M_a/h_a^2 |y^a - y(X_a)|^2, positive "
      "curvature on the grid-scale coefficient modes, zero at the reference, O(h^2) on smooth "
-     "motions (0: off, the paper's energy; see docs/results.md)"},
+     "motions (0: off, the paper's energy; docs/design.md, \"Numerical choices and why\")"},
     {"geometry", "axis_spacings", KEY_DOUBLE, OFF(axis_spacings), "10", 8, 50, NULL,
      "width of the regular lattice strip along the axis, in spacings"},
     {"geometry", "lloyd_iterations", KEY_INT, OFF(lloyd_iterations), "60", 0, 10000, NULL,
@@ -154,7 +155,7 @@ static const key_spec KEYS[] = {
      "to 1e-3; double: MUMPS in double)"},
     {"solver", "drift_damping", KEY_DOUBLE, OFF(drift_damping), "0", 0, 1e6, NULL,
      "viscous penalty alpha on the rate of the coefficient drift y^a - y(X_a), added to the "
-     "dissipation (0: off; see docs/results.md)"},
+     "dissipation (0: off; docs/design.md, \"Numerical choices and why\")"},
     {"reconnect", "every", KEY_INT, OFF(reconnect_every), "0", 0, 1000000, NULL,
      "reset the reference configuration to the current positions every this many accepted "
      "steps (paper Fig. 5: 20; 0: off)"},
