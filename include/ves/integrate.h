@@ -193,12 +193,13 @@ ves_model *ves_sim_model(ves_sim *s);
 
 /* Remeshing (remesh.h) after accepted steps when pol says so (pol->every,
  * cond_max, det_min as for resets, on_failed_reset: also when a due reset
- * failed); cfg holds the discretization keys (borrowed: it must outlive the
- * simulation); cfg NULL turns it off. After a remeshing the node count,
+ * failed); d is the discretization the remeshings build (copied into the
+ * simulation); d NULL turns remeshing off. After a remeshing the node count,
  * ves_sim_y and ves_sim_model change (the driver's buffers must follow
  * ves_model_nodes(ves_sim_model(s))->n); a restart restores it with
  * ves_sim_adopt_remesh. VES_ERR_ARG for invalid thresholds. */
-ves_status ves_sim_set_remesh(ves_sim *s, const ves_config *cfg, const ves_remesh_policy *pol);
+ves_status ves_sim_set_remesh(ves_sim *s, const ves_discret_params *d,
+                              const ves_remesh_policy *pol);
 int ves_sim_remeshings(const ves_sim *s); /* remeshings so far */
 
 /* The last remeshing's reference (owned by the simulation), NULL before any

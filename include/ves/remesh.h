@@ -49,10 +49,10 @@
 
 #include <stddef.h>
 
-#include "app/config.h"
 #include "ves/geom.h"
 #include "ves/model.h"
 #include "ves/quad.h"
+#include "ves/setup.h"
 #include "ves/shape.h"
 #include "ves/status.h"
 
@@ -120,8 +120,7 @@ typedef struct {
 typedef struct ves_remesh ves_remesh;
 
 /* Remesh the state y of model m (both borrowed; m is evaluated, not changed).
- *   cfg   the discretization keys ([geometry]; borrowed); its box must be
- *         m's
+ *   dp    the discretization (borrowed for the call); its box must be m's
  *   par   targets and tolerances (copied)
  *   out   taken by the caller (ves_remesh_destroy)
  * The new model's parameters are m's (c0 as in force); its tables use m's
@@ -134,7 +133,7 @@ typedef struct ves_remesh ves_remesh;
  * fit in the box; a fold of the band layers is not one: the band is then
  * made without them, info.band_layers = 0); errors of the node
  * generation, tables and projection. On error a line in err. */
-ves_status ves_remesh_create(const ves_config *cfg, ves_model *m, const double *y,
+ves_status ves_remesh_create(const ves_discret_params *dp, ves_model *m, const double *y,
                              const ves_remesh_params *par, ves_remesh **out, char *err,
                              size_t errlen);
 

@@ -97,8 +97,8 @@ struct ves_sim {
   long reset_step;                 /* the step of the last reset (0: none) */
   ves_remesh *mesh;                /* the last remeshing's reference (owned; NULL if none
                                       or a reset came after it) */
-  const ves_config *rcfg;          /* remeshing: the discretization keys (borrowed; NULL:
-                                      off, ves_sim_set_remesh) */
+  int remesh_on;                   /* 1: remeshing enabled (ves_sim_set_remesh) */
+  ves_discret_params rd;           /* remeshing: the discretization (a copy) */
   ves_remesh_policy rmp;           /* when to remesh */
   long rsince;                     /* accepted steps since the last remeshing (or t = 0) */
   long remesh_step;                /* the step of the last remeshing (0: none) */
@@ -396,7 +396,7 @@ static ves_status remesh(ves_sim *s, ves_remesh_info *info) {
   ves_remesh *nm = NULL;
   char err[256];
   release_solver(s);
-  ves_status st = ves_remesh_create(s->rcfg, s->model, s->y, &rp, &nm, err, sizeof err);
+  ves_status st = ves_remesh_create(&s->rd, s->model, s->y, &rp, &nm, err, sizeof err);
   if (st > 0) st = VES_OK; /* the correction short of ctol: its residuals are reported */
   if (st == VES_OK) ves_remesh_get_info(nm, info);
   if (st == VES_OK) {
@@ -506,14 +506,15 @@ static int remesh_due(ves_sim *s, ves_step_report *rep) {
   return 0;
 }
 
-ves_status ves_sim_set_remesh(ves_sim *s, const ves_config *cfg, const ves_remesh_policy *pol) {
-  VES_CHECK(s && (!cfg || pol), VES_ERR_ARG);
-  if (cfg)
+ves_status ves_sim_set_remesh(ves_sim *s, const ves_discret_params *d,
+                              const ves_remesh_policy *pol) {
+  VES_CHECK(s && (!d || pol), VES_ERR_ARG);
+  if (d)
     VES_CHECK(pol->every >= 0 && (pol->cond_max == 0 || pol->cond_max > 1) && pol->det_min >= 0 &&
                   pol->det_min < 1,
               VES_ERR_ARG);
-  s->rcfg = cfg;
-  if (cfg) s->rmp = *pol;
+  s->remesh_on = d != NULL;
+  if (d) s->rd = *d, s->rmp = *pol;
   s->rsince = 0;
   return VES_OK;
 }
@@ -626,7 +627,7 @@ static void next_dt(ves_sim *s, double dt, double dE, int iterations, int factor
  * (~16 s a step at eps 0.01). sp: the step's parameters (a reset rebuilds
  * the step problem with them). */
 static void after_step(ves_sim *s, const ves_step_params *sp, ves_step_report *rep) {
-  int remesh_now = s->rcfg && remesh_due(s, rep), tried = remesh_now;
+  int remesh_now = s->remesh_on && remesh_due(s, rep), tried = remesh_now;
   if (remesh_now) { /* due by its own rules */
     rep->remesh_status = remesh(s, &rep->remesh);
     if (rep->remesh_status == VES_OK) {
@@ -652,7 +653,7 @@ static void after_step(ves_sim *s, const ves_step_params *sp, ves_step_report *r
         rep->shift = info.shift_max;
       }
     }
-    remesh_now = s->rcfg && s->rmp.on_failed_reset && rep->reconnect_status < 0 &&
+    remesh_now = s->remesh_on && s->rmp.on_failed_reset && rep->reconnect_status < 0 &&
                  !tried; /* not twice in a step */
   }
   if (remesh_now) {

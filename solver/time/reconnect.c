@@ -22,8 +22,6 @@
  * new node positions at create. */
 #include "ves/reconnect.h"
 
-#include "app/config.h"
-
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -346,23 +344,21 @@ ves_status ves_reconnect_restore(const ves_model *m, const double *x, const doub
   return VES_OK;
 }
 
-/* Defaults: the problem file's [reconnect] keys (config.c's table of keys,
- * the one source): every criterion off, as vesica run has them. Thresholds
- * worth enabling: a motion with singular values sigma_1 >= sigma_2 seen from
- * the current configuration turns the basis functions p_a o y^-1 into
- * ellipses: beta_a |F^-1 (x - x_a)|^2 acts as an aspect ratio gamma / sigma^2
- * along each principal direction. DESIGN.md §2 measured gamma 0.6-0.8 good
- * and 1.8 useless for second derivatives; cond_max = 2 and det_min = 0.5 keep
- * sigma_2 >~ 1/sqrt2 (for det near 1 or a uniform compression), i.e. an
- * effective gamma / sigma_2^2 <~ 2 gamma = 1.6 at gamma = 0.8. These bounds
- * are reasoned, not tuned on runs (the paper's Fig. 5 run used every = 20). */
+/* Defaults: every criterion off, as the problem file's [reconnect] keys
+ * have them (test_config checks that the two agree). Thresholds worth
+ * enabling: a motion with singular values sigma_1 >= sigma_2 seen from the
+ * current configuration turns the basis functions p_a o y^-1 into ellipses,
+ * beta_a |F^-1 (x - x_a)|^2 acting as an aspect ratio gamma / sigma^2 along
+ * each principal direction; gamma 0.6-0.8 is good for second derivatives and
+ * 1.8 useless (docs/design.md, "Numerical choices and why"), so cond_max = 2
+ * and det_min = 0.5 keep sigma_2 >~ 1/sqrt2 and an effective gamma /
+ * sigma_2^2 <~ 1.6 at gamma = 0.8. These bounds are reasoned, not tuned on
+ * runs (the paper's Fig. 5 run resets every 20 steps). */
 void ves_reconnect_params_default(ves_reconnect_params *par) {
   if (!par) return;
-  ves_config cfg;
-  ves_config_default(&cfg);
-  par->every = cfg.reconnect_every;
-  par->cond_max = cfg.reconnect_cond_max;
-  par->det_min = cfg.reconnect_det_min;
+  par->every = 0;
+  par->cond_max = 0.0;
+  par->det_min = 0.0;
 }
 
 ves_status ves_reconnect_due(const ves_reconnect_params *par, const ves_model *m, const double *y,

@@ -589,10 +589,10 @@ static ves_status correct(ves_remesh *r, const ves_remesh_params *par, double *g
 /* Longer than most functions, on purpose: one pipeline (interface, new
  * nodes, quadrature and tables, projection, correction) with one cleanup
  * exit (STYLE.md §4), as ves_setup_create. */
-ves_status ves_remesh_create(const ves_config *cfg, ves_model *m, const double *y,
+ves_status ves_remesh_create(const ves_discret_params *dp, ves_model *m, const double *y,
                              const ves_remesh_params *par, ves_remesh **out, char *err,
                              size_t errlen) {
-  VES_CHECK(cfg && m && y && par && out && err && errlen, VES_ERR_ARG);
+  VES_CHECK(dp && m && y && par && out && err && errlen, VES_ERR_ARG);
   *out = NULL;
   ves_error_clear(); /* err names the record of this remeshing's failure (status.h) */
   const double t0 = ves_wall_seconds();
@@ -608,8 +608,8 @@ ves_status ves_remesh_create(const ves_config *cfg, ves_model *m, const double *
   if (!r) return VES_ERR_ALLOC;
   ves_remesh_info *in = &r->info;
   in->n_old = od->n, in->nq_old = oq->nq;
-  if (cfg->box_r != od->LR || cfg->box_z != od->LZ)
-    FAIL(VES_ERR_ARG, "remesh: the box %g x %g is not the model's %g x %g", cfg->box_r, cfg->box_z,
+  if (dp->box_r != od->LR || dp->box_z != od->LZ)
+    FAIL(VES_ERR_ARG, "remesh: the box %g x %g is not the model's %g x %g", dp->box_r, dp->box_z,
          od->LR, od->LZ);
   for (int i = 0; i < 2 * od->n; i++)
     if (!isfinite(y[i])) FAIL(VES_ERR_ARG, "remesh: a non-finite position");
@@ -634,8 +634,8 @@ ves_status ves_remesh_create(const ves_config *cfg, ves_model *m, const double *
     FAIL(st, "remesh: interface: %s (no zero line of phi from pole to pole)", ves_error_text(st));
   if (pieces != 1)
     FAIL(VES_ERR_GEOM, "remesh: the interface has %d pieces (one vesicle only)", pieces);
-  if ((st = resample(np, poly, par->curve_spacing * cfg->epsilon, &nk, &knots,
-                     &in->curve_length)) != VES_OK)
+  if ((st = resample(np, poly, par->curve_spacing * dp->eps, &nk, &knots, &in->curve_length)) !=
+      VES_OK)
     FAIL(st, "remesh: %s", ves_error_text(st));
   in->curve_points = nk;
   ves_shape_params sp;
@@ -651,10 +651,10 @@ ves_status ves_remesh_create(const ves_config *cfg, ves_model *m, const double *
    * tightly than band*eps (a neck, a thin tube, a small pearl) they fold, and
    * the band is then filled as the setup fills it without layers (CVT with the
    * same sizing) rather than refusing the remeshing */
-  in->band_layers = cfg->band_layers;
-  st = ves_setup_nodes(cfg, r->shape, &sizing, &gen, err, errlen);
-  if (st == VES_ERR_CONFIG && cfg->band_layers) {
-    ves_config c = *cfg;
+  in->band_layers = dp->band_layers;
+  st = ves_setup_nodes(dp, r->shape, &sizing, &gen, err, errlen);
+  if (st == VES_ERR_CONFIG && dp->band_layers) {
+    ves_discret_params c = *dp;
     c.band_layers = 0, in->band_layers = 0;
     st = ves_setup_nodes(&c, r->shape, &sizing, &gen, err, errlen);
   }
