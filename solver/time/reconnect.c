@@ -1,25 +1,13 @@
-/* vesica — reset of the reference configuration (paper Sec. 3.3, Fig. 2):
- * new nodes X' = y^a (or y(X_a), ves_reset_nodes), new LME tables at the moved points y(Xh),
- * weights w det F, point data of phi0 pushed forward (Eqs. 2-3), model rebuilt.
- *
- * Why E, A, V are preserved. Each is 2 pi sum_alpha w_alpha e(q_alpha),
- * e = f(phi0 data, F, G, r) det F r, and f depends on the point data and on
- * (F, G) only through the spatial derivatives of phi = phi0 o y^-1 (g and
- * the Laplacian, Eqs. 2-4). After the reset the motion is the identity:
- * y'(X') = sum_a p'_a(X') X'_a = X' by the affine reproduction of the new
- * basis (ghosts at (-r_a, z_a) carry the mirrored r, which is what the
- * identity needs there too), so F' = I, G' = 0 and r' = r at every point,
- * and the pushed-forward data are the spatial derivatives of phi at the same
- * material point. Hence e' = f det F r with w' = w det F, term by term.
- * The residual is that of the reproduction (the LME dual is solved to
- * |sum p (X - X_a)| <= 1e-14 h, the derivative rows are exact to ~1e-16)
- * plus rounding: measured in tests/test_reconnect.c.
- *
- * The assembly unit of the model (6 points of one triangle of the initial
- * Delaunay triangulation) stays: the points of a triangle remain neighbours
- * under a continuous motion, so the union of their node lists stays small,
- * and the model's slab partition and Morton order are recomputed from the
- * new node positions at create. */
+/* vesica — reset of the reference configuration (reconnect.h; paper Sec.
+ * 3.3, Fig. 2). E, A, V are preserved term by term: each is
+ * 2 pi sum_alpha w_alpha f(phi data, F, G, r) det F r, f depends on (F, G)
+ * only through the spatial derivatives of phi = phi0 o y^-1 (Eqs. 2-4), and
+ * after the reset y' = identity (F' = I, G' = 0, r' = r) with w' = w det F
+ * and the pushed-forward data those spatial derivatives; the residual is the
+ * LME reproduction error (~1e-14 h) plus rounding (tests/test_reconnect.c).
+ * The assembly unit (the points of one initial triangle) is kept: they stay
+ * neighbours under a continuous motion; the model's slab partition and
+ * Morton order are recomputed at create (docs/design.md, "The time loop"). */
 #include "ves/reconnect.h"
 
 #include <math.h>
