@@ -1,6 +1,7 @@
 /* vesica — the problem file's parameters as the library's parameter structs
- * (problem.h): each field of a library struct from its key, nothing
- * computed but lambda = lambda_ratio mu (docs/design.md, "The program"). */
+ * (problem.h): each field from its key, names parsed into the library's
+ * enums and rules, lambda = lambda_ratio mu the one product
+ * (docs/design.md, "The program"). */
 #include "app/problem.h"
 
 #include <stdio.h>
