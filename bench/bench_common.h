@@ -8,6 +8,7 @@
 
 #include "ves/backend.h"
 #include "app/config.h"
+#include "app/problem.h"
 #include "ves/integrate.h"
 
 /* Integrator parameters of a run with constant dt to t_end, the constraints
@@ -22,7 +23,7 @@ static inline void bench_constant_params(const ves_config *cfg, double dt, doubl
 
 /* Backend options from the [solver] section of cfg. */
 static inline void bench_backend_options(const ves_config *cfg, ves_backend_options *bo) {
-  ves_backend_options_from_config(cfg, bo);
+  ves_problem_backend_options(cfg, bo);
 }
 
 /* Parse "a,b,c" into v[max]; returns the count, -1 on a malformed entry. */

@@ -18,6 +18,7 @@
 
 #include "ves/model.h"
 #include "ves/setup.h"
+#include "app/problem.h"
 #include "app/blas_core_impl.h"
 
 #define EVAL_REPEAT 5 /* E+A+V+g passes timed (a run makes hundreds) */
@@ -70,7 +71,7 @@ static int run(double eps, row *r) {
   char err[256] = "";
   ves_setup *s = NULL;
   double t = now();
-  ves_status st = ves_setup_create(&cfg, VES_PHI0_L2, &s, err, sizeof err);
+  ves_status st = ves_problem_setup_create(&cfg, VES_PHI0_L2, &s, err, sizeof err);
   r->t_setup = now() - t;
   if (st != VES_OK) {
     fprintf(stderr, "bench_model: setup at eps = %g: %s\n", eps, err);

@@ -40,7 +40,7 @@ static double now(void) {
 static int run(const ves_config *cfg, int every, long max_steps, traj *tr) {
   char err[512];
   ves_setup *su = NULL;
-  if (ves_setup_create(cfg, VES_PHI0_L2, &su, err, sizeof err) != VES_OK) {
+  if (ves_problem_setup_create(cfg, VES_PHI0_L2, &su, err, sizeof err) != VES_OK) {
     fprintf(stderr, "setup: %s\n", err);
     return 1;
   }
@@ -53,7 +53,7 @@ static int run(const ves_config *cfg, int every, long max_steps, traj *tr) {
   }
   ves_remesh_policy pol = pp.remesh_policy;
   pol.every = every;
-  if (every > 0 || pol.cond_max > 0 || pol.det_min > 0) ves_sim_set_remesh(sim, cfg, &pol);
+  if (every > 0 || pol.cond_max > 0 || pol.det_min > 0) ves_sim_set_remesh(sim, &pp.discret, &pol);
   double A0, V0;
   ves_sim_initial(sim, &tr->E[0], &A0, &V0);
   tr->t[0] = 0, tr->A[0] = A0, tr->V[0] = V0, tr->n = 1;

@@ -20,6 +20,7 @@
 
 #include "ves/backend.h"
 #include "app/config.h"
+#include "app/problem.h"
 #include "ves/integrate.h"
 #include "ves/setup.h"
 #include "bench_common.h"
@@ -72,7 +73,7 @@ int main(int argc, char **argv) {
     return 2;
   }
   ves_setup *s = NULL;
-  if (ves_setup_create(&cfg, VES_PHI0_L2, &s, err, sizeof err) != VES_OK) {
+  if (ves_problem_setup_create(&cfg, VES_PHI0_L2, &s, err, sizeof err) != VES_OK) {
     fprintf(stderr, "bench_robust: %s: %s\n", path, err);
     return 3;
   }

@@ -288,7 +288,7 @@ int main(int argc, char **argv) {
   memset(&r, 0, sizeof r);
   ves_setup *s = NULL;
   double t0 = now();
-  st = ves_setup_create(&cfg, VES_PHI0_L2, &s, err, sizeof err);
+  st = ves_problem_setup_create(&cfg, VES_PHI0_L2, &s, err, sizeof err);
   r.setup = now() - t0;
   if (st != VES_OK) {
     fprintf(stderr, "bench_scale: setup of %s at eps %s: %s (%s)\n", argv[1], argv[2], err,

@@ -38,6 +38,7 @@
 
 #include "ves/backend.h"
 #include "app/config.h"
+#include "app/problem.h"
 #include "ves/integrate.h"
 #include "ves/setup.h"
 #include "ves/spectrum.h"
@@ -178,7 +179,7 @@ int main(int argc, char **argv) {
   }
   ves_setup *s = NULL;
   double ts = ves_wall_seconds();
-  if (ves_setup_create(&cfg, VES_PHI0_L2, &s, err, sizeof err) != VES_OK) {
+  if (ves_problem_setup_create(&cfg, VES_PHI0_L2, &s, err, sizeof err) != VES_OK) {
     fprintf(stderr, "bench_table1: %s: %s\n", path, err);
     return 3;
   }

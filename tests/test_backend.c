@@ -27,6 +27,7 @@
 
 #include "ves/backend.h"
 #include "app/config.h"
+#include "app/problem.h"
 #include "ves/setup.h"
 #include "ves/step.h"
 
@@ -65,7 +66,7 @@ static int group_setup(void **state) {
     fprintf(stderr, "config: %s\n", err);
     return -1;
   }
-  if (ves_setup_create(&FX.cfg, VES_PHI0_L2, &FX.setup, err, sizeof err) != VES_OK) {
+  if (ves_problem_setup_create(&FX.cfg, VES_PHI0_L2, &FX.setup, err, sizeof err) != VES_OK) {
     fprintf(stderr, "setup: %s\n", err);
     return -1;
   }
@@ -304,7 +305,7 @@ static void nlopt_against(const char *ref, int nset, const char *const *set, dou
   if (rc != VES_OK) printf("# config: %s\n", err);
   assert_int_equal(rc, VES_OK);
   ves_setup *su = NULL;
-  rc = ves_setup_create(&cfg, VES_PHI0_L2, &su, err, sizeof err);
+  rc = ves_problem_setup_create(&cfg, VES_PHI0_L2, &su, err, sizeof err);
   if (rc != VES_OK) printf("# setup: %s\n", err);
   assert_int_equal(rc, VES_OK);
   ves_model *m = su->model;

@@ -24,6 +24,7 @@
 #include "app/io.h"
 #include "ves/reconnect.h"
 #include "ves/setup.h"
+#include "app/problem.h"
 
 static char dir[64]; /* scratch folder */
 
@@ -498,7 +499,7 @@ static ves_setup *tiny_setup(int bump) {
   if (ves_config_load(NULL, bump ? 8 : 6, set, &cfg, err, sizeof err) != VES_OK)
     fail_msg("config: %s", err);
   ves_setup *s = NULL;
-  if (ves_setup_create(&cfg, VES_PHI0_L2, &s, err, sizeof err) != VES_OK)
+  if (ves_problem_setup_create(&cfg, VES_PHI0_L2, &s, err, sizeof err) != VES_OK)
     fail_msg("setup: %s", err);
   return s;
 }

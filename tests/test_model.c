@@ -22,6 +22,7 @@
 #include "model/model_impl.h"
 #include "ves/model.h"
 #include "ves/setup.h"
+#include "app/problem.h"
 
 /* ------------------------------------------------------------------------ */
 /* Helpers                                                                   */
@@ -62,7 +63,7 @@ static problem *problem_create(double eps, double box_r, double box_z, const cha
   P->cfg.stabilization = 0; /* the paper's E: the identities below (locality, invariance)
                                are its own; test_stabilization builds the term */
   char err[256] = "";
-  ves_status st = ves_setup_create(&P->cfg, VES_PHI0_SAMPLED, &P->s, err, sizeof err);
+  ves_status st = ves_problem_setup_create(&P->cfg, VES_PHI0_SAMPLED, &P->s, err, sizeof err);
   if (st != VES_OK) fprintf(stderr, "setup: %s\n", err);
   assert_int_equal(st, VES_OK);
   P->pat = ves_model_pattern(P->s->model);

@@ -1,12 +1,14 @@
 /* vesica — tests of the problem file's parameters as the library's structs
  * (problem.h): the defaults give the library's defaults, every key lands in
- * its field, and the switches (remeshing, resets) follow the keys. */
+ * its field (the discretization's and the model's too), and the switches
+ * (remeshing, resets) follow the keys. */
 #include <stdarg.h>
 #include <stddef.h>
 #include <stdint.h>
 #include <setjmp.h>
 #include <cmocka.h>
 
+#include <stdio.h>
 #include <string.h>
 
 #include "app/problem.h"
@@ -82,9 +84,55 @@ static void test_keys(void **state) {
   ves_problem_params_from_config(&c, NULL);
 }
 
+/* The [geometry] keys land in the discretization, [material] and the rest
+ * in the model's parameters; a quadrature that names no rule is refused
+ * with the key in the message (the rule then {0, 0}). */
+static void test_discretization(void **state) {
+  (void)state;
+  const char *set[] = {"geometry.epsilon=0.1",
+                       "geometry.box_r=2.5",
+                       "geometry.box_z=3",
+                       "geometry.h_band=0.4",
+                       "geometry.band=4",
+                       "geometry.slope=0.1",
+                       "geometry.h_far=0.3",
+                       "geometry.gamma=0.8",
+                       "geometry.support_tol=1e-7",
+                       "geometry.seed=9",
+                       "geometry.band_layers=0",
+                       "geometry.quadrature=d6x4",
+                       "geometry.axis_spacings=12",
+                       "geometry.lloyd_iterations=5",
+                       "material.mu=2",
+                       "material.lambda_ratio=20"};
+  ves_config c;
+  load(16, set, &c);
+  ves_discret_params d;
+  char err[256] = "";
+  assert_int_equal(ves_problem_discret(&c, &d, err, sizeof err), VES_OK);
+  assert_true(d.eps == 0.1 && d.box_r == 2.5 && d.box_z == 3 && d.h_band == 0.4 && d.band == 4);
+  assert_true(d.slope == 0.1 && d.h_far == 0.3 && d.gamma == 0.8 && d.support_tol == 1e-7);
+  assert_true(d.axis_spacings == 12 && d.lloyd_iterations == 5 && d.band_layers == 0);
+  assert_int_equal(d.seed, 9);
+  ves_quad_rulespec r;
+  assert_int_equal(ves_quad_rule_parse("d6x4", &r), VES_OK);
+  assert_true(d.rule.degree == r.degree && d.rule.split == r.split);
+  ves_problem_params p;
+  ves_problem_params_from_config(&c, &p);
+  assert_true(p.discret.eps == d.eps && p.discret.seed == d.seed);
+  ves_model_params mp;
+  ves_problem_model_params(&c, &mp);
+  assert_true(mp.eps == 0.1 && mp.mu == 2 && mp.lambda == 40 && mp.stab == c.stabilization);
+  snprintf(c.quadrature, sizeof c.quadrature, "d5");
+  assert_int_equal(ves_problem_discret(&c, &d, err, sizeof err), VES_ERR_CONFIG);
+  assert_non_null(strstr(err, "quadrature = d5"));
+  assert_true(d.rule.degree == 0 && d.rule.split == 0);
+}
+
 int main(void) {
   // clang-format off
-  const struct CMUnitTest tests[] = {cmocka_unit_test(test_defaults), cmocka_unit_test(test_keys)};
+  const struct CMUnitTest tests[] = {cmocka_unit_test(test_defaults), cmocka_unit_test(test_keys),
+                                     cmocka_unit_test(test_discretization)};
   // clang-format on
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -22,6 +22,7 @@
 #include "ves/reconnect.h"
 #include "ves/setup.h"
 #include "ves/step.h"
+#include "app/problem.h"
 #include "vesicle_impl.h"
 
 /* ------------------------------------------------------------------------ */
@@ -63,7 +64,7 @@ static int group_setup(void **state) {
     fprintf(stderr, "config: %s\n", err);
     return -1;
   }
-  if (ves_setup_create(&P->cfg, VES_PHI0_L2, &P->su, err, sizeof err) != VES_OK) {
+  if (ves_problem_setup_create(&P->cfg, VES_PHI0_L2, &P->su, err, sizeof err) != VES_OK) {
     fprintf(stderr, "setup: %s\n", err);
     return -1;
   }

@@ -21,6 +21,7 @@
 #include "ves/remesh.h"
 #include "ves/setup.h"
 #include "ves/step.h"
+#include "app/problem.h"
 #include "vesicle_impl.h"
 
 /* The problem: the unit sphere with a P2 bump of 0.15 (an oblate-prolate
@@ -28,6 +29,7 @@
  * box (the problem of test_reconnect.c: ~1,000 nodes, ~11,000 points). */
 typedef struct {
   ves_config cfg;
+  ves_discret_params dp; /* its discretization */
   ves_setup *su;
   int n;
   double *X;          /* 2n reference positions */
@@ -50,7 +52,8 @@ static int group_setup(void **state) {
     fprintf(stderr, "config: %s\n", err);
     return -1;
   }
-  if (ves_setup_create(&P->cfg, VES_PHI0_L2, &P->su, err, sizeof err) != VES_OK) {
+  if (ves_problem_setup_create(&P->cfg, VES_PHI0_L2, &P->su, err, sizeof err) != VES_OK ||
+      ves_problem_discret(&P->cfg, &P->dp, err, sizeof err) != VES_OK) {
     fprintf(stderr, "setup: %s\n", err);
     return -1;
   }
@@ -65,7 +68,7 @@ static int group_setup(void **state) {
   ves_config c2 = P->cfg;
   c2.seed = P->cfg.seed + 1;
   ves_setup *s2 = NULL;
-  if (ves_setup_create(&c2, VES_PHI0_L2, &s2, err, sizeof err) != VES_OK) return -1;
+  if (ves_problem_setup_create(&c2, VES_PHI0_L2, &s2, err, sizeof err) != VES_OK) return -1;
   double *X2 = malloc(2 * (size_t)s2->nodes->n * sizeof *X2);
   if (!X2) return -1;
   ves_model_reference(s2->model, X2);
@@ -115,7 +118,7 @@ static ves_remesh *remesh(ves_model *m, const double *y, int hold_area, int hold
   par.hold_volume = hold_volume, par.V_target = V_target;
   ves_remesh *r = NULL;
   char err[512] = "";
-  ves_status st = ves_remesh_create(&P->cfg, m, y, &par, &r, err, sizeof err);
+  ves_status st = ves_remesh_create(&P->dp, m, y, &par, &r, err, sizeof err);
   if (st != VES_OK) fail_msg("remesh: %s: %s", ves_status_str(st), err);
   return r;
 }
@@ -264,7 +267,7 @@ static void test_sim(void **state) {
   assert_int_equal(ves_sim_create(P->su->model, ves_backend_find("newton"), &bo, &ip, &sim),
                    VES_OK);
   ves_remesh_policy pol = {.every = 2};
-  assert_int_equal(ves_sim_set_remesh(sim, &P->cfg, &pol), VES_OK);
+  assert_int_equal(ves_sim_set_remesh(sim, &P->dp, &pol), VES_OK);
   double E0, A0, V0, Eprev;
   ves_sim_initial(sim, &E0, &A0, &V0);
   Eprev = E0;
@@ -308,7 +311,7 @@ static void test_failed_remesh_resets(void **state) {
   ves_sim *sim = NULL;
   assert_int_equal(ves_sim_create(P->su->model, ves_backend_find("newton"), &bo, &ip, &sim),
                    VES_OK);
-  ves_config c2 = P->cfg;
+  ves_discret_params c2 = P->dp;
   c2.box_r = 2.5; /* not the model's box: ves_remesh_create refuses (test_errors) */
   ves_remesh_policy pol = {.every = 2};
   assert_int_equal(ves_sim_set_remesh(sim, &c2, &pol), VES_OK);
@@ -363,9 +366,9 @@ static void test_carry(void **state) {
   par.hold_area = 1, par.A_target = v[1], par.hold_volume = 1, par.V_target = v[2];
   ves_remesh *r0 = NULL, *r1 = NULL;
   char err[512] = "";
-  assert_int_equal(ves_remesh_create(&P->cfg, m, P->X, &par, &r0, err, sizeof err), VES_OK);
+  assert_int_equal(ves_remesh_create(&P->dp, m, P->X, &par, &r0, err, sizeof err), VES_OK);
   par.y_prev = yp;
-  assert_int_equal(ves_remesh_create(&P->cfg, m, P->X, &par, &r1, err, sizeof err), VES_OK);
+  assert_int_equal(ves_remesh_create(&P->dp, m, P->X, &par, &r1, err, sizeof err), VES_OK);
   assert_null(ves_remesh_y_prev(r0));
   const ves_nodes *nd = ves_remesh_nodes(r1);
   const int n = nd->n;
@@ -405,8 +408,8 @@ static void test_errors(void **state) {
   ves_remesh *r = NULL;
   char err[256];
   assert_int_equal(ves_remesh_create(NULL, m, P->X, &par, &r, err, sizeof err), VES_ERR_ARG);
-  assert_int_equal(ves_remesh_create(&P->cfg, m, NULL, &par, &r, err, sizeof err), VES_ERR_ARG);
-  ves_config c2 = P->cfg;
+  assert_int_equal(ves_remesh_create(&P->dp, m, NULL, &par, &r, err, sizeof err), VES_ERR_ARG);
+  ves_discret_params c2 = P->dp;
   c2.box_r = 2.5; /* not the model's box */
   assert_int_equal(ves_remesh_create(&c2, m, P->X, &par, &r, err, sizeof err), VES_ERR_ARG);
   assert_null(r);
@@ -415,7 +418,7 @@ static void test_errors(void **state) {
   assert_non_null(y);
   memcpy(y, P->X, 2 * (size_t)P->n * sizeof *y);
   y[7] = NAN;
-  assert_int_equal(ves_remesh_create(&P->cfg, m, y, &par, &r, err, sizeof err), VES_ERR_ARG);
+  assert_int_equal(ves_remesh_create(&P->dp, m, y, &par, &r, err, sizeof err), VES_ERR_ARG);
   int np;
   double *pts = NULL;
   assert_int_equal(ves_remesh_interface(m, y, NULL, &np, &pts, NULL), VES_ERR_ARG);
@@ -428,7 +431,7 @@ static void test_errors(void **state) {
   ves_model_get_params(m, &mp);
   ves_model *m0 = NULL;
   assert_int_equal(ves_model_create(P->su->nodes, P->su->quad, c, &mp, &m0), VES_OK);
-  assert_int_equal(ves_remesh_create(&P->cfg, m0, P->X, &par, &r, err, sizeof err), VES_ERR_GEOM);
+  assert_int_equal(ves_remesh_create(&P->dp, m0, P->X, &par, &r, err, sizeof err), VES_ERR_GEOM);
   assert_non_null(strstr(err, "interface"));
   ves_model_destroy(&m0);
   /* restore: a spacing <= 0 */
@@ -447,9 +450,9 @@ static void test_errors(void **state) {
   ves_sim *sim = NULL;
   assert_int_equal(ves_sim_create(m, ves_backend_find("newton"), &bo, &ip, &sim), VES_OK);
   ves_remesh_policy pol = {.cond_max = 0.5};
-  assert_int_equal(ves_sim_set_remesh(sim, &P->cfg, &pol), VES_ERR_ARG);
+  assert_int_equal(ves_sim_set_remesh(sim, &P->dp, &pol), VES_ERR_ARG);
   pol = (ves_remesh_policy){.det_min = 1.0};
-  assert_int_equal(ves_sim_set_remesh(sim, &P->cfg, &pol), VES_ERR_ARG);
+  assert_int_equal(ves_sim_set_remesh(sim, &P->dp, &pol), VES_ERR_ARG);
   assert_int_equal(ves_sim_set_remesh(sim, NULL, NULL), VES_OK);
   ves_sim_destroy(&sim);
   free(y), free(c), free(h);
@@ -473,11 +476,13 @@ static void test_folded_layers(void **state) {
   ves_config cfg;
   assert_int_equal(ves_config_load(NULL, 9, set, &cfg, err, sizeof err), VES_OK);
   ves_setup *su = NULL;
-  if (ves_setup_create(&cfg, VES_PHI0_L2, &su, err, sizeof err) != VES_OK) fail_msg("%s", err);
+  if (ves_problem_setup_create(&cfg, VES_PHI0_L2, &su, err, sizeof err) != VES_OK)
+    fail_msg("%s", err);
   ves_config layered = cfg;
   layered.band_layers = 1;
+  const ves_discret_params dlayered = discret_of(&layered);
   ves_setup *refused = NULL;
-  assert_int_equal(ves_setup_create(&layered, VES_PHI0_L2, &refused, err, sizeof err),
+  assert_int_equal(ves_problem_setup_create(&layered, VES_PHI0_L2, &refused, err, sizeof err),
                    VES_ERR_CONFIG); /* the premise: these layers fold on this shape */
   const int n = su->nodes->n;
   double *X = malloc(2 * (size_t)n * sizeof *X), v[3];
@@ -488,7 +493,7 @@ static void test_folded_layers(void **state) {
   ves_remesh_params_default(&par);
   par.hold_area = 1, par.A_target = v[1], par.hold_volume = 1, par.V_target = v[2];
   ves_remesh *r = NULL;
-  ves_status st = ves_remesh_create(&layered, su->model, X, &par, &r, err, sizeof err);
+  ves_status st = ves_remesh_create(&dlayered, su->model, X, &par, &r, err, sizeof err);
   if (st != VES_OK) fail_msg("remesh: %s: %s", ves_status_str(st), err);
   ves_remesh_info in;
   ves_remesh_get_info(r, &in);
@@ -524,8 +529,8 @@ static void test_thin_cells(void **state) {
   ves_model *m = P->su->model;
   double v[3];
   eav(m, P->X, v);
-  ves_config fine = P->cfg;
-  fine.h_band = P->cfg.h_band / 1.5;
+  ves_discret_params fine = P->dp;
+  fine.h_band = P->dp.h_band / 1.5;
   ves_remesh_params par;
   ves_remesh_params_default(&par);
   par.hold_area = 1, par.A_target = v[1], par.hold_volume = 1, par.V_target = v[2];

@@ -9,8 +9,10 @@
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "ves/setup.h"
+#include "app/problem.h"
 
 /* The sphere of radius 1 at eps = 0.04, h_band = 0.5 eps (problems/sphere.ini
  * defaults): E* = 2 pi exactly for every eps; A and V against the phase-field
@@ -24,7 +26,7 @@ static void test_sphere(void **state) {
                        "shape.type=sphere"};
   assert_int_equal(ves_config_load(NULL, 4, set, &cfg, err, sizeof err), VES_OK);
   ves_setup *s = NULL;
-  ves_status st = ves_setup_create(&cfg, VES_PHI0_L2, &s, err, sizeof err);
+  ves_status st = ves_problem_setup_create(&cfg, VES_PHI0_L2, &s, err, sizeof err);
   if (st != VES_OK) fail_msg("setup: %s", err);
   int n = s->nodes->n, nq = s->quad->nq;
   double *y = malloc(2 * (size_t)n * sizeof *y), *W = malloc((size_t)nq * sizeof *W), E, A, V;
@@ -84,10 +86,35 @@ static void test_setup_errors(void **state) {
   cfg.radius = 0.3; /* a band of 0.48 folds inside a sphere of radius 0.3 */
   ves_setup *s = NULL;
   /* a band too wide for the shape is bad input: VES_ERR_CONFIG (vesica exits 2) */
-  assert_int_equal(ves_setup_create(&cfg, VES_PHI0_L2, &s, err, sizeof err), VES_ERR_CONFIG);
+  assert_int_equal(ves_problem_setup_create(&cfg, VES_PHI0_L2, &s, err, sizeof err),
+                   VES_ERR_CONFIG);
   assert_null(s);
   assert_true(err[0] != 0);
   printf("# message: %s\n", err);
+  /* the library's own refusals (the shape is taken, and freed, either way):
+   * the model's eps not the discretization's, a rule that names none */
+  cfg.radius = 1.0;
+  ves_discret_params d;
+  ves_model_params mp;
+  assert_int_equal(ves_problem_discret(&cfg, &d, err, sizeof err), VES_OK);
+  ves_problem_model_params(&cfg, &mp);
+  ves_shape *shape = NULL;
+  assert_int_equal(ves_problem_shape(&cfg, &shape, err, sizeof err), VES_OK);
+  mp.eps = 2 * d.eps;
+  assert_int_equal(ves_setup_create(&d, shape, &mp, VES_PHI0_L2, &s, err, sizeof err), VES_ERR_ARG);
+  assert_null(s);
+  assert_non_null(strstr(err, "eps"));
+  assert_int_equal(ves_problem_shape(&cfg, &shape, err, sizeof err), VES_OK);
+  mp.eps = d.eps, d.rule = (ves_quad_rulespec){0};
+  assert_int_equal(ves_setup_create(&d, shape, &mp, VES_PHI0_L2, &s, err, sizeof err), VES_ERR_ARG);
+  assert_null(s);
+  assert_int_equal(ves_setup_create(NULL, NULL, &mp, VES_PHI0_L2, &s, err, sizeof err),
+                   VES_ERR_ARG);
+  /* a quadrature key that names no rule: the program's refusal */
+  snprintf(cfg.quadrature, sizeof cfg.quadrature, "d5");
+  assert_int_equal(ves_problem_setup_create(&cfg, VES_PHI0_L2, &s, err, sizeof err),
+                   VES_ERR_CONFIG);
+  assert_non_null(strstr(err, "quadrature = d5"));
 }
 
 int main(void) {

@@ -19,6 +19,7 @@
 #include "ves/backend.h"
 #include "ves/setup.h"
 #include "ves/step.h"
+#include "app/problem.h"
 
 /* ------------------------------------------------------------------------ */
 /* The problem                                                               */
@@ -66,7 +67,7 @@ static int group_setup(void **state) {
     fprintf(stderr, "config: %s\n", err);
     return -1;
   }
-  if (ves_setup_create(&cfg, VES_PHI0_L2, &P->su, err, sizeof err) != VES_OK) {
+  if (ves_problem_setup_create(&cfg, VES_PHI0_L2, &P->su, err, sizeof err) != VES_OK) {
     fprintf(stderr, "setup: %s\n", err);
     return -1;
   }

@@ -9,6 +9,7 @@
 
 #include "ves/backend.h"
 #include "app/config.h"
+#include "app/problem.h"
 #include "ves/integrate.h"
 #include "ves/setup.h"
 
@@ -29,13 +30,21 @@ static inline ves_status bump_config(const char *delta, const char *stab, ves_co
   return ves_config_load(NULL, 7, set, cfg, err, errlen);
 }
 
+/* The discretization of cfg (ves_problem_discret); a failure ends the test. */
+static inline ves_discret_params discret_of(const ves_config *cfg) {
+  ves_discret_params d;
+  char err[256];
+  if (ves_problem_discret(cfg, &d, err, sizeof err) != VES_OK) fail_msg("discretization: %s", err);
+  return d;
+}
+
 /* Its setup (L2-projected phi0); a failure ends the test. */
 static inline ves_setup *bump_setup_stab(const char *delta, const char *stab) {
   ves_config cfg;
   char err[512];
   if (bump_config(delta, stab, &cfg, err, sizeof err) != VES_OK) fail_msg("config: %s", err);
   ves_setup *s = NULL;
-  if (ves_setup_create(&cfg, VES_PHI0_L2, &s, err, sizeof err) != VES_OK)
+  if (ves_problem_setup_create(&cfg, VES_PHI0_L2, &s, err, sizeof err) != VES_OK)
     fail_msg("setup: %s", err);
   return s;
 }

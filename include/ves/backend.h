@@ -1,5 +1,5 @@
 /* vesica — the solvers of one step problem, behind one small table
- * {name, create, solve, destroy} (DESIGN.md §3):
+ * {name, create, solve, destroy} (docs/design.md, "Backends"):
  *   ipopt   Ipopt 3.11 (MUMPS inside), exact sparse Hessian of the Lagrangian
  *   nlopt   NLopt 2.7 augmented Lagrangian around a gradient-based optimizer
  *   newton  Lagrange-Newton on the KKT system, MUMPS, optional frozen Hessian,
@@ -9,13 +9,12 @@
 #ifndef VES_BACKEND_H
 #define VES_BACKEND_H
 
-#include "app/config.h"
 #include "ves/status.h"
 #include "ves/step.h"
 
 /* Options common to all backends (each documents which it honours). The
- * defaults are the problem file's [solver] keys (config.c's table of keys,
- * the one source: vesica keys lists them). */
+ * defaults (ves_backend_options_default) are the problem file's [solver]
+ * keys' (vesica keys lists them). */
 typedef struct {
   double tol;            /* optimality / KKT residual tolerance (relative; [solver] tol) */
   double ctol;           /* constraint violation tolerance, relative to A0, V ([solver] ctol) */
@@ -78,11 +77,10 @@ typedef struct {
                            a whole L-BFGS phase, its Newton-like unit */
 } ves_backend_type;
 
-/* The defaults: ves_backend_options_from_config of ves_config_default. */
+/* The defaults: tol 1e-9, ctol 1e-10, max_iter 40, max_builds 0,
+ * max_correction 0, freeze_hessian 1, factor_single 1, verbose 0 (the
+ * problem file's [solver] defaults). */
 void ves_backend_options_default(ves_backend_options *opt);
-/* The [solver] keys of cfg (tol, ctol, max_iter, freeze_hessian) as
- * backend options, verbose 0. */
-void ves_backend_options_from_config(const ves_config *cfg, ves_backend_options *opt);
 
 /* The table entry for a name ("ipopt", "nlopt", "newton", "euler"), or NULL. */
 const ves_backend_type *ves_backend_find(const char *name);

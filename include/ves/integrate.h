@@ -1,8 +1,10 @@
-/* vesica — the time loop of the variational integrator (DESIGN.md §3): one
- * accepted step at a time, adaptive dt, rejected steps retried with dt/2,
- * protocols (spontaneous curvature steps and ramps, volume ramps), resets of the
- * reference configuration (DESIGN.md §4, ves/reconnect.h). The driver (the
- * program) owns the loop, the output and the stopping decisions. */
+/* vesica — the time loop of the variational integrator: one accepted step
+ * at a time, y^{n+1} = argmin (1/2)|y - y^n|^2_K(y^n) + dt E(y) subject to
+ * A = A0, V = V_target (paper Eq. 11), adaptive dt, rejected steps retried
+ * with dt/2, protocols (steps and ramps of C0, volume ramps), resets of the
+ * reference (reconnect.h) and remeshings (remesh.h). The driver (the
+ * program) owns the loop, the output and the stopping decisions
+ * (docs/design.md, "The time loop"). */
 #ifndef VES_INTEGRATE_H
 #define VES_INTEGRATE_H
 
@@ -193,12 +195,13 @@ ves_model *ves_sim_model(ves_sim *s);
 
 /* Remeshing (remesh.h) after accepted steps when pol says so (pol->every,
  * cond_max, det_min as for resets, on_failed_reset: also when a due reset
- * failed); cfg holds the discretization keys (borrowed: it must outlive the
- * simulation); cfg NULL turns it off. After a remeshing the node count,
+ * failed); d is the discretization the remeshings build (copied into the
+ * simulation); d NULL turns remeshing off. After a remeshing the node count,
  * ves_sim_y and ves_sim_model change (the driver's buffers must follow
  * ves_model_nodes(ves_sim_model(s))->n); a restart restores it with
  * ves_sim_adopt_remesh. VES_ERR_ARG for invalid thresholds. */
-ves_status ves_sim_set_remesh(ves_sim *s, const ves_config *cfg, const ves_remesh_policy *pol);
+ves_status ves_sim_set_remesh(ves_sim *s, const ves_discret_params *d,
+                              const ves_remesh_policy *pol);
 int ves_sim_remeshings(const ves_sim *s); /* remeshings so far */
 
 /* The last remeshing's reference (owned by the simulation), NULL before any
@@ -226,7 +229,7 @@ void ves_sim_initial(const ves_sim *s, double *E, double *A, double *V); /* at t
  *   x[2n]   (may be NULL) its current positions y(X_a) (r, z), the motion
  *           evaluated at the nodes, not the coefficients y^a (LME does not
  *           interpolate; near a squeezed axis the two part by many spacings,
- *           bench/RESULTS.md); wall nodes at y^a, axis nodes at r = 0
+ *           docs/results.md, "Resets and remeshing"); wall nodes at y^a, axis nodes at r = 0
  *   phi[n]  (may be NULL) the phase field it carries: phi0 of the reference
  *           at X_a, the model's nodal coefficients of phi0 evaluated there
  *           when they are known (the creation model's, given by

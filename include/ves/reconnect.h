@@ -1,55 +1,22 @@
-/* vesica — resetting the reference configuration (paper Sec. 3.3 and Fig. 2;
- * DESIGN.md §4): the current nodal positions become the new reference nodes,
- * the quadrature points move with the material, and the LME basis, the
- * neighbour lists and the sparse pattern are rebuilt, without any field
- * projection or new quadrature.
- *
- * Given the model on reference nodes X_a with points Xh_alpha, weights
- * w_alpha and point data (phi0, grad phi0, Hess phi0), and the current
- * positions y^a (the motion y(X) = sum_a p_a(X) y^a, F = Dy, G = D2y):
- *   new nodes      X'_a = y^a (ghosts (-r_a, z_a) regenerated; flags kept)
- *   new spacing    h'_a from the new node set (ves_geom_spacing on real +
- *                  ghost nodes, as ves_nodes_generate), beta'_a = gamma/h'_a^2
- *   new points     Xh'_alpha = y(Xh_alpha), grouped in the old triangles
- *   new weights    w'_alpha = w_alpha det F(Xh_alpha)
- *   point data     phi0' = phi0 (a material property, unchanged), and
- *                  grad' phi0 = grad phi0 F^-1                      (Eq. 2)
- *                  Hess' phi0 = F^-T (Hess phi0 - g_n G_n) F^-1     (Eq. 3)
- *                  with g = grad' phi0 and G_n = D2 y_n
- * (ves_reconnect_push_forward). Every functional is 2 pi sum w e(q) with
- * e = (density) det F r: the new motion is the identity, y'(X') = X'
- * exactly (LME reproduces affine functions, and the ghosts carry the
- * mirrored positions), so F' = I, G' = 0 and r' = r(Xh) at the new points,
- * and E, A, V are unchanged up to rounding. The discrete space of motions
- * does change (p'_a o y differs from p_a unless y is a similarity; and h'_a
- * jumps where Delaunay edges of the moved nodes flip, ~0.7% already at
- * cond F = 1.002), so the gradients at the reset state and the dynamics after
- * it differ from those without it at the level of the discretization error,
- * not of rounding; the nodal values y^a, coefficients of a smoothing basis,
- * differ more than the motion of the material does (tests/test_reconnect.c
- * measures all of it).
- *
- * Nodes across the axis. The y^a are coefficients, not values of the motion
- * (LME does not interpolate): where the material is squeezed against the
- * axis, the r coefficient of a node near it can turn negative while the
- * motion itself stays admissible (r(Xh) > 0, det F > 0 at every point;
- * measured: a cup relaxing at eps = 0.04 had 2 such nodes after 20 steps,
- * 20 after 30). The pair {node at (r_a, z_a), ghost at (-r_a, z_a)} is the
- * same point set whichever of the two is called real, and the motion is odd
- * in r, so such a node is mirrored: X'_a = (-r_a, z_a), its ghost at (r_a,
- * z_a). The motion is unchanged; its new coefficients are X' (not y), so
- * after a reset continue from ves_reconnect_nodes(r)->x.
- *
- * Where the new nodes go. The paper takes X'_a = y^a. The invariance above
- * holds for any new node set whose hull holds the moved points (the identity
- * is reproduced on any node set), so X'_a = y(X_a), the motion of the
- * material point the node was at, is as valid (VES_RESET_NODES_MOTION). The
- * two differ by the coefficients' departure from the motion, reported as
- * shift_max = max_a |y^a - y(X_a)| / h_a: small on a smooth motion, but the
- * smoothing basis leaves oscillatory coefficient modes nearly free (they
- * barely move the points), and where they grow the paper's choice builds
- * the new basis on a scattered node set (bench/RESULTS.md measures both).
- * Wall nodes keep y^a (fixed dofs); axis nodes keep r = 0. */
+/* vesica — resetting the reference configuration (paper Sec. 3.3, Fig. 2):
+ * the current positions become the reference, the quadrature points move
+ * with the material, and the LME basis, neighbour lists and sparse pattern
+ * are rebuilt, with no field projection and no new quadrature. From nodes
+ * X_a, points Xh_alpha, weights w_alpha, point data of phi0 and positions
+ * y^a (motion y(X) = sum_a p_a(X) y^a, F = Dy, G = D2y):
+ *   nodes    X'_a = y^a (VES_RESET_NODES_COEF, the paper) or y(X_a)
+ *            (VES_RESET_NODES_MOTION); h'_a from the new node set,
+ *            beta'_a = gamma / h'_a^2; ghosts regenerated, flags kept
+ *   points   Xh'_alpha = y(Xh_alpha), weights w'_alpha = w_alpha det F
+ *   phi0     phi0' = phi0, grad' phi0 = grad phi0 F^-1            (Eq. 2)
+ *            Hess' phi0 = F^-T (Hess phi0 - g_n G_n) F^-1         (Eq. 3)
+ * The new motion is the identity (LME reproduces affine maps), so E, A, V
+ * are unchanged up to rounding; the discrete space of motions changes at
+ * the level of the discretization error (tests/test_reconnect.c). A node
+ * whose r coefficient crossed the axis is mirrored (X'_a = (-r_a, z_a): the
+ * same motion), so after a reset continue from ves_reconnect_nodes(r)->x.
+ * Wall nodes keep y^a, axis nodes r = 0 (docs/design.md, "The time loop";
+ * the two node choices compared: docs/results.md, "Resets and remeshing"). */
 #ifndef VES_RECONNECT_H
 #define VES_RECONNECT_H
 

@@ -1,58 +1,32 @@
-/* vesica — full remeshing with field projection (paper Secs. 1 and 3.3;
- * DESIGN.md §4): from the current state, a new node set adapted to the
- * current interface, new quadrature and LME tables, the phase field
- * projected onto the new basis, and the constraints the projection disturbs
- * restored by a minimal correction of the positions.
- *
- * Given a model (reference nodes X_a, points Xh_alpha, weights w_alpha,
- * point data of phi0) and positions y:
- *   1. the interface: the material at the old nodes, y(X_a), with phi there
- *      (the L2 fit of the model's point values of phi0 onto its basis,
- *      evaluated at the nodes); the zero line of phi on the old triangles
- *      moved to y(X_a), the crossing on each edge interpolated linearly in
- *      d = sqrt2 eps atanh(phi) (exact for the tanh profile), chained from
- *      the north pole to the south pole, resampled at equal arclength
- *      (curve_spacing) and made a sharp curve shape (shape.h, CURVE, at its
- *      own scale);
- *   2. nodes adapted to that curve exactly as the setup adapts them to the
- *      initial shape (ves_setup_nodes: band, grading, axis lattice, band
- *      layers, ghosts; the same [geometry] keys and seed; where the band
- *      layers would fold, the interface bending more tightly than band*eps,
- *      the band without layers, as band_layers = 0 makes it), the Delaunay
- *      quadrature on them and the LME tables with the old tables' parameters;
- *   3. phi0' = the L2 projection (ves_project_l2, as the setup fits
- *      phi0) of the current phi onto the new basis, c minimizing
- *        sum_alpha w_alpha det F(Xh_alpha) (sum_a p'_a(y(Xh_alpha)) c_a - phi0(Xh_alpha))^2,
- *      i.e. over the old quadrature moved with the material (points y(Xh),
- *      weights w det F: the measure of the current configuration), where
- *      the current phi is known exactly as the old model sees it; where the
- *      motion has spread an old cell's points thinner than half the density
- *      the setup gives the new basis (~14 points per h^2 of the new sizing:
- *      the stretched core of a thinning neck, where the normal equations
- *      turn singular and the coefficients oscillate from node to node), the
- *      cell's points are replaced by a rule of 24 or 96 points on its
- *      reference triangle, the old field there from the L2 fit of its point
- *      values onto the old basis (info.proj_cells_refined);
- *   4. the new model on the new nodes with phi0' (its motion the identity,
- *      y' = X'), then the correction: y' + delta with delta the minimal
- *      Euclidean norm (over the free dofs) that restores A(y') = A_target
- *      and, when held, V(y') = V_target: Newton on the constraints,
- *      delta = -G^T (G G^T)^-1 c, G the constraint gradients;
- *   5. the report: E, A, V of the old state, of the projected one before the
- *      correction and after it, the correction's size, and the interface's
- *      displacement (distance of the new state's interface points from the
- *      curve of step 1).
- * A single vesicle is assumed: an interface of more than one piece (a
- * pinched-off pearl, an island of phi > 0) is refused (VES_ERR_GEOM). */
+/* vesica — full remeshing with field projection (paper Secs. 1 and 3.3):
+ * from a model (nodes X_a, points Xh_alpha, weights w_alpha, phi0 data) and
+ * positions y,
+ *   1. the interface: the zero line of phi on the old triangles moved to
+ *      y(X_a) (crossings interpolated in d = sqrt2 eps atanh(phi)), from pole
+ *      to pole, resampled at equal arclength: a sharp curve (shape.h);
+ *   2. nodes adapted to it as the setup adapts them (ves_setup_nodes; where
+ *      the band layers fold, the band without layers), the quadrature and
+ *      LME tables with the old tables' parameters;
+ *   3. phi0' = the L2 projection of the current phi onto the new basis over
+ *      the old points moved with the material:
+ *        c = argmin sum_alpha w_alpha det F (sum_a p'_a(y(Xh_alpha)) c_a - phi0(Xh_alpha))^2,
+ *      cells the motion spread thinner than the new basis needs refined
+ *      (info.proj_cells_refined);
+ *   4. the correction y' + delta, delta = -G^T (G G^T)^-1 c (Newton on the
+ *      constraints, G their gradients) restoring A = A_target (and V);
+ *   5. the report: E, A, V before and after, the interface's displacement.
+ * One vesicle: an interface of more than one piece is refused (VES_ERR_GEOM).
+ * Design: docs/design.md, "The time loop"; measured: docs/results.md,
+ * "Resets and remeshing". */
 #ifndef VES_REMESH_H
 #define VES_REMESH_H
 
 #include <stddef.h>
 
-#include "app/config.h"
 #include "ves/geom.h"
 #include "ves/model.h"
 #include "ves/quad.h"
+#include "ves/setup.h"
 #include "ves/shape.h"
 #include "ves/status.h"
 
@@ -120,8 +94,7 @@ typedef struct {
 typedef struct ves_remesh ves_remesh;
 
 /* Remesh the state y of model m (both borrowed; m is evaluated, not changed).
- *   cfg   the discretization keys ([geometry]; borrowed); its box must be
- *         m's
+ *   dp    the discretization (borrowed for the call); its box must be m's
  *   par   targets and tolerances (copied)
  *   out   taken by the caller (ves_remesh_destroy)
  * The new model's parameters are m's (c0 as in force); its tables use m's
@@ -134,7 +107,7 @@ typedef struct ves_remesh ves_remesh;
  * fit in the box; a fold of the band layers is not one: the band is then
  * made without them, info.band_layers = 0); errors of the node
  * generation, tables and projection. On error a line in err. */
-ves_status ves_remesh_create(const ves_config *cfg, ves_model *m, const double *y,
+ves_status ves_remesh_create(const ves_discret_params *dp, ves_model *m, const double *y,
                              const ves_remesh_params *par, ves_remesh **out, char *err,
                              size_t errlen);
 

@@ -45,7 +45,7 @@ int cmd_check(int argc, char **argv) {
   if ((rc = cli_load_problem("check", path, usage_check, nset, set, &cfg))) return rc;
   if ((rc = cli_setup_estimate("check", &cfg, 0))) return rc;
   ves_setup *s = NULL;
-  ves_status st = ves_setup_create(&cfg, method, &s, err, sizeof err);
+  ves_status st = ves_problem_setup_create(&cfg, method, &s, err, sizeof err);
   if (st != VES_OK) {
     cli_setup_error("check", path, err);
     return cli_exit_for(st);

@@ -50,7 +50,7 @@ int cli_exit_for(ves_status st) {
 static double estimate_nodes(const ves_config *c) {
   char err[256];
   ves_shape *shape = NULL;
-  if (ves_setup_shape(c, &shape, err, sizeof err) != VES_OK) return 0.0;
+  if (ves_problem_shape(c, &shape, err, sizeof err) != VES_OK) return 0.0;
   const double L = ves_shape_length(shape);
   ves_shape_destroy(&shape);
   const double h0 = c->h_band * c->epsilon, rho = 2 / sqrt(3.0);

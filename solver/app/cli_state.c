@@ -44,7 +44,7 @@ int cli_nodes_now(run_ctx *r) { return ves_model_nodes(ves_sim_model(r->sim))->n
  * problem's parameters: ves_problem_params_from_config). */
 int cli_build(run_ctx *r) {
   char err[1024] = "";
-  ves_status st = ves_setup_create(&r->cfg, VES_PHI0_L2, &r->setup, err, sizeof err);
+  ves_status st = ves_problem_setup_create(&r->cfg, VES_PHI0_L2, &r->setup, err, sizeof err);
   if (st != VES_OK) {
     cli_setup_error("run", r->label, err);
     return cli_exit_for(st);
@@ -64,8 +64,8 @@ int cli_build(run_ctx *r) {
     fprintf(stderr, "vesica run: %s: cannot start the time loop: %s\n", r->label, cli_why(st));
     return cli_exit_for(st);
   }
-  if (p.remesh) { /* r->cfg outlives the simulation */
-    if ((st = ves_sim_set_remesh(r->sim, &r->cfg, &p.remesh_policy)) != VES_OK) {
+  if (p.remesh) { /* the simulation copies the discretization */
+    if ((st = ves_sim_set_remesh(r->sim, &p.discret, &p.remesh_policy)) != VES_OK) {
       fprintf(stderr, "vesica run: %s: [remesh]: %s\n", r->label, cli_why(st));
       return cli_exit_for(st);
     }

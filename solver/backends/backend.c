@@ -1,28 +1,23 @@
-/* vesica — the table of step backends and their common options (DESIGN.md §3). */
+/* vesica — the table of step backends and their common options (docs/design.md, "Backends"). */
 #include "ves/backend.h"
 
 #include <string.h>
 
-void ves_backend_options_from_config(const ves_config *cfg, ves_backend_options *opt) {
-  if (!cfg || !opt) return;
-  opt->tol = cfg->tol;
-  opt->ctol = cfg->ctol;
-  opt->max_iter = cfg->max_iter;
-  opt->max_builds = cfg->max_builds;
-  opt->max_correction = cfg->max_correction;
-  opt->freeze_hessian = cfg->freeze_hessian;
-  opt->factor_single = strcmp(cfg->factor_precision, "double") != 0;
-  opt->verbose = 0;
-}
-
-/* Defaults: the problem file's, from config.c's table of keys (KKT residual
- * 1e-9 relative, constraints 1e-10 of their targets, 40 iterations, newton's
- * Hessian frozen within a step; quiet). */
+/* Defaults: the problem file's [solver] keys (vesica keys lists them;
+ * test_config checks that the two agree): KKT residual 1e-9 relative,
+ * constraints 1e-10 of their targets, 40 iterations a step, no build or
+ * correction limit, newton's Hessian frozen within a step, the KKT matrix
+ * factorized in single precision; quiet. */
 void ves_backend_options_default(ves_backend_options *opt) {
   if (!opt) return;
-  ves_config cfg;
-  ves_config_default(&cfg);
-  ves_backend_options_from_config(&cfg, opt);
+  *opt = (ves_backend_options){.tol = 1e-9,
+                               .ctol = 1e-10,
+                               .max_iter = 40,
+                               .max_builds = 0,
+                               .max_correction = 0.0,
+                               .freeze_hessian = 1,
+                               .factor_single = 1,
+                               .verbose = 0};
 }
 
 const char *ves_backend_limit_key(int limit) {

@@ -1,4 +1,6 @@
-/* vesica — building the initial discrete state from a configuration. */
+/* vesica — the setup stage (setup.h): the nodes adapted to a shape, the
+ * quadrature and LME tables, the least-squares phi0 coefficients and the
+ * model, built once per problem (docs/design.md, "Discretization"). */
 #include "ves/setup.h"
 
 #include "ves/project.h"
@@ -6,8 +8,6 @@
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
-#include <string.h>
-#include <strings.h>
 #include <time.h>
 #include "core/clock_impl.h"
 
@@ -30,87 +30,47 @@ void ves_setup_destroy(ves_setup **s) {
     goto fail;                                                                                     \
   } while (0)
 
-/* The shape stage of the setup (setup.h). */
-ves_status ves_setup_shape(const ves_config *cfg, ves_shape **shape, char *err, size_t errlen) {
-  VES_CHECK(cfg && shape && err && errlen, VES_ERR_ARG);
-  *shape = NULL;
-  ves_status st;
-  double *cpts = NULL;
-  ves_shape_params sp;
-  ves_shape_params_default(&sp);
-  if (!strcasecmp(cfg->shape_type, "sphere"))
-    sp.kind = VES_SHAPE_SPHERE;
-  else if (!strcasecmp(cfg->shape_type, "spheroid"))
-    sp.kind = VES_SHAPE_SPHEROID;
-  else if (!strcasecmp(cfg->shape_type, "curve"))
-    sp.kind = VES_SHAPE_CURVE;
-  else
-    sp.kind = VES_SHAPE_DISCOCYTE;
-  if (sp.kind == VES_SHAPE_CURVE) {
-    if ((st = ves_config_read_points(cfg, &sp.npts, &cpts, err, errlen)) != VES_OK) goto fail;
-    sp.pts = cpts;
-  }
-  sp.radius = cfg->radius;
-  sp.v = cfg->reduced_volume;
-  sp.prolate = !strcasecmp(cfg->orientation, "prolate");
-  sp.mode = cfg->mode;
-  sp.delta = cfg->delta;
-  st = ves_shape_create(&sp, shape);
-  free(cpts);
-  cpts = NULL;
-  if (st == VES_ERR_GEOM && sp.kind == VES_SHAPE_CURVE) /* bad input: exit code 2 */
-    FAIL(VES_ERR_CONFIG,
-         "[shape] points = %s: the spline through the points crosses the axis (R < 0 between "
-         "the poles) or encloses no volume; add points along its longest segments",
-         cfg->points);
-  if (st != VES_OK) FAIL(st, "shape: %s", ves_error_text(st));
-  return VES_OK;
-fail:
-  free(cpts);
-  return st;
-}
-
-/* The node set of cfg's discretization adapted to a shape: the band and
+/* The node set of the discretization d adapted to a shape: the band and
  * box check, the sizing field, the interface-aligned band layers and
  * ves_nodes_generate (used by the setup and by a remeshing, remesh.h). */
-ves_status ves_setup_nodes(const ves_config *cfg, const ves_shape *shape, ves_sizing **sizing,
+ves_status ves_setup_nodes(const ves_discret_params *d, const ves_shape *shape, ves_sizing **sizing,
                            ves_nodes **nodes, char *err, size_t errlen) {
-  VES_CHECK(cfg && shape && sizing && nodes && err && errlen, VES_ERR_ARG);
+  VES_CHECK(d && shape && sizing && nodes && err && errlen, VES_ERR_ARG);
   *sizing = NULL, *nodes = NULL;
   ves_status st;
   double *bx = NULL;
   int *bflag = NULL;
   /* the refined band (and its layers) must fit in the box with a spacing to spare */
-  double rmax, zmax, margin = (cfg->band + 1) * cfg->epsilon;
+  double rmax, zmax, margin = (d->band + 1) * d->eps;
   ves_shape_extent(shape, &rmax, &zmax);
-  if (rmax + margin >= cfg->box_r || zmax + margin >= cfg->box_z)
+  if (rmax + margin >= d->box_r || zmax + margin >= d->box_z)
     FAIL(
         VES_ERR_CONFIG,
         "[geometry] box_r = %g, box_z = %g: the shape (R up to %.3f, |Z| up to %.3f) with its band "
         "of (band + 1) eps = %.3f does not fit",
-        cfg->box_r, cfg->box_z, rmax, zmax, margin);
+        d->box_r, d->box_z, rmax, zmax, margin);
 
   /* band layers: lattice layers up to band*eps; strip and CVT nodes keep half
    * a layer spacing beyond the last layer */
-  double hb = cfg->h_band * cfg->epsilon, dl = 0.5 * sqrt(3.0) * hb;
-  double halfwidth = cfg->band * cfg->epsilon;
-  double reserve = cfg->band_layers ? (floor(halfwidth / dl + 1e-9) + 0.5) * dl + 0.25 * hb : 0.0;
-  ves_sizing_params zp = {.eps = cfg->epsilon,
+  double hb = d->h_band * d->eps, dl = 0.5 * sqrt(3.0) * hb;
+  double halfwidth = d->band * d->eps;
+  double reserve = d->band_layers ? (floor(halfwidth / dl + 1e-9) + 0.5) * dl + 0.25 * hb : 0.0;
+  ves_sizing_params zp = {.eps = d->eps,
                           .h_band = hb,
-                          .band = cfg->band,
-                          .slope = cfg->slope,
-                          .h_far = cfg->h_far,
+                          .band = d->band,
+                          .slope = d->slope,
+                          .h_far = d->h_far,
                           .reserve = reserve};
-  if ((st = ves_sizing_create(shape, &zp, cfg->box_r, cfg->box_z, sizing)) != VES_OK)
+  if ((st = ves_sizing_create(shape, &zp, d->box_r, d->box_z, sizing)) != VES_OK)
     FAIL(st, "sizing: %s", ves_error_text(st));
   ves_nodes_params np;
   ves_nodes_params_default(&np);
-  np.LR = cfg->box_r, np.LZ = cfg->box_z;
+  np.LR = d->box_r, np.LZ = d->box_z;
   np.h = ves_sizing_eval, np.h_ctx = *sizing;
-  np.axis_spacings = cfg->axis_spacings;
-  np.lloyd_iter = cfg->lloyd_iterations;
-  np.seed = (unsigned)cfg->seed;
-  if (cfg->band_layers) {
+  np.axis_spacings = d->axis_spacings;
+  np.lloyd_iter = d->lloyd_iterations;
+  np.seed = (unsigned)d->seed;
+  if (d->band_layers) {
     if ((st = ves_shape_band_nodes(shape, hb, halfwidth, &np.nfixed, &bx, &bflag)) != VES_OK)
       /* a fold of the offset curves is bad input (the band is too wide for
        * the shape), not a failure of the numerics: exit code 2 */
@@ -134,37 +94,42 @@ fail:
   return st;
 }
 
-/* Longer than most functions, on purpose: one pipeline (shape, nodes,
- * quadrature, tables, projection, model) with one cleanup exit (STYLE.md
- * §4); each stage's message names the stage, and helpers would only pass
- * the half-built objects around. */
-ves_status ves_setup_create(const ves_config *cfg, ves_phi0_method method, ves_setup **out,
+/* Longer than most functions, on purpose: one pipeline (nodes, quadrature,
+ * tables, projection, model) with one cleanup exit that frees what a
+ * failure half-way made; each stage's message names the stage, and helpers
+ * would only pass the half-built objects around. */
+ves_status ves_setup_create(const ves_discret_params *d, ves_shape *shape,
+                            const ves_model_params *mp, ves_phi0_method method, ves_setup **out,
                             char *err, size_t errlen) {
-  VES_CHECK(cfg && out && err && errlen, VES_ERR_ARG);
+  if (!(d && shape && mp && out && err && errlen)) {
+    ves_shape_destroy(&shape); /* taken, on failure too */
+    VES_FAIL(VES_ERR_ARG, "failed: d && shape && mp && out && err && errlen");
+  }
   *out = NULL;
   ves_error_clear(); /* err names the record of this setup's failure (status.h) */
   double t0 = ves_wall_seconds(), t;
   ves_status st;
   double *f = NULL;
   ves_setup *s = calloc(1, sizeof *s);
-  if (!s) return VES_ERR_ALLOC;
-
-  if ((st = ves_setup_shape(cfg, &s->shape, err, errlen)) != VES_OK) goto fail;
+  if (!s) {
+    ves_shape_destroy(&shape);
+    return VES_ERR_ALLOC;
+  }
+  s->shape = shape;
+  if (mp->eps != d->eps)
+    FAIL(VES_ERR_ARG, "setup: the model's eps %g is not the discretization's %g", mp->eps, d->eps);
+  if (ves_quad_rule_npt(d->rule) == 0) FAIL(VES_ERR_ARG, "setup: not a quadrature rule");
   ves_shape_sharp(s->shape, &s->area_sharp, &s->volume_sharp);
   t = ves_wall_seconds();
-  if ((st = ves_setup_nodes(cfg, s->shape, &s->sizing, &s->nodes, err, errlen)) != VES_OK)
-    goto fail;
+  if ((st = ves_setup_nodes(d, s->shape, &s->sizing, &s->nodes, err, errlen)) != VES_OK) goto fail;
   s->seconds_nodes = ves_wall_seconds() - t;
 
   t = ves_wall_seconds();
-  ves_quad_rulespec rule;
-  if (ves_quad_rule_parse(cfg->quadrature, &rule) != VES_OK)
-    FAIL(VES_ERR_CONFIG, "[geometry] quadrature = %s: not a rule", cfg->quadrature);
-  if ((st = ves_quad_create_rule(s->nodes, rule, &s->quad)) != VES_OK)
+  if ((st = ves_quad_create_rule(s->nodes, d->rule, &s->quad)) != VES_OK)
     FAIL(st, "quadrature: %s", ves_error_text(st));
   ves_lme_params lp;
   ves_lme_params_default(&lp);
-  lp.gamma = cfg->gamma, lp.tol0 = cfg->support_tol;
+  lp.gamma = d->gamma, lp.tol0 = d->support_tol;
   if ((st = ves_quad_tables(s->quad, s->nodes, &lp, &s->qinfo)) != VES_OK)
     FAIL(st, "LME tables: %s", ves_error_text(st));
   s->seconds_tables = ves_wall_seconds() - t;
@@ -178,12 +143,11 @@ ves_status ves_setup_create(const ves_config *cfg, ves_phi0_method method, ves_s
     /* phi0 at the nodes and points: independent evaluations of a read-only
      * shape (each a search over the curve's samples), on the OpenMP threads */
 #pragma omp parallel for schedule(static)
-  for (int a = 0; a < n; a++)
-    s->phi0c[a] = ves_shape_phi0(s->shape, cfg->epsilon, s->nodes->x + 2 * a);
+  for (int a = 0; a < n; a++) s->phi0c[a] = ves_shape_phi0(s->shape, d->eps, s->nodes->x + 2 * a);
   if (method == VES_PHI0_L2) {
 #pragma omp parallel for schedule(static)
     for (int p = 0; p < s->quad->nq; p++)
-      f[p] = ves_shape_phi0(s->shape, cfg->epsilon, s->quad->x + 2 * p);
+      f[p] = ves_shape_phi0(s->shape, d->eps, s->quad->x + 2 * p);
     /* sparse Cholesky + at most 3 refinement steps (proj_refinements counts
      * them); 1e-12: the fit error then sits far below the discretization error */
     st = ves_project_l2(s->quad, n, f, s->phi0c, 1e-12, 3, &s->proj_refinements, &s->proj_residual);
@@ -194,14 +158,7 @@ ves_status ves_setup_create(const ves_config *cfg, ves_phi0_method method, ves_s
   }
   s->seconds_project = ves_wall_seconds() - t;
 
-  ves_model_params mp = {.eps = cfg->epsilon,
-                         .c0 = cfg->c0,
-                         .k = cfg->k,
-                         .mu = cfg->mu,
-                         .lambda = cfg->lambda_ratio * cfg->mu,
-                         .drift = cfg->drift_damping,
-                         .stab = cfg->stabilization};
-  if ((st = ves_model_create(s->nodes, s->quad, s->phi0c, &mp, &s->model)) != VES_OK)
+  if ((st = ves_model_create(s->nodes, s->quad, s->phi0c, mp, &s->model)) != VES_OK)
     FAIL(st, "model: %s", ves_error_text(st));
   s->seconds_total = ves_wall_seconds() - t0;
   free(f);

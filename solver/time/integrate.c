@@ -1,59 +1,25 @@
-/* vesica — the variational time integrator: y^{n+1} = argmin of
- * (1/2)(y - y^n)^T K(y^n)(y - y^n) + dt E(y) subject to the constraints,
- * one step at a time (paper Sec. 3.2, Eq. 11).
- *
- * Acceptance: the backend converged (VES_OK), and E(y^{n+1}) <= E(y^n)
- * (+ rounding) whenever y^n was feasible for the step, i.e. no protocol
- * changed C0 or the volume target during it. For the variational backends
- * this always holds at a minimizer (dt E(y^{n+1}) <= f(y^{n+1}) <= f(y^n) =
- * dt E(y^n)); for explicit Euler a rise is its instability (the exact flow
- * dissipates), and rejecting it keeps the adaptive controller at Euler's
- * stability limit instead of letting the run blow up (measured before:
- * problems/oblate.ini, E* 7.94 -> 175 by t* = 0.013). A rejected step is
- * retried with dt/2 down to dt_min.
- *
- * Adaptivity (paper Sec. 4, Fig. 4): dt_next = dt * clamp(dE_target / |dE|,
- * 1/2, growth_max), not grown when the backend needed more than iter_target
- * iterations (for nlopt, Hessians: ves_backend_type.hard_by_hessians; by
- * its AUGLAG iterations, 11-18 a step, it never grew dt past 20 on the
- * oblate at dt* 10-1e3, where newton's 4-8 grew it to 1e3) or
- * (factor_target > 0, a frozen Hessian) more than
- * factor_target KKT factorizations (newton's matrix builds with their
- * inertia corrections: the chord needed fresh matrices, the sign that a
- * larger step will need more; bench/RESULTS.md, session 20; with
- * freeze_hessian 0 every iteration factorizes and the iteration rule is the
- * one that counts), capped by dt_max and by the next protocol event, and
- * for retry_memory accepted steps after a rejected attempt at dt_r by
- * retry_cap dt_r. Without that memory the controller regrew dt right after a retry
- * and the next attempt failed again: every other step of the prolate C0
- * run was a rejected attempt (160-390 s each, Newton damped by inertia
- * corrections of up to 1e6 K: at those dt the step problem is not convex,
- * E having 6-8 directions of negative curvature while the vesicle buds)
- * against 20-40 s for the accepted ones.
- * With factor_shrink > 0 a step that needed more than factor_shrink
- * factorizations makes the next at most dt/2 (off by default): in the eps
- * 0.01 prolate's bud phase a 6-factorization step at dt* 0.0205 was
- * followed by a rejected attempt at the same dt (40 iterations, 28
- * Hessians, 301 s); with factor_shrink 4 the same t* span cost 1.7x less,
- * while at eps 0.04 the same rule cost 10% more (bench/RESULTS.md, session
- * 24). Such a step is also remembered as a rejection at its dt (retry_memory
- * accepted steps at most retry_cap dt): without it the eps 0.01 prolate's
- * neck phase cycled dt* 0.0036 -> 0.0072 (3-5 factorizations, 40-50 s) ->
- * 0.0036, every fourth step a hard one (bench/RESULTS.md, session 32).
- * When C0
- * switches, dt starts again from dt_initial (no larger than it was): the
- * step grown on the old landscape is far too large for the new one (measured:
- * a stomatocyte relaxed to dt* = 0.48, then a C0 pulse; Newton failed at
- * 0.48 and the halvings cost ~100 s each, 100 iterations apiece).
- *
- * Reconnection (paper Sec. 3.3; DESIGN.md §4): after an accepted step, when
- * ves_reconnect_due says so, the current y becomes the new reference
- * (ves_reconnect_create). The sparsity pattern changes with the neighbour
- * lists, so the step problem and the backend state (Newton/Euler hold a
- * MUMPS analysis, Ipopt asks for the structure once) are rebuilt on the new
- * model. They are built before the old ones are freed, so that a failure at
- * any point leaves the simulation on its old reference, untouched. The
- * number of free dofs does not change (same nodes, same fixed dofs). */
+/* vesica — the variational time integrator (paper Sec. 3.2, Eq. 11), one
+ * step at a time:
+ *   y^{n+1} = argmin_y (1/2)(y - y^n)^T K(y^n) (y - y^n) + dt E(y)
+ *             subject to A(y) = A0, V(y) = V_target(t^{n+1}).
+ * A step is accepted when the backend converged and E(y^{n+1}) <= E(y^n)
+ * (+ rounding) whenever y^n was feasible for it (no protocol change during
+ * the step): a minimizer has dt E(y^{n+1}) <= f(y^{n+1}) <= f(y^n), so a
+ * rise is explicit Euler's instability, and rejecting it keeps the step
+ * size at Euler's stability limit. A rejected step is retried at dt/2 down
+ * to dt_min. The step size (paper Sec. 4, Fig. 4):
+ *   dt_next = dt clamp(dE_target / |dE|, 1/2, growth_max),
+ * not grown after a hard step (more than iter_target iterations, nlopt's
+ * counted in Hessians, or factor_target factorizations), at most dt/2 after
+ * factor_shrink factorizations, capped by dt_max, by the next protocol
+ * event and, for retry_memory accepted steps after a rejection at dt_r, by
+ * retry_cap dt_r; a switch of C0 starts again from dt_initial. After an
+ * accepted step a reset of the reference (paper Sec. 3.3, reconnect.h) or a
+ * remeshing (remesh.h) runs when due; the step problem and the backend are
+ * built on the new model before the old ones are freed, so a failure leaves
+ * the simulation on its old reference. Design: docs/design.md, "The time
+ * loop"; the measured reason for each rule: docs/results.md, "Robustness at
+ * large Δt". */
 #include "ves/integrate.h"
 
 #include <math.h>
@@ -97,8 +63,8 @@ struct ves_sim {
   long reset_step;                 /* the step of the last reset (0: none) */
   ves_remesh *mesh;                /* the last remeshing's reference (owned; NULL if none
                                       or a reset came after it) */
-  const ves_config *rcfg;          /* remeshing: the discretization keys (borrowed; NULL:
-                                      off, ves_sim_set_remesh) */
+  int remesh_on;                   /* 1: remeshing enabled (ves_sim_set_remesh) */
+  ves_discret_params rd;           /* remeshing: the discretization (a copy) */
   ves_remesh_policy rmp;           /* when to remesh */
   long rsince;                     /* accepted steps since the last remeshing (or t = 0) */
   long remesh_step;                /* the step of the last remeshing (0: none) */
@@ -233,11 +199,10 @@ static double volume_target(const ves_sim *s, double t);
 /* The step problem and the backend state (the step's matrices, the KKT
  * values and the factorization's workspace) are freed before a new
  * reference or mesh is built beside the old model, and restore_solver makes
- * them again on the old model when the new one fails. On the eps 0.02
- * prolate this took a reset's peak from 3.69 to 3.38 GB (bench/RESULTS.md,
- * "A reset's memory"); the old model's tables, kept as the fallback, still
- * coexist with the new ones (2.12 GB for the steps alone). A failed reset
- * or remeshing thus continues with a fresh factorization. */
+ * them again on the old model when the new one fails: a reset's peak memory
+ * is then the two models' tables without the step's matrices
+ * (docs/results.md, "Resets and remeshing"). A failed reset or remeshing
+ * thus continues with a fresh factorization. */
 static void release_solver(ves_sim *s) {
   if (s->bstate) s->backend->destroy(&s->bstate);
   ves_step_destroy(&s->step);
@@ -309,14 +274,14 @@ static ves_status switch_reference(ves_sim *s, ves_reconnect *nr, const ves_step
   return VES_OK;
 }
 
-/* Reset the reference to s->y (ves_reconnect.h) and switch to it. The
+/* Reset the reference to s->y (reconnect.h) and switch to it. The
  * positions continue from the new reference nodes (y with the nodes that
  * crossed the axis mirrored: the same motion); E, A, V are re-evaluated on
  * the new model (equal up to rounding). On failure s is unchanged. */
 static ves_status reconnect(ves_sim *s, const ves_step_params *sp) {
   /* nodes at y(X_a) keep their material, so phi there is carried over: fit
-   * it on the old reference if it never was (failure only means a refit on
-   * the new one, ves_sim_node_material) */
+   * it on the old reference if it is not fitted yet (failure only means a
+   * refit on the new one, ves_sim_node_material) */
   if (s->ip.reconnect_nodes == VES_RESET_NODES_MOTION && !s->node_phi_ok) (void)node_phi_fit(s);
   ves_reconnect *nr = NULL;
   release_solver(s);
@@ -396,7 +361,7 @@ static ves_status remesh(ves_sim *s, ves_remesh_info *info) {
   ves_remesh *nm = NULL;
   char err[256];
   release_solver(s);
-  ves_status st = ves_remesh_create(s->rcfg, s->model, s->y, &rp, &nm, err, sizeof err);
+  ves_status st = ves_remesh_create(&s->rd, s->model, s->y, &rp, &nm, err, sizeof err);
   if (st > 0) st = VES_OK; /* the correction short of ctol: its residuals are reported */
   if (st == VES_OK) ves_remesh_get_info(nm, info);
   if (st == VES_OK) {
@@ -488,8 +453,9 @@ const ves_remesh *ves_sim_remesh(const ves_sim *s) { return s ? s->mesh : NULL; 
  * 0 when not, or when the distortion cannot be measured (rep->remesh_status).
  * One that came due by rmp.every and failed is tried again every
  * max(1, every/4) steps: a function of the steps since the last remeshing
- * alone, which a restart recomputes, so restarts stay bit for bit (before,
- * after every step: ~16 s a step at eps 0.01 while it kept failing). */
+ * alone, which a restart recomputes, so restarts stay bit for bit; a
+ * remeshing that keeps failing then costs a quarter of the steps, not all of
+ * them (docs/results.md, "Resets and remeshing"). */
 static int remesh_due(ves_sim *s, ves_step_report *rep) {
   s->rsince++;
   if (s->rmp.every > 0 && s->rsince >= s->rmp.every) {
@@ -506,14 +472,15 @@ static int remesh_due(ves_sim *s, ves_step_report *rep) {
   return 0;
 }
 
-ves_status ves_sim_set_remesh(ves_sim *s, const ves_config *cfg, const ves_remesh_policy *pol) {
-  VES_CHECK(s && (!cfg || pol), VES_ERR_ARG);
-  if (cfg)
+ves_status ves_sim_set_remesh(ves_sim *s, const ves_discret_params *d,
+                              const ves_remesh_policy *pol) {
+  VES_CHECK(s && (!d || pol), VES_ERR_ARG);
+  if (d)
     VES_CHECK(pol->every >= 0 && (pol->cond_max == 0 || pol->cond_max > 1) && pol->det_min >= 0 &&
                   pol->det_min < 1,
               VES_ERR_ARG);
-  s->rcfg = cfg;
-  if (cfg) s->rmp = *pol;
+  s->remesh_on = d != NULL;
+  if (d) s->rd = *d, s->rmp = *pol;
   s->rsince = 0;
   return VES_OK;
 }
@@ -530,9 +497,9 @@ int ves_sim_remeshings(const ves_sim *s) { return s->remeshings; }
  * with its gradient, which the backend finds in the step's cache.
  * y^{n-1} survives a reset (ves_reconnect_carry: the old motion at the new
  * nodes) and a remeshing (ves_remesh_params.y_prev: the step's displacement
- * projected onto the new basis with phi); measured on problems/pearling.ini
- * at eps 0.04 (bench/RESULTS.md, session 31), the step after a reset took 3
- * iterations instead of 5-7. Only a change of C0 drops it. */
+ * projected onto the new basis with phi), so the step after a reset starts
+ * as close as any other (docs/results.md, "Resets and remeshing"). Only a
+ * change of C0 drops it. */
 static void predict(ves_sim *s, double dt, double lam[2]) {
   const ves_pattern *pat = ves_model_pattern(s->model);
   const double r = dt / s->dt_prev;
@@ -620,13 +587,12 @@ static void next_dt(ves_sim *s, double dt, double dE, int iterations, int factor
  * step stands whatever happens here (the outcomes are in rep). A remeshing
  * makes a new reference, so it replaces a reset due on the same step (a
  * step records at most one new reference: the file's references are
- * numbered by reset). A failed remeshing is tried again later (remesh_due);
- * until session 32 it was tried after every step and kept the resets from
- * running, so the reference aged while every step paid a failed remeshing
- * (~16 s a step at eps 0.01). sp: the step's parameters (a reset rebuilds
- * the step problem with them). */
+ * numbered by reset). A failed remeshing is tried again only later
+ * (remesh_due), so the resets keep running meanwhile and the steps do not
+ * each pay a failed remeshing (docs/results.md, "Resets and remeshing").
+ * sp: the step's parameters (a reset rebuilds the step problem with them). */
 static void after_step(ves_sim *s, const ves_step_params *sp, ves_step_report *rep) {
-  int remesh_now = s->rcfg && remesh_due(s, rep), tried = remesh_now;
+  int remesh_now = s->remesh_on && remesh_due(s, rep), tried = remesh_now;
   if (remesh_now) { /* due by its own rules */
     rep->remesh_status = remesh(s, &rep->remesh);
     if (rep->remesh_status == VES_OK) {
@@ -652,7 +618,7 @@ static void after_step(ves_sim *s, const ves_step_params *sp, ves_step_report *r
         rep->shift = info.shift_max;
       }
     }
-    remesh_now = s->rcfg && s->rmp.on_failed_reset && rep->reconnect_status < 0 &&
+    remesh_now = s->remesh_on && s->rmp.on_failed_reset && rep->reconnect_status < 0 &&
                  !tried; /* not twice in a step */
   }
   if (remesh_now) {
@@ -700,8 +666,8 @@ static void reject(ves_sim *s, double dt, ves_status st, int retries, ves_step_r
   rep->rejected.limit = rep->stats.limit;
 }
 
-/* One accepted step: attempts at dt, dt/2, ... until one is accepted. Still
- * ~75 lines: one attempt is set up, solved, checked and accepted or
+/* One accepted step: attempts at dt, dt/2, ... until one is accepted. It
+ * stays whole: one attempt is set up, solved, checked and accepted or
  * rejected in sequence over shared locals (dt, C0 and volume target of the
  * attempt, its multipliers); the parts with a meaning of their own are the
  * functions above. */
@@ -864,10 +830,10 @@ static const double *known_coefficients(const ves_sim *s) {
  * creation model's, a remeshing's), else (after a reset: the model has the
  * pushed-forward point values only) the L2 projection of the model's point
  * values of phi0 onto the reference's basis (ves_project_l2, as the setup
- * fits phi0), evaluated there. The projection of a field that lies in the
- * basis gives its coefficients back to the fit's tolerance (1e-12): before,
- * the first snapshot of every run refitted the setup's coefficients so, a
- * second L2 projection of ~2.5 s at eps 0.01 (bench/RESULTS.md, session 34). */
+ * fits phi0), evaluated there. The known coefficients spare that second
+ * projection, which would only give them back to the fit's tolerance (1e-12)
+ * at the cost of a setup's projection (docs/results.md, "Performance and its
+ * scaling"). */
 static ves_status node_phi_fit(ves_sim *s) {
   const ves_quad *q = ves_model_quad(s->model);
   const int n = s->n;

@@ -1,28 +1,14 @@
-/* vesica — reset of the reference configuration (paper Sec. 3.3, Fig. 2):
- * new nodes X' = y^a (or y(X_a), ves_reset_nodes), new LME tables at the moved points y(Xh),
- * weights w det F, point data of phi0 pushed forward (Eqs. 2-3), model rebuilt.
- *
- * Why E, A, V are preserved. Each is 2 pi sum_alpha w_alpha e(q_alpha),
- * e = f(phi0 data, F, G, r) det F r, and f depends on the point data and on
- * (F, G) only through the spatial derivatives of phi = phi0 o y^-1 (g and
- * the Laplacian, Eqs. 2-4). After the reset the motion is the identity:
- * y'(X') = sum_a p'_a(X') X'_a = X' by the affine reproduction of the new
- * basis (ghosts at (-r_a, z_a) carry the mirrored r, which is what the
- * identity needs there too), so F' = I, G' = 0 and r' = r at every point,
- * and the pushed-forward data are the spatial derivatives of phi at the same
- * material point. Hence e' = f det F r with w' = w det F, term by term.
- * The residual is that of the reproduction (the LME dual is solved to
- * |sum p (X - X_a)| <= 1e-14 h, the derivative rows are exact to ~1e-16)
- * plus rounding: measured in tests/test_reconnect.c.
- *
- * The assembly unit of the model (6 points of one triangle of the initial
- * Delaunay triangulation) stays: the points of a triangle remain neighbours
- * under a continuous motion, so the union of their node lists stays small,
- * and the model's slab partition and Morton order are recomputed from the
- * new node positions at create. */
+/* vesica — reset of the reference configuration (reconnect.h; paper Sec.
+ * 3.3, Fig. 2). E, A, V are preserved term by term: each is
+ * 2 pi sum_alpha w_alpha f(phi data, F, G, r) det F r, f depends on (F, G)
+ * only through the spatial derivatives of phi = phi0 o y^-1 (Eqs. 2-4), and
+ * after the reset y' = identity (F' = I, G' = 0, r' = r) with w' = w det F
+ * and the pushed-forward data those spatial derivatives; the residual is the
+ * LME reproduction error (~1e-14 h) plus rounding (tests/test_reconnect.c).
+ * The assembly unit (the points of one initial triangle) is kept: they stay
+ * neighbours under a continuous motion; the model's slab partition and
+ * Morton order are recomputed at create (docs/design.md, "The time loop"). */
 #include "ves/reconnect.h"
-
-#include "app/config.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -346,23 +332,21 @@ ves_status ves_reconnect_restore(const ves_model *m, const double *x, const doub
   return VES_OK;
 }
 
-/* Defaults: the problem file's [reconnect] keys (config.c's table of keys,
- * the one source): every criterion off, as vesica run has them. Thresholds
- * worth enabling: a motion with singular values sigma_1 >= sigma_2 seen from
- * the current configuration turns the basis functions p_a o y^-1 into
- * ellipses: beta_a |F^-1 (x - x_a)|^2 acts as an aspect ratio gamma / sigma^2
- * along each principal direction. DESIGN.md §2 measured gamma 0.6-0.8 good
- * and 1.8 useless for second derivatives; cond_max = 2 and det_min = 0.5 keep
- * sigma_2 >~ 1/sqrt2 (for det near 1 or a uniform compression), i.e. an
- * effective gamma / sigma_2^2 <~ 2 gamma = 1.6 at gamma = 0.8. These bounds
- * are reasoned, not tuned on runs (the paper's Fig. 5 run used every = 20). */
+/* Defaults: every criterion off, as the problem file's [reconnect] keys
+ * have them (test_config checks that the two agree). Thresholds worth
+ * enabling: a motion with singular values sigma_1 >= sigma_2 seen from the
+ * current configuration turns the basis functions p_a o y^-1 into ellipses,
+ * beta_a |F^-1 (x - x_a)|^2 acting as an aspect ratio gamma / sigma^2 along
+ * each principal direction; gamma 0.6-0.8 is good for second derivatives and
+ * 1.8 useless (docs/design.md, "Numerical choices and why"), so cond_max = 2
+ * and det_min = 0.5 keep sigma_2 >~ 1/sqrt2 and an effective gamma /
+ * sigma_2^2 <~ 1.6 at gamma = 0.8. These bounds are reasoned, not tuned on
+ * runs (the paper's Fig. 5 run resets every 20 steps). */
 void ves_reconnect_params_default(ves_reconnect_params *par) {
   if (!par) return;
-  ves_config cfg;
-  ves_config_default(&cfg);
-  par->every = cfg.reconnect_every;
-  par->cond_max = cfg.reconnect_cond_max;
-  par->det_min = cfg.reconnect_det_min;
+  par->every = 0;
+  par->cond_max = 0.0;
+  par->det_min = 0.0;
 }
 
 ves_status ves_reconnect_due(const ves_reconnect_params *par, const ves_model *m, const double *y,

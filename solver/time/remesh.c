@@ -378,6 +378,49 @@ static double tri_area(const ves_nodes *nd, const int v[3]) {
   return 0.5 * ((B[0] - A[0]) * (C[1] - A[1]) - (C[0] - A[0]) * (B[1] - A[1]));
 }
 
+/* The split each of the ncell cells (npc moved points xq, wq each) needs:
+ * split[t] = 0 (dense enough, or no triangle), 2 or 4 (the rule {4, s});
+ * counts in->proj_cells_refined and proj_cells_capped; returns the refined
+ * points' count. */
+static int cell_splits(const ves_nodes *od, const int *cells, int ncell, int npc, const double *xq,
+                       const double *wq, ves_sizing *sz, int *split, ves_remesh_info *in) {
+  int nr = 0;
+  for (int t = 0; t < ncell; t++) {
+    double am = 0, xc[2] = {0, 0};
+    for (int k = t * npc; k < (t + 1) * npc; k++)
+      am += wq[k], xc[0] += wq[k] * xq[2 * k], xc[1] += wq[k] * xq[2 * k + 1];
+    xc[0] /= am, xc[1] /= am;
+    const double h = ves_sizing_eval(xc, sz), need = CROSS_DENSITY * am / (h * h);
+    if (npc >= CROSS_THIN * am / (h * h)) continue;   /* dense enough */
+    if (!(tri_area(od, cells + 3 * t) > 0)) continue; /* no triangle to split */
+    split[t] = 6 * 4 >= need ? 2 : 4;
+    in->proj_cells_refined++;
+    if (6 * 16 < need) in->proj_cells_capped++;
+    nr += 6 * split[t] * split[t];
+  }
+  return nr;
+}
+
+/* The points xr and weights wr (measure dR dZ) of the refined cells in the
+ * reference: the rule bary[0], wb[0] ({4, 2}) or bary[1], wb[1] ({4, 4}) on
+ * each cell t with split[t] = 2 or 4, in cell order. */
+static void refined_points(const ves_nodes *od, const int *cells, int ncell, const int *split,
+                           double bary[2][3 * VES_QUAD_NPT_MAX], double wb[2][VES_QUAD_NPT_MAX],
+                           double *xr, double *wr) {
+  for (int t = 0, p = 0; t < ncell; t++) {
+    if (!split[t]) continue;
+    const int *v = cells + 3 * t, r = split[t] == 2 ? 0 : 1, npt = 6 * split[t] * split[t];
+    const double *A = od->x + 2 * v[0], *B = od->x + 2 * v[1], *C = od->x + 2 * v[2];
+    const double area = tri_area(od, v);
+    for (int k = 0; k < npt; k++, p++) {
+      const double *b = bary[r] + 3 * k;
+      xr[2 * p] = b[0] * A[0] + b[1] * B[0] + b[2] * C[0];
+      xr[2 * p + 1] = b[0] * A[1] + b[1] * B[1] + b[2] * C[1];
+      wr[p] = wb[r][k] * area;
+    }
+  }
+}
+
 /* The projection's points xo[2 np], weights wo[np] (w det F: the current
  * measure) and phi values fo[np]: the old points moved with the material,
  * except in the old cells the motion has spread too thin for the new basis
@@ -389,7 +432,9 @@ static double tri_area(const ves_nodes *nd, const int v[3]) {
  * field (coefficients c, old_coefficients) and motion evaluated there.
  * in->proj_cells_refined, proj_cells_capped (still too thin at s = 4),
  * proj_points_dropped (refined points the motion puts outside the domain),
- * proj_points report it; no cell refined: the old points exactly. */
+ * proj_points report it; no cell refined: the old points exactly. Kept
+ * whole (~100 lines) around one cleanup exit for the dozen buffers that
+ * change hands; the per-cell parts are cell_splits and refined_points. */
 static ves_status cross_points(const ves_model *m, const double *y, const double *c, ves_sizing *sz,
                                const double *dy, int *npo, double **xo, double **wo, double **fo,
                                double **dvo, ves_remesh_info *in) {
@@ -417,19 +462,7 @@ static ves_status cross_points(const ves_model *m, const double *y, const double
     st = VES_ERR_ALLOC;
     goto done;
   }
-  for (int t = 0; t < ncell; t++) { /* the split each cell needs */
-    double am = 0, xc[2] = {0, 0};
-    for (int k = t * npc; k < (t + 1) * npc; k++)
-      am += wq[k], xc[0] += wq[k] * xq[2 * k], xc[1] += wq[k] * xq[2 * k + 1];
-    xc[0] /= am, xc[1] /= am;
-    const double h = ves_sizing_eval(xc, sz), need = CROSS_DENSITY * am / (h * h);
-    if (npc >= CROSS_THIN * am / (h * h)) continue;   /* dense enough */
-    if (!(tri_area(od, cells + 3 * t) > 0)) continue; /* no triangle to split */
-    split[t] = 6 * 4 >= need ? 2 : 4;
-    in->proj_cells_refined++;
-    if (6 * 16 < need) in->proj_cells_capped++;
-    nr += 6 * split[t] * split[t];
-  }
+  nr = cell_splits(od, cells, ncell, npc, xq, wq, sz, split, in);
   if (!in->proj_cells_refined) goto done;
 
   /* the refined cells' points in the reference, then the old field there */
@@ -443,18 +476,7 @@ static ves_status cross_points(const ves_model *m, const double *y, const double
     st = VES_ERR_ALLOC;
     goto done;
   }
-  for (int t = 0, p = 0; t < ncell; t++) {
-    if (!split[t]) continue;
-    const int *v = cells + 3 * t, r = split[t] == 2 ? 0 : 1, npt = 6 * split[t] * split[t];
-    const double *A = od->x + 2 * v[0], *B = od->x + 2 * v[1], *C = od->x + 2 * v[2];
-    const double area = tri_area(od, v);
-    for (int k = 0; k < npt; k++, p++) {
-      const double *b = bary[r] + 3 * k;
-      xr[2 * p] = b[0] * A[0] + b[1] * B[0] + b[2] * C[0];
-      xr[2 * p + 1] = b[0] * A[1] + b[1] * B[1] + b[2] * C[1];
-      wr[p] = wb[r][k] * area;
-    }
-  }
+  refined_points(od, cells, ncell, split, bary, wb, xr, wr);
   if ((st = ves_quad_create_points(nr, xr, wr, 0, NULL, &pq)) != VES_OK ||
       (st = ves_quad_tables(pq, od, &oq->lme, NULL)) != VES_OK)
     goto done;
@@ -462,12 +484,10 @@ static ves_status cross_points(const ves_model *m, const double *y, const double
   /* the refined points moved (pq's weights are wr). Unlike the model's own
    * points, nothing has checked the motion between them: where a cell
    * touches the axis and the motion stretches it along a tether, points
-   * within a few 1e-3 of the axis can come out at r < 0 or det F <= 0
-   * (measured: 32 of 49,944 at r < 0, down to -1.3e-4, 11 of them also at
-   * det F <= 0, in the eps 0.01 Fig. 5 right run at t* 0.74; every
-   * remeshing then failed). They have no
-   * current measure and are left out of the fit (proj_points_dropped);
-   * more than a tenth of them fails the remeshing. */
+   * within a few 1e-3 of the axis can come out at r < 0 or det F <= 0 (a
+   * few dozen of ~5e4 in a tether at eps 0.01: docs/results.md, "Resets and
+   * remeshing"). They have no current measure and are left out of the fit
+   * (proj_points_dropped); more than a tenth of them fails the remeshing. */
   double *xm = malloc(2 * (size_t)nr * sizeof *xm), *wm = malloc((size_t)nr * sizeof *wm);
   double *dm = dy ? malloc(2 * (size_t)nr * sizeof *dm) : NULL;
   unsigned char *okm = malloc((size_t)nr);
@@ -588,11 +608,11 @@ static ves_status correct(ves_remesh *r, const ves_remesh_params *par, double *g
 
 /* Longer than most functions, on purpose: one pipeline (interface, new
  * nodes, quadrature and tables, projection, correction) with one cleanup
- * exit (STYLE.md §4), as ves_setup_create. */
-ves_status ves_remesh_create(const ves_config *cfg, ves_model *m, const double *y,
+ * exit that frees what a failure half-way made, as ves_setup_create. */
+ves_status ves_remesh_create(const ves_discret_params *dp, ves_model *m, const double *y,
                              const ves_remesh_params *par, ves_remesh **out, char *err,
                              size_t errlen) {
-  VES_CHECK(cfg && m && y && par && out && err && errlen, VES_ERR_ARG);
+  VES_CHECK(dp && m && y && par && out && err && errlen, VES_ERR_ARG);
   *out = NULL;
   ves_error_clear(); /* err names the record of this remeshing's failure (status.h) */
   const double t0 = ves_wall_seconds();
@@ -608,8 +628,8 @@ ves_status ves_remesh_create(const ves_config *cfg, ves_model *m, const double *
   if (!r) return VES_ERR_ALLOC;
   ves_remesh_info *in = &r->info;
   in->n_old = od->n, in->nq_old = oq->nq;
-  if (cfg->box_r != od->LR || cfg->box_z != od->LZ)
-    FAIL(VES_ERR_ARG, "remesh: the box %g x %g is not the model's %g x %g", cfg->box_r, cfg->box_z,
+  if (dp->box_r != od->LR || dp->box_z != od->LZ)
+    FAIL(VES_ERR_ARG, "remesh: the box %g x %g is not the model's %g x %g", dp->box_r, dp->box_z,
          od->LR, od->LZ);
   for (int i = 0; i < 2 * od->n; i++)
     if (!isfinite(y[i])) FAIL(VES_ERR_ARG, "remesh: a non-finite position");
@@ -634,8 +654,8 @@ ves_status ves_remesh_create(const ves_config *cfg, ves_model *m, const double *
     FAIL(st, "remesh: interface: %s (no zero line of phi from pole to pole)", ves_error_text(st));
   if (pieces != 1)
     FAIL(VES_ERR_GEOM, "remesh: the interface has %d pieces (one vesicle only)", pieces);
-  if ((st = resample(np, poly, par->curve_spacing * cfg->epsilon, &nk, &knots,
-                     &in->curve_length)) != VES_OK)
+  if ((st = resample(np, poly, par->curve_spacing * dp->eps, &nk, &knots, &in->curve_length)) !=
+      VES_OK)
     FAIL(st, "remesh: %s", ves_error_text(st));
   in->curve_points = nk;
   ves_shape_params sp;
@@ -651,10 +671,10 @@ ves_status ves_remesh_create(const ves_config *cfg, ves_model *m, const double *
    * tightly than band*eps (a neck, a thin tube, a small pearl) they fold, and
    * the band is then filled as the setup fills it without layers (CVT with the
    * same sizing) rather than refusing the remeshing */
-  in->band_layers = cfg->band_layers;
-  st = ves_setup_nodes(cfg, r->shape, &sizing, &gen, err, errlen);
-  if (st == VES_ERR_CONFIG && cfg->band_layers) {
-    ves_config c = *cfg;
+  in->band_layers = dp->band_layers;
+  st = ves_setup_nodes(dp, r->shape, &sizing, &gen, err, errlen);
+  if (st == VES_ERR_CONFIG && dp->band_layers) {
+    ves_discret_params c = *dp;
     c.band_layers = 0, in->band_layers = 0;
     st = ves_setup_nodes(&c, r->shape, &sizing, &gen, err, errlen);
   }
