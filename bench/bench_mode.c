@@ -86,6 +86,7 @@ static double moment(const ves_setup *s, const double *ps, int l) {
   return Q;
 }
 
+/* Kept whole (97 lines): the option parsing, the runs and the table they print, in order. */
 int main(int argc, char **argv) {
   ves_blas_core_fix(argv); /* OpenBLAS's kernels (blas_core_impl.h) */
   setvbuf(stdout, NULL, _IOLBF, 0);

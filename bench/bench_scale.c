@@ -72,7 +72,8 @@ typedef struct {
   int retries;                                            /* halvings over the NSTEPS steps */
 } row;
 
-/* Everything after the setup: the model, the KKT factorization and the steps. */
+/* Everything after the setup: the model, the KKT factorization and the steps.
+ * Kept whole (168 lines): one computation over shared buffers with one exit. */
 static int measure(const ves_config *cfg, ves_setup *s, int nsteps, row *r) {
   ves_model *m = s->model;
   const ves_pattern *pat = ves_model_pattern(m);
@@ -242,6 +243,7 @@ done:
   return rc;
 }
 
+/* Kept whole (81 lines): the option parsing, the runs and the table they print, in order. */
 int main(int argc, char **argv) {
   ves_blas_core_fix(argv); /* OpenBLAS's kernels (blas_core_impl.h) */
   const char *hdr = getenv("BENCH_HEADER");

@@ -118,6 +118,7 @@ static void print_row(const row *r) {
   fflush(stdout);
 }
 
+/* Kept whole (147 lines): the option parsing, the runs and the table they print, in order. */
 int main(int argc, char **argv) {
   ves_blas_core_fix(argv); /* OpenBLAS's kernels (blas_core_impl.h) */
   setvbuf(stdout, NULL, _IOLBF, 0);

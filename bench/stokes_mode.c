@@ -705,7 +705,8 @@ static int cmp_th(const void *a, const void *b) {
 /* Square box Rb = Zb.  N = cells on a quarter of the half circle (even).
  * Blocks: inner half-square [0,a]x[-a,a]; three inner ring blocks square ->
  * circle; three outer blocks circle -> box (top wall, side wall, bottom wall),
- * radially graded; arc breakpoints at th = pi/4, 3pi/4 (box corners). */
+ * radially graded; arc breakpoints at th = pi/4, 3pi/4 (box corners).
+ * Kept whole (214 lines): one computation over shared buffers with one exit. */
 static Mesh mesh_build(double Rb, int N, int Kout) {
   const double a = 0.5, q = M_PI / 4, q3 = 3 * M_PI / 4;
   const double sq = sqrt(0.5);
@@ -1147,6 +1148,7 @@ typedef struct {
  * (if Sg and Sg[c]): the tension dofs (inextensible membrane). */
 static int fe_solve_ext(const Mesh *M, Form F, int nrhs, const int *loads, double **gD,
                         double **bext, double **U, double **Sg, SolveInfo *info);
+/* Kept whole (216 lines): one computation over shared buffers with one exit. */
 static int fe_solve_ext(const Mesh *M, Form F, int nrhs, const int *loads, double **gD,
                         double **bext, double **U, double **Sg, SolveInfo *info) {
   double t0 = now_sec();
@@ -1450,6 +1452,7 @@ static double order3(double a, double b, double c) /* observed order from 3 valu
   return log(fabs(d1 / d2)) / log(2.0);
 }
 
+/* Kept whole (100 lines): one computation over shared buffers with one exit. */
 static void section_analytic(void) {
   printf("\n## A. Analytic mobility, unbounded space (R = mu = k = 1, kappa = k/4)\n\n");
   Fluid inc = {1.0, 0.0, 1}, c100 = {1.0, 100.0, 0};
@@ -1551,7 +1554,8 @@ static void section_analytic(void) {
   printf("  (l = 1 has zero stiffness; listed for the mobility only)\n");
 }
 
-/* B: solver verification against the exact unbounded solution imposed on the walls */
+/* B: solver verification against the exact unbounded solution imposed on the walls
+ * Kept whole (90 lines): one computation over shared buffers with one exit. */
 static void section_verify(int nmax) {
   printf("\n## B. Verification: exact unbounded Lamb solution imposed as Dirichlet data on the "
          "box-3 walls\n");
@@ -1884,7 +1888,8 @@ static void tension_mass(const Mesh *M, int tdeg, double *Ms) {
  * ratios sup_v b(sigma,v)^2 / (a(v,v) |sigma|^2_L2) of the eigenvectors. A
  * stable pair: the lowest eigenvalues converge under refinement to those of the
  * continuous operator (smooth eigenvectors, dominant low l); a spurious tension
- * mode: an eigenvalue -> 0 with an oscillating eigenvector. */
+ * mode: an eigenvalue -> 0 with an oscillating eigenvector.
+ * Kept whole (115 lines): one computation over shared buffers with one exit. */
 static void section_stability(int nmax) {
   printf("\n## S. Stability of the tension discretization: spectrum of the tension Schur "
          "complement S = B A^-1 B^T\n");
@@ -2053,6 +2058,7 @@ static void section_compare(int nmax) {
          M_closed_inext_comp(3, 100) / M_closed_comp(3, 100));
 }
 
+/* Kept whole (94 lines): the option parsing, the runs and the table they print, in order. */
 int main(int argc, char **argv) {
   int nmax = 64, nverify = 32, nbig = 16, nstab = 32;
   int do_a = 1, do_b = 1, do_c = 1, do_d = 1, do_s = -1, do_e = -1;

@@ -158,7 +158,8 @@ static int brute(int n, const double *x, const double *r, const double *X, int *
 }
 
 /* Search with radii spread by 20x equals brute force exactly; count > cap;
- * candidates near a centre filtered at points around it; errors. */
+ * candidates near a centre filtered at points around it; errors.
+ * Kept whole (105 lines): one scenario whose checks build on each other. */
 static void test_search(void **state) {
   (void)state;
   enum { N = 2002, Q = 1000 };
@@ -286,7 +287,8 @@ static double now(void) {
 /* Percentile p in [0, 1] of a sorted array. */
 static double pct(const double *v, int n, double p) { return v[(int)floor(p * (n - 1) + 0.5)]; }
 
-/* The adapted node set for a sphere: spacing, walls, corners, axis regularity, ghosts. */
+/* The adapted node set for a sphere: spacing, walls, corners, axis regularity, ghosts.
+ * Kept whole (153 lines): one scenario whose checks build on each other. */
 static void test_nodes_sphere(void **state) {
   (void)state;
   sphere_sizing sz = {0.04, 0.02, 0.15, 0.2};

@@ -70,7 +70,8 @@ static int teardown_tables(void **state) {
 /* The pattern is exactly the set of pairs b <= a that share a point
  * (brute force over a dense n x n map); dof numbering, triplets, extract and
  * symv against a dense matrix over the free dofs; the same arrays with 1 and
- * 2 threads; with a second point set, the union. */
+ * 2 threads; with a second point set, the union.
+ * Kept whole (147 lines): one scenario whose checks build on each other. */
 static void test_pattern(void **state) {
   const fixture *fx = *state;
   const ves_quad *q = fx->q;

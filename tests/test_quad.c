@@ -327,7 +327,8 @@ static ves_status tables_on(int k, ves_quad *q, const ves_nodes *nodes, const ve
  * passed from point to point of a triangle, 0 at its first (for points
  * without triangles, 0 at every point). A point outside the nodes' hull
  * fails with the same status for any thread count, leaving no tables.
- * ves_quad_field gives the same values with 1 and 2 threads. */
+ * ves_quad_field gives the same values with 1 and 2 threads.
+ * Kept whole (100 lines): one scenario whose checks build on each other. */
 static void test_tables_threads(void **state) {
   (void)state;
   double eps = 0.1;

@@ -1141,7 +1141,8 @@ static void test_restore(void **state) {
   free(pd), free(y2), free(g1), free(g2), free(h), free(x);
 }
 
-/* Error paths of the reset and the distortion measure. */
+/* Error paths of the reset and the distortion measure.
+ * Kept whole (100 lines): one scenario whose checks build on each other. */
 static void test_errors(void **state) {
   (void)state;
   ves_model *m = P->su->model;

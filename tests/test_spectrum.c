@@ -120,7 +120,8 @@ static void project_dense(int n, int m, double *QR, const double *tau, double *D
  * eigenvalues converges to rounding within 60 steps, and its own error bound
  * must cover the difference too), the inertia count below mu_lo is exact,
  * and mu_max matches the dense top eigenvalue to 1e-6 (asserted earlier
- * Ritz residual level). */
+ * Ritz residual level).
+ * Kept whole (137 lines): one scenario whose checks build on each other. */
 static void test_flow_spectrum(void **state) {
   (void)state;
   ves_setup *s = small_setup();
@@ -269,7 +270,8 @@ static void test_flow_spectrum(void **state) {
  * in test_flow_spectrum, plus the Ritz bound), the material at the nodes of the unmoved initial
  * state is the nodes themselves (LME reproduces affine functions: 1e-12),
  * so the drift's K-norm vanishes to rounding, the mode shares lie in [0, 1],
- * and u is each mode's vector spread over the nodes. Bad arguments: VES_ERR_ARG. */
+ * and u is each mode's vector spread over the nodes. Bad arguments: VES_ERR_ARG.
+ * Kept whole (95 lines): one scenario whose checks build on each other. */
 static void test_analysis(void **state) {
   (void)state;
   ves_setup *s = small_setup();
