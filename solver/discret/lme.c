@@ -100,10 +100,9 @@ typedef long double xreal;
 /* Scratch layout in work (doubles): q[m] = -beta_a |d_a|^2, p[m], d[2m]. */
 int ves_lme_work_size(int m) { return m > 0 ? 4 * m : 0; }
 
-/* Defaults: gamma = 0.6 and tol0 = 1e-6, the problem file's [geometry]
- * gamma and support_tol (config.c's table of keys is the one source;
- * test_config checks that these agree with it), newton_tol = 1e-14,
- * max_iter = 100. */
+/* Defaults: gamma = 0.6 and tol0 = 1e-6, the same values as the problem
+ * file's [geometry] gamma and support_tol (test_config checks that they
+ * agree), newton_tol = 1e-14, max_iter = 100. */
 void ves_lme_params_default(ves_lme_params *par) {
   if (!par) return;
   par->gamma = 0.6;
