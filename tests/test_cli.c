@@ -73,6 +73,7 @@ static void test_problem_files_check(void **state) {
   assert_true(count >= 8); /* sphere, oblate, prolate, cup, prolate_c0, 3 deflations */
 }
 
+/* Kept whole (154 lines): one scenario whose checks build on each other. */
 static void test_malformed_input(void **state) {
   (void)state;
   char ini[128];
@@ -264,7 +265,8 @@ static void test_help(void **state) {
  * above a first call's mu_2^Ritz at least 2 lie below it, the lowest found
  * lies above it, and when exactly 2 lie below, that one is mu_3 <=
  * mu_3^Ritz of the first call. fe_dt_limit is 2 / mu_max. Bad options
- * exit 2. */
+ * exit 2.
+ * Kept whole (138 lines): one scenario whose checks build on each other. */
 static void test_spectrum(void **state) {
   (void)state;
   char ini[128], h5[128];
@@ -476,7 +478,8 @@ static void test_progress_eta(void **state) {
  * the 17 once), one row per accepted step whose step, t and E are the
  * file's series (to the 9-12 printed digits: 1e-8 relative), and on a
  * step with retries the rejected attempts' iterations (adaptive Euler
- * grows dt until a step raises E, as in test_progress_eta). */
+ * grows dt until a step raises E, as in test_progress_eta).
+ * Kept whole (84 lines): one scenario whose checks build on each other. */
 static void test_series(void **state) {
   (void)state;
   char ini[128], out[128], tsv[128];

@@ -5,6 +5,7 @@
  * repository root (make test does; the full-disk case needs root). */
 #include "cli_test_impl.h"
 
+/* Kept whole (91 lines): one scenario whose checks build on each other. */
 static void test_no_overwrite(void **state) {
   (void)state;
   char ini[128], out[128], xdmf[128], tsv[128], cmd[512];
@@ -128,7 +129,8 @@ static void test_full_disk(void **state) {
  * run from the last snapshot whose data the cut left whole — the final
  * state and the series then bit for bit those of the uninterrupted run, no
  * silent wrong state — or refuses with exit 3 and the cause; never a crash
- * and never "in use by a running vesica?". */
+ * and never "in use by a running vesica?".
+ * Kept whole (100 lines): one scenario whose checks build on each other. */
 static void test_torn_file(void **state) {
   (void)state;
   enum { SPREAD = 12, LAST = 9, CUTS = SPREAD + LAST };

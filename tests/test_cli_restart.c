@@ -181,7 +181,8 @@ static void test_flow_at_nodes(void **state) {
  * remeshing, rebuilt on the remeshing's model), restarted to the end, and
  * compared with the uninterrupted run: the series, the remeshings' node
  * sets, the last y, x, phi and integrator state with ==. The remeshings must
- * change the node set (else the test shows nothing about rebuilding it). */
+ * change the node set (else the test shows nothing about rebuilding it).
+ * Kept whole (98 lines): one scenario whose checks build on each other. */
 static void test_restart_after_remesh(void **state) {
   (void)state;
   char ini[128], part[128], full[128];

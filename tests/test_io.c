@@ -6,6 +6,7 @@
  * self-describing attributes, the TSV row and a file of the previous layout. */
 #include "io_test_impl.h"
 
+/* Kept whole (110 lines): one scenario whose checks build on each other. */
 static void test_roundtrip(void **state) {
   (void)state;
   fake f;
@@ -347,7 +348,8 @@ static void test_refusals(void **state) {
  *    identity to 1e-12), phi carried over bit for bit; with nodes at y^a,
  *    other material: phi refitted on the new reference, within 1e-2 of the
  *    values at t = 0 (the node sets differ by the coefficients' shift, a
- *    small fraction of eps on this smooth motion; measured below). */
+ *    small fraction of eps on this smooth motion; measured below).
+ * Kept whole (109 lines): one scenario whose checks build on each other. */
 static void test_node_material(void **state) {
   (void)state;
   ves_setup *s = tiny_setup(0);
@@ -461,7 +463,8 @@ static void test_node_material(void **state) {
 /* The restart chain through the library: 4 steps straight, or 2 steps, a
  * snapshot (with the predictor's y^{n-1}), a fresh simulation set from the
  * file and 2 more steps: the same positions, energy, time and next step,
- * bit for bit. */
+ * bit for bit.
+ * Kept whole (92 lines): one scenario whose checks build on each other. */
 static void test_restart_chain(void **state) {
   (void)state;
   ves_setup *s = tiny_setup(1);

@@ -244,7 +244,8 @@ static void test_locality(void **state) {
  * of ~1e5 products of either sign, so 1e-10 of |u^T K_0 u| + |u^T S u| is a
  * rounding bound with a wide margin for the affine motions, which the refit
  * rows reproduce exactly as the definition's do (the reference is ~1e-16 per
- * node of sum_b |p_b||u^b|, so 1e-10 of the random case's value). */
+ * node of sum_b |p_b||u^b|, so 1e-10 of the random case's value).
+ * Kept whole (102 lines): one scenario whose checks build on each other. */
 static void test_drift_damping(void **state) {
   (void)state;
   problem *P = P1;
@@ -360,7 +361,8 @@ static void test_drift_damping(void **state) {
  * ~1e-15 of that, far below the ~1e-3 compared); the cut drops a row's
  * entries at the edge of the node's support, LME weights <~1e-4 of the row's,
  * and moved E_s by 4.4e-7 relative here: 1e-5 allows 20x; the directional checks
- * compare sums of ~1e4 products, 1e-8 relative is a rounding bound. */
+ * compare sums of ~1e4 products, 1e-8 relative is a rounding bound.
+ * Kept whole (91 lines): one scenario whose checks build on each other. */
 static void test_stabilization(void **state) {
   (void)state;
   problem *P = P1;
