@@ -47,8 +47,8 @@ def owner_of_public(root):
     return owner
 
 
-def main():
-    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+def offences(root):
+    """The offence lines and the folder arrows of the tree at root."""
     owner = owner_of_public(root)
     errors, edges = [], set()
     for folder, path in sources(root):
@@ -78,6 +78,38 @@ def main():
                 errors.append("%s: the library includes the program's header %s" % (rel, inc))
             elif RANK[target] > RANK[folder]:
                 errors.append("%s: includes %s of solver/%s, a layer above solver/%s" % (rel, inc, target, folder))
+    return errors, edges
+
+
+def self_test():
+    """The check finds each kind of offence in a small synthetic tree."""
+    import tempfile
+    cases = {
+        "solver/model/m.c": ('#include "app/config.h"\n', "program's header"),
+        "solver/step/s.c": ('#include "model/model_impl.h"\n', "private header"),
+        "solver/linalg/l.c": ('#include "ves/m.h"\n', "a layer above"),
+    }
+    for path, (line, want) in cases.items():
+        with tempfile.TemporaryDirectory() as root:
+            for d in ("include/ves", "solver/core", "solver/model", "solver/app"):
+                os.makedirs(os.path.join(root, d), exist_ok=True)
+            for f, text in (("solver/model/m.c", ""), ("solver/model/model_impl.h", ""),
+                            ("solver/app/config.h", ""), ("include/ves/m.h", "")):
+                open(os.path.join(root, f), "w").write(text)
+            os.makedirs(os.path.dirname(os.path.join(root, path)), exist_ok=True)
+            open(os.path.join(root, path), "w").write(line)
+            errors, _ = offences(root)
+            if not any(want in e for e in errors):
+                print("check-layers: self-test: %s with %s not flagged" % (path, line.strip()))
+                return 1
+    return 0
+
+
+def main():
+    if self_test():
+        return 1
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    errors, edges = offences(root)
     if "--dot" in sys.argv:
         print("digraph vesica {")
         for a, b in sorted(edges, key=lambda e: (RANK[e[0]], RANK[e[1]])):
