@@ -628,7 +628,8 @@ void ves_study_print_keys(FILE *f) {
        "--emit slurm: #SBATCH --partition"},
       {"slurm", "account", "text", "(none)", "letters, digits, . _ - ,",
        "--emit slurm: #SBATCH --account"},
-      {"slurm", "mem", "text", "4G", "letters, digits, . _ - ,", "--emit slurm: #SBATCH --mem"},
+      {"slurm", "mem", "text", "4G", "letters, digits, . _ - , (not empty)",
+       "--emit slurm: #SBATCH --mem"},
       {"slurm", "cpus_per_task", "integer", "1", "1 to 1024",
        "--emit slurm: #SBATCH --cpus-per-task, the cell's OMP_NUM_THREADS"},
   };
