@@ -1,4 +1,4 @@
-/* vesica — problem files: INI (iniparser) with a fixed, documented set of
+/* vesica — problem files: INI (ves_ini_scan) with a fixed, documented set of
  * sections and keys, each typed, with a default, a range and units.
  * Unknown sections or keys, wrong types and out-of-range values are errors
  * with a message naming the file, the key and the reason (the keys:
