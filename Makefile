@@ -147,12 +147,13 @@ test-slurm: deps
 # and --set overrides (tests/fuzz/fuzz_config.c), the points-file reader
 # with the curve shape built from it (tests/fuzz/fuzz_points.c) and the
 # HDF5 output reader of info, plot and run --restart, salvage included
-# (tests/fuzz/fuzz_h5.c; our code instrumented, libhdf5 not), for
+# (tests/fuzz/fuzz_h5.c; our code instrumented, libhdf5 not), the study-file
+# parser with the Slurm script's quoting (tests/fuzz/fuzz_study.c), for
 # FUZZ_SECONDS each (default 120) from the seed FUZZ_SEED (FUZZ_ONLY=h5 etc.
-# runs one). Corpus: the seeds tests/fuzz/seeds/, problems/*.ini and
-# data/cup.txt; for the HDF5 reader, files of two small runs of the freshly
-# built vesica (tests/fuzz/h5_seeds.sh: ~190 and ~500 KB, too large to
-# commit) and copies cut short; grown in $(BUILD)/fuzz/corpus_*; a crash or a
+# runs one). Corpus: the seeds tests/fuzz/seeds/, problems/*.ini,
+# data/cup.txt and problems/studies/*.ini; for the HDF5 reader, files of
+# two small runs of the freshly built vesica (tests/fuzz/h5_seeds.sh: ~190
+# and ~500 KB, too large to commit) and copies cut short; grown in $(BUILD)/fuzz/corpus_*; a crash or a
 # broken contract stops it (exit 1) and leaves the input as
 # $(BUILD)/fuzz/crash-*.
 FUZZ_SECONDS ?= 120
@@ -176,20 +177,26 @@ fuzz: deps
 	{ if [ "$$(id -u)" = 0 ]; then apt-get update -qq && DEBIAN_FRONTEND=noninteractive \
 	  apt-get install -y -qq --no-install-recommends clang libclang-rt-14-dev; \
 	  else echo "run as root: apt-get install -y --no-install-recommends clang libclang-rt-14-dev"; exit 1; fi; }
-	@mkdir -p $(BUILD)/fuzz/corpus_config $(BUILD)/fuzz/corpus_points $(BUILD)/fuzz/corpus_h5
+	@mkdir -p $(BUILD)/fuzz/corpus_config $(BUILD)/fuzz/corpus_points $(BUILD)/fuzz/corpus_h5 \
+	  $(BUILD)/fuzz/corpus_study
 	clang $(FUZZ_CFLAGS) -o $(BUILD)/fuzz/fuzz_config tests/fuzz/fuzz_config.c solver/core/status.c -lm
 	clang $(FUZZ_CFLAGS) -o $(BUILD)/fuzz/fuzz_points tests/fuzz/fuzz_points.c solver/app/config.c \
 	  solver/discret/shape.c solver/core/status.c -lm
 	clang $(FUZZ_CFLAGS) $$(pkg-config --cflags hdf5) -o $(BUILD)/fuzz/fuzz_h5 tests/fuzz/fuzz_h5.c \
 	  $(wildcard solver/app/io*.c) solver/app/plot.c solver/analysis/level_set.c solver/app/config.c solver/core/status.c \
 	  $$(pkg-config --libs hdf5) -lm
+	clang $(FUZZ_CFLAGS) $$(pkg-config --cflags hdf5) -o $(BUILD)/fuzz/fuzz_study tests/fuzz/fuzz_study.c \
+	  solver/app/study.c $(wildcard solver/app/io*.c) solver/app/plot.c solver/analysis/level_set.c \
+	  solver/app/config.c solver/core/status.c $$(pkg-config --libs hdf5) -lm
 	@cp problems/*.ini tests/fuzz/seeds/*.ini tests/fuzz/seeds/set_*.txt $(BUILD)/fuzz/corpus_config/
 	@cp data/cup.txt tests/fuzz/seeds/*.txt $(BUILD)/fuzz/corpus_points/
+	@cp problems/studies/*.ini $(BUILD)/fuzz/corpus_study/
 	@case h5 in *"$(FUZZ_ONLY)"*) $(MAKE) --no-print-directory $(BUILD)/vesica && \
 	  sh tests/fuzz/h5_seeds.sh $(BUILD)/vesica $(BUILD)/fuzz/corpus_h5;; esac
 	@case config in *"$(FUZZ_ONLY)"*) $(call FUZZ_RUN,config,8192);; esac
 	@case points in *"$(FUZZ_ONLY)"*) $(call FUZZ_RUN,points,8192);; esac
 	@case h5 in *"$(FUZZ_ONLY)"*) $(call FUZZ_RUN,h5,600000);; esac
+	@case study in *"$(FUZZ_ONLY)"*) $(call FUZZ_RUN,study,8192);; esac
 
 bench: deps
 	@$(MAKE) --no-print-directory $(BUILD)/libvesica.a $(BUILD)/vesica $(BENCHES)

@@ -25,8 +25,8 @@ static void usage_study(FILE *f) {
           "  --jobs N        cells at a time (default: the number of cores)\n"
           "  --out DIR       the study folder (default: the study file's name, here)\n"
           "  --max-cells N   allow a grid of up to N cells (default %d)\n"
-          "  --emit slurm    write DIR/study.sbatch: a job array, one cell per task (sbatch it,\n"
-          "                  then --collect)\n"
+          "  --emit slurm    write DIR/study.sbatch: a job array, one task per cell without a\n"
+          "                  result (sbatch it, then --collect)\n"
           "  --cell K        run cell K (0-based) only, as an array task does\n"
           "  --collect       write the table and figures from the cells that have ended\n"
           "  --quiet         no progress line\n"
@@ -182,14 +182,21 @@ static int study_other(const ves_study *s, const study_args *o, const char *dir,
     }
     return study_collect(s, dir, o->quiet);
   }
-  if ((stat(dir, &sb) != 0 && mkdir(dir, 0777) != 0) ||
-      ves_study_write_sbatch(s, self, dir, err, sizeof err) != VES_OK) {
-    fprintf(stderr, "vesica study: %s: %s\n", dir, err[0] ? err : strerror(errno));
-    return 3;
+  long ntasks = 0;
+  ves_status st = ves_study_write_sbatch(s, self, dir, o->retry, &ntasks, err, sizeof err);
+  if (st != VES_OK) {
+    fprintf(stderr, "vesica study: %s\n", err[0] ? err : ves_status_str(st));
+    return st == VES_ERR_CONFIG ? 2 : 3;
   }
-  printf("%s/study.sbatch: %ld array tasks; sbatch it, then vesica study %s --out %s "
-         "--collect\n",
-         dir, s->ncells, o->path, dir);
+  if (ntasks == 0) {
+    printf("every cell of the study has its result: nothing to submit, no script written "
+           "(vesica study %s --out %s --collect for the table)\n",
+           o->path, dir);
+    return 0;
+  }
+  printf("%s/study.sbatch: %ld array tasks (of %ld cells); sbatch it, then vesica study %s --out "
+         "%s --collect\n",
+         dir, ntasks, s->ncells, o->path, dir);
   return 0;
 }
 

@@ -268,11 +268,39 @@ static const char *ini_trim(const char *s, size_t *n) {
   return s;
 }
 
+/* The sections and keys a scan has met, with their lines (key "" for a
+ * section): a repeated one is refused. */
+typedef struct {
+  struct ini_seen {
+    char sec[64], key[64];
+    int line;
+  } * at;
+  size_t n, cap;
+} ini_seen_list;
+
+/* The line where sec (key "" for the section itself) was met, else 0 after
+ * recording it at `line`; -1 when out of memory. */
+static int ini_seen(ini_seen_list *l, const char *sec, const char *key, int line) {
+  for (size_t i = 0; i < l->n; i++)
+    if (!strcmp(l->at[i].sec, sec) && !strcmp(l->at[i].key, key)) return l->at[i].line;
+  if (l->n == l->cap) {
+    size_t cap = l->cap ? 2 * l->cap : 64;
+    struct ini_seen *p = realloc(l->at, cap * sizeof *p);
+    if (!p) return -1;
+    l->at = p, l->cap = cap;
+  }
+  snprintf(l->at[l->n].sec, sizeof l->at[l->n].sec, "%s", sec);
+  snprintf(l->at[l->n].key, sizeof l->at[l->n].key, "%s", key);
+  l->at[l->n++].line = line;
+  return 0;
+}
+
 /* The section header t[n] (starting with '[') at line `line` of file name:
- * its name into sec[seclen], checked to be known and not given before
- * (sec_line: where each section began, by known_section - 1). */
+ * its name into sec[seclen], checked not to be given before, then handed
+ * to fn. */
 static ves_status ini_section(const char *t, size_t n, const char *name, int line, char *sec,
-                              size_t seclen, int *sec_line, char *err, size_t errlen) {
+                              size_t seclen, ini_seen_list *seen, ves_ini_item_fn fn, void *ctx,
+                              char *err, size_t errlen) {
   if (t[n - 1] != ']') {
     ves_error_say(err, errlen, "%s: line %d: '%.*s': a section header needs a closing ']'", name,
                   line, (int)(n > 60 ? 60 : n), t);
@@ -285,34 +313,22 @@ static ves_status ini_section(const char *t, size_t n, const char *name, int lin
                   (int)(n > 60 ? 60 : n), t);
     return VES_ERR_CONFIG;
   }
-  int k = known_section(sec);
-  if (!k) {
-    ves_error_say(err, errlen, "%s: line %d: [%s]: unknown section", name, line, sec);
-    return VES_ERR_CONFIG;
-  }
-  if (sec_line[k - 1]) {
+  const int first = ini_seen(seen, sec, "", line);
+  if (first < 0) return VES_ERR_ALLOC;
+  if (first) {
     ves_error_say(err, errlen, "%s: line %d: [%s]: duplicate section (first at line %d)", name,
-                  line, sec, sec_line[k - 1]);
+                  line, sec, first);
     return VES_ERR_CONFIG;
   }
-  sec_line[k - 1] = line;
-  return VES_OK;
+  return fn(ctx, name, line, sec, NULL, NULL, 0, err, errlen);
 }
 
-/* Parse the text of a problem file over cfg; messages name `name` and the
- * line. The format: "[section]" headers, "key = value" lines (a value in
- * double or single quotes is taken verbatim; otherwise it ends at a ';' or
- * '#'), comment lines starting with ';' or '#', blank lines, CRLF line ends
- * and a UTF-8 byte-order mark accepted. Refused, with the line and the
- * cause: a key outside a section, an unknown or repeated section, an
- * unknown or repeated key, a header without its ']', a line without '=',
- * a NUL byte (not a text file). One pass over the lines: the state
- * (section, line number, the keys seen) is the loop's, hence one function. */
-static ves_status parse_ini(const char *text, size_t len, const char *name, ves_config *cfg,
-                            char *err, size_t errlen) {
-  int sec_line[NKEYS] = {0}; /* where each section began (by known_section - 1) */
-  int key_line[NKEYS] = {0}; /* where each key was set */
-  char sec[64] = "";         /* the current section ("" before the first) */
+/* The scan of ves_ini_scan over its own list of what it has met. One pass
+ * over the lines: the state (section, line number) is the loop's, hence
+ * one function. */
+static ves_status ini_scan(const char *text, size_t len, const char *name, ves_ini_item_fn fn,
+                           void *ctx, ini_seen_list *seen, char *err, size_t errlen) {
+  char sec[64] = ""; /* the current section ("" before the first) */
   int line = 0;
   if (len >= 3 && !memcmp(text, "\xef\xbb\xbf", 3)) text += 3, len -= 3; /* UTF-8 BOM */
   if (memchr(text, 0, len)) {
@@ -330,7 +346,8 @@ static ves_status parse_ini(const char *text, size_t len, const char *name, ves_
     const char *t = ini_trim(ln, &n);
     if (n == 0 || t[0] == ';' || t[0] == '#') continue;
     if (t[0] == '[') { /* a section header */
-      const ves_status st = ini_section(t, n, name, line, sec, sizeof sec, sec_line, err, errlen);
+      const ves_status st =
+          ini_section(t, n, name, line, sec, sizeof sec, seen, fn, ctx, err, errlen);
       if (st != VES_OK) return st;
       continue;
     }
@@ -342,7 +359,7 @@ static ves_status parse_ini(const char *text, size_t len, const char *name, ves_
     }
     size_t kn = (size_t)(eq - t), vn = n - kn - 1;
     const char *kt = ini_trim(t, &kn), *v = ini_trim(eq + 1, &vn);
-    char key[64], val[VES_CONFIG_STR];
+    char key[64];
     if (!ini_name(key, sizeof key, kt, kn)) {
       ves_error_say(err, errlen, "%s: line %d: '%.*s': not a key name", name, line,
                     (int)(n > 60 ? 60 : n), t);
@@ -361,39 +378,70 @@ static ves_status parse_ini(const char *text, size_t len, const char *name, ves_
       vn = c;
       v = ini_trim(v, &vn);
     }
-    const key_spec *k = find_key(sec, key);
-    if (!k) {
-      ves_error_say(err, errlen, "%s: line %d: [%s] %s: unknown key", name, line, sec, key);
-      return VES_ERR_CONFIG;
-    }
-    const size_t ki = (size_t)(k - KEYS);
-    if (key_line[ki]) {
+    const int first = ini_seen(seen, sec, key, line);
+    if (first < 0) return VES_ERR_ALLOC;
+    if (first) {
       ves_error_say(err, errlen, "%s: line %d: [%s] %s: duplicate key (first at line %d)", name,
-                    line, sec, key, key_line[ki]);
+                    line, sec, key, first);
       return VES_ERR_CONFIG;
     }
-    key_line[ki] = line;
-    if (vn >= sizeof val) {
-      ves_error_say(err, errlen, "%s: line %d: [%s] %s: value longer than %d characters", name,
-                    line, sec, key, (int)sizeof val - 1);
-      return VES_ERR_CONFIG;
-    }
-    memcpy(val, v, vn);
-    val[vn] = 0;
-    const char *why;
-    if (set_value(cfg, k, val, &why)) {
-      char where[600];
-      snprintf(where, sizeof where, "%s: line %d", name, line);
-      return range_msg(err, errlen, where, k, val, vn ? why : "no value");
-    }
+    const ves_status st = fn(ctx, name, line, sec, key, v, vn, err, errlen);
+    if (st != VES_OK) return st;
   }
   return VES_OK;
 }
 
-/* Read the problem file `path` over cfg: a regular file of at most
- * INI_MAX_BYTES (a folder or a device is refused); messages name `name`. */
-static ves_status load_ini(const char *path, const char *name, ves_config *cfg, char *err,
-                           size_t errlen) {
+ves_status ves_ini_scan(const char *text, size_t len, const char *name, ves_ini_item_fn fn,
+                        void *ctx, char *err, size_t errlen) {
+  VES_CHECK(text && name && fn, VES_ERR_ARG);
+  ini_seen_list seen = {NULL, 0, 0};
+  const ves_status st = ini_scan(text, len, name, fn, ctx, &seen, err, errlen);
+  free(seen.at);
+  return st;
+}
+
+/* A section or key of a problem file, checked against the table of keys
+ * and set in the configuration ctx. */
+static ves_status config_item(void *ctx, const char *name, int line, const char *sec,
+                              const char *key, const char *v, size_t vn, char *err, size_t errlen) {
+  ves_config *cfg = ctx;
+  if (!key) {
+    if (known_section(sec)) return VES_OK;
+    ves_error_say(err, errlen, "%s: line %d: [%s]: unknown section", name, line, sec);
+    return VES_ERR_CONFIG;
+  }
+  const key_spec *k = find_key(sec, key);
+  if (!k) {
+    ves_error_say(err, errlen, "%s: line %d: [%s] %s: unknown key", name, line, sec, key);
+    return VES_ERR_CONFIG;
+  }
+  char val[VES_CONFIG_STR];
+  if (vn >= sizeof val) {
+    ves_error_say(err, errlen, "%s: line %d: [%s] %s: value longer than %d characters", name, line,
+                  sec, key, (int)sizeof val - 1);
+    return VES_ERR_CONFIG;
+  }
+  memcpy(val, v, vn);
+  val[vn] = 0;
+  const char *why;
+  if (set_value(cfg, k, val, &why)) {
+    char where[600];
+    snprintf(where, sizeof where, "%s: line %d", name, line);
+    return range_msg(err, errlen, where, k, val, vn ? why : "no value");
+  }
+  return VES_OK;
+}
+
+/* Parse the text of a problem file over cfg; messages name `name` and the
+ * line (the format: ves_ini_scan). */
+static ves_status parse_ini(const char *text, size_t len, const char *name, ves_config *cfg,
+                            char *err, size_t errlen) {
+  return ves_ini_scan(text, len, name, config_item, cfg, err, errlen);
+}
+
+ves_status ves_ini_load(const char *path, const char *name, const char *what, ves_ini_item_fn fn,
+                        void *ctx, char *err, size_t errlen) {
+  VES_CHECK(path && name && what && fn, VES_ERR_ARG);
   FILE *f = fopen(path, "rb");
   if (!f) {
     ves_error_say(err, errlen, "%s: cannot open: %s", name, strerror(errno));
@@ -402,14 +450,15 @@ static ves_status load_ini(const char *path, const char *name, ves_config *cfg, 
   struct stat sb;
   memset(&sb, 0, sizeof sb);
   if (fstat(fileno(f), &sb) != 0 || !S_ISREG(sb.st_mode)) {
-    ves_error_say(err, errlen, "%s: %s", name,
-                  S_ISDIR(sb.st_mode) ? "is a folder, not a problem file" : "not a regular file");
+    ves_error_say(err, errlen, "%s: %s%s", name,
+                  S_ISDIR(sb.st_mode) ? "is a folder, not a " : "not a regular file",
+                  S_ISDIR(sb.st_mode) ? what : "");
     fclose(f);
     return VES_ERR_IO;
   }
   if (sb.st_size > INI_MAX_BYTES) {
-    ves_error_say(err, errlen, "%s: %lld bytes: too large for a problem file (at most %d)", name,
-                  (long long)sb.st_size, INI_MAX_BYTES);
+    ves_error_say(err, errlen, "%s: %lld bytes: too large for a %s (at most %d)", name,
+                  (long long)sb.st_size, what, INI_MAX_BYTES);
     fclose(f);
     return VES_ERR_CONFIG;
   }
@@ -424,9 +473,16 @@ static ves_status load_ini(const char *path, const char *name, ves_config *cfg, 
     return text ? VES_ERR_IO : VES_ERR_ALLOC;
   }
   text[len] = 0;
-  ves_status s = parse_ini(text, len, name, cfg, err, errlen);
+  ves_status s = ves_ini_scan(text, len, name, fn, ctx, err, errlen);
   free(text);
   return s;
+}
+
+/* Read the problem file `path` over cfg: a regular file of at most
+ * INI_MAX_BYTES (a folder or a device is refused); messages name `name`. */
+static ves_status load_ini(const char *path, const char *name, ves_config *cfg, char *err,
+                           size_t errlen) {
+  return ves_ini_load(path, name, "problem file", config_item, cfg, err, errlen);
 }
 
 /* Apply the overrides "section.key=value". */

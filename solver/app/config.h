@@ -1,4 +1,4 @@
-/* vesica — problem files: INI (iniparser) with a fixed, documented set of
+/* vesica — problem files: INI (ves_ini_scan) with a fixed, documented set of
  * sections and keys, each typed, with a default, a range and units.
  * Unknown sections or keys, wrong types and out-of-range values are errors
  * with a message naming the file, the key and the reason (the keys:
@@ -91,6 +91,28 @@ typedef struct {
   /* [output] */
   int snapshot_every; /* accepted steps between snapshots */
 } ves_config;
+
+/* INI text, as problem and study files have it: "[section]" headers,
+ * "key = value" lines (a value in double or single quotes is taken
+ * verbatim; otherwise it ends at a ';' or '#'), comment lines starting with
+ * ';' or '#', blank lines, CRLF line ends and a UTF-8 byte-order mark
+ * accepted. Refused (VES_ERR_CONFIG, one line "NAME: line N: ..." in err):
+ * a key outside a section, a repeated section or key (names are
+ * case-insensitive), a header without its ']', a line without '=', a NUL
+ * byte. Every header and key goes to fn in the text's order: section and
+ * key lower-cased (key NULL for a header), the value value[vlen] (not
+ * NUL-terminated); an error fn returns stops the scan and is returned. */
+typedef ves_status (*ves_ini_item_fn)(void *ctx, const char *name, int line, const char *section,
+                                      const char *key, const char *value, size_t vlen, char *err,
+                                      size_t errlen);
+ves_status ves_ini_scan(const char *text, size_t len, const char *name, ves_ini_item_fn fn,
+                        void *ctx, char *err, size_t errlen);
+
+/* The same for the file path: a regular file of at most 1 MiB (`what`, e.g.
+ * "problem file", names its kind in messages; `name` stands for it);
+ * VES_ERR_IO when it cannot be opened or read. */
+ves_status ves_ini_load(const char *path, const char *name, const char *what, ves_ini_item_fn fn,
+                        void *ctx, char *err, size_t errlen);
 
 /* Defaults for every key. */
 void ves_config_default(ves_config *cfg);

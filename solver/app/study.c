@@ -7,7 +7,6 @@
 
 #include <ctype.h>
 #include <errno.h>
-#include <iniparser/iniparser.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -19,11 +18,6 @@
 
 /* Longest cell name: NAME.result must fit a file name (255 bytes). */
 #define STUDY_NAME_MAX 200
-
-static int ini_quiet(const char *fmt, ...) {
-  (void)fmt;
-  return 0;
-}
 
 /* Copy s without leading and trailing blanks into out[len]; -1 if too long. */
 static int trim_copy(char *out, size_t len, const char *s, size_t n) {
@@ -406,8 +400,8 @@ static ves_status study_key_slurm(ves_study *s, const char *key, const char *val
                 : !strcasecmp(key, "account") ? s->account
                                               : s->mem;
     size_t cap = !strcasecmp(key, "mem") ? sizeof s->mem : sizeof s->partition;
-    int bad = strlen(val) >= cap;
-    for (const char *c = val; *c && !bad; c++) /* goes into a shell script */
+    int bad = strlen(val) >= cap || (dst == s->mem && !*val); /* mem: never empty */
+    for (const char *c = val; *c && !bad; c++)                /* goes into a shell script */
       bad = !(isalnum((unsigned char)*c) || strchr("._-,", *c));
     if (bad) {
       ves_error_say(err, errlen,
@@ -499,70 +493,92 @@ static ves_status study_check(ves_study *s, const char *problem, char *err, size
   return VES_OK;
 }
 
-/* The sections of the study file into s: one section after the other, each
- * key read and checked in place, in the file's order. */
-static ves_status read_study(dictionary *d, ves_study *s, char *err, size_t errlen) {
-  char problem[PATH_MAX] = "";
-  for (ssize_t i = 0; i < d->size; i++)
-    if (d->key[i] && d->key[i][0] == ':') {
-      ves_error_say(err, errlen, "%s: %s: key outside a section", s->path, d->key[i] + 1);
-      return VES_ERR_CONFIG;
-    }
-  for (int i = 0; i < iniparser_getnsec(d); i++) {
-    const char *sec = iniparser_getsecname(d, i);
-    if (strcasecmp(sec, "study") && strcasecmp(sec, "set") && strcasecmp(sec, "axes") &&
-        strcasecmp(sec, "slurm")) {
-      ves_error_say(err, errlen, "%s: [%s]: unknown section (study, set, axes, slurm)", s->path,
-                    sec);
-      return VES_ERR_CONFIG;
-    }
-    int nk = iniparser_getsecnkeys(d, sec);
-    const char **keys = nk > 0 ? malloc((size_t)nk * sizeof *keys) : NULL;
-    if (nk > 0 && !keys) return VES_ERR_ALLOC;
-    if (nk > 0) iniparser_getseckeys(d, sec, keys);
-    ves_status st = VES_OK;
-    for (int j = 0; j < nk && st == VES_OK; j++) {
-      const char *full = keys[j], *colon = strchr(full, ':');
-      const char *key = colon ? colon + 1 : full;
-      const char *val = iniparser_getstring(d, full, "");
-      if (!strcasecmp(sec, "study"))
-        st = study_key_study(s, key, val, problem, err, errlen);
-      else if (!strcasecmp(sec, "slurm"))
-        st = study_key_slurm(s, key, val, err, errlen);
-      else
-        st = study_key_problem(s, sec, key, val, err, errlen);
-    }
-    free(keys);
-    if (st != VES_OK) return st;
+/* The state of reading a study file: the study and its base problem as
+ * written. */
+typedef struct {
+  ves_study *s;
+  char problem[PATH_MAX];
+} study_reader;
+
+/* A section or key of the study file (ves_ini_scan has refused a repeated
+ * one), read and checked in place, in the file's order. */
+static ves_status study_item(void *ctx, const char *name, int line, const char *sec,
+                             const char *key, const char *v, size_t vn, char *err, size_t errlen) {
+  study_reader *r = ctx;
+  if (!key) {
+    if (!strcmp(sec, "study") || !strcmp(sec, "set") || !strcmp(sec, "axes") ||
+        !strcmp(sec, "slurm"))
+      return VES_OK;
+    ves_error_say(err, errlen, "%s: line %d: [%s]: unknown section (study, set, axes, slurm)", name,
+                  line, sec);
+    return VES_ERR_CONFIG;
   }
-  return study_check(s, problem, err, errlen);
+  char *val = malloc(vn + 1);
+  if (!val) return VES_ERR_ALLOC;
+  memcpy(val, v, vn);
+  val[vn] = 0;
+  ves_status st;
+  if (!strcmp(sec, "study"))
+    st = study_key_study(r->s, key, val, r->problem, err, errlen);
+  else if (!strcmp(sec, "slurm"))
+    st = study_key_slurm(r->s, key, val, err, errlen);
+  else
+    st = study_key_problem(r->s, sec, key, val, err, errlen);
+  free(val);
+  return st;
+}
+
+/* Two values of one axis that give the same problem (1 and 1.0, 1e-3 and
+ * 0.001, newton and Newton: one case run twice) are refused: every value's
+ * cell with the other axes at their first value, compared as problem text
+ * (ves_config_to_text: the parsed values, not their spelling), without
+ * regard to case as the choices of a key are read (two points files whose
+ * names differ only in case count as one too). */
+static ves_status check_axis_values(const ves_study *s, char *err, size_t errlen) {
+  char(*sets)[VES_STUDY_SETLEN] = malloc(VES_STUDY_CELL_SETS * sizeof *sets);
+  char **text = calloc(VES_STUDY_MAX_VALUES, sizeof *text);
+  ves_status st = sets && text ? VES_OK : VES_ERR_ALLOC;
+  long stride = 1;
+  for (int a = s->naxes - 1; a >= 0 && st == VES_OK; a--) {
+    for (int i = 0; i < s->axis[a].nvalues && st == VES_OK; i++) {
+      const char *ptr[VES_STUDY_CELL_SETS];
+      int n = 0;
+      ves_config cfg;
+      if ((st = ves_study_cell_sets(s, i * stride, sets, &n, NULL, 0)) != VES_OK) break;
+      for (int j = 0; j < n; j++) ptr[j] = sets[j];
+      if ((st = ves_config_load(s->problem, n, ptr, &cfg, NULL, 0)) != VES_OK ||
+          (st = ves_config_to_text(&cfg, &text[i])) != VES_OK)
+        break;
+      for (int j = 0; j < i; j++)
+        if (!strcasecmp(text[j], text[i])) {
+          ves_error_say(err, errlen,
+                        "%s: [axes] %s: values '%s' and '%s' are the same value (one case run "
+                        "twice)",
+                        s->path, s->axis[a].key, s->axis[a].values[j], s->axis[a].values[i]);
+          st = VES_ERR_CONFIG;
+          break;
+        }
+    }
+    for (int i = 0; i < VES_STUDY_MAX_VALUES; i++) free(text[i]), text[i] = NULL;
+    stride *= s->axis[a].nvalues;
+  }
+  free(text), free(sets);
+  return st;
 }
 
 ves_status ves_study_load(const char *path, long max_cells, ves_study **out, char *err,
                           size_t errlen) {
   VES_CHECK(path && out, VES_ERR_ARG);
   *out = NULL;
-  FILE *f = fopen(path, "r");
-  if (!f) {
-    ves_error_say(err, errlen, "%s: cannot open: %s", path, strerror(errno));
-    return VES_ERR_IO;
-  }
-  fclose(f);
   ves_study *s = calloc(1, sizeof *s);
   if (!s) return VES_ERR_ALLOC;
   snprintf(s->path, sizeof s->path, "%s", path);
   s->mode = VES_STUDY_T_END, s->steps = 1, s->time_limit = 3600;
   snprintf(s->mem, sizeof s->mem, "4G");
   s->cpus_per_task = 1;
-  iniparser_set_error_callback(ini_quiet);
-  dictionary *d = iniparser_load(path);
-  ves_status st = VES_OK;
-  if (!d) {
-    ves_error_say(err, errlen, "%s: not a readable INI file", path);
-    st = VES_ERR_CONFIG;
-  }
-  if (st == VES_OK) st = read_study(d, s, err, errlen);
-  if (d) iniparser_freedict(d);
+  study_reader r = {.s = s, .problem = ""};
+  ves_status st = ves_ini_load(path, path, "study file", study_item, &r, err, errlen);
+  if (st == VES_OK) st = study_check(s, r.problem, err, errlen);
   if (st == VES_OK) { /* the grid's size, without overflow */
     s->ncells = 1;
     for (int a = 0; a < s->naxes; a++) {
@@ -582,6 +598,7 @@ ves_status ves_study_load(const char *path, long max_cells, ves_study **out, cha
     }
   }
   if (st == VES_OK) st = check_cells(s, err, errlen);
+  if (st == VES_OK) st = check_axis_values(s, err, errlen);
   if (st != VES_OK) {
     free(s);
     return st;
@@ -611,7 +628,8 @@ void ves_study_print_keys(FILE *f) {
        "--emit slurm: #SBATCH --partition"},
       {"slurm", "account", "text", "(none)", "letters, digits, . _ - ,",
        "--emit slurm: #SBATCH --account"},
-      {"slurm", "mem", "text", "4G", "letters, digits, . _ - ,", "--emit slurm: #SBATCH --mem"},
+      {"slurm", "mem", "text", "4G", "letters, digits, . _ - , (not empty)",
+       "--emit slurm: #SBATCH --mem"},
       {"slurm", "cpus_per_task", "integer", "1", "1 to 1024",
        "--emit slurm: #SBATCH --cpus-per-task, the cell's OMP_NUM_THREADS"},
   };

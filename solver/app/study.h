@@ -169,12 +169,22 @@ ves_status ves_study_collect(const ves_study *s, const char *dir, ves_study_tabl
  * (nothing written) without a dt axis; VES_ERR_IO with gnuplot's message. */
 ves_status ves_study_plot(const ves_study *s, const char *dir, char *err, size_t errlen);
 
-/* DIR/study.sbatch: a Slurm job array, one task per cell
- * (--array=0-(ncells-1)), each running `program study STUDY --out DIR
- * --cell $SLURM_ARRAY_TASK_ID`; --time from the cell limit (+ 5 minutes),
- * resources from [slurm]; task logs in DIR/slurm/. */
+/* DIR/study.sbatch: a Slurm job array of the cells not done
+ * (ves_study_cell_done with retry_failed), one task per cell (--array=
+ * their indices as ranges, e.g. 0-3,7), each running `program study STUDY
+ * --out DIR [--retry-failed] --cell $SLURM_ARRAY_TASK_ID`; --time from the
+ * cell limit (+ 5 minutes), resources from [slurm]; task logs in
+ * DIR/slurm/. *ntasks gets the number of tasks; with none, nothing is
+ * written (DIR not created either) and VES_OK. DIR is created when missing
+ * (its parent must exist). Every name goes into the script as one bash
+ * word on one line ('...', or $'...' with \xHH escapes for control bytes
+ * and bytes that are not UTF-8); the values of the #SBATCH lines, which
+ * sbatch reads with its own rules, are refused (VES_ERR_CONFIG, nothing
+ * written) when they hold a control byte, a byte that is not UTF-8, '"',
+ * '\\' or the word packjob or hetjob. VES_ERR_IO when DIR cannot be
+ * resolved, created or written. */
 ves_status ves_study_write_sbatch(const ves_study *s, const char *program, const char *dir,
-                                  char *err, size_t errlen);
+                                  int retry_failed, long *ntasks, char *err, size_t errlen);
 
 /* Progress of a run (for the caller's progress line). */
 typedef struct {

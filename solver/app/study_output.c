@@ -10,6 +10,7 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -409,64 +410,230 @@ ves_status ves_study_plot(const ves_study *s, const char *dir, char *err, size_t
 
 /* ---- Slurm ------------------------------------------------------------------- */
 
-/* A shell single-quoted word ('\'' for '). */
-static void sh_quote(FILE *f, const char *s) {
-  fputc('\'', f);
-  for (; *s; s++) {
-    if (*s == '\'')
-      fputs("'\\''", f);
-    else
-      fputc(*s, f);
+/* The length of the UTF-8 sequence at p (1 to 4), or 0 when it is not one
+ * (a stray continuation byte, an overlong form, a surrogate, past U+10FFFF). */
+static int utf8_len(const unsigned char *p) {
+  if (p[0] < 0x80) return 1;
+  int n = p[0] >= 0xc2 && p[0] <= 0xdf   ? 2
+          : p[0] >= 0xe0 && p[0] <= 0xef ? 3
+          : p[0] >= 0xf0 && p[0] <= 0xf4 ? 4
+                                         : 0;
+  for (int i = 1; i < n; i++)
+    if ((p[i] & 0xc0) != 0x80) return 0;
+  if ((p[0] == 0xe0 && p[1] < 0xa0) || (p[0] == 0xed && p[1] > 0x9f) ||
+      (p[0] == 0xf0 && p[1] < 0x90) || (p[0] == 0xf4 && p[1] > 0x8f))
+    return 0;
+  return n;
+}
+
+/* Whether s holds only printable characters (no control byte) in valid UTF-8. */
+static int plain_text(const char *s) {
+  for (const unsigned char *p = (const unsigned char *)s; *p;) {
+    int n = utf8_len(p);
+    if (!n || *p < 0x20 || *p == 0x7f) return 0;
+    p += n;
+  }
+  return 1;
+}
+
+/* s as one bash word on one line: '...' ('\'' for a quote) when s is plain
+ * text, else $'...' with \xHH for every control byte and every byte of an
+ * invalid UTF-8 sequence: a newline in a name can end neither a comment nor
+ * a command, and nothing in it is expanded. */
+static void sh_word(FILE *f, const char *s) {
+  if (plain_text(s)) {
+    fputc('\'', f);
+    for (; *s; s++)
+      if (*s == '\'')
+        fputs("'\\''", f);
+      else
+        fputc(*s, f);
+    fputc('\'', f);
+    return;
+  }
+  fputs("$'", f);
+  for (const unsigned char *p = (const unsigned char *)s; *p;) {
+    int n = utf8_len(p);
+    if (*p == '\\' || *p == '\'') {
+      fprintf(f, "\\%c", *p++);
+    } else if (n == 0 || *p < 0x20 || *p == 0x7f) {
+      fprintf(f, "\\x%02x", *p++);
+    } else {
+      fwrite(p, 1, (size_t)n, f);
+      p += n;
+    }
   }
   fputc('\'', f);
 }
 
+/* Why v cannot be a value of an #SBATCH line in double quotes, or NULL when
+ * it can. sbatch reads those lines itself, not through a shell: a newline
+ * ends the line, '\\' and '"' are its own escape and quote inside the
+ * quotes, and a line naming packjob or hetjob starts another component of a
+ * heterogeneous job (sbatch's opt.c, _get_argument and
+ * _opt_batch_script); a control character or a byte that is not UTF-8 has
+ * no place in a job's options. */
+static const char *sbatch_unsafe(const char *v) {
+  if (!plain_text(v)) return "a control character (newline, tab, ...) or a byte that is not UTF-8";
+  if (strpbrk(v, "\"\\")) return "a '\"' or '\\' (sbatch's own quoting)";
+  for (const char *c = v; *c; c++)
+    if (!strncasecmp(c, "packjob", 7) || !strncasecmp(c, "hetjob", 6))
+      return "the word packjob or hetjob (sbatch's separator of heterogeneous jobs)";
+  return NULL;
+}
+
+/* s in buf[len] with '?' for every control byte and byte that is not
+ * UTF-8 (for a one-line message). */
+static void printable(const char *s, char *buf, size_t len) {
+  size_t at = 0;
+  for (const unsigned char *p = (const unsigned char *)s; *p && at + 5 < len;) {
+    int n = utf8_len(p);
+    if (!n || *p < 0x20 || *p == 0x7f) {
+      buf[at++] = '?', p++;
+    } else {
+      memcpy(buf + at, p, (size_t)n);
+      at += (size_t)n, p += n;
+    }
+  }
+  buf[at] = 0;
+}
+
+/* dir as an absolute path in abs[PATH_MAX] (*exists: whether it exists):
+ * its real path, or when missing its parent's real path and its last name.
+ * -1 (errno set) when neither resolves. */
+static int abs_dir(const char *dir, char *abs, int *exists) {
+  char d[PATH_MAX], parent[PATH_MAX];
+  *exists = realpath(dir, abs) != NULL;
+  if (*exists) return 0;
+  if (errno != ENOENT || snprintf(d, sizeof d, "%s", dir) >= (int)sizeof d) return -1;
+  size_t l = strlen(d);
+  while (l > 1 && d[l - 1] == '/') d[--l] = 0;
+  char *slash = strrchr(d, '/');
+  const char *name = slash ? slash + 1 : d;
+  if (slash == d)
+    snprintf(parent, sizeof parent, "/");
+  else if (slash) {
+    *slash = 0;
+    if (!realpath(d, parent)) return -1;
+  } else if (!getcwd(parent, sizeof parent))
+    return -1;
+  if (!*name || !strcmp(name, ".") || !strcmp(name, "..") ||
+      snprintf(abs, PATH_MAX, "%s/%s", strcmp(parent, "/") ? parent : "", name) >= PATH_MAX) {
+    errno = ENOENT;
+    return -1;
+  }
+  return 0;
+}
+
+/* The pending cells' indices as Slurm's --array list ("0-3,7,9-12") in
+ * buf[len]; their number. */
+static long pending_array(const ves_study *s, const char *dir, int exists, int retry_failed,
+                          char *buf, size_t len) {
+  long n = 0, from = -1;
+  size_t at = 0;
+  buf[0] = 0;
+  for (long k = 0; k <= s->ncells; k++) {
+    const int pend = k < s->ncells && (!exists || !ves_study_cell_done(s, k, dir, retry_failed));
+    if (pend) {
+      n++;
+      if (from < 0) from = k;
+    } else if (from >= 0) { /* the run from..k-1 ends */
+      if (at < len)
+        at += (size_t)(from == k - 1
+                           ? snprintf(buf + at, len - at, "%s%ld", at ? "," : "", from)
+                           : snprintf(buf + at, len - at, "%s%ld-%ld", at ? "," : "", from, k - 1));
+      from = -1;
+    }
+  }
+  return at < len ? n : -1;
+}
+
 ves_status ves_study_write_sbatch(const ves_study *s, const char *program, const char *dir,
-                                  char *err, size_t errlen) {
-  VES_CHECK(s && program && dir, VES_ERR_ARG);
+                                  int retry_failed, long *ntasks, char *err, size_t errlen) {
+  VES_CHECK(s && program && dir && ntasks, VES_ERR_ARG);
+  *ntasks = 0;
   char path[PATH_MAX + 16], logs[PATH_MAX + 8], study[PATH_MAX], adir[PATH_MAX];
-  char tmp[PATH_MAX + 24];
-  if (!realpath(dir, adir) || !realpath(s->path, study)) {
+  char tmp[PATH_MAX + 24], out[2 * PATH_MAX + 16], job[64];
+  int exists = 0;
+  if (abs_dir(dir, adir, &exists) != 0 || !realpath(s->path, study)) {
     ves_error_say(err, errlen, "%s: cannot resolve: %s", dir, strerror(errno));
     return VES_ERR_IO;
   }
   snprintf(logs, sizeof logs, "%s/slurm", adir);
-  if (mkdir(logs, 0777) != 0 && errno != EEXIST) {
-    ves_error_say(err, errlen, "%s: cannot create: %s", logs, strerror(errno));
+  snprintf(path, sizeof path, "%s/study.sbatch", adir);
+  const char *base = strrchr(study, '/') + 1;
+  snprintf(job, sizeof job, "vesica-%.*s", (int)strcspn(base, "."), base);
+  for (char *c = job; *c; c++)
+    if (!isalnum((unsigned char)*c) && *c != '-' && *c != '_') *c = '_';
+  size_t o = 0; /* --output: the logs' folder, '%' doubled (a file-name pattern) */
+  for (const char *c = logs; *c && o + 3 < sizeof out; c++) {
+    if (*c == '%') out[o++] = '%';
+    out[o++] = *c;
+  }
+  snprintf(out + o, sizeof out - o, "/%%A_%%a.out");
+  const char *const name[] = {"--out folder", "job name", "[slurm] partition", "[slurm] account",
+                              "[slurm] mem"};
+  const char *const value[] = {adir, job, s->partition, s->account, s->mem};
+  for (int i = 0; i < 5; i++) {
+    const char *why = sbatch_unsafe(value[i]);
+    if (why) {
+      char shown[PATH_MAX];
+      printable(value[i], shown, sizeof shown);
+      ves_error_say(err, errlen,
+                    "--emit slurm: the %s '%s' holds %s: it cannot go into an #SBATCH line",
+                    name[i], shown, why);
+      return VES_ERR_CONFIG;
+    }
+  }
+  char *array = malloc(16 * (size_t)s->ncells + 16);
+  if (!array) return VES_ERR_ALLOC;
+  *ntasks = pending_array(s, adir, exists, retry_failed, array, 16 * (size_t)s->ncells + 16);
+  if (*ntasks <= 0) { /* every cell has its result: nothing to submit */
+    free(array);
+    *ntasks = 0;
+    return VES_OK;
+  }
+  if ((!exists && mkdir(adir, 0777) != 0) || (mkdir(logs, 0777) != 0 && errno != EEXIST)) {
+    ves_error_say(err, errlen, "%s: cannot create: %s", exists ? logs : adir, strerror(errno));
+    free(array);
     return VES_ERR_IO;
   }
-  snprintf(path, sizeof path, "%s/study.sbatch", adir);
   snprintf(tmp, sizeof tmp, "%s.tmp", path);
   FILE *f = fopen(tmp, "w");
   if (!f) {
     ves_error_say(err, errlen, "%s: cannot write: %s", tmp, strerror(errno));
+    free(array);
     return VES_ERR_IO;
   }
-  const char *base = strrchr(study, '/') + 1;
-  char job[64];
-  snprintf(job, sizeof job, "vesica-%.*s", (int)strcspn(base, "."), base);
-  for (char *c = job; *c; c++)
-    if (!isalnum((unsigned char)*c) && *c != '-' && *c != '_') *c = '_';
-  fprintf(f, "#!/bin/bash\n# vesica study %s: %ld cells, one per array task.\n", study, s->ncells);
-  fprintf(f, "# Submit: sbatch %s\n# Then: vesica study %s --out %s --collect\n", path, study,
-          adir);
-  fprintf(f, "#SBATCH --job-name=%s\n#SBATCH --array=0-%ld\n#SBATCH --ntasks=1\n", job,
-          s->ncells - 1);
+  /* the comments: every name quoted as for the shell, so each stays one line */
+  fprintf(f, "#!/bin/bash\n# vesica study ");
+  sh_word(f, study);
+  fprintf(f, ": %ld of %ld cells to run, one per array task.\n# Submit: sbatch ", *ntasks,
+          s->ncells);
+  sh_word(f, path);
+  fputs("\n# Then: vesica study ", f);
+  sh_word(f, study);
+  fputs(" --out ", f);
+  sh_word(f, adir);
+  fputs(" --collect\n", f);
+  fprintf(f, "#SBATCH --job-name=%s\n#SBATCH --array=%s\n#SBATCH --ntasks=1\n", job, array);
   fprintf(f, "#SBATCH --cpus-per-task=%d\n#SBATCH --mem=%s\n", s->cpus_per_task, s->mem);
   if (s->time_limit > 0) /* the cell's own limit stops it first */
     fprintf(f, "#SBATCH --time=%ld\n", (long)ceil(s->time_limit / 60) + 5);
-  fprintf(f, "#SBATCH --output=%s/%%A_%%a.out\n", logs);
+  fprintf(f, "#SBATCH --output=\"%s\"\n", out);
   if (s->partition[0]) fprintf(f, "#SBATCH --partition=%s\n", s->partition);
   if (s->account[0]) fprintf(f, "#SBATCH --account=%s\n", s->account);
   fprintf(f, "export OMP_NUM_THREADS=\"${SLURM_CPUS_PER_TASK:-%d}\"\n", s->cpus_per_task);
   fprintf(f, "export OPENBLAS_NUM_THREADS=1\nexec ");
-  sh_quote(f, program);
+  sh_word(f, program);
   fputs(" study ", f);
-  sh_quote(f, study);
+  sh_word(f, study);
   fputs(" --out ", f);
-  sh_quote(f, adir);
-  fprintf(f, " --max-cells %ld --cell \"${SLURM_ARRAY_TASK_ID:?not a Slurm array task}\"\n",
-          s->ncells > VES_STUDY_MAX_CELLS ? s->ncells : (long)VES_STUDY_MAX_CELLS);
+  sh_word(f, adir);
+  fprintf(f, " --max-cells %ld%s --cell \"${SLURM_ARRAY_TASK_ID:?not a Slurm array task}\"\n",
+          s->ncells > VES_STUDY_MAX_CELLS ? s->ncells : (long)VES_STUDY_MAX_CELLS,
+          retry_failed ? " --retry-failed" : "");
+  free(array);
   int bad = ferror(f);
   bad |= fclose(f) != 0;
   if (bad || rename(tmp, path) != 0 || chmod(path, 0755) != 0) {
