@@ -35,7 +35,7 @@ endif
 # CHOLMOD, the nlopt backend's exact sparse Cholesky factor (solver/linalg/chol.c)
 DEPS_PKGS = coinor-libipopt-dev libnlopt-dev libmumps-seq-dev libcgal-dev \
             libhdf5-dev libcmocka-dev liblapacke-dev libopenblas-dev \
-            gnuplot-nox pkg-config libiniparser-dev libsuitesparse-dev python3-meshio python3-h5py clang-format
+            gnuplot-nox pkg-config libsuitesparse-dev python3-meshio python3-h5py clang-format
 
 PKG_CFLAGS := $(shell pkg-config --cflags ipopt hdf5 2>/dev/null)
 PKG_LIBS   := $(shell pkg-config --libs ipopt hdf5 2>/dev/null)
@@ -47,7 +47,7 @@ CFLAGS  += -std=c11 -fopenmp -D_XOPEN_SOURCE=700 $(WARN) -Iinclude -Isolver $(PK
 # check disabled so valgrind can run it.
 CXXFLAGS_CGAL = -std=c++17 -O2 -g -fopenmp -frounding-math -DCGAL_DISABLE_ROUNDING_MATH_CHECK \
                 -Wall -Wextra -Werror -Iinclude $(SANFLAGS) -MMD -MP
-LDLIBS   = $(PKG_LIBS) -lnlopt -ldmumps_seq -lsmumps_seq -liniparser -lcholmod -llapacke -lopenblas -lgmp -lstdc++ -lm
+LDLIBS   = $(PKG_LIBS) -lnlopt -ldmumps_seq -lsmumps_seq -lcholmod -llapacke -lopenblas -lgmp -lstdc++ -lm
 LDFLAGS += $(SANFLAGS) -fopenmp
 
 # The library's layers, lowest first (docs/design.md, "Layers and interfaces"); the program

@@ -253,7 +253,7 @@ static ves_status range_msg(char *err, size_t errlen, const char *src, const key
 #define INI_MAX_BYTES (1 << 20)
 
 /* Lower-case copy of s[0, n) into out (INI names are case-insensitive, as
- * iniparser had them); 0 when it does not fit. */
+ * in most INI readers); 0 when it does not fit. */
 static int ini_name(char *out, size_t len, const char *s, size_t n) {
   if (n == 0 || n >= len) return 0;
   for (size_t i = 0; i < n; i++) out[i] = (char)tolower((unsigned char)s[i]);
