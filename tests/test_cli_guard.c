@@ -25,7 +25,7 @@ static int teardown_guard(void **state) {
   return teardown_all(state);
 }
 
-/* A problem of fixed steps that runs until --max-steps stops it. */
+/* A problem of fixed steps: --max-steps ends its runs. */
 static void long_problem(const char *ini) {
   write_file(ini, "[time]\nt_end = 100\nadaptive = 0\ndt_max = 5e-3\n");
 }

@@ -275,7 +275,7 @@ int cli_is_value(const char *a) {
                (a[1] == '.' && isdigit((unsigned char)a[2])));
 }
 
-/* 1 when standard output was closed when the program started (fd 1 then
+/* 1 when standard output is closed at the start of the program (fd 1 then
  * holds /dev/full, cli_streams_begin). */
 static int stdout_closed;
 

@@ -26,7 +26,8 @@ static void usage_plot(FILE *f) {
           "--outdir DIR    where (default: the folder of FILE.h5; created if missing)\n"
           "--times LIST    the snapshots nearest to these times t* (at most %d; default: the\n"
           "                first, the last and two between them on a log time scale)\n"
-          "--force         overwrite existing figures (without it they are refused, exit 2)\n"
+          "--force         overwrite existing figures (without it they are refused, exit 2;\n"
+          "                FILE.h5 and a file a running vesica holds never are overwritten)\n"
           "Exit 0 ok, 2 bad input, 3 when gnuplot fails or a figure cannot be written.\n",
           VES_PLOT_MAXTIMES);
 }

@@ -157,8 +157,8 @@ static int create_output(run_ctx *r, const char *path) {
  * then emptied, and its two header lines (the run, then the columns)
  * written and flushed. A file another vesica locked in the moment since the
  * check is refused (2); a header that cannot be written (a full disk) ends
- * the run before its first step (3): nothing is lost, and what was created
- * is removed. 0 or the exit code. */
+ * the run before its first step (3): nothing is lost, and the files created
+ * are removed. 0 or the exit code. */
 static int open_series(run_ctx *r, const char *path, const char *series) {
   int rc = 0, fd = open(series, O_WRONLY | O_CREAT | O_CLOEXEC, 0666);
   r->series_path = series;
