@@ -155,10 +155,11 @@ static int create_output(run_ctx *r, const char *path) {
 /* The --series file: opened without truncating, locked (held until the
  * run closes it: no other vesica writes it meanwhile, cli_check_output),
  * then emptied, and its two header lines (the run, then the columns)
- * written and flushed. A file another vesica locked in the moment since the
- * check is refused (2); a header that cannot be written (a full disk) ends
- * the run before its first step (3): nothing is lost, and the files created
- * are removed. 0 or the exit code. */
+ * written and flushed. A file another vesica locked in the moment since
+ * the check is refused (2; on a file system without locks it is written
+ * unlocked); a header that cannot be written (a full disk) ends the run
+ * before its first step (3): nothing is lost, and the files created are
+ * removed. 0 or the exit code. */
 static int open_series(run_ctx *r, const char *path, const char *series) {
   int rc = 0, fd = open(series, O_WRONLY | O_CREAT | O_CLOEXEC, 0666);
   r->series_path = series;
@@ -166,7 +167,7 @@ static int open_series(run_ctx *r, const char *path, const char *series) {
     fprintf(stderr, "vesica run: --series %s: cannot open for writing: %s\n", series,
             strerror(errno));
     rc = 2;
-  } else if (flock(fd, LOCK_EX | LOCK_NB) != 0) {
+  } else if (flock(fd, LOCK_EX | LOCK_NB) != 0 && errno == EWOULDBLOCK) {
     fprintf(stderr,
             "vesica run: --series %s: in use by a running vesica (it holds a lock on the "
             "file): never overwritten, even with --force\n",

@@ -87,7 +87,7 @@ static int write_modes(const run_ctx *r, const ves_spectrum *sp, const spectrum_
   errno = 0;
   const int fd = open(part, O_WRONLY | O_CREAT | O_CLOEXEC, 0666);
   if (fd < 0) return -1;
-  if (flock(fd, LOCK_EX | LOCK_NB) != 0) { /* another spectrum writes the same F */
+  if (flock(fd, LOCK_EX | LOCK_NB) != 0 && errno == EWOULDBLOCK) { /* another spectrum: F */
     close(fd);
     fprintf(stderr,
             "vesica spectrum: --vectors %s: %s is in use by a running vesica: never "
