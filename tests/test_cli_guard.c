@@ -63,12 +63,18 @@ static void run_stdout(result *r, char how, char *const *args) {
   unlink(e);
 }
 
+/* What a child said, one line "# what -> exit: message". */
+static void say(const char *what, const result *r) {
+  const size_t n = strlen(r->err);
+  printf("# %s -> %d: %s%s", what, r->code, r->err, n && r->err[n - 1] == '\n' ? "" : "\n");
+}
+
 /* An attempt on the running run's files: exit 2, the message naming the
  * file as in use (frag), nothing written (no file `absent`). */
 static void refused(const char *what, const char *frag, const char *absent, char *const *args) {
   result r;
   collect(spawn(args, NULL), &r);
-  printf("# %s -> %d: %s", what, r.code, r.err);
+  say(what, &r);
   if (r.code != 2 || !strstr(r.err, frag))
     fail_msg("%s: exit %d, '%s' (want 2 and '%s')", what, r.code, r.err, frag);
   if (absent && exists(absent)) fail_msg("%s: %s written", what, absent);
@@ -140,7 +146,7 @@ static void test_live_files(void **state) {
   if (waitpid(pid, &status, WNOHANG) != 0)
     fail_msg("the running run ended before the attempts were over: make LIVE_STEPS larger");
   collect_tag(pid, &r, "live");
-  printf("# the running run -> %d: %s", r.code, r.err);
+  say("the running run", &r);
   assert_int_equal(r.code, 0);
   run(&r, "info", live, NULL);
   if (r.code) fail_msg("info of the run's file: exit %d: %s", r.code, r.err);
@@ -248,7 +254,7 @@ static void test_series_full_disk(void **state) {
   assert_int_equal(file_size(fill), 8192); /* the tmpfs full */
   result r;
   run(&r, "run", ini, TINY, "--out", out, "--series", tsv, "--quiet", "--max-steps", "3", NULL);
-  printf("# --series on a full disk -> %d: %s", r.code, r.err);
+  say("--series on a full disk", &r);
   assert_int_equal(r.code, 3);
   assert_non_null(strstr(r.err, tsv));
   assert_non_null(strstr(r.err, "No space left on device"));
@@ -259,7 +265,7 @@ static void test_series_full_disk(void **state) {
   assert_int_equal(truncate(fill, 4096), 0);
   const char *steps = "45";
   run(&r, "run", ini, TINY, "--out", out, "--series", tsv, "--quiet", "--max-steps", steps, NULL);
-  printf("# --series filling the disk during the run -> %d: %s", r.code, r.err);
+  say("--series filling the disk during the run", &r);
   assert_int_equal(r.code, 3);
   assert_non_null(strstr(r.err, "No space left on device"));
   assert_non_null(strstr(r.err, "vesica info"));
@@ -291,13 +297,13 @@ static void test_stdout(void **state) {
   if (r.code) fail_msg("the run: exit %d: %s", r.code, r.err);
   char *info[] = {"info", src, NULL};
   run_stdout(&r, 'f', info);
-  printf("# info > /dev/full -> %d: %s", r.code, r.err);
+  say("info > /dev/full", &r);
   assert_int_equal(r.code, 3);
   assert_non_null(strstr(r.err, "standard output"));
   assert_non_null(strstr(r.err, "No space left on device"));
   char *series[] = {"info", src, "--series", "0", NULL};
   run_stdout(&r, 'c', series);
-  printf("# info --series 0 >&- -> %d: %s", r.code, r.err);
+  say("info --series 0 >&-", &r);
   assert_int_equal(r.code, 3);
   assert_non_null(strstr(r.err, "standard output"));
   assert_non_null(strstr(r.err, "closed"));
@@ -313,7 +319,7 @@ static void test_negative_value(void **state) {
   long_problem(ini);
   result r;
   run(&r, "run", ini, "--max-steps", "-1", NULL);
-  printf("# --max-steps -1 -> %d: %s", r.code, r.err);
+  say("--max-steps -1", &r);
   assert_int_equal(r.code, 2);
   assert_non_null(strstr(r.err, "--max-steps '-1': not a positive integer"));
   assert_null(strstr(r.err, "needs a value"));
