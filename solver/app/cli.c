@@ -44,7 +44,7 @@ static void usage(FILE *f) {
           "SIGINT/SIGTERM after its current step (state saved; continue with --restart)\n");
 }
 
-int main(int argc, char **argv) {
+static int command(int argc, char **argv) {
   ves_blas_core_fix(argv); /* returns unless OpenBLAS needs a restart */
   if (argc < 2) {
     usage(stderr);
@@ -92,4 +92,9 @@ int main(int argc, char **argv) {
   }
   fprintf(stderr, "vesica: unknown command '%s' (see vesica --help)\n", argv[1]);
   return 2;
+}
+
+int main(int argc, char **argv) {
+  cli_streams_begin(); /* before any file is opened: none takes a closed stream's number */
+  return cli_streams_end(argc > 1 ? argv[1] : "", command(argc, argv));
 }

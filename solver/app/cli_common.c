@@ -2,12 +2,15 @@
  * setup's estimate, output paths, the library's error text (cli_impl.h;
  * docs/design.md, "The program"). */
 
+#include <ctype.h>
 #include <errno.h>
+#include <fcntl.h>
 #include <limits.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/file.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -177,17 +180,69 @@ int cli_same_file(const char *a, const char *b) {
          sa.st_ino == sb.st_ino;
 }
 
-/* An output path: never one of the inputs in[nin] (NULL entries skipped),
- * and not an existing file unless force. 0 ok, else 2 (message printed;
- * hint, if any, says how to keep the file instead). */
-int cli_check_new(const char *cmd, const char *what, const char *path, int force,
-                  const char *const *in, int nin, const char *hint) {
+/* Whether a process holds a lock on the file path: a shared lock taken
+ * without waiting fails when another open of the file holds an exclusive
+ * one. A running vesica holds one on each file it writes: HDF5 locks its
+ * output for as long as it is open for writing (H5Fopen and H5Fcreate
+ * flock it), and run locks its --series text and spectrum its --vectors
+ * file (open_series, write_modes). The probe's lock goes with its close. */
+static int locked(const char *path) {
+  int fd = open(path, O_RDONLY | O_NONBLOCK | O_NOCTTY | O_CLOEXEC);
+  if (fd < 0) return 0;
+  const int held = flock(fd, LOCK_SH | LOCK_NB) != 0 && errno == EWOULDBLOCK;
+  close(fd);
+  return held;
+}
+
+/* The file a running vesica holds that writing path would destroy: path
+ * itself, or, when path is the XDMF file of a run or its temporary (B.xdmf
+ * or B.xdmf.tmp, ves_io_xdmf_path), that run's B.h5 or B (the XDMF file of
+ * a running run is rewritten at its snapshots). Into buf; NULL when none. */
+static const char *held_file(const char *path, char *buf, size_t len) {
+  if (locked(path)) return path;
+  size_t l = strlen(path);
+  if (l > 4 && !strcmp(path + l - 4, ".tmp")) l -= 4;
+  if (l <= 5 || strncmp(path + l - 5, ".xdmf", 5)) return NULL;
+  l -= 5;
+  snprintf(buf, len, "%.*s.h5", (int)l, path);
+  if (locked(buf)) return buf;
+  snprintf(buf, len, "%.*s", (int)l, path);
+  return locked(buf) ? buf : NULL;
+}
+
+/* Every file a command writes passes here, before its first write and
+ * again just before it is created: its folder writable; never one of the
+ * command's inputs in[nin] (NULL entries skipped); never a file a running
+ * vesica holds (whatever force: a running run's file is not a finished
+ * output, and replacing it loses the run); an existing file only with
+ * force. 0 ok, else 2 (message printed; hint, if any, says how to keep the
+ * file instead). */
+int cli_check_output(const char *cmd, const char *what, const char *path, int force,
+                     const char *const *in, int nin, const char *hint) {
+  int rc = cli_check_writable(cmd, what, path);
+  if (rc) return rc;
   for (int i = 0; i < nin; i++)
-    if (cli_same_file(path, in[i])) {
+    if (in[i] && (cli_same_file(path, in[i]) || !strcmp(path, in[i]))) {
       fprintf(stderr, "vesica %s: %s %s: is the input file %s: an input is never overwritten\n",
               cmd, what, path, in[i]);
       return 2;
     }
+  char buf[PATH_MAX + 8];
+  const char *held = held_file(path, buf, sizeof buf);
+  if (held == path) {
+    fprintf(stderr,
+            "vesica %s: %s %s: in use by a running vesica (it holds a lock on the file): "
+            "never overwritten, even with --force\n",
+            cmd, what, path);
+    return 2;
+  }
+  if (held) {
+    fprintf(stderr,
+            "vesica %s: %s %s: the XDMF file of %s, which a running vesica holds: never "
+            "overwritten, even with --force\n",
+            cmd, what, path, held);
+    return 2;
+  }
   struct stat sb;
   if (!force && lstat(path, &sb) == 0) {
     fprintf(stderr, "vesica %s: %s %s: exists; --force overwrites it%s\n", cmd, what, path,
@@ -211,6 +266,48 @@ int cli_parse_long(const char *cmd, const char *opt, const char *v, long lo, lon
 }
 
 const char *cli_why(ves_status st) { return ves_error_text(st); }
+
+/* An option's value is the next argument unless that is an option itself:
+ * '-' then not a digit or '.' ("-1", "-.5" and "-2e-3" are values, so that
+ * --max-steps -1 says the value is out of range, not that it is missing). */
+int cli_is_value(const char *a) {
+  return a && (a[0] != '-' || isdigit((unsigned char)a[1]) ||
+               (a[1] == '.' && isdigit((unsigned char)a[2])));
+}
+
+/* 1 when standard output is closed at the start of the program (fd 1 then
+ * holds /dev/full, cli_streams_begin). */
+static int stdout_closed;
+
+/* A standard stream closed at the start (fd 0, 1 or 2 not open) is opened
+ * on /dev/null, standard output on /dev/full: otherwise the first file the
+ * command opens takes that number, and printf or a message on stderr
+ * writes into it (the run's HDF5 file). What a command prints to a closed
+ * standard output then fails, and cli_streams_end says so. */
+void cli_streams_begin(void) {
+  for (int fd = 0; fd < 3; fd++) {
+    if (fcntl(fd, F_GETFD) != -1 || errno != EBADF) continue;
+    int k = open(fd == 1 ? "/dev/full" : "/dev/null", fd ? O_WRONLY : O_RDONLY);
+    if (k < 0) k = open("/dev/null", fd ? O_WRONLY : O_RDONLY);
+    if (k >= 0 && k != fd) dup2(k, fd), close(k);
+    if (fd == 1) stdout_closed = 1;
+  }
+}
+
+/* The exit code of a command that returned rc, once its standard output is
+ * written out: a result that does not reach its reader (a full disk, a
+ * closed standard output) is a write failure, exit 3 with a message (rc
+ * kept when the command failed already). */
+int cli_streams_end(const char *cmd, int rc) {
+  errno = 0;
+  const int flushed = fflush(stdout) == 0, e = errno;
+  if (flushed && !ferror(stdout)) return rc;
+  fprintf(stderr, "vesica%s%s: standard output: cannot write: %s\n", *cmd ? " " : "", cmd,
+          stdout_closed   ? "it is closed"
+          : !flushed && e ? strerror(e)
+                          : "a write failed");
+  return rc ? rc : 3;
+}
 
 int cli_operand(const char *cmd, const char *what, int is_option, const char *a,
                 const char **path) {

@@ -59,10 +59,21 @@ int cli_parse_long(const char *cmd, const char *opt, const char *v, long lo, lon
 int cli_check_writable(const char *cmd, const char *what, const char *path);
 /* Whether a and b name the same existing file. */
 int cli_same_file(const char *a, const char *b);
-/* An output path: never one of the inputs in[nin], not an existing file
- * unless force: 0, else 2 (hint, if any, says how to keep the file). */
-int cli_check_new(const char *cmd, const char *what, const char *path, int force,
-                  const char *const *in, int nin, const char *hint);
+/* The guard of every file a command writes (option what): its folder
+ * writable, never one of the inputs in[nin], never a file a running vesica
+ * holds (its HDF5 output, XDMF file, --series or --vectors file), whatever
+ * force; an existing file only with force: 0, else 2 (hint, if any, says
+ * how to keep the file). Called before the command's work and again just
+ * before the file is created. */
+int cli_check_output(const char *cmd, const char *what, const char *path, int force,
+                     const char *const *in, int nin, const char *hint);
+/* Whether argument a is an option's value (not an option; "-1" is a value). */
+int cli_is_value(const char *a);
+/* The standard streams: closed ones opened on /dev/null (stdout on
+ * /dev/full) at the start, and the command's exit code rc at the end: 3
+ * with a message when its standard output could not be written. */
+void cli_streams_begin(void);
+int cli_streams_end(const char *cmd, int rc);
 
 /* ---- a run's state (cli_state.c) ------------------------------------------ */
 
@@ -79,7 +90,11 @@ typedef struct {
   double *y;                  /* 2n scratch: coefficients */
   double *x;                  /* 2n scratch: material positions at the nodes */
   double *v;                  /* 2n scratch: the flow at the nodes */
-  FILE *series;               /* --series file or NULL */
+  FILE *series;               /* --series file or NULL (locked: held while open) */
+  const char *series_path;    /* --series FILE.tsv */
+  long series_good;           /* its bytes up to the end of the last line written whole */
+  int series_errno;           /* why it could not be written (0: it could) */
+  long series_step;           /* the step whose line failed (-1: the file's close) */
   int quiet;                  /* --quiet */
   long max_steps;             /* --max-steps (0: none) */
   int ncap;                   /* nodes phi, y, x, v have room for */

@@ -89,6 +89,65 @@ static ves_status room_for_step(run_ctx *r, long nstep, int resets) {
   return ves_io_room(r->io, 1 + due, resets ? nq : 0); /* a remeshing is smaller */
 }
 
+/* The --series text could not be written: the warning, at once and even
+ * with --quiet (the run goes on for hours, perhaps); finish repeats it. */
+static void series_warn(const run_ctx *r, const char *pre) {
+  char at[64] = "its end";
+  if (r->series_step >= 0) snprintf(at, sizeof at, "step %ld", r->series_step);
+  fprintf(stderr,
+          "%svesica run: %s--series %s: cannot write %s: %s; the text ends before it, the run "
+          "goes on (%s holds every row: vesica info %s --series 0) and exits 3\n",
+          isatty(2) && !r->quiet ? "\n" : "", pre, r->series_path, at, strerror(r->series_errno),
+          r->out, r->out);
+}
+
+/* The --series text could not be written (errno e, at step `step`, -1: at
+ * its end): it is cut back to its last whole line and closed, and the run
+ * goes on to end with exit 3 (finish). The run is not stopped: that would
+ * gain nothing (a restart does not continue the text, and FILE.h5 holds
+ * every row of it: vesica info FILE.h5 --series 0), and hours of steps are
+ * not lost over a view of them; exit 3 still tells a script that an output
+ * is incomplete. A full disk that stops FILE.h5 too stops the run by its
+ * own room check, with the state saved. */
+static void series_failed(run_ctx *r, long step, int e) {
+  r->series_errno = e ? e : EIO, r->series_step = step;
+  const int cut = ftruncate(fileno(r->series), r->series_good) == 0; /* no partial line */
+  (void)cut; /* not cut (a file system that refuses): the partial line is the last */
+  fclose(r->series);
+  r->series = NULL;
+  series_warn(r, "warning: ");
+}
+
+/* The accepted step's line of the --series text, flushed with it. */
+static void series_row(run_ctx *r, const ves_io_row *row) {
+  double A0, V0;
+  ves_sim_initial(r->sim, NULL, &A0, &V0);
+  errno = 0;
+  if (ves_io_tsv_row(r->series, row, A0) != VES_OK || fflush(r->series) != 0) {
+    series_failed(r, row->step, errno);
+    return;
+  }
+  r->series_good = ftell(r->series);
+}
+
+/* The --series text closed at the end of the loop: its close can fail too
+ * (a network file system reports a failed write there). */
+static void series_close(run_ctx *r) {
+  if (!r->series) return;
+  errno = 0;
+  if (fflush(r->series) != 0 || ferror(r->series)) {
+    series_failed(r, -1, errno);
+    return;
+  }
+  errno = 0;
+  const int bad = fclose(r->series) != 0, e = errno;
+  r->series = NULL;
+  if (bad) {
+    r->series_errno = e ? e : EIO, r->series_step = -1;
+    series_warn(r, "warning: ");
+  }
+}
+
 /* The accepted step rep into the file (row, a reset's reference, a
  * remeshing, a due snapshot) and the --series text. */
 static ves_status record_step(run_ctx *r, const ves_step_report *rep, double wall) {
@@ -98,12 +157,7 @@ static ves_status record_step(run_ctx *r, const ves_step_report *rep, double wal
   if (rep->reconnected) VES_CALL(cli_write_reference(r, rep->step));
   if (rep->remeshed) VES_CALL(cli_write_remesh(r, rep->step, &rep->remesh));
   if (rep->step % r->cfg.snapshot_every == 0) VES_CALL(cli_snapshot(r, wall));
-  if (r->series) {
-    double A0, V0;
-    ves_sim_initial(r->sim, NULL, &A0, &V0);
-    ves_io_tsv_row(r->series, &row, A0); /* the text is a view: its failure is not the run's */
-    fflush(r->series);
-  }
+  if (r->series) series_row(r, &row);
   return VES_OK;
 }
 
@@ -176,6 +230,7 @@ static int finish(run_ctx *r, const loop_ctx *L, ves_status st, ves_status wst, 
   ves_sim_get_state(r->sim, &fin, NULL);
   const char *status = "finished";
   int code = 0;
+  series_close(r);
   if (wst != VES_OK) { /* a write failed half-way: nothing more is written */
     fprintf(stderr,
             "vesica run: %s: cannot write: %s; continue from its last complete snapshot with "
@@ -220,6 +275,10 @@ static int finish(run_ctx *r, const loop_ctx *L, ves_status st, ves_status wst, 
             "wrote %s\n",
             !strcmp(status, "finished") ? "t_end reached" : "--max-steps reached", fin.nstep, fin.t,
             L->steps, L->iters, ves_wall_seconds() - L->t0, r->out);
+  if (r->series_errno) { /* the run is whole, an output is not */
+    series_warn(r, "");
+    if (!code) code = 3;
+  }
   return code;
 }
 

@@ -26,7 +26,8 @@ static void usage_plot(FILE *f) {
           "--outdir DIR    where (default: the folder of FILE.h5; created if missing)\n"
           "--times LIST    the snapshots nearest to these times t* (at most %d; default: the\n"
           "                first, the last and two between them on a log time scale)\n"
-          "--force         overwrite existing figures (without it they are refused, exit 2)\n"
+          "--force         overwrite existing figures (without it they are refused, exit 2;\n"
+          "                FILE.h5 and a file a running vesica holds never are overwritten)\n"
           "Exit 0 ok, 2 bad input, 3 when gnuplot fails or a figure cannot be written.\n",
           VES_PLOT_MAXTIMES);
 }
@@ -121,11 +122,16 @@ int cmd_plot(int argc, char **argv) {
     ves_io_close(&io);
     return 2;
   }
+  /* every figure and the .part gnuplot writes it to (plot.c): never the
+   * input, never a file a running vesica holds, an existing figure only
+   * with --force (a .part is plot's own scratch) */
   for (int k = 0; k < VES_PLOT_NFIG; k++) {
-    char png[2 * PATH_MAX + 64];
+    char png[2 * PATH_MAX + 64], part[2 * PATH_MAX + 72];
     snprintf(png, sizeof png, "%s/%s_%s.png", dir, stem, ves_plot_figures[k]);
+    snprintf(part, sizeof part, "%s.part", png);
     const char *in[] = {path};
-    if (cli_check_new("plot", "figure", png, force, in, 1, NULL)) {
+    if (cli_check_output("plot", "figure", png, force, in, 1, NULL) ||
+        cli_check_output("plot", "figure", part, 1, in, 1, NULL)) {
       ves_io_close(&io);
       return 2;
     }

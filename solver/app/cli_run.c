@@ -3,11 +3,13 @@
  * (docs/manual.md; docs/design.md, "The program"). */
 
 #include <errno.h>
+#include <fcntl.h>
 #include <limits.h>
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/file.h>
 #include <unistd.h>
 
 #include "app/cli_impl.h"
@@ -34,17 +36,20 @@ static void usage_run(FILE *f) {
           "  --series FILE.tsv also one tab-separated line per accepted step: step t dt E\n"
           "                    A/A0-1 V/Vtarget-1 lambda_A lambda_V iterations f_evals g_evals\n"
           "                    h_evals seconds retries resets (reference resets so far)\n"
-          "                    rejected_iterations rejected_seconds (attempts retried at dt/2)\n"
+          "                    rejected_iterations rejected_seconds (attempts retried at dt/2);\n"
+          "                    a write that fails (a full disk) ends the text, not the run,\n"
+          "                    which then exits 3 (vesica info FILE.h5 --series 0: every row)\n"
           "  --force           overwrite an existing FILE.h5, FILE.xdmf or --series file\n"
-          "                    (without it they are refused, exit 2; the problem file and\n"
-          "                    its points file are never overwritten)\n"
+          "                    (without it they are refused, exit 2; the problem file, its\n"
+          "                    points file and the files of a running vesica never are)\n"
           "  --quiet           no progress line (otherwise one line on stderr: step, t*, dt*,\n"
           "                    E*, iterations, ETA (a range lo-hi while adaptive steps\n"
           "                    are below dt_max, 'unknown' when that range spans more than\n"
           "                    10x; --max-steps counted); updated in place on a terminal)\n"
           "Exit 0 at t_end (or --max-steps), 2 on bad input (nothing written), 3 when a step\n"
-          "fails down to dt_min (the last good state is saved as the last snapshot), 130/143 on\n"
-          "SIGINT/SIGTERM after the current step (state saved; a second signal kills).\n");
+          "fails down to dt_min (the last good state is saved as the last snapshot) or an\n"
+          "output cannot be written, 130/143 on SIGINT/SIGTERM after the current step (state\n"
+          "saved; a second signal kills).\n");
 }
 
 /* Remove the output of a run that failed before its first step. */
@@ -56,8 +61,12 @@ static void remove_output(const char *out) {
 }
 
 /* The outputs of a new run from the problem file path: r->out (out, or the
- * problem's name with .h5 here), its XDMF file, the --series file, each
- * writable, none an input, none existing unless force. 0 or 2. */
+ * problem's name with .h5 here), its XDMF file (and the temporary it is
+ * written to), the --series file, each through the guard of
+ * cli_check_output: writable, none an input (the problem file, its points
+ * file), none a file a running vesica holds, none existing unless force.
+ * Checked before the setup and again after it, just before the files are
+ * created (the setup can take minutes). 0 or 2. */
 static int check_outputs(run_ctx *r, const char *path, const char *out, const char *series,
                          int force) {
   int rc;
@@ -69,7 +78,8 @@ static int check_outputs(run_ctx *r, const char *path, const char *out, const ch
     if (l > 4 && !strcmp(base + l - 4, ".ini")) l -= 4;
     snprintf(r->out, sizeof r->out, "%.*s.h5", (int)l, base);
   }
-  char xdmf[PATH_MAX], points[PATH_MAX + 600] = "", hint[PATH_MAX + 64], why[128];
+  char xdmf[PATH_MAX], xtmp[PATH_MAX + 8], points[PATH_MAX + 600] = "", hint[PATH_MAX + 64],
+                                                             why[128];
   if (!ves_io_xdmf_name_ok(r->out, why, sizeof why)) { /* the .xdmf could not name it */
     fprintf(stderr,
             "vesica run: --out %s: %s, so the XDMF file beside it could not refer to it: "
@@ -78,10 +88,7 @@ static int check_outputs(run_ctx *r, const char *path, const char *out, const ch
     return 2;
   }
   ves_io_xdmf_path(r->out, xdmf, sizeof xdmf);
-  if ((rc = cli_check_writable("run", "--out", r->out)) ||
-      (rc = cli_check_writable("run", "--out", xdmf)))
-    return rc;
-  if (series && (rc = cli_check_writable("run", "--series", series))) return rc;
+  snprintf(xtmp, sizeof xtmp, "%s.tmp", xdmf); /* io_xdmf.c writes it, then renames it */
   if (r->cfg.points[0]) { /* a curve's points file, found as ves_config_read_points does */
     const char *sl = r->cfg.points[0] == '/' ? NULL : strrchr(path, '/');
     snprintf(points, sizeof points, "%.*s%s%s", sl ? (int)(sl - path) : 0, path, sl ? "/" : "",
@@ -89,12 +96,13 @@ static int check_outputs(run_ctx *r, const char *path, const char *out, const ch
   }
   const char *inputs[] = {path, points[0] ? points : NULL};
   snprintf(hint, sizeof hint, ", or vesica run --restart %s continues it", r->out);
-  if ((rc = cli_check_new("run", "--out", r->out, force, inputs, 2, hint)) ||
-      (rc = cli_check_new("run", "--out", xdmf, force, inputs, 2, NULL)) ||
-      (series && (rc = cli_check_new("run", "--series", series, force, inputs, 2, NULL))))
+  if ((rc = cli_check_output("run", "--out", r->out, force, inputs, 2, hint)) ||
+      (rc = cli_check_output("run", "--out", xdmf, force, inputs, 2, NULL)) ||
+      (rc = cli_check_output("run", "--out", xtmp, 1, inputs, 2, NULL)) ||
+      (series && (rc = cli_check_output("run", "--series", series, force, inputs, 2, NULL))))
     return rc;
-  if (series &&
-      (cli_same_file(series, r->out) || !strcmp(series, r->out) || !strcmp(series, xdmf))) {
+  if (series && (cli_same_file(series, r->out) || !strcmp(series, r->out) ||
+                 !strcmp(series, xdmf) || !strcmp(series, xtmp))) {
     fprintf(stderr, "vesica run: --series %s: is the run's output file\n", series);
     return 2;
   }
@@ -144,20 +152,59 @@ static int create_output(run_ctx *r, const char *path) {
   return 0;
 }
 
-/* The --series file: its two header lines (the run, then the columns). */
+/* The --series file: opened without truncating, locked (held until the
+ * run closes it: no other vesica writes it meanwhile, cli_check_output),
+ * then emptied, and its two header lines (the run, then the columns)
+ * written and flushed. A file another vesica locked in the moment since
+ * the check is refused (2; on a file system without locks it is written
+ * unlocked); a header that cannot be written (a full disk) ends the run
+ * before its first step (3): nothing is lost, and the files created are
+ * removed. 0 or the exit code. */
 static int open_series(run_ctx *r, const char *path, const char *series) {
-  if (!(r->series = fopen(series, "w"))) {
+  int rc = 0, fd = open(series, O_WRONLY | O_CREAT | O_CLOEXEC, 0666);
+  r->series_path = series;
+  if (fd < 0) {
     fprintf(stderr, "vesica run: --series %s: cannot open for writing: %s\n", series,
             strerror(errno));
+    rc = 2;
+  } else if (flock(fd, LOCK_EX | LOCK_NB) != 0 && errno == EWOULDBLOCK) {
+    fprintf(stderr,
+            "vesica run: --series %s: in use by a running vesica (it holds a lock on the "
+            "file): never overwritten, even with --force\n",
+            series);
+    close(fd);
+    rc = 2;
+  } else if (ftruncate(fd, 0) != 0 || !(r->series = fdopen(fd, "w"))) {
+    fprintf(stderr, "vesica run: --series %s: cannot write: %s\n", series, strerror(errno));
+    close(fd);
+    remove(series);
+    rc = 3;
+  }
+  if (rc) {
     ves_io_close(&r->io);
     remove_output(r->out);
-    return 2;
+    return rc;
   }
   double E0, A0, V0;
   ves_sim_initial(r->sim, &E0, &A0, &V0);
-  fprintf(r->series, "# vesica %s run %s backend %s nodes %d E0 %.12g A0 %.12g V0 %.12g\n",
-          VES_VERSION, path, r->bk->name, r->setup->nodes->n, E0, A0, V0);
-  ves_io_tsv_header(r->series);
+  errno = 0;
+  int bad =
+      fprintf(r->series, "# vesica %s run %s backend %s nodes %d E0 %.12g A0 %.12g V0 %.12g\n",
+              VES_VERSION, path, r->bk->name, r->setup->nodes->n, E0, A0, V0) < 0;
+  bad |= ves_io_tsv_header(r->series) != VES_OK;
+  bad |= fflush(r->series) != 0;
+  if (bad) {
+    const int e = errno ? errno : EIO;
+    fprintf(stderr, "vesica run: --series %s: cannot write: %s; nothing run, nothing kept\n",
+            series, strerror(e));
+    fclose(r->series);
+    r->series = NULL;
+    remove(series);
+    ves_io_close(&r->io);
+    remove_output(r->out);
+    return 3;
+  }
+  r->series_good = ftell(r->series);
   return 0;
 }
 
@@ -175,7 +222,8 @@ static int run_new(run_ctx *r, const char *path, const char *out, const char *ba
   }
   if ((rc = check_outputs(r, path, out, series, force)) ||
       (rc = cli_setup_estimate("run", &r->cfg, r->quiet)) || (rc = cli_build(r)) ||
-      (rc = create_output(r, path)) || (series && (rc = open_series(r, path, series))))
+      (rc = check_outputs(r, path, out, series, force)) || (rc = create_output(r, path)) ||
+      (series && (rc = open_series(r, path, series))))
     return rc;
   return cli_loop(r);
 }
@@ -187,7 +235,7 @@ int cmd_run(int argc, char **argv) {
   long max_steps = 0;
   for (int i = 0; i < argc; i++) {
     const char *a = argv[i];
-    int has = i + 1 < argc && argv[i + 1][0] != '-'; /* a value follows */
+    const int has = i + 1 < argc && cli_is_value(argv[i + 1]); /* a value follows */
     if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
       usage_run(stdout);
       return 0;
@@ -212,8 +260,8 @@ int cmd_run(int argc, char **argv) {
         char *end;
         errno = 0;
         max_steps = strtol(v, &end, 10);
-        if (*end || errno || max_steps < 1) {
-          fprintf(stderr, "vesica run: --max-steps '%s': not a positive integer\n", v);
+        if (end == v || *end || errno || max_steps < 1) {
+          fprintf(stderr, "vesica run: --max-steps '%s': not a positive integer (1 or more)\n", v);
           return 2;
         }
       }

@@ -3,11 +3,13 @@
 
 #include <ctype.h>
 #include <errno.h>
+#include <fcntl.h>
 #include <limits.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/file.h>
 #include <unistd.h>
 
 #include "app/cli_impl.h"
@@ -31,8 +33,8 @@ static void usage_spectrum(FILE *f) {
           "  --vectors F   write the modes to the text file F: one row a node (a, its material\n"
           "                position r z, phi, h), then per mode the coefficients' components\n"
           "                u_r u_z and the motion they give at the node du_r du_z (an\n"
-          "                existing F is refused unless --force; F is written whole or not\n"
-          "                at all)\n"
+          "                existing F is refused unless --force; FILE.h5 and a file a\n"
+          "                running vesica holds never are F; F is written whole or not at all)\n"
           "Prints key = value lines: file, snapshot, step, t, energy (E*), reconnections, nodes,\n"
           "sigma_A, sigma_V, dissipation (-dE*/dt* of the flow: ydot^T K ydot),\n"
           "ydot_max (largest nodal speed, R0/t*), mu_max, mu_max_residual, fe_dt_limit,\n"
@@ -50,17 +52,56 @@ static void usage_spectrum(FILE *f) {
           "after resets, the reference are rebuilt first, as a restart does).\n");
 }
 
+/* The command's options. */
+typedef struct {
+  const char *path, *vpath; /* FILE.h5, --vectors F */
+  long snap, modes, lanczos;
+  double above;
+  int force;
+} spectrum_args;
+
+/* F and (with_part) the F.part it is written to through the guard of
+ * every output (cli_check_output): never the input, never a file a running
+ * vesica holds, an existing F only with --force. 0 or 2. */
+static int check_vectors(const spectrum_args *o, int with_part) {
+  char part[PATH_MAX + 8];
+  snprintf(part, sizeof part, "%s.part", o->vpath);
+  const char *in[] = {o->path};
+  if (cli_check_output("spectrum", "--vectors", o->vpath, o->force, in, 1, NULL) ||
+      (with_part && cli_check_output("spectrum", "--vectors", part, 1, in, 1, NULL)))
+    return 2;
+  return 0;
+}
+
 /* The text file of --vectors (vesica spectrum --help) from the analysis sp
- * of the state of r: written to vpath.part, then renamed, so nothing
- * partial stays behind. 0, or -1 with errno the cause. */
-static int write_modes(const run_ctx *r, const ves_spectrum *sp, const char *vpath) {
+ * of the state of r: written to F.part (locked while written, so no other
+ * vesica replaces it), checked again (the analysis takes minutes: F may be
+ * another vesica's by then), then renamed, so nothing partial stays behind.
+ * 0; 2 when refused (message printed); -1 with errno the cause. */
+static int write_modes(const run_ctx *r, const ves_spectrum *sp, const spectrum_args *o) {
   const ves_nodes *nd = ves_model_nodes(ves_sim_model(r->sim));
   const int n = sp->n;
   char part[PATH_MAX + 8];
-  snprintf(part, sizeof part, "%s.part", vpath);
+  snprintf(part, sizeof part, "%s.part", o->vpath);
+  if (check_vectors(o, 1)) return 2;
   errno = 0;
-  FILE *f = fopen(part, "w");
-  if (!f) return -1;
+  const int fd = open(part, O_WRONLY | O_CREAT | O_CLOEXEC, 0666);
+  if (fd < 0) return -1;
+  if (flock(fd, LOCK_EX | LOCK_NB) != 0 && errno == EWOULDBLOCK) { /* another spectrum: F */
+    close(fd);
+    fprintf(stderr,
+            "vesica spectrum: --vectors %s: %s is in use by a running vesica: never "
+            "overwritten\n",
+            o->vpath, part);
+    return 2;
+  }
+  FILE *f = ftruncate(fd, 0) == 0 ? fdopen(fd, "w") : NULL;
+  if (!f) {
+    const int e = errno;
+    close(fd), remove(part);
+    errno = e;
+    return -1;
+  }
   fprintf(f, "# vesica spectrum: the modes of %s, one row a node\n# a r z phi h", r->label);
   for (int j = 0; j < sp->nmodes; j++)
     fprintf(f, " u%d_r u%d_z du%d_r du%d_z", j + 1, j + 1, j + 1, j + 1);
@@ -76,10 +117,14 @@ static int write_modes(const run_ctx *r, const ves_spectrum *sp, const char *vpa
   }
   errno = 0;
   int bad = fflush(f) != 0 || ferror(f), e = errno; /* the first failure's cause */
-  if (fclose(f) != 0) bad = 1, e = e ? e : errno;
-  if (!bad && rename(part, vpath) != 0) bad = 1, e = errno;
+  if (!bad && check_vectors(o, 0)) { /* F taken since the start: refused, nothing kept */
+    fclose(f), remove(part);
+    return 2;
+  }
+  if (!bad && rename(part, o->vpath) != 0) bad = 1, e = errno;
+  if (fclose(f) != 0 && !bad) bad = 1, e = errno; /* the lock goes with it */
   if (!bad) return 0;
-  remove(part);
+  remove(bad && !access(part, F_OK) ? part : o->vpath);
   errno = e ? e : EIO;
   return -1;
 }
@@ -109,14 +154,6 @@ static void print_spectrum(const char *path, long k, const ves_io_snapinfo *si, 
   }
   printf("drift_K_norm = %.6e\ndrift_in_modes = %.3e\n", sp->drift_K_norm, sp->drift_in_modes);
 }
-
-/* The command's options. */
-typedef struct {
-  const char *path, *vpath; /* FILE.h5, --vectors F */
-  long snap, modes, lanczos;
-  double above;
-  int force;
-} spectrum_args;
 
 /* The value v of option a into o: 0, or 2 with a message. */
 static int spectrum_value(const char *a, const char *v, spectrum_args *o) {
@@ -166,17 +203,7 @@ static int spectrum_parse(int argc, char **argv, spectrum_args *o) {
             o->lanczos);
     return 2;
   }
-  if (o->vpath) {
-    const char *in[] = {o->path};
-    if (cli_check_writable("spectrum", "--vectors", o->vpath) ||
-        cli_check_new("spectrum", "--vectors", o->vpath, o->force, in, 1, NULL))
-      return 2;
-    if (!strcmp(o->vpath, o->path)) {
-      fprintf(stderr, "vesica spectrum: --vectors %s: is the input file\n", o->vpath);
-      return 2;
-    }
-  }
-  return 0;
+  return o->vpath ? check_vectors(o, 1) : 0;
 }
 
 /* The analysis of the rebuilt state r at snapshot k (si): printed, the
@@ -196,9 +223,11 @@ static int analyse(run_ctx *r, const spectrum_args *o, const char *pre, long k,
     fprintf(stderr, "%s: snapshot %ld: the spectrum failed: %s%s\n", pre, k, cli_why(st),
             st == VES_ERR_SINGULAR ? " (--above is an eigenvalue? move it a little)" : "");
     rc = 3;
-  } else if (o->vpath && write_modes(r, sp, o->vpath) != 0) {
-    fprintf(stderr, "vesica spectrum: --vectors %s: cannot write: %s\n", o->vpath, strerror(errno));
-    rc = 3; /* an output that cannot be written (a full disk), as plot's (README: exit codes) */
+  } else if (o->vpath && (rc = write_modes(r, sp, o)) != 0) {
+    if (rc < 0)
+      fprintf(stderr, "vesica spectrum: --vectors %s: cannot write: %s\n", o->vpath,
+              strerror(errno));
+    rc = rc < 0 ? 3 : rc; /* an output that cannot be written (a full disk), as plot's */
   } else {
     print_spectrum(o->path, k, si, r, sp, o->above);
     printf("seconds = %.1f\n", ves_wall_seconds() - t0);
