@@ -213,6 +213,14 @@ ves_status ves_io_room(ves_io *io, int snapshots, int nq);
  * device ...", strerror of the failing write), or NULL. */
 const char *ves_io_error(const ves_io *io);
 
+/* What the file keeps after a failed write: the number of complete
+ * snapshots (0 when none), the step and t* of the last (unless NULL), and
+ * *intact (unless NULL) 1 when the file is as last flushed (every write is
+ * preceded by a reservation of its room, so a full disk refuses it before
+ * anything is written), 0 when a write failed half-way (an I/O error, a
+ * file system without fallocate): vesica run --restart then salvages it. */
+int ves_io_kept(ves_io *io, long *step, double *t, int *intact);
+
 /* Set the root attribute status (at most 15 characters) and flush. */
 ves_status ves_io_set_status(ves_io *io, const char *status);
 
