@@ -41,12 +41,12 @@ herr_t io_sys_reason(unsigned n, const H5E_error2_t *e, void *data) {
 /* Record the cause of a failed write: the system's reason from HDF5's error
  * stack, errno as the failing write left it, or the status. A write refused
  * before HDF5 wrote anything (io_reserve, the XDMF file after a flush) has
- * recorded its cause and left the file as last flushed (io->intact); any
- * other may have stopped half-way (io->broken: nothing more is written). */
+ * recorded its cause and left the file as last flushed (io->intact); an
+ * I/O error may have stopped half-way (io->broken: nothing more is written). */
 ves_status io_failed(ves_io *io, ves_status st, int errnum) {
   if (st == VES_OK) return st;
   if (io->intact) return st;
-  io->broken = 1;
+  if (st == VES_ERR_IO) io->broken = 1; /* an I/O error, not a refused call */
   if (st == VES_ERR_ALLOC) return st;
   char reason[128] = "";
   H5Ewalk2(H5E_DEFAULT, H5E_WALK_UPWARD, io_sys_reason, reason);

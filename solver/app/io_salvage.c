@@ -382,8 +382,8 @@ ves_status ves_io_salvage(const char *path, const char *out, ves_io_salvaged *re
   io_quiet_hdf5();
   long long size = 0, stored = 0;
   if (!ves_io_cut_short(path, &size, &stored) && !ves_io_end_behind(path, &size, &stored)) {
-    ves_error_say(err, errlen, "%s: not damaged (its size is the one its superblock records)",
-                  path);
+    ves_error_say(err, errlen,
+                  "%s: not cut short (its size is the one its superblock records, or more)", path);
     return VES_ERR_ARG;
   }
   res->size = size, res->stored_size = stored;

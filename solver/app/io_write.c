@@ -363,7 +363,7 @@ ves_status ves_io_set_setup_seconds(ves_io *io, double seconds) {
  * points. */
 static double room_needed(const ves_io *io, int snapshots, int nq) {
   const double n = io_nodes_now(io);
-  double need = io_row_bytes(io) + snapshot_bytes(io, snapshots);
+  double need = io_row_bytes(io) + snapshot_bytes(io, snapshots) - IO_ROOM_MARGIN; /* one margin */
   const double xdmf = 2.0 * (io->nsnap + snapshots) * (1536 + 5.0 * strlen(io->path));
   need += snapshots ? 2 * xdmf : 0;
   if (nq > 0) need += 8 * (3 * n + 9.0 * nq) + 4096;
@@ -380,8 +380,12 @@ ves_status ves_io_room(ves_io *io, int snapshots, int nq) {
   else
     snprintf(dir, sizeof dir, "%.*s", slash == io->path ? 1 : (int)(slash - io->path), io->path);
   struct statvfs vs;
+  struct stat fs; /* the blocks an earlier reservation holds past the end are the file's */
+  const double held = stat(io->path, &fs) == 0 && (double)fs.st_blocks * 512 > fs.st_size
+                          ? (double)fs.st_blocks * 512 - (double)fs.st_size
+                          : 0;
   if (statvfs(dir, &vs) == 0) {
-    const double avail = (double)vs.f_bavail * (double)vs.f_frsize;
+    const double avail = (double)vs.f_bavail * (double)vs.f_frsize + held;
     if (avail < need) {
       snprintf(io->error, sizeof io->error,
                "no space left on device (%.0f KiB free in %s, the next step's output needs up "
