@@ -13,7 +13,7 @@ enum { STEPS = 10 }; /* the run's --max-steps: a fill comes before its end */
 static char mnt[128]; /* the tmpfs */
 
 /* A 3 MiB tmpfs at mnt: a TINY run's file (~25 KiB a snapshot) has room
- * for all its steps until dd fills it. 0, or -1 when it cannot be mounted
+ * for all its steps; dd fills it. 0, or -1 when it cannot be mounted
  * (not root). */
 static int mount_small(void) {
   tmp_path(mnt, sizeof mnt, "tmpfs");

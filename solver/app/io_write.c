@@ -404,7 +404,7 @@ ves_status ves_io_room(ves_io *io, int snapshots, int nq) {
              (double)rl.rlim_cur / 1024, io->path, (double)sb.st_size / 1024, need / 1024);
     return VES_ERR_IO;
   }
-  /* the step's writes and a last snapshot reserved now: another program
+  /* the step's writes and a last snapshot reserved here: another program
    * filling the disk during the step cannot take their blocks */
   return io_reserve(io, need);
 }
