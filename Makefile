@@ -60,7 +60,7 @@ CLI_OBJ  = $(APP_C:solver/%.c=$(BUILD)/obj/%.o)
 LIB_OBJ  = $(LIB_C:solver/%.c=$(BUILD)/obj/%.o) $(LIB_CXX:solver/%.cpp=$(BUILD)/obj/%.o)
 # the longest first (by their times under SAN=1): tests/run.sh
 # runs them two at a time, each lane taking the next one not yet taken
-TESTS_LONG = test_integrate test_cli_restart test_cli test_backend test_spectrum test_model test_model_flow test_remesh test_cli_files test_cli_guard
+TESTS_LONG = test_integrate test_cli_restart test_cli test_cli_disk test_backend test_spectrum test_model test_model_flow test_remesh test_cli_files test_cli_guard
 TESTS    = $(addprefix $(BUILD)/tests/,$(TESTS_LONG)) \
            $(filter-out $(addprefix $(BUILD)/tests/,$(TESTS_LONG)), \
              $(patsubst tests/%.c,$(BUILD)/tests/%,$(wildcard tests/test_*.c)))

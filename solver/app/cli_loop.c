@@ -221,6 +221,24 @@ static void report_step(const run_ctx *r, const ves_step_report *rep, const loop
             tty ? "\n" : "", rep->step, ves_status_str(rep->reconnect_status));
 }
 
+/* The one line of a run its output stopped (what: a failed write, no room;
+ * cause: why): what the file keeps and how to continue. */
+static void say_kept(run_ctx *r, const char *what, const char *cause) {
+  long step = -1;
+  double t = 0;
+  int intact = 1;
+  const int N = ves_io_kept(r->io, &step, &t, &intact);
+  if (N <= 0) {
+    fprintf(stderr, "vesica run: %s: %s: %s; no complete snapshot kept\n", r->out, what, cause);
+    return;
+  }
+  fprintf(stderr,
+          "vesica run: %s: %s: %s; kept %d complete snapshot%s up to step %ld, t* %.6g%s; "
+          "continue with vesica run --restart %s\n",
+          r->out, what, cause, N, N == 1 ? "" : "s", step, t,
+          intact ? "" : " (a write failed half-way: the restart salvages them)", r->out);
+}
+
 /* The end of the loop: why it stopped (a write wst, the disk room, the step
  * st, a signal, --max-steps or t_end), the last snapshot and the file's
  * status. Returns the exit code. */
@@ -231,21 +249,20 @@ static int finish(run_ctx *r, const loop_ctx *L, ves_status st, ves_status wst, 
   const char *status = "finished";
   int code = 0;
   series_close(r);
-  if (wst != VES_OK) { /* a write failed half-way: nothing more is written */
-    fprintf(stderr,
-            "vesica run: %s: cannot write: %s; continue from its last complete snapshot with "
-            "vesica run --restart %s\n",
-            r->out, cli_io_cause(r->io, wst), r->out);
-    return 3; /* the file holds every step written before */
+  char cause[2 * PATH_MAX], what[128];
+  if (wst != VES_OK || room != VES_OK) { /* the output stopped the run */
+    snprintf(cause, sizeof cause, "%s", cli_io_cause(r->io, wst != VES_OK ? wst : room));
+    if (wst != VES_OK) /* a write failed: nothing more but the status (in place) */
+      snprintf(what, sizeof what, "cannot write");
+    else { /* no room for the next step: its state saved as the last snapshot */
+      snprintf(what, sizeof what, "stopped at step %ld, t* = %.6g", fin.nstep, fin.t);
+      if (fin.nstep != r->last_snapshot_step) cli_snapshot(r, wall);
+    }
+    ves_io_set_status(r->io, "failed"); /* refused after a write failed half-way */
+    say_kept(r, what, cause);
+    return 3;
   }
-  if (room != VES_OK) {
-    fprintf(stderr,
-            "vesica run: %s: stopped at step %ld, t* = %.6g: %s; the state is saved as the last "
-            "snapshot: free some space (or move the file) and continue with vesica run "
-            "--restart %s\n",
-            r->out, fin.nstep, fin.t, cli_io_cause(r->io, room), r->out);
-    status = "failed", code = 3;
-  } else if (st < 0) {
+  if (st < 0) {
     fprintf(stderr,
             "vesica run: %s: no acceptable step at t* = %.6g down to dt* = %g (%s); the last "
             "good state (step %ld) is the last snapshot of %s\n",
@@ -261,8 +278,9 @@ static int finish(run_ctx *r, const loop_ctx *L, ves_status st, ves_status wst, 
     status = "stopped"; /* --max-steps */
   }
   if (fin.nstep != r->last_snapshot_step && (wst = cli_snapshot(r, wall)) != VES_OK) {
-    fprintf(stderr, "vesica run: %s: cannot write the last snapshot: %s\n", r->out,
-            cli_io_cause(r->io, wst));
+    snprintf(cause, sizeof cause, "%s", cli_io_cause(r->io, wst));
+    ves_io_set_status(r->io, "failed");
+    say_kept(r, "cannot write the last snapshot", cause);
     return 3;
   }
   if ((wst = ves_io_set_status(r->io, status)) != VES_OK) {

@@ -4,10 +4,12 @@
  * docs/manual.md; docs/design.md, "The program". */
 
 #include <errno.h>
+#include <fcntl.h>
 #include <limits.h>
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
+#include <sys/file.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -48,29 +50,42 @@ void cli_restart_keys_print(FILE *f, int col, int indent, int width, const char 
   }
 }
 
-/* A file cut short (a torn last write): its last complete snapshot, the
+/* A file cut short (a torn last write) or whose superblock is behind its
+ * data (a write that failed half-way): its last complete snapshot, the
  * rows and references before it salvaged into a new FILE.h5 (io.h), the
  * damaged file kept as FILE.h5.damaged. 0, or exit code 3 with a message. */
 static int salvage(const char *file, int quiet) {
+  long long size = 0, stored = 0;
+  const int cut = ves_io_cut_short(file, &size, &stored);
+  if (!cut) ves_io_end_behind(file, &size, &stored);
+  char how[160];
+  if (cut)
+    snprintf(how, sizeof how,
+             "cut short (%lld of the %lld bytes its superblock records: a torn "
+             "last write)",
+             size, stored);
+  else
+    snprintf(how, sizeof how,
+             "damaged (its superblock records %lld of its %lld bytes: a write "
+             "that failed half-way)",
+             stored, size);
   char tmp[PATH_MAX + 16], kept[PATH_MAX + 16], err[1024] = "";
   snprintf(tmp, sizeof tmp, "%s.salvage", file);
   snprintf(kept, sizeof kept, "%s.damaged", file);
   struct stat sb;
   if (stat(kept, &sb) == 0) {
     fprintf(stderr,
-            "vesica run: --restart %s: the file is cut short (a torn last write) and %s, where "
-            "its damaged copy would be kept, exists: move it away\n",
-            file, kept);
+            "vesica run: --restart %s: the file is %s and %s, where its damaged copy would be "
+            "kept, exists: move it away\n",
+            file, how, kept);
     return 3;
   }
   remove(tmp); /* a salvage interrupted before */
   ves_io_salvaged s;
   ves_status st = ves_io_salvage(file, tmp, &s, err, sizeof err);
   if (st != VES_OK) {
-    fprintf(stderr,
-            "vesica run: --restart %s: the file is cut short (%lld of the %lld bytes its "
-            "superblock records: a torn last write) and cannot be salvaged: %s\n",
-            file, s.size, s.stored_size, err);
+    fprintf(stderr, "vesica run: --restart %s: the file is %s and cannot be salvaged: %s\n", file,
+            how, err);
     return 3;
   }
   if (rename(file, kept) != 0 || rename(tmp, file) != 0) {
@@ -80,12 +95,20 @@ static int salvage(const char *file, int quiet) {
   }
   if (!quiet)
     fprintf(stderr,
-            "vesica run: %s was cut short (%lld of %lld bytes: a torn last write): salvaged "
-            "snapshots 0..%d of %d (step %ld, t* = %.6g), %ld series rows and %d reference(s) "
-            "into a new %s; the damaged file is kept as %s\n",
-            file, s.size, s.stored_size, s.snapshot, s.snapshots, s.step, s.t, s.rows, s.references,
-            file, kept);
+            "vesica run: %s was %s: salvaged snapshots 0..%d of %d (step %ld, t* = %.6g), %ld "
+            "series rows and %d reference(s) into a new %s; the damaged file is kept as %s\n",
+            file, how, s.snapshot, s.snapshots, s.step, s.t, s.rows, s.references, file, kept);
   return 0;
+}
+
+/* Whether file is open for writing in another process (a running vesica:
+ * HDF5 holds an exclusive flock on a file it writes). */
+static int in_use(const char *file) {
+  const int fd = open(file, O_RDONLY);
+  if (fd < 0) return 0;
+  const int busy = flock(fd, LOCK_EX | LOCK_NB) != 0 && errno == EWOULDBLOCK;
+  close(fd);
+  return busy;
 }
 
 /* Whether every --set of a restart of file names one of RESTART_KEYS: 0,
@@ -125,6 +148,15 @@ int cli_run_restart(run_ctx *r, const char *file, int nset, const char *const *s
   int rc = cli_check_writable("run", "--restart", xdmf);
   if (rc) return rc;
   if (ves_io_cut_short(file, NULL, NULL) && (rc = salvage(file, r->quiet))) return rc;
+  if (ves_io_end_behind(file, NULL, NULL) && !in_use(file)) {
+    /* data past the recorded end: read-only first (HDF5 cuts a file it
+     * closes after writing to its recorded end), salvaged when HDF5 cannot
+     * read it (metadata a flush that stopped half-way left pointing there) */
+    ves_io *probe = NULL;
+    if (ves_io_open(file, 0, &probe, err, sizeof err) != VES_OK && (rc = salvage(file, r->quiet)))
+      return rc;
+    ves_io_close(&probe);
+  }
   ves_status st = ves_io_open(file, 1, &r->io, err, sizeof err);
   if (st != VES_OK) {
     fprintf(stderr, "vesica run: --restart %s\n", err);

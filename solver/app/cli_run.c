@@ -139,15 +139,15 @@ static int create_output(run_ctx *r, const char *path) {
   ves_status st = ves_io_create(r->out, &h, &r->io, err, sizeof err);
   free(problem), free(cells);
   if (st != VES_OK) { /* not created: nothing of ours to remove */
-    fprintf(stderr, "vesica run: %s\n", err);
-    return 2;
+    fprintf(stderr, "vesica run: %s%s\n", err, st == VES_ERR_ARG ? "" : "; nothing kept");
+    return st == VES_ERR_ARG ? 2 : 3; /* refused, or a write that failed */
   }
   if ((st = cli_snapshot(r, 0.0)) != VES_OK) { /* nothing half-written stays behind */
-    fprintf(stderr, "vesica run: %s: cannot write the first snapshot: %s\n", r->out,
+    fprintf(stderr, "vesica run: %s: cannot write the first snapshot: %s; nothing kept\n", r->out,
             cli_io_cause(r->io, st));
     ves_io_close(&r->io);
     remove_output(r->out);
-    return 2;
+    return 3;
   }
   return 0;
 }

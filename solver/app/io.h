@@ -213,6 +213,14 @@ ves_status ves_io_room(ves_io *io, int snapshots, int nq);
  * device ...", strerror of the failing write), or NULL. */
 const char *ves_io_error(const ves_io *io);
 
+/* What the file keeps after a failed write: the number of complete
+ * snapshots (0 when none), the step and t* of the last (unless NULL), and
+ * *intact (unless NULL) 1 when the file is as last flushed (every write is
+ * preceded by a reservation of its room, so a full disk refuses it before
+ * anything is written), 0 when a write failed half-way (an I/O error, a
+ * file system without fallocate): vesica run --restart then salvages it. */
+int ves_io_kept(ves_io *io, long *step, double *t, int *intact);
+
 /* Set the root attribute status (at most 15 characters) and flush. */
 ves_status ves_io_set_status(ves_io *io, const char *status);
 
@@ -388,6 +396,13 @@ ves_status ves_io_read_mesh(ves_io *io, double *X, int *tri);
  * recorded one in *size and *stored unless NULL. */
 int ves_io_cut_short(const char *path, long long *size, long long *stored);
 
+/* Whether the file at path is longer than the end of file its superblock
+ * records: data written after the last complete flush (a run killed or a
+ * disk filled during a write). HDF5 opens such a file unless a flush that
+ * stopped half-way left metadata pointing past the recorded end; then
+ * ves_io_salvage recovers it. Sizes as ves_io_cut_short's. */
+int ves_io_end_behind(const char *path, long long *size, long long *stored);
+
 /* What ves_io_salvage kept. */
 typedef struct {
   long long size, stored_size; /* bytes in the file, bytes its superblock records */
@@ -398,15 +413,17 @@ typedef struct {
   int references;              /* references kept (those it needs) */
 } ves_io_salvaged;
 
-/* Recover a file cut short (ves_io_cut_short) into the new file `out`
- * (which must not exist): read with the missing end as zeros, it keeps the
+/* Recover a file cut short (ves_io_cut_short) or whose recorded end is
+ * behind its data (ves_io_end_behind) into the new file `out` (which must
+ * not exist): read with the missing end as zeros (or to its last byte, the
+ * recorded end moved there), it keeps the
  * last snapshot that is complete — its data and state, the series rows up
  * to it, the references and remeshings it stands on all read whole and
  * match the checksums written with them — and copies the header,
  * parameters, mesh, those rows, snapshots 0..K, references and remeshings;
  * the XDMF file of `path` is rewritten for them. The file is read into
  * memory padded to its recorded end (twice that at the peak). VES_ERR_ARG:
- * path is not cut short; VES_ERR_IO: nothing complete survived, out cannot
+ * path is neither; VES_ERR_IO: nothing complete survived, out cannot
  * be written, or the recorded end exceeds a quarter of the machine's memory
  * (nothing left at out); message in err. */
 ves_status ves_io_salvage(const char *path, const char *out, ves_io_salvaged *res, char *err,

@@ -2,9 +2,13 @@
  * stack, typed scalar attributes, contiguous datasets, counted groups (a
  * member written whole, then counted) and the FNV-1a checksums a salvage
  * checks. Layout: app/io.h; docs/design.md, "The program". */
+#define _GNU_SOURCE /* fallocate, FALLOC_FL_KEEP_SIZE */
 #include <errno.h>
+#include <fcntl.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include "app/io_impl.h"
 
@@ -35,9 +39,15 @@ herr_t io_sys_reason(unsigned n, const H5E_error2_t *e, void *data) {
 }
 
 /* Record the cause of a failed write: the system's reason from HDF5's error
- * stack, errno as the failing write left it (the XDMF file), or the status. */
+ * stack, errno as the failing write left it, or the status. A write refused
+ * before HDF5 wrote anything (io_reserve, the XDMF file after a flush) has
+ * recorded its cause and left the file as last flushed (io->intact); an
+ * I/O error may have stopped half-way (io->broken: nothing more is written). */
 ves_status io_failed(ves_io *io, ves_status st, int errnum) {
-  if (st == VES_OK || st == VES_ERR_ALLOC) return st;
+  if (st == VES_OK) return st;
+  if (io->intact) return st;
+  if (st == VES_ERR_IO) io->broken = 1; /* an I/O error, not a refused call */
+  if (st == VES_ERR_ALLOC) return st;
   char reason[128] = "";
   H5Ewalk2(H5E_DEFAULT, H5E_WALK_UPWARD, io_sys_reason, reason);
   snprintf(io->error, sizeof io->error, "%s",
@@ -45,6 +55,55 @@ ves_status io_failed(ves_io *io, ves_status st, int errnum) {
            : errnum  ? strerror(errnum)
                      : ves_status_str(st));
   return st;
+}
+
+/* Reserve `bytes` past the end of the file for the writes about to be made
+ * (fallocate, FALLOC_FL_KEEP_SIZE: blocks the file owns, its size unchanged).
+ * HDF5 1.10 rewrites metadata in place (the superblock's end of file, group
+ * heaps and B-trees, object headers) and a flush stops at the first write
+ * that fails: a disk filled by another program during a flush leaves
+ * metadata on disk that points past the end of file the superblock records,
+ * a file HDF5 then refuses to read. With the blocks reserved first, a write
+ * either is refused here, before HDF5 is called (the file stays as last
+ * flushed, io->intact), or does not fail for want of space (docs/results.md,
+ * "Reliability and fuzzing"). A file system without fallocate counts as
+ * reserved: the free-space check of ves_io_room stands alone there. After
+ * a write failed half-way (io->broken) nothing more is written. VES_ERR_IO
+ * with the cause in io->error when refused. */
+ves_status io_reserve(ves_io *io, double bytes) {
+  io->intact = 0;
+  if (io->broken) {
+    io->intact = 1; /* the cause of the first failure stays recorded */
+    return VES_ERR_IO;
+  }
+#ifdef FALLOC_FL_KEEP_SIZE
+  void *h = NULL;
+  struct stat sb;
+  if (H5Fget_vfd_handle(io->file, H5P_DEFAULT, &h) < 0 || !h || fstat(*(int *)h, &sb) != 0)
+    return VES_OK; /* not the sec2 driver's file descriptor: nothing to reserve on */
+  if (fallocate(*(int *)h, FALLOC_FL_KEEP_SIZE, sb.st_size, (off_t)bytes) == 0) {
+    io->reserved = 1;
+    return VES_OK;
+  }
+  const int e = errno;
+  if (e != ENOSPC && e != EDQUOT && e != EFBIG && e != EIO) return VES_OK; /* unsupported */
+  snprintf(io->error, sizeof io->error,
+           "%s (the next write needs up to %.0f KiB beyond the %.0f KiB of %s)", strerror(e),
+           bytes / 1024, (double)sb.st_size / 1024, io->path);
+  io->intact = 1;
+  return VES_ERR_IO;
+#else
+  (void)bytes;
+  return VES_OK;
+#endif
+}
+
+/* What one series row writes at most, in bytes: a new chunk of every series
+ * every IO_CHUNK rows (with its B-tree node), and HDF5's metadata. */
+double io_row_bytes(const ves_io *io) {
+  double need = IO_ROOM_MARGIN;
+  if (ves_io_rows(io) % IO_CHUNK == 0) need += IO_NSERIES * (IO_CHUNK * 8.0 + 4096);
+  return need;
 }
 
 /* FNV-1a (64 bits) over the bytes of data, continuing from h (FNV_START to
@@ -273,6 +332,7 @@ ves_io *io_alloc(const char *path, int writable) {
   if (!io) return NULL;
   io->file = -1;
   io->writable = writable;
+  io->last_step = -1;
   io->series_sum = FNV_START;
   for (int i = 0; i < IO_NSERIES; i++) io->series[i] = -1;
   snprintf(io->path, sizeof io->path, "%s", path);
@@ -286,8 +346,14 @@ void ves_io_close(ves_io **pio) {
   for (int i = 0; i < IO_NSERIES; i++)
     if (io->series[i] >= 0) H5Dclose(io->series[i]);
   if (io->file >= 0) {
-    if (io->writable) H5Fflush(io->file, H5F_SCOPE_LOCAL);
+    if (io->writable && !io->broken) H5Fflush(io->file, H5F_SCOPE_LOCAL);
     H5Fclose(io->file);
+    /* the blocks io_reserve took past the end and no write filled: freed
+     * (a truncation to its own size drops them) */
+    struct stat sb;
+    if (io->reserved && stat(io->path, &sb) == 0 && (double)sb.st_blocks * 512 > sb.st_size &&
+        truncate(io->path, sb.st_size) != 0)
+      errno = 0;
   }
   free(io->info.problem);
   free(io->info.source);

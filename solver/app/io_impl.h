@@ -57,6 +57,10 @@ struct ves_io {
   uint64_t series_sum;      /* checksum of the first summed_rows series rows */
   long summed_rows;         /* rows in series_sum */
   int tolerant;             /* salvage: count the snapshots up to the first unreadable one */
+  long last_step;           /* step of snapshot nsnap - 1 when written here (-1: read it) */
+  int intact;               /* the last failed write left the file as last flushed */
+  int broken;               /* a write failed half-way: nothing more is written */
+  int reserved;             /* io_reserve took blocks past the end (freed at the close) */
 };
 
 /* ---- the handle and HDF5's errors (io_hdf5.c) ---- */
@@ -64,6 +68,11 @@ ves_io *io_alloc(const char *path, int writable); /* no file open yet */
 void io_quiet_hdf5(void);                         /* HDF5 silent, no exit-time cleanup */
 herr_t io_sys_reason(unsigned n, const H5E_error2_t *e, void *data); /* H5Ewalk2: errno text */
 ves_status io_failed(ves_io *io, ves_status st, int errnum);         /* record io->error */
+
+/* ---- room for the next write (io_hdf5.c) ---- */
+#define IO_ROOM_MARGIN (64 * 1024) /* HDF5's metadata beyond the data of one write */
+ves_status io_reserve(ves_io *io, double bytes);
+double io_row_bytes(const ves_io *io);
 
 /* ---- attributes (io_hdf5.c): scalar, overwritten in place ---- */
 ves_status io_attr_double(hid_t obj, const char *name, double v);

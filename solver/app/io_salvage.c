@@ -1,7 +1,9 @@
-/* vesica — salvage of an output file cut short: read with its missing end
- * as zeros, keep the last snapshot whose data, series rows, references and
- * remeshings match their checksums, and copy them to a new file. Layout:
- * app/io.h; docs/manual.md for `vesica run --restart`. */
+/* vesica — salvage of an output file cut short, or whose superblock's end
+ * of file is behind its data (a flush that stopped half-way): read with its
+ * missing end as zeros and its recorded end at its last byte, keep the last
+ * snapshot whose data, series rows, references and remeshings match their
+ * checksums, and copy them to a new file. Layout: app/io.h;
+ * docs/manual.md for `vesica run --restart`. */
 #include <errno.h>
 #include <stdlib.h>
 #include <string.h>
@@ -22,17 +24,32 @@ static long long sb_stored_eof(const unsigned char *b, size_t len) {
   return base + eof > (1ULL << 50) ? -1 : (long long)(base + eof);
 }
 
-int ves_io_cut_short(const char *path, long long *size, long long *stored) {
+/* The size of the file at path and the end of file its superblock records
+ * (-1 when it has none of this module's form): 0, or -1 when unreadable. */
+static int sizes(const char *path, long long *size, long long *stored) {
   unsigned char b[64];
   FILE *f = path ? fopen(path, "rb") : NULL;
-  if (!f) return 0;
+  if (!f) return -1;
   const size_t got = fread(b, 1, sizeof b, f);
   struct stat sb;
   const int ok = fstat(fileno(f), &sb) == 0;
   fclose(f);
-  const long long eof = sb_stored_eof(b, got);
-  if (!ok || eof < 0 || (long long)sb.st_size >= eof) return 0;
-  if (size) *size = (long long)sb.st_size;
+  *size = (long long)sb.st_size, *stored = sb_stored_eof(b, got);
+  return ok ? 0 : -1;
+}
+
+int ves_io_cut_short(const char *path, long long *size, long long *stored) {
+  long long sz, eof;
+  if (sizes(path, &sz, &eof) != 0 || eof < 0 || sz >= eof) return 0;
+  if (size) *size = sz;
+  if (stored) *stored = eof;
+  return 1;
+}
+
+int ves_io_end_behind(const char *path, long long *size, long long *stored) {
+  long long sz, eof;
+  if (sizes(path, &sz, &eof) != 0 || eof < 0 || sz <= eof) return 0;
+  if (size) *size = sz;
   if (stored) *stored = eof;
   return 1;
 }
@@ -313,17 +330,20 @@ static ves_status salvage_open(const char *path, long long size, long long store
   /* the image is held in memory, twice at its peak (HDF5 copies it): a
    * recorded end past a quarter of the machine's memory is refused, not
    * allocated (a damaged superblock records any size up to 2^50) */
+  const long long end = size > stored ? size : stored;
   const double mem = (double)sysconf(_SC_PHYS_PAGES) * (double)sysconf(_SC_PAGESIZE);
-  if (mem > 0 && (double)stored > mem / 4) {
+  if (mem > 0 && (double)end > mem / 4) {
     ves_error_say(err, errlen,
                   "%s: its superblock records %lld bytes, more than a quarter of this machine's "
                   "memory (%.1f GB), which the salvage holds it in (a damaged superblock?)",
-                  path, stored, mem / 1e9);
+                  path, end, mem / 1e9);
     return VES_ERR_IO;
   }
   /* the file read whole and padded with zeros to its recorded end: lost
-   * blocks read back as zeros, which the checksums reject */
-  unsigned char *img = calloc((size_t)stored, 1);
+   * blocks read back as zeros, which the checksums reject; a file longer
+   * than its recorded end (a flush stopped before the superblock) read to
+   * its last byte, the end recorded in the image moved there */
+  unsigned char *img = calloc((size_t)end, 1);
   FILE *f = img ? fopen(path, "rb") : NULL;
   const int read_ok = f && fread(img, 1, (size_t)size, f) == (size_t)size;
   if (f) fclose(f);
@@ -332,10 +352,15 @@ static ves_status salvage_open(const char *path, long long size, long long store
     ves_error_say(err, errlen, "%s: %s", path, img ? "cannot read it" : "out of memory");
     return img ? VES_ERR_IO : VES_ERR_ALLOC;
   }
+  if (end > stored) { /* the end of file address (base address 0: sb_stored_eof) */
+    const size_t at = (img[8] == 0 ? 24 : 28) + 16;
+    for (int i = 0; i < 8; i++)
+      img[at + (size_t)i] = (unsigned char)((unsigned long long)end >> (8 * i));
+  }
   hid_t fapl = H5Pcreate(H5P_FILE_ACCESS);
   ves_io *src = *psrc = io_alloc(path, 0);
   ves_status st = fapl >= 0 && src && H5Pset_fapl_core(fapl, 1 << 20, 0) >= 0 &&
-                          H5Pset_file_image(fapl, img, (size_t)stored) >= 0
+                          H5Pset_file_image(fapl, img, (size_t)end) >= 0
                       ? VES_OK
                       : VES_ERR_ALLOC;
   free(img); /* the property list holds a copy */
@@ -356,9 +381,9 @@ ves_status ves_io_salvage(const char *path, const char *out, ves_io_salvaged *re
   memset(res, 0, sizeof *res);
   io_quiet_hdf5();
   long long size = 0, stored = 0;
-  if (!ves_io_cut_short(path, &size, &stored)) {
-    ves_error_say(err, errlen, "%s: not cut short (its size is the one its superblock records)",
-                  path);
+  if (!ves_io_cut_short(path, &size, &stored) && !ves_io_end_behind(path, &size, &stored)) {
+    ves_error_say(err, errlen,
+                  "%s: not cut short (its size is the one its superblock records, or more)", path);
     return VES_ERR_ARG;
   }
   res->size = size, res->stored_size = stored;

@@ -193,7 +193,8 @@ static ves_status append(ves_io *io, const ves_io_row *row) {
 ves_status ves_io_append(ves_io *io, const ves_io_row *row) {
   VES_CHECK(io && row && io->writable, VES_ERR_ARG);
   errno = 0;
-  return io_failed(io, append(io, row), errno);
+  ves_status st = io_reserve(io, io_row_bytes(io)); /* before HDF5 writes anything */
+  return io_failed(io, st == VES_OK ? append(io, row) : st, errno);
 }
 
 void ves_io_row_from_step(const ves_step_report *rep, int reconnections, double wall_seconds,

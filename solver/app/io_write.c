@@ -11,6 +11,14 @@
 
 #include "app/io_impl.h"
 
+/* The bytes `snapshots` snapshots write into the HDF5 file at most (y, x,
+ * phi, y_prev, velocity: 9 values a node, and HDF5's metadata: IO_ROOM_MARGIN,
+ * a bound measured with room to spare: a 64-snapshot file grows by < 8 KiB
+ * a snapshot beyond its data). */
+static double snapshot_bytes(const ves_io *io, int snapshots) {
+  return IO_ROOM_MARGIN + snapshots * (9 * 8.0 * io_nodes_now(io) + 4096);
+}
+
 /* Every configuration key as a typed attribute of /parameters. */
 static ves_status write_parameters(hid_t file, const ves_config *cfg) {
   hid_t g = H5Lexists(file, "parameters", H5P_DEFAULT) > 0
@@ -113,7 +121,7 @@ ves_status ves_io_create(const char *path, const ves_io_header *h, ves_io **out,
   io_quiet_hdf5();
   if (strlen(path) >= PATH_MAX - 8) {
     ves_error_say(err, errlen, "%s: path too long", path);
-    return VES_ERR_IO;
+    return VES_ERR_ARG;
   }
   /* an HDF5 file there may be the output of a running vesica (which holds
    * a lock on it): never truncate that one */
@@ -123,25 +131,35 @@ ves_status ves_io_create(const char *path, const ves_io_header *h, ves_io **out,
       ves_error_say(err, errlen,
                     "%s: exists and cannot be opened for writing (in use by a running vesica?)",
                     path);
-      return VES_ERR_IO;
+      return VES_ERR_ARG;
     }
     H5Fclose(f);
   }
   ves_io *io = io_alloc(path, 1);
   if (!io) return VES_ERR_ALLOC;
+  struct stat sb;
+  const int existed = stat(path, &sb) == 0;
   io->file = H5Fcreate(path, H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
   if (io->file < 0) {
-    ves_error_say(err, errlen, "%s: cannot create the HDF5 file", path);
+    if (!existed) remove(path); /* an empty file a full disk left: not a run's */
+    char reason[128] = "";
+    H5Ewalk2(H5E_DEFAULT, H5E_WALK_UPWARD, io_sys_reason, reason);
+    ves_error_say(err, errlen, "%s: cannot create the HDF5 file%s%s", path, reason[0] ? ": " : "",
+                  reason);
     ves_io_close(&io);
     return VES_ERR_IO;
   }
   fill_info(io, h);
   errno = 0;
-  ves_status st = io->info.problem && io->info.source ? write_header(io, h) : VES_ERR_ALLOC;
+  ves_status st = io->info.problem && io->info.source ? VES_OK : VES_ERR_ALLOC;
+  if (st == VES_OK) /* the header, mesh and series: reserved first, as every write */
+    st = io_reserve(io,
+                    IO_ROOM_MARGIN + 8 * (3.0 * h->n + 1.5 * h->ntri) + 2.0 * strlen(h->problem));
+  if (st == VES_OK) st = write_header(io, h);
   if (st != VES_OK) { /* the file is ours (just created): nothing half-written stays */
-    int e = errno;
+    io_failed(io, st, errno);
     ves_error_say(err, errlen, "%s: cannot write the header: %s", path,
-                  e && st == VES_ERR_IO ? strerror(e) : ves_status_str(st));
+                  io->error[0] ? io->error : ves_status_str(st));
     ves_io_close(&io);
     remove(path);
     return st;
@@ -180,9 +198,10 @@ static ves_status snapshot(ves_io *io, const double *y, const double *x, const d
     if (!t) return VES_ERR_ALLOC;
     io->snap_t = t, io->snap_cap = cap;
   }
+  const hsize_t n = (hsize_t)io_nodes_now(io); /* the last remeshing's node set */
+  VES_CALL(io_reserve(io, snapshot_bytes(io, 1)));
   hid_t s, g;
   VES_CALL(io_counted_open(io->file, "snapshots", io->nsnap, &s, &g));
-  const hsize_t n = (hsize_t)io_nodes_now(io); /* the last remeshing's node set */
   const hid_t F = H5T_IEEE_F64LE, M = H5T_NATIVE_DOUBLE;
   ves_status st = io_dset_write(g, "y", F, M, n, 2, y);
   if (st == VES_OK) st = io_dset_write(g, "x", F, M, n, 2, x);
@@ -217,7 +236,15 @@ static ves_status snapshot(ves_io *io, const double *y, const double *x, const d
                         "step, (y^n(X_a) - y^{n-1}(X_a)) / dt_prev, at x");
   VES_CALL(io_counted_close(io->file, s, g, io->nsnap, st));
   io->snap_t[io->nsnap++] = si->state.t;
-  return io_xdmf_write(io);
+  io->last_step = si->state.nstep;
+  errno = 0;
+  st = io_xdmf_write(io);
+  if (st == VES_ERR_IO) { /* the HDF5 file is complete: the XDMF file is rewritten at the next */
+    snprintf(io->error, sizeof io->error, "%s: %s", io->xdmf,
+             errno ? strerror(errno) : "cannot write it");
+    io->intact = 1;
+  }
+  return st;
 }
 
 ves_status ves_io_snapshot(ves_io *io, const double *y, const double *x, const double *phi,
@@ -230,6 +257,7 @@ ves_status ves_io_snapshot(ves_io *io, const double *y, const double *x, const d
 
 static ves_status write_reference(ves_io *io, const ves_io_reference *ref) {
   const int k = ves_io_references(io);
+  VES_CALL(io_reserve(io, IO_ROOM_MARGIN + 8 * (3.0 * io_nodes_now(io) + 9.0 * ref->nq)));
   hid_t s, g;
   VES_CALL(io_counted_open(io->file, "references", k, &s, &g));
   const hsize_t n = (hsize_t)io_nodes_now(io), nq = (hsize_t)ref->nq;
@@ -273,6 +301,7 @@ ves_status ves_io_write_reference(ves_io *io, const ves_io_reference *ref) {
 static ves_status truncate_counted(ves_io *io, const char *group, int have, int count) {
   VES_CHECK(io && io->writable && count >= 0 && count <= have, VES_ERR_ARG);
   if (count == have) return VES_OK;
+  VES_CALL(io_reserve(io, IO_ROOM_MARGIN));
   hid_t s = H5Gopen2(io->file, group, H5P_DEFAULT);
   if (s < 0) return VES_ERR_IO;
   ves_status st = io_attr_int(s, "count", count); /* first: the rest is then stray */
@@ -288,12 +317,16 @@ static ves_status truncate_counted(ves_io *io, const char *group, int have, int 
 
 ves_status ves_io_truncate_references(ves_io *io, int count) {
   VES_CHECK(io, VES_ERR_ARG);
-  return truncate_counted(io, "references", ves_io_references(io), count);
+  return io_failed(io, truncate_counted(io, "references", ves_io_references(io), count), 0);
 }
 
 ves_status ves_io_set_status(ves_io *io, const char *status) {
   VES_CHECK(io && status && io->writable && strlen(status) < sizeof io->info.status, VES_ERR_ARG);
   errno = 0;
+  /* rewritten in place (16 bytes): no room needed, so a run stopped by a
+   * full disk still marks its file; not after a write failed half-way */
+  io->intact = 0;
+  if (io->broken) return VES_ERR_IO;
   ves_status st = io_attr_status(io->file, status);
   if (st == VES_OK && H5Fflush(io->file, H5F_SCOPE_LOCAL) < 0) st = VES_ERR_IO;
   if (st == VES_OK) snprintf(io->info.status, sizeof io->info.status, "%s", status);
@@ -304,7 +337,8 @@ ves_status ves_io_set_problem(ves_io *io, const ves_config *cfg) {
   VES_CHECK(io && io->writable && cfg, VES_ERR_ARG);
   char *text = NULL;
   VES_CALL(ves_config_to_text(cfg, &text));
-  ves_status st = io_attr_str(io->file, "problem", text);
+  ves_status st = io_reserve(io, IO_ROOM_MARGIN + 4.0 * strlen(text));
+  if (st == VES_OK) st = io_attr_str(io->file, "problem", text);
   if (st == VES_OK) st = write_parameters(io->file, cfg);
   if (st == VES_OK) {
     free(io->info.problem);
@@ -312,8 +346,8 @@ ves_status ves_io_set_problem(ves_io *io, const ves_config *cfg) {
   } else {
     free(text);
   }
-  VES_CALL(st);
-  return H5Fflush(io->file, H5F_SCOPE_LOCAL) < 0 ? VES_ERR_IO : VES_OK;
+  if (st == VES_OK && H5Fflush(io->file, H5F_SCOPE_LOCAL) < 0) st = VES_ERR_IO;
+  return io_failed(io, st, 0);
 }
 
 ves_status ves_io_set_setup_seconds(ves_io *io, double seconds) {
@@ -323,23 +357,15 @@ ves_status ves_io_set_setup_seconds(ves_io *io, double seconds) {
   return VES_OK;
 }
 
-/* Bytes HDF5 adds for metadata beyond the data of one step's writes (object
- * headers growing, group link storage turning dense, B-tree nodes): a bound
- * measured with room to spare (a 64-snapshot file grows by < 8 KiB a
- * snapshot beyond its data). */
-#define IO_ROOM_MARGIN (64 * 1024)
-
-/* What the next writes of a run need at most, in bytes: one series row (a
- * new chunk of every series every IO_CHUNK rows, with its B-tree node),
- * `snapshots` snapshots (y, x, phi, y_prev, velocity: 9 values a node; and
- * the XDMF file, four data items a grid, rewritten beside its old copy) and,
- * with nq > 0, a reference of nq points. */
+/* What the next writes of a run need at most, in bytes: one series row,
+ * `snapshots` snapshots (and the XDMF file, four data items a grid,
+ * rewritten beside its old copy) and, with nq > 0, a reference of nq
+ * points. */
 static double room_needed(const ves_io *io, int snapshots, int nq) {
   const double n = io_nodes_now(io);
-  double need = IO_ROOM_MARGIN;
-  if (ves_io_rows(io) % IO_CHUNK == 0) need += IO_NSERIES * (IO_CHUNK * 8.0 + 4096);
+  double need = io_row_bytes(io) + snapshot_bytes(io, snapshots) - IO_ROOM_MARGIN; /* one margin */
   const double xdmf = 2.0 * (io->nsnap + snapshots) * (1536 + 5.0 * strlen(io->path));
-  need += snapshots * (9 * 8 * n + 4096) + (snapshots ? 2 * xdmf : 0);
+  need += snapshots ? 2 * xdmf : 0;
   if (nq > 0) need += 8 * (3 * n + 9.0 * nq) + 4096;
   return need;
 }
@@ -354,8 +380,12 @@ ves_status ves_io_room(ves_io *io, int snapshots, int nq) {
   else
     snprintf(dir, sizeof dir, "%.*s", slash == io->path ? 1 : (int)(slash - io->path), io->path);
   struct statvfs vs;
+  struct stat fs; /* the blocks an earlier reservation holds past the end are the file's */
+  const double held = stat(io->path, &fs) == 0 && (double)fs.st_blocks * 512 > fs.st_size
+                          ? (double)fs.st_blocks * 512 - (double)fs.st_size
+                          : 0;
   if (statvfs(dir, &vs) == 0) {
-    const double avail = (double)vs.f_bavail * (double)vs.f_frsize;
+    const double avail = (double)vs.f_bavail * (double)vs.f_frsize + held;
     if (avail < need) {
       snprintf(io->error, sizeof io->error,
                "no space left on device (%.0f KiB free in %s, the next step's output needs up "
@@ -374,7 +404,24 @@ ves_status ves_io_room(ves_io *io, int snapshots, int nq) {
              (double)rl.rlim_cur / 1024, io->path, (double)sb.st_size / 1024, need / 1024);
     return VES_ERR_IO;
   }
-  return VES_OK;
+  /* the step's writes and a last snapshot reserved here: another program
+   * filling the disk during the step cannot take their blocks */
+  return io_reserve(io, need);
+}
+
+int ves_io_kept(ves_io *io, long *step, double *t, int *intact) {
+  long s = io && io->nsnap > 0 ? io->last_step : -1;
+  if (io && io->nsnap > 0 && s < 0) { /* opened, not written here: the group says */
+    char name[48];
+    snprintf(name, sizeof name, "snapshots/%d", io->nsnap - 1);
+    hid_t g = H5Gopen2(io->file, name, H5P_DEFAULT);
+    if (g < 0 || io_attr_read(g, "step", H5T_NATIVE_LONG, &s) != VES_OK) s = -1;
+    if (g >= 0) H5Gclose(g);
+  }
+  if (step) *step = s;
+  if (t) *t = io && io->nsnap > 0 ? io->snap_t[io->nsnap - 1] : 0.0;
+  if (intact) *intact = io && !io->broken;
+  return io ? io->nsnap : 0;
 }
 
 const char *ves_io_error(const ves_io *io) { return io && io->error[0] ? io->error : NULL; }
@@ -463,6 +510,7 @@ static ves_status remesh_describe(hid_t s, hid_t g) {
 
 static ves_status write_remesh(ves_io *io, const ves_io_remesh *rm) {
   const int k = ves_io_remeshes(io);
+  VES_CALL(io_reserve(io, IO_ROOM_MARGIN + 40.0 * rm->n + 12.0 * rm->ntri));
   hid_t s, g;
   VES_CALL(io_counted_open(io->file, "remeshes", k, &s, &g));
   const hsize_t n = (hsize_t)rm->n, nt = (hsize_t)rm->ntri;
@@ -497,5 +545,5 @@ ves_status ves_io_write_remesh(ves_io *io, const ves_io_remesh *rm) {
 
 ves_status ves_io_truncate_remeshes(ves_io *io, int count) {
   VES_CHECK(io, VES_ERR_ARG);
-  return truncate_counted(io, "remeshes", ves_io_remeshes(io), count);
+  return io_failed(io, truncate_counted(io, "remeshes", ves_io_remeshes(io), count), 0);
 }
