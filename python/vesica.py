@@ -25,6 +25,11 @@ import numpy as np
 __all__ = ["load", "load_study", "Run", "Series", "Snapshot", "interface_curves"]
 
 
+_SERIES_ORDER = ["t", "dt", "E", "A", "V", "V_target", "lambda_A", "lambda_V", "c0", "iterations",
+                 "f_evals", "g_evals", "h_evals", "violation", "solve_seconds", "wall_seconds",
+                 "retries", "status", "reconnections", "factorizations"]
+
+
 def _text(v):
     """An attribute value with bytes decoded (UTF-8) and numpy scalars made Python's."""
     if isinstance(v, bytes):
@@ -350,8 +355,10 @@ class Run:
             v0 = at0.get(c)
             first = np.array([np.nan if v0 is None else float(v0)])
             cols[c] = np.concatenate([first, file_rows[c].astype(float)])
-        order = ["t"] + [c for c in names if c not in ("t", "step")] + (["step"] if "step" in cols else [])
-        return Series({c: cols[c] for c in order if c in cols}, file_rows)
+        # the layout's order (docs/manual.md, "The series"), other columns after it, step last
+        known = [c for c in _SERIES_ORDER if c in cols]
+        order = known + sorted(c for c in cols if c not in _SERIES_ORDER) + (["step"] if "step" in cols else [])
+        return Series({c: cols[c] for c in order}, {c: file_rows[c] for c in order})
 
     def _triangles(self, mesh):
         if mesh not in self._tri:
