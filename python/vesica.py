@@ -46,7 +46,7 @@ def _open(path):
     # lock where this h5py offers the choice (vesica info reads it too)
     try:
         return h5py.File(path, "r", locking=False)
-    except TypeError:
+    except (TypeError, ValueError):  # an h5py or HDF5 without the choice
         return h5py.File(path, "r")
 
 
@@ -151,17 +151,27 @@ class Snapshot:
         per connected piece, each ordered with phi > 0 on its left (for a
         vesicle with phi > 0 inside: from the lower pole up to the upper one,
         or counter-clockwise when closed; a closed piece repeats its first
-        point at the end). `r, z = piece.T`."""
+        point at the end). `r, z = piece.T`. Empty, and the area and volume
+        NaN, when x or phi hold NaN (a snapshot whose material could not be
+        evaluated)."""
         return self._interface()[0]
 
     def _interface(self):
         if self._curves is None:
-            self._curves = interface_curves(self.x, self.phi, self.triangles)
+            x, phi = self.x, self.phi
+            if not (np.all(np.isfinite(x)) and np.all(np.isfinite(phi))):
+                # the material could not be evaluated (docs/manual.md,
+                # "The HDF5 file"): no curve, area and volume NaN
+                self._curves = [], None
+            else:
+                self._curves = interface_curves(x, phi, self.triangles)
         return self._curves
 
     def interface_area(self):
         """2 pi int r ds over the phi = 0 segments (R0^2): `vesica info`'s interface_area."""
         seg = self._interface()[1]
+        if seg is None:
+            return math.nan
         if len(seg) == 0:
             return 0.0
         a, b = seg[:, 0], seg[:, 1]
@@ -176,6 +186,8 @@ class Snapshot:
         interface_volume, the same sum the C code (solver/analysis/level_set.c)
         takes over the clipped triangles."""
         seg = self._interface()[1]
+        if seg is None:
+            return math.nan
         if len(seg) == 0:
             return 0.0
         a, b = seg[:, 0], seg[:, 1]

@@ -152,8 +152,36 @@ def test_meshio_reads_last_xmf():
         assert p.stdout.strip() == want, (p.stdout, want)
 
 
+def test_interface_synthetic():
+    # phi on a grid of squares cut into triangles: a unit sphere (one piece
+    # from pole to pole, area 4 pi, volume 4 pi / 3) and a torus of radii 1
+    # and 1/2 (one closed piece, area 2 pi^2, volume pi^2 / 2); the
+    # piecewise-linear curve is within O(h^2) of them (h = 0.01: < 1e-3)
+    h = 0.01
+    r, z = np.meshgrid(np.arange(0, 2 + h / 2, h), np.arange(-2, 2 + h / 2, h), indexing="ij")
+    nr, nz = r.shape
+    x = np.column_stack([r.ravel(), z.ravel()])
+    i = (np.arange(nr - 1)[:, None] * nz + np.arange(nz - 1)[None, :]).ravel()
+    tri = np.concatenate([np.column_stack([i, i + nz, i + nz + 1]), np.column_stack([i, i + nz + 1, i + 1])])
+    for phi, area, vol, closed in ((1 - x[:, 0] ** 2 - x[:, 1] ** 2, 4 * np.pi, 4 * np.pi / 3, False),
+                                   (0.25 - (x[:, 0] - 1) ** 2 - x[:, 1] ** 2, 2 * np.pi ** 2, np.pi ** 2 / 2, True)):
+        curves, seg = vesica.interface_curves(x, phi, tri)
+        assert len(curves) == 1, len(curves)
+        c = curves[0]
+        if closed:
+            assert np.array_equal(c[0], c[-1])
+            # counter-clockwise around phi > 0: positive signed area
+            assert np.sum(c[:-1, 0] * c[1:, 1] - c[1:, 0] * c[:-1, 1]) > 0
+        else:
+            assert c[0, 0] == 0 and c[-1, 0] == 0 and c[0, 1] < 0 < c[-1, 1], (c[0], c[-1])
+        a = np.pi * np.sum((seg[:, 0, 0] + seg[:, 1, 0]) * np.hypot(*(seg[:, 1] - seg[:, 0]).T))
+        ra, rb, dz = seg[:, 0, 0], seg[:, 1, 0], seg[:, 1, 1] - seg[:, 0, 1]
+        v = np.pi * np.sum(dz * (ra * ra + ra * rb + rb * rb) / 3)
+        assert abs(a / area - 1) < 1e-3 and abs(v / vol - 1) < 1e-3, (a, area, v, vol)
+
+
 TESTS = [test_series_from_t0, test_snapshots_in_time_order, test_interface_matches_info,
-         test_remeshed_triangles, test_meshio_reads_last_xmf]
+         test_remeshed_triangles, test_meshio_reads_last_xmf, test_interface_synthetic]
 
 
 def main():
