@@ -63,7 +63,8 @@ LIB_OBJ  = $(LIB_C:solver/%.c=$(BUILD)/obj/%.o) $(LIB_CXX:solver/%.cpp=$(BUILD)/
 TESTS_LONG = test_integrate test_cli_restart test_cli test_cli_disk test_backend test_spectrum test_model test_model_flow test_remesh test_cli_files test_cli_guard
 TESTS    = $(addprefix $(BUILD)/tests/,$(TESTS_LONG)) \
            $(filter-out $(addprefix $(BUILD)/tests/,$(TESTS_LONG)), \
-             $(patsubst tests/%.c,$(BUILD)/tests/%,$(wildcard tests/test_*.c)))
+             $(patsubst tests/%.c,$(BUILD)/tests/%,$(wildcard tests/test_*.c))) \
+           tests/test_reader.py
 BENCHES  = $(patsubst bench/%.c,$(BUILD)/bench/%,$(wildcard bench/bench_*.c))
 # make bench runs them all with their defaults (hours: bench_table1 and
 # bench_robust include explicit Euler and NLopt); docs/results.md gives the

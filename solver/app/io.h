@@ -174,7 +174,8 @@ typedef struct ves_io ves_io;
 
 /* Create (truncate) path and write the header, /parameters and /mesh.
  * VES_ERR_IO when the file cannot be created (message in err). The XDMF file
- * is written next to it (path with .h5 replaced by .xdmf) at every snapshot. */
+ * is written next to it (path with .h5 replaced by .xdmf) at every snapshot,
+ * and FILE_last.xmf, the last snapshot alone as one grid (meshio.read). */
 ves_status ves_io_create(const char *path, const ves_io_header *h, ves_io **out, char *err,
                          size_t errlen);
 

@@ -48,7 +48,9 @@ static void die(const char *what, const char *detail) {
 }
 
 static void cleanup(void) {
-  unlink(path), unlink(xdmf), unlink(out), unlink(out_xdmf);
+  char last[160]; /* the salvage's single-grid XDMF file (meshio.read's) */
+  snprintf(last, sizeof last, "%s/f.h5.salvage_last.xmf", dir);
+  unlink(path), unlink(xdmf), unlink(out), unlink(out_xdmf), unlink(last);
   rmdir(dir);
 }
 
