@@ -120,7 +120,7 @@ deps:
 	fi
 
 test: test-build
-	@OPENBLAS_NUM_THREADS=1 sh tests/run.sh $(TESTS)
+	@VESICA=$(CURDIR)/$(BUILD)/vesica OPENBLAS_NUM_THREADS=1 sh tests/run.sh $(TESTS)
 
 # what make test runs, built (.ci/run builds it beside make valgrind)
 test-build: deps
