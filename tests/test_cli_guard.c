@@ -329,6 +329,31 @@ static void test_negative_value(void **state) {
   unlink(ini);
 }
 
+/* FILE_last.xmf, written beside FILE.h5 and FILE.xdmf, is an output like
+ * them: an existing one is refused without --force and replaced with it. */
+static void test_last_xmf(void **state) {
+  (void)state;
+  char ini[128], out[128], last[128];
+  tmp_path(ini, sizeof ini, "lx.ini");
+  tmp_path(out, sizeof out, "lx.h5");
+  tmp_path(last, sizeof last, "lx_last.xmf");
+  long_problem(ini);
+  write_file(last, "not vesica's\n");
+  result r;
+  run(&r, "run", ini, TINY, "--out", out, "--quiet", "--max-steps", "1", NULL);
+  say("existing _last.xmf", &r);
+  assert_int_equal(r.code, 2);
+  assert_non_null(strstr(r.err, "lx_last.xmf"));
+  assert_false(exists(out));
+  run(&r, "run", ini, TINY, "--out", out, "--quiet", "--max-steps", "1", "--force", NULL);
+  assert_int_equal(r.code, 0);
+  char text[256];
+  slurp(last, text, sizeof text);
+  assert_null(strstr(text, "not vesica's")); /* replaced by the run's */
+  rm_run(out);
+  unlink(last), unlink(ini);
+}
+
 int main(int argc, char **argv) {
   (void)argc;
   if (cli_find_vesica(argv[0], "test_cli_guard")) return 1;
@@ -338,6 +363,7 @@ int main(int argc, char **argv) {
       cmocka_unit_test(test_series_full_disk),
       cmocka_unit_test(test_own_input),
       cmocka_unit_test(test_stdout),
+      cmocka_unit_test(test_last_xmf),
       cmocka_unit_test(test_negative_value),
   };
   // clang-format on

@@ -39,7 +39,8 @@ static void usage_run(FILE *f) {
           "                    rejected_iterations rejected_seconds (attempts retried at dt/2);\n"
           "                    a write that fails (a full disk) ends the text, not the run,\n"
           "                    which then exits 3 (vesica info FILE.h5 --series 0: every row)\n"
-          "  --force           overwrite an existing FILE.h5, FILE.xdmf or --series file\n"
+          "  --force           overwrite an existing FILE.h5, FILE.xdmf, FILE_last.xmf or --series "
+          "file\n"
           "                    (without it they are refused, exit 2; the problem file, its\n"
           "                    points file and the files of a running vesica never are)\n"
           "  --quiet           no progress line (otherwise one line on stderr: step, t*, dt*,\n"
@@ -54,10 +55,12 @@ static void usage_run(FILE *f) {
 
 /* Remove the output of a run that failed before its first step. */
 static void remove_output(const char *out) {
-  char x[PATH_MAX];
+  char x[PATH_MAX], last[PATH_MAX + 16];
   ves_io_xdmf_path(out, x, sizeof x);
+  ves_io_xdmf_last_path(out, last, sizeof last);
   remove(out);
   remove(x);
+  remove(last);
 }
 
 /* The outputs of a new run from the problem file path: r->out (out, or the
@@ -78,8 +81,8 @@ static int check_outputs(run_ctx *r, const char *path, const char *out, const ch
     if (l > 4 && !strcmp(base + l - 4, ".ini")) l -= 4;
     snprintf(r->out, sizeof r->out, "%.*s.h5", (int)l, base);
   }
-  char xdmf[PATH_MAX], xtmp[PATH_MAX + 8], points[PATH_MAX + 600] = "", hint[PATH_MAX + 64],
-                                                             why[128];
+  char xdmf[PATH_MAX], xtmp[PATH_MAX + 8], last[PATH_MAX + 16],
+      points[PATH_MAX + 600] = "", hint[PATH_MAX + 64], why[128];
   if (!ves_io_xdmf_name_ok(r->out, why, sizeof why)) { /* the .xdmf could not name it */
     fprintf(stderr,
             "vesica run: --out %s: %s, so the XDMF file beside it could not refer to it: "
@@ -89,6 +92,7 @@ static int check_outputs(run_ctx *r, const char *path, const char *out, const ch
   }
   ves_io_xdmf_path(r->out, xdmf, sizeof xdmf);
   snprintf(xtmp, sizeof xtmp, "%s.tmp", xdmf); /* io_xdmf.c writes it, then renames it */
+  ves_io_xdmf_last_path(r->out, last, sizeof last);
   if (r->cfg.points[0]) { /* a curve's points file, found as ves_config_read_points does */
     const char *sl = r->cfg.points[0] == '/' ? NULL : strrchr(path, '/');
     snprintf(points, sizeof points, "%.*s%s%s", sl ? (int)(sl - path) : 0, path, sl ? "/" : "",
@@ -99,10 +103,11 @@ static int check_outputs(run_ctx *r, const char *path, const char *out, const ch
   if ((rc = cli_check_output("run", "--out", r->out, force, inputs, 2, hint)) ||
       (rc = cli_check_output("run", "--out", xdmf, force, inputs, 2, NULL)) ||
       (rc = cli_check_output("run", "--out", xtmp, 1, inputs, 2, NULL)) ||
+      (rc = cli_check_output("run", "--out", last, force, inputs, 2, NULL)) ||
       (series && (rc = cli_check_output("run", "--series", series, force, inputs, 2, NULL))))
     return rc;
   if (series && (cli_same_file(series, r->out) || !strcmp(series, r->out) ||
-                 !strcmp(series, xdmf) || !strcmp(series, xtmp))) {
+                 !strcmp(series, xdmf) || !strcmp(series, xtmp) || !strcmp(series, last))) {
     fprintf(stderr, "vesica run: --series %s: is the run's output file\n", series);
     return 2;
   }

@@ -441,5 +441,7 @@ int ves_io_xdmf_name_ok(const char *h5path, char *why, size_t len);
 
 /* The XDMF path for an HDF5 path: ".h5" replaced by ".xdmf" (or appended). */
 void ves_io_xdmf_path(const char *h5path, char *out, size_t len);
+/* FILE_last.xmf beside FILE.h5: the last snapshot as one grid (meshio.read). */
+void ves_io_xdmf_last_path(const char *h5path, char *out, size_t len);
 
 #endif

@@ -151,7 +151,7 @@ static ves_status xdmf_file(const ves_io *io, const char *path, int last) {
 /* FILE_last.xmf for FILE.h5 (FILE.xdmf's name with _last.xmf for .xdmf):
  * another extension, so that no run's FILE.xdmf has its name (a run
  * a_last.h5 writes a_last.xdmf); meshio and ParaView take .xmf as XDMF. */
-static void xdmf_last_path(const char *h5path, char *out, size_t len) {
+void ves_io_xdmf_last_path(const char *h5path, char *out, size_t len) {
   char x[PATH_MAX];
   ves_io_xdmf_path(h5path, x, sizeof x);
   snprintf(out, len, "%.*s_last.xmf", (int)(strlen(x) - 5), x);
@@ -168,7 +168,7 @@ static void xdmf_last_path(const char *h5path, char *out, size_t len) {
 ves_status io_xdmf_write(const ves_io *io) {
   if (!ves_io_xdmf_name_ok(io->path, NULL, 0)) return VES_ERR_ARG; /* never a broken XDMF */
   char last[PATH_MAX];
-  xdmf_last_path(io->path, last, sizeof last);
+  ves_io_xdmf_last_path(io->path, last, sizeof last);
   ves_status st = io->nsnap > 0 ? xdmf_file(io, last, 1) : VES_OK;
   return st == VES_OK ? xdmf_file(io, io->xdmf, 0) : st;
 }
