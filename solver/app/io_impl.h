@@ -57,6 +57,8 @@ struct ves_io {
   uint64_t series_sum;      /* checksum of the first summed_rows series rows */
   long summed_rows;         /* rows in series_sum */
   int tolerant;             /* salvage: count the snapshots up to the first unreadable one */
+  char corrupt[1024];       /* what reading found corrupt ("" none): ves_io_corruption */
+  char note[256];           /* what reading could not verify ("" all): ves_io_note */
 };
 
 /* ---- the handle and HDF5's errors (io_hdf5.c) ---- */
@@ -99,6 +101,7 @@ uint64_t io_snap_sum(long n, const double *y, const double *x, const double *phi
 uint64_t io_ref_sum(long n, long nq, const double *x, const double *h_, const double *xq,
                     const double *wq, const double *pd, long step);
 uint64_t io_group_sum(hid_t g, const char *const *part, int np);
+ves_status io_attr_problem(hid_t file, const char *text); /* "problem" and its checksum */
 #define IO_NREMESH_PARTS 6
 extern const char *const io_remesh_parts[IO_NREMESH_PARTS];
 
