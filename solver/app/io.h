@@ -305,7 +305,10 @@ int ves_io_snapshots(const ves_io *io);
 
 /* Snapshot k: y (2n), x (2n; y for a format 1 file) and phi (n) unless
  * NULL, si unless NULL; n the header's nodes (VES_ERR_IO for a snapshot
- * after a remeshing of another node count: ves_io_read_snapshot_n). */
+ * after a remeshing of another node count: ves_io_read_snapshot_n). The
+ * snapshot is read whole and verified, whatever is asked for: VES_ERR_IO
+ * when a part does not read, VES_ERR_CONFIG when its checksum does not
+ * match or t, dt, E, A or V is not finite (ves_io_corruption names it). */
 ves_status ves_io_read_snapshot(ves_io *io, int k, double *y, double *x, double *phi,
                                 ves_io_snapinfo *si);
 
