@@ -100,6 +100,7 @@ typedef struct {
   int ncap;                   /* nodes phi, y, x, v have room for */
   double wall_offset;         /* wall time of the time loop before this process */
   long last_snapshot_step;    /* step of the last snapshot written */
+  int from_snapshot;          /* --restart's --from-snapshot K (-1: the last) */
 } run_ctx;
 
 void cli_run_free(run_ctx *r);

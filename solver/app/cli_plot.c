@@ -141,7 +141,7 @@ int cmd_plot(int argc, char **argv) {
   ves_io_close(&io);
   if (st != VES_OK) {
     fprintf(stderr, "vesica plot: %s: %s\n", path, err);
-    return st == VES_ERR_ARG ? 2 : 3;
+    return st == VES_ERR_ARG || st == VES_ERR_CONFIG ? 2 : 3; /* bad or corrupt input: 2 */
   }
   for (int k = 0; k < VES_PLOT_NFIG; k++) printf("%s/%s_%s.png\n", dir, stem, ves_plot_figures[k]);
   return 0;

@@ -130,6 +130,48 @@ static int restart_sets_ok(const char *file, int nset, const char *const *set) {
   return 0;
 }
 
+/* The file verified read-only before a restart writes to it (nothing is
+ * written to a file that does not verify): its problem text, counted
+ * groups, and the snapshot it continues from (from >= 0, else the last)
+ * with the series rows, references and remeshings under it. *S: the
+ * snapshots it continues after (from + 1, or all). 0, or 2 with the corrupt
+ * dataset named and the last intact snapshot offered. */
+static int restart_verify(const char *file, int from, int quiet, int *S) {
+  char err[2048] = "";
+  ves_io *ro = NULL;
+  if (ves_io_open(file, VES_IO_CHECK, &ro, err, sizeof err) != VES_OK) {
+    fprintf(stderr, "vesica run: --restart %s\n", err);
+    return 2;
+  }
+  const int n = ves_io_snapshots(ro), K = from >= 0 ? from : n - 1;
+  int rc = 0;
+  if (n < 1) {
+    fprintf(stderr, "vesica run: --restart %s: no snapshot to continue from\n", file);
+    rc = 2;
+  } else if (K >= n) {
+    fprintf(stderr, "vesica run: --restart %s: --from-snapshot %d: the file has snapshots 0..%d\n",
+            file, K, n - 1);
+    rc = 2;
+  } else if (ves_io_verify_snapshot(ro, K) != VES_OK) {
+    const int J = ves_io_last_intact(ro, K);
+    ves_io_snapinfo si;
+    fprintf(stderr, "vesica run: --restart %s: corrupt: %s", file, ves_io_corruption(ro));
+    if (J >= 0 && ves_io_read_snapshot(ro, J, NULL, NULL, NULL, &si) == VES_OK)
+      fprintf(stderr,
+              "; snapshot %d (step %ld, t* = %.6g) is intact: vesica run --restart %s "
+              "--from-snapshot %d continues from it\n",
+              J, si.state.nstep, si.state.t, file, J);
+    else
+      fprintf(stderr, "; no snapshot before it is intact\n");
+    rc = 2;
+  } else if (!quiet && ves_io_note(ro)[0]) {
+    fprintf(stderr, "vesica run: --restart %s: note: %s\n", file, ves_io_note(ro));
+  }
+  *S = K + 1;
+  ves_io_close(&ro);
+  return rc;
+}
+
 /* Continue FILE.h5 from its last snapshot, with the overrides set[nset]
  * (RESTART_KEYS only; recorded in the file). */
 int cli_run_restart(run_ctx *r, const char *file, int nset, const char *const *set) {
@@ -153,19 +195,21 @@ int cli_run_restart(run_ctx *r, const char *file, int nset, const char *const *s
      * closes after writing to its recorded end), salvaged when HDF5 cannot
      * read it (metadata a flush that stopped half-way left pointing there) */
     ves_io *probe = NULL;
-    if (ves_io_open(file, 0, &probe, err, sizeof err) != VES_OK && (rc = salvage(file, r->quiet)))
+    if (ves_io_open(file, VES_IO_READ, &probe, err, sizeof err) != VES_OK &&
+        (rc = salvage(file, r->quiet)))
       return rc;
     ves_io_close(&probe);
   }
-  ves_status st = ves_io_open(file, 1, &r->io, err, sizeof err);
+  int S = 0;
+  if ((rc = restart_verify(file, r->from_snapshot, r->quiet, &S))) return rc;
+  ves_status st = ves_io_open(file, VES_IO_WRITE, &r->io, err, sizeof err);
   if (st != VES_OK) {
     fprintf(stderr, "vesica run: --restart %s\n", err);
     return 2;
   }
   const ves_io_info *in = ves_io_get_info(r->io);
-  int S = ves_io_snapshots(r->io);
-  if (S < 1) {
-    fprintf(stderr, "vesica run: --restart %s: no snapshot to continue from\n", file);
+  if (S > ves_io_snapshots(r->io)) {
+    fprintf(stderr, "vesica run: --restart %s: changed while it was verified\n", file);
     return 2;
   }
   if (ves_config_load_text(in->problem, in->source, &r->cfg, err, sizeof err) != VES_OK) {
@@ -195,7 +239,8 @@ int cli_run_restart(run_ctx *r, const char *file, int nset, const char *const *s
     return 0;
   }
   if ((rc = cli_rebuild_at(r, pre, S - 1, &si))) return rc;
-  if ((st = ves_io_truncate(r->io, si.rows)) != VES_OK ||
+  if ((st = ves_io_truncate_snapshots(r->io, S)) != VES_OK ||
+      (st = ves_io_truncate(r->io, si.rows)) != VES_OK ||
       (st = ves_io_truncate_references(r->io, si.reconnections)) != VES_OK ||
       (st = ves_io_truncate_remeshes(r->io, ves_sim_remeshings(r->sim))) != VES_OK ||
       (nset && (st = ves_io_set_problem(r->io, &r->cfg)) != VES_OK) ||

@@ -20,7 +20,8 @@ static void usage_run(FILE *f) {
           "usage: vesica run CONFIG.ini [--backend ipopt|nlopt|newton|euler] [--out FILE.h5]\n"
           "                 [--set section.key=value]... [--max-steps N] [--series FILE.tsv]\n"
           "                 [--quiet] [--force]\n"
-          "       vesica run --restart FILE.h5 [--set KEY=VALUE]... [--max-steps N] [--quiet]\n"
+          "       vesica run --restart FILE.h5 [--from-snapshot K] [--set KEY=VALUE]...\n"
+          "                 [--max-steps N] [--quiet]\n"
           "Builds the initial state as 'check' does and integrates to [time] t_end with the\n"
           "chosen backend (default [solver] backend).\n"
           "  --out FILE.h5     the run's HDF5 file (default: the problem file's name with .h5,\n"
@@ -32,6 +33,8 @@ static void usage_run(FILE *f) {
   cli_restart_keys_print(f, fprintf(f, "                    --set may change "), 20, 86,
                          "(recorded in the file)\n");
   fprintf(f,
+          "  --from-snapshot K with --restart: continue from snapshot K (the snapshots after it\n"
+          "                    are dropped), the way past a corrupt last snapshot\n"
           "  --max-steps N     stop (with a snapshot, exit 0) once N steps are accepted in all\n"
           "  --series FILE.tsv also one tab-separated line per accepted step: step t dt E\n"
           "                    A/A0-1 V/Vtarget-1 lambda_A lambda_V iterations f_evals g_evals\n"
@@ -219,7 +222,16 @@ static int run_new(run_ctx *r, const char *path, const char *out, const char *ba
   int rc = cli_load_problem("run", path, usage_run, nset, set, &r->cfg);
   if (rc) return rc;
   r->label = path;
-  r->bk = ves_backend_find(backend ? backend : r->cfg.backend);
+  if (backend) { /* applied as --set solver.backend is: the stored problem records it */
+    char kv[96], err[512];
+    const char *one[1] = {kv};
+    snprintf(kv, sizeof kv, "solver.backend=%s", backend);
+    if (ves_config_set(&r->cfg, 1, one, err, sizeof err) != VES_OK) {
+      fprintf(stderr, "vesica run: --backend %s: %s\n", backend, err);
+      return 2;
+    }
+  }
+  r->bk = ves_backend_find(r->cfg.backend);
   if (!r->bk) {
     fprintf(stderr, "vesica run: --backend '%s': not one of ipopt, nlopt, newton, euler\n",
             backend ? backend : r->cfg.backend);
@@ -236,7 +248,7 @@ static int run_new(run_ctx *r, const char *path, const char *out, const char *ba
 int cmd_run(int argc, char **argv) {
   const char *path = NULL, *set[MAX_SET] = {0}, *backend = NULL, *series = NULL, *out = NULL;
   const char *restart = NULL;
-  int nset = 0, quiet = 0, force = 0, rc;
+  int nset = 0, quiet = 0, force = 0, rc, from_snapshot = -1;
   long max_steps = 0;
   for (int i = 0; i < argc; i++) {
     const char *a = argv[i];
@@ -247,7 +259,8 @@ int cmd_run(int argc, char **argv) {
     } else if (!strcmp(a, "--set")) {
       if ((rc = cli_take_set("run", argc, argv, &i, &nset, set))) return rc;
     } else if (!strcmp(a, "--backend") || !strcmp(a, "--series") || !strcmp(a, "--out") ||
-               !strcmp(a, "--restart") || !strcmp(a, "--max-steps")) {
+               !strcmp(a, "--restart") || !strcmp(a, "--max-steps") ||
+               !strcmp(a, "--from-snapshot")) {
       if (!has) {
         fprintf(stderr, "vesica run: %s needs a value (see vesica run --help)\n", a);
         return 2;
@@ -261,7 +274,16 @@ int cmd_run(int argc, char **argv) {
         out = v;
       else if (!strcmp(a, "--restart"))
         restart = v;
-      else {
+      else if (!strcmp(a, "--from-snapshot")) {
+        char *end;
+        errno = 0;
+        const long k = strtol(v, &end, 10);
+        if (*end || errno || k < 0 || k > INT_MAX) {
+          fprintf(stderr, "vesica run: --from-snapshot '%s': not a snapshot number\n", v);
+          return 2;
+        }
+        from_snapshot = (int)k;
+      } else {
         char *end;
         errno = 0;
         max_steps = strtol(v, &end, 10);
@@ -285,6 +307,10 @@ int cmd_run(int argc, char **argv) {
             restart);
     return 2;
   }
+  if (from_snapshot >= 0 && !restart) {
+    fprintf(stderr, "vesica run: --from-snapshot goes with --restart FILE.h5\n");
+    return 2;
+  }
   if (backend && !ves_backend_find(backend)) {
     fprintf(stderr, "vesica run: --backend '%s': not one of ipopt, nlopt, newton, euler\n",
             backend);
@@ -293,6 +319,7 @@ int cmd_run(int argc, char **argv) {
   run_ctx r;
   memset(&r, 0, sizeof r);
   r.quiet = quiet, r.max_steps = max_steps, r.last_snapshot_step = -1;
+  r.from_snapshot = from_snapshot;
   rc = restart ? cli_run_restart(&r, restart, nset, set)
                : run_new(&r, path, out, backend, nset, set, series, force);
   cli_run_free(&r);

@@ -301,6 +301,20 @@ static int ini_seen(ini_seen_list *l, const char *sec, const char *key, int line
 static ves_status ini_section(const char *t, size_t n, const char *name, int line, char *sec,
                               size_t seclen, ini_seen_list *seen, ves_ini_item_fn fn, void *ctx,
                               char *err, size_t errlen) {
+  /* a comment after the header ("[geometry] ; note") is dropped, as after a value */
+  const char *close = memchr(t, ']', n);
+  if (close) {
+    size_t rest = n - (size_t)(close + 1 - t);
+    const char *r = ini_trim(close + 1, &rest);
+    if (rest && r[0] != ';' && r[0] != '#') {
+      ves_error_say(err, errlen,
+                    "%s: line %d: '%.*s': text after the section header's ']' (a comment "
+                    "starts with ';' or '#')",
+                    name, line, (int)(n > 60 ? 60 : n), t);
+      return VES_ERR_CONFIG;
+    }
+    n = (size_t)(close + 1 - t);
+  }
   if (t[n - 1] != ']') {
     ves_error_say(err, errlen, "%s: line %d: '%.*s': a section header needs a closing ']'", name,
                   line, (int)(n > 60 ? 60 : n), t);
@@ -769,6 +783,84 @@ static int segments_meet(const double *a, const double *b, const double *c, cons
   return 0;
 }
 
+/* The cells [c0, c1] (per axis) a segment's bounding box covers in the
+ * grid of cell size h from (x0, y0), clamped to the g[0] x g[1] cells. */
+static void seg_cells(const double *a, const double *b, double x0, double y0, double h,
+                      const long *g, long *c) {
+  const double lo[2] = {fmin(a[0], b[0]), fmin(a[1], b[1])};
+  const double hi[2] = {fmax(a[0], b[0]), fmax(a[1], b[1])};
+  const double o[2] = {x0, y0};
+  for (int d = 0; d < 2; d++) {
+    long l = (long)floor((lo[d] - o[d]) / h), u = (long)floor((hi[d] - o[d]) / h);
+    c[2 * d] = l < 0 ? 0 : l >= g[d] ? g[d] - 1 : l;
+    c[2 * d + 1] = u < 0 ? 0 : u >= g[d] ? g[d] - 1 : u;
+  }
+}
+
+/* The first pair of non-adjacent segments (i < j, in that order; segment
+ * i joins points i and i + 1) of the polygon p[n] that meet, or -1, -1.
+ * Each segment is bucketed into the cells of a uniform grid its bounding
+ * box covers (cell size about the mean segment length, enlarged while the
+ * buckets would hold more than 16 entries per segment); two segments that
+ * meet share the cell of a common point (floor is monotone), so only pairs
+ * within a cell are tested: O(n) for a curve of even spacing, instead of
+ * the n^2/2 pairs (a 200,001-point curve: minutes; docs/results.md,
+ * "Reliability and fuzzing"). */
+static ves_status first_crossing(int n, const double *p, int *pi, int *pj) {
+  *pi = *pj = -1;
+  const long ns = n - 1;
+  if (ns < 3) return VES_OK;
+  double x0 = p[0], x1 = p[0], y0 = p[1], y1 = p[1], len = 0;
+  for (int i = 0; i < n; i++) {
+    x0 = fmin(x0, p[2 * i]), x1 = fmax(x1, p[2 * i]);
+    y0 = fmin(y0, p[2 * i + 1]), y1 = fmax(y1, p[2 * i + 1]);
+    if (i) len += hypot(p[2 * i] - p[2 * i - 2], p[2 * i + 1] - p[2 * i - 1]);
+  }
+  const double span = fmax(x1 - x0, y1 - y0);
+  double h = fmax(len / (double)ns, span / 4096.0);
+  if (!(h > 0) || !isfinite(h)) h = 1;
+  long g[2], c[4], total = 0;
+  for (;;) { /* the grid: cells about the mean segment, at most 16 entries per segment */
+    g[0] = (long)floor((x1 - x0) / h) + 1, g[1] = (long)floor((y1 - y0) / h) + 1;
+    total = 0;
+    for (long s = 0; s < ns && total <= 16 * ns; s++) {
+      seg_cells(p + 2 * s, p + 2 * s + 2, x0, y0, h, g, c);
+      total += (c[1] - c[0] + 1) * (c[3] - c[2] + 1);
+    }
+    if (total <= 16 * ns && g[0] * g[1] <= 16 * ns) break;
+    h *= 2;
+  }
+  const long ncell = g[0] * g[1];
+  long *start = calloc((size_t)ncell + 1, sizeof *start);
+  int *seg = malloc((size_t)total * sizeof *seg);
+  if (!start || !seg) {
+    free(start), free(seg);
+    return VES_ERR_ALLOC;
+  }
+  for (long s = 0; s < ns; s++) { /* counting sort of the (cell, segment) entries */
+    seg_cells(p + 2 * s, p + 2 * s + 2, x0, y0, h, g, c);
+    for (long cy = c[2]; cy <= c[3]; cy++)
+      for (long cx = c[0]; cx <= c[1]; cx++) start[cy * g[0] + cx + 1]++;
+  }
+  for (long k = 0; k < ncell; k++) start[k + 1] += start[k];
+  for (long s = 0; s < ns; s++) { /* in each cell the segments ascending */
+    seg_cells(p + 2 * s, p + 2 * s + 2, x0, y0, h, g, c);
+    for (long cy = c[2]; cy <= c[3]; cy++)
+      for (long cx = c[0]; cx <= c[1]; cx++) seg[start[cy * g[0] + cx]++] = (int)s;
+  }
+  for (long k = ncell; k > 0; k--) start[k] = start[k - 1];
+  start[0] = 0;
+  for (long k = 0; k < ncell; k++)
+    for (long a = start[k]; a < start[k + 1]; a++)
+      for (long b = a + 1; b < start[k + 1]; b++) {
+        const int i = seg[a], j = seg[b];
+        if (j < i + 2 || (*pi >= 0 && (i > *pi || (i == *pi && j >= *pj)))) continue;
+        if (segments_meet(p + 2 * i, p + 2 * i + 2, p + 2 * j, p + 2 * j + 2)) *pi = i, *pj = j;
+      }
+  free(start), free(seg);
+  return VES_OK;
+}
+
 /* A generating curve the shape can use: from the north pole (larger Z) to
  * the south pole, on the axis only at its ends, no point repeated, and
  * not crossing or touching itself (the polygon through the points; the
@@ -798,15 +890,15 @@ static ves_status check_curve(const char *path, int n, const double *p, const in
       return VES_ERR_CONFIG;
     }
   }
-  for (int i = 0; i + 1 < n; i++) /* segment i: points i, i + 1 */
-    for (int j = i + 2; j + 1 < n; j++)
-      if (segments_meet(p + 2 * i, p + 2 * i + 2, p + 2 * j, p + 2 * j + 2)) {
-        ves_error_say(
-            err, errlen,
-            "%s: the curve crosses itself: the segment of lines %d-%d meets that of lines %d-%d",
-            path, lines[i], lines[i + 1], lines[j], lines[j + 1]);
-        return VES_ERR_CONFIG;
-      }
+  int ci = -1, cj = -1;
+  VES_CALL(first_crossing(n, p, &ci, &cj));
+  if (ci >= 0) {
+    ves_error_say(
+        err, errlen,
+        "%s: the curve crosses itself: the segment of lines %d-%d meets that of lines %d-%d", path,
+        lines[ci], lines[ci + 1], lines[cj], lines[cj + 1]);
+    return VES_ERR_CONFIG;
+  }
   return VES_OK;
 }
 
@@ -826,15 +918,28 @@ ves_status ves_config_read_points(const ves_config *cfg, int *n, double **pts, c
                   cfg->points, path, strerror(errno));
     return VES_ERR_IO;
   }
+  struct stat sb;
+  if (fstat(fileno(f), &sb) == 0 && S_ISDIR(sb.st_mode)) { /* fopen opens a folder */
+    ves_error_say(err, errlen, "%s: [shape] points = %s: %s is a folder, not a points file",
+                  cfg->source, cfg->points, path);
+    fclose(f);
+    return VES_ERR_CONFIG;
+  }
   int cap = 0, cnt = 0, line = 0, *lines = NULL; /* lines[i]: the file line of point i */
   double *p = NULL;
-  char buf[512];
+  char *buf = NULL;
+  size_t bufcap = 0;
+  ssize_t got;
   ves_status st = VES_OK;
-  while (fgets(buf, sizeof buf, f)) {
+  while ((got = getline(&buf, &bufcap, f)) > 0) {
     line++;
-    if (!strchr(buf, '\n') && !feof(f)) {
-      ves_error_say(err, errlen, "%s: line %d: longer than %d characters", path, line,
-                    (int)sizeof buf - 2);
+    if (memchr(buf, 0, (size_t)got)) {
+      ves_error_say(err, errlen, "%s: line %d: holds a NUL byte: not a text file", path, line);
+      st = VES_ERR_CONFIG;
+      break;
+    }
+    if ((size_t)got - (buf[got - 1] == '\n') > 510) {
+      ves_error_say(err, errlen, "%s: line %d: longer than %d characters", path, line, 510);
       st = VES_ERR_CONFIG;
       break;
     }
@@ -862,6 +967,7 @@ ves_status ves_config_read_points(const ves_config *cfg, int *n, double **pts, c
     p[2 * cnt] = R, p[2 * cnt + 1] = Z, lines[cnt] = line;
     cnt++;
   }
+  free(buf);
   fclose(f);
   if (st == VES_OK && (cnt < 4 || p[0] != 0.0 || p[2 * cnt - 2] != 0.0)) {
     ves_error_say(err, errlen, "%s: %d points: need at least 4, the first and the last with R = 0",

@@ -187,6 +187,40 @@ ves_status ves_io_create(const char *path, const ves_io_header *h, ves_io **out,
  * (message in err, naming the file). */
 ves_status ves_io_open(const char *path, int writable, ves_io **out, char *err, size_t errlen);
 
+/* ves_io_open's modes: writable 0 (read-only), 1 (to continue it), or
+ * VES_IO_CHECK: read-only, the series verified snapshot by snapshot
+ * (ves_io_verify_snapshot) rather than against the last one at open: a
+ * restart's validation, which looks for the last intact snapshot. */
+#define VES_IO_READ 0
+#define VES_IO_WRITE 1
+#define VES_IO_CHECK 2
+
+/* Reading verifies what it reads: the stored problem text against its
+ * checksum (root attribute problem_checksum), every counted group against
+ * its count (at open), the series rows a snapshot sums against its
+ * series_checksum (at a read-only open: the last snapshot's), and a
+ * snapshot's data and state against its checksum (ves_io_read_snapshot*,
+ * ves_io_verify_snapshot). A mismatch is corruption: VES_ERR_CONFIG, and
+ * this names the dataset and the reason ("" when none was found). */
+const char *ves_io_corruption(const ves_io *io);
+
+/* What the file lacks to be verified whole (a file written without the
+ * checksum of its problem text), "" when nothing. */
+const char *ves_io_note(const ves_io *io);
+
+/* Whether snapshot k is intact: its data and state, the series rows up to
+ * it, the references and remeshings it stands on match their checksums and
+ * its numbers are finite. VES_ERR_CONFIG with ves_io_corruption naming the
+ * dataset when not. */
+ves_status ves_io_verify_snapshot(ves_io *io, int k);
+
+/* The last intact snapshot before k (ves_io_verify_snapshot), -1 when none. */
+int ves_io_last_intact(ves_io *io, int k);
+
+/* Keep snapshots 0..keep-1 (the count attribute; the XDMF file rewritten):
+ * a restart from an earlier snapshot. */
+ves_status ves_io_truncate_snapshots(ves_io *io, int keep);
+
 /* Flush and close; accepts NULL and sets *io to NULL. */
 void ves_io_close(ves_io **io);
 
@@ -280,7 +314,10 @@ int ves_io_snapshots(const ves_io *io);
 
 /* Snapshot k: y (2n), x (2n; y for a format 1 file) and phi (n) unless
  * NULL, si unless NULL; n the header's nodes (VES_ERR_IO for a snapshot
- * after a remeshing of another node count: ves_io_read_snapshot_n). */
+ * after a remeshing of another node count: ves_io_read_snapshot_n). The
+ * snapshot is read whole and verified, whatever is asked for: VES_ERR_IO
+ * when a part does not read, VES_ERR_CONFIG when its checksum does not
+ * match or t, dt, E, A or V is not finite (ves_io_corruption names it). */
 ves_status ves_io_read_snapshot(ves_io *io, int k, double *y, double *x, double *phi,
                                 ves_io_snapinfo *si);
 

@@ -435,3 +435,27 @@ uint64_t io_group_sum(hid_t g, const char *const *part, int np) {
 /* The datasets of a remeshing group its checksum covers. */
 const char *const io_remesh_parts[IO_NREMESH_PARTS] = {"x",     "h",         "flag",
                                                        "phi0c", "triangles", "vertices"};
+
+/* The root attributes "problem" (the stored problem text) and
+ * "problem_checksum" (FNV-1a of its bytes): a restart rebuilds the run
+ * from that text, so a reader refuses one that does not match. */
+ves_status io_attr_problem(hid_t file, const char *text) {
+  VES_CALL(io_attr_str(file, "problem", text));
+  return io_attr_u64(file, "problem_checksum", io_fnv(FNV_START, text, strlen(text)));
+}
+
+/* Drop the snapshots from `keep` on (the count says keep; the members
+ * after it are replaced by the next writes): a restart from an earlier
+ * snapshot (vesica run --restart FILE --from-snapshot K). */
+ves_status ves_io_truncate_snapshots(ves_io *io, int keep) {
+  VES_CHECK(io && io->writable && keep >= 1 && keep <= io->nsnap, VES_ERR_ARG);
+  if (keep == io->nsnap) return VES_OK;
+  hid_t s = H5Gopen2(io->file, "snapshots", H5P_DEFAULT);
+  if (s < 0) return io_failed(io, VES_ERR_IO, 0);
+  ves_status st = io_attr_int(s, "count", keep);
+  H5Gclose(s);
+  if (st == VES_OK && H5Fflush(io->file, H5F_SCOPE_LOCAL) < 0) st = VES_ERR_IO;
+  if (st == VES_OK) io->nsnap = keep;
+  if (st == VES_OK) st = io_xdmf_write(io);
+  return io_failed(io, st, errno);
+}

@@ -61,6 +61,8 @@ struct ves_io {
   int intact;               /* the last failed write left the file as last flushed */
   int broken;               /* a write failed half-way: nothing more is written */
   int reserved;             /* io_reserve took blocks past the end (freed at the close) */
+  char corrupt[1024];       /* what reading found corrupt ("" none): ves_io_corruption */
+  char note[256];           /* what reading could not verify ("" all): ves_io_note */
 };
 
 /* ---- the handle and HDF5's errors (io_hdf5.c) ---- */
@@ -108,6 +110,7 @@ uint64_t io_snap_sum(long n, const double *y, const double *x, const double *phi
 uint64_t io_ref_sum(long n, long nq, const double *x, const double *h_, const double *xq,
                     const double *wq, const double *pd, long step);
 uint64_t io_group_sum(hid_t g, const char *const *part, int np);
+ves_status io_attr_problem(hid_t file, const char *text); /* "problem" and its checksum */
 #define IO_NREMESH_PARTS 6
 extern const char *const io_remesh_parts[IO_NREMESH_PARTS];
 

@@ -33,9 +33,13 @@ static ves_status read_snapshot_times(ves_io *io) {
   for (int k = 0; k < count && st == VES_OK; k++) {
     char name[32];
     snprintf(name, sizeof name, "%d", k);
-    hid_t g = H5Gopen2(s, name, H5P_DEFAULT);
+    hid_t g = H5Lexists(s, name, H5P_DEFAULT) > 0 ? H5Gopen2(s, name, H5P_DEFAULT) : -1;
     st = g < 0 ? VES_ERR_CONFIG : io_attr_read_double(g, "t", &io->snap_t[k]);
     if (g >= 0) H5Gclose(g);
+    if (st != VES_OK && !io->tolerant)
+      snprintf(io->corrupt, sizeof io->corrupt,
+               "/snapshots/%d: %s (the group's count says %d snapshots)", k,
+               g < 0 ? "missing" : "its attribute t does not read", count);
     if (st != VES_OK && io->tolerant) { /* a salvage: the snapshots before it */
       count = k, st = VES_OK;
       break;
@@ -96,8 +100,135 @@ ves_status io_read_header(ves_io *io) {
   return read_snapshot_times(io);
 }
 
+const char *ves_io_corruption(const ves_io *io) { return io ? io->corrupt : ""; }
+
+const char *ves_io_note(const ves_io *io) { return io ? io->note : ""; }
+
+/* Counted group `parent` (absent: fine): its count readable and not
+ * negative, its members 0..count-1 there as groups. A group whose count
+ * names members it lacks is corruption (a reader would otherwise fail
+ * later, mid-way, and a restart write into it). */
+static ves_status counted_intact(ves_io *io, const char *parent) {
+  if (H5Lexists(io->file, parent, H5P_DEFAULT) <= 0) return VES_OK;
+  hid_t g = H5Gopen2(io->file, parent, H5P_DEFAULT);
+  int count = -1;
+  if (g < 0 || io_attr_read(g, "count", H5T_NATIVE_INT, &count) != VES_OK || count < 0) {
+    snprintf(io->corrupt, sizeof io->corrupt, "/%s: %s", parent,
+             g < 0 ? "not a group" : "its attribute count is missing, malformed or negative");
+    if (g >= 0) H5Gclose(g);
+    return VES_ERR_CONFIG;
+  }
+  ves_status st = VES_OK;
+  for (int k = 0; k < count && st == VES_OK; k++) {
+    char name[32];
+    snprintf(name, sizeof name, "%d", k);
+    H5O_info_t oi;
+    if (H5Lexists(g, name, H5P_DEFAULT) <= 0 ||
+        H5Oget_info_by_name(g, name, &oi, H5P_DEFAULT) < 0 || oi.type != H5O_TYPE_GROUP) {
+      snprintf(io->corrupt, sizeof io->corrupt,
+               "/%s/%d: missing or not a group (the group's count says %d members)", parent, k,
+               count);
+      st = VES_ERR_CONFIG;
+    }
+  }
+  H5Gclose(g);
+  return st;
+}
+
+/* The stored problem text against its checksum (a file without one: a note). */
+static ves_status problem_intact(ves_io *io) {
+  uint64_t want = 0;
+  if (H5Aexists(io->file, "problem_checksum") <= 0) {
+    snprintf(io->note, sizeof io->note,
+             "the file stores no checksum of its problem text (an older layout): read unchecked");
+    return VES_OK;
+  }
+  if (io_attr_read(io->file, "problem_checksum", H5T_NATIVE_UINT64, &want) != VES_OK ||
+      io_fnv(FNV_START, io->info.problem, strlen(io->info.problem)) != want) {
+    snprintf(io->corrupt, sizeof io->corrupt,
+             "the root attribute problem (the stored problem text) does not match its checksum "
+             "(problem_checksum)");
+    return VES_ERR_CONFIG;
+  }
+  return VES_OK;
+}
+
+/* The first non-finite value in the first `rows` rows of the double
+ * columns col[] (a NaN a bit flip made, say): named into buf. */
+static void first_nonfinite(void *const *col, long rows, char *buf, size_t len) {
+  buf[0] = 0;
+  for (int i = 0; i < IO_NSERIES; i++) {
+    if (!col[i] || io_series[i].type != COL_DOUBLE) continue;
+    const double *v = col[i];
+    for (long r = 0; r < rows; r++)
+      if (!isfinite(v[r])) {
+        snprintf(buf, len, " (/series/%s row %ld = %g)", io_series[i].name, r, v[r]);
+        return;
+      }
+  }
+}
+
+/* The first rows of the series against the series_checksum of snapshot k
+ * (a snapshot without one: nothing to check). */
+static ves_status series_intact(ves_io *io, int k, long rows) {
+  char name[48];
+  snprintf(name, sizeof name, "snapshots/%d", k);
+  hid_t g = H5Gopen2(io->file, name, H5P_DEFAULT);
+  if (g < 0) return VES_ERR_CONFIG;
+  uint64_t want = 0;
+  const int has = H5Aexists(g, "series_checksum") > 0;
+  ves_status st = has ? io_attr_read(g, "series_checksum", H5T_NATIVE_UINT64, &want) : VES_OK;
+  if (st == VES_OK && rows < 0) st = io_attr_read(g, "rows", H5T_NATIVE_LONG, &rows);
+  H5Gclose(g);
+  if (st != VES_OK || (has && rows < 0)) {
+    snprintf(io->corrupt, sizeof io->corrupt,
+             "/snapshots/%d: its attribute rows or "
+             "series_checksum does not read",
+             k);
+    return VES_ERR_CONFIG;
+  }
+  if (!has) return VES_OK;
+  for (int i = 0; i < IO_NSERIES; i++)
+    if (io->series[i] >= 0 && io_dset_len(io->series[i]) < (hsize_t)rows) {
+      snprintf(io->corrupt, sizeof io->corrupt,
+               "/series/%s: %llu rows, fewer than the %ld snapshot %d records", io_series[i].name,
+               (unsigned long long)io_dset_len(io->series[i]), rows, k);
+      return VES_ERR_CONFIG;
+    }
+  void *col[IO_NSERIES];
+  if ((st = io_cols_read(io->series, rows, col)) != VES_OK) {
+    if (st != VES_ERR_ALLOC)
+      snprintf(io->corrupt, sizeof io->corrupt,
+               "/series: a column does not read (of another shape or type)");
+    return st == VES_ERR_ALLOC ? st : VES_ERR_CONFIG;
+  }
+  if (io_rows_sum(FNV_START, col, rows) != want) {
+    char where[160];
+    first_nonfinite(col, rows, where, sizeof where);
+    snprintf(io->corrupt, sizeof io->corrupt,
+             "/series: its first %ld rows do not match the checksum snapshot %d stores "
+             "(series_checksum)%s",
+             rows, k, where);
+    st = VES_ERR_CONFIG;
+  }
+  for (int i = 0; i < IO_NSERIES; i++) free(col[i]);
+  return st;
+}
+
+/* What an open verifies: the counted groups, the problem text and (mode
+ * VES_IO_READ) the series rows the last snapshot sums. */
+static ves_status open_verify(ves_io *io, int mode) {
+  VES_CALL(counted_intact(io, "references"));
+  VES_CALL(counted_intact(io, "remeshes"));
+  VES_CALL(problem_intact(io));
+  if (mode == VES_IO_READ && io->nsnap > 0) VES_CALL(series_intact(io, io->nsnap - 1, -1));
+  return VES_OK;
+}
+
 ves_status ves_io_open(const char *path, int writable, ves_io **out, char *err, size_t errlen) {
   VES_CHECK(path && out, VES_ERR_ARG);
+  const int mode = writable;
+  writable = writable == VES_IO_WRITE;
   *out = NULL;
   io_quiet_hdf5();
   FILE *probe = fopen(path, writable ? "r+" : "r");
@@ -145,8 +276,11 @@ ves_status ves_io_open(const char *path, int writable, ves_io **out, char *err, 
     return VES_ERR_IO;
   }
   ves_status st = io_read_header(io);
+  if (st == VES_OK) st = open_verify(io, mode);
   if (st != VES_OK) {
-    if (st == VES_ERR_CONFIG && io->info.format_version > VES_IO_FORMAT)
+    if (st == VES_ERR_CONFIG && io->corrupt[0])
+      ves_error_say(err, errlen, "%s: corrupt: %s", path, io->corrupt);
+    else if (st == VES_ERR_CONFIG && io->info.format_version > VES_IO_FORMAT)
       ves_error_say(err, errlen, "%s: format_version %d: this vesica reads format_version 1 to %d",
                     path, io->info.format_version, VES_IO_FORMAT);
     else if (st == VES_ERR_CONFIG && writable && io->info.format_version >= 1 &&
@@ -175,20 +309,26 @@ ves_status ves_io_read_snapshot(ves_io *io, int k, double *y, double *x, double 
   return ves_io_read_snapshot_n(io, k, io->info.n, y, x, phi, si);
 }
 
-ves_status ves_io_read_snapshot_n(ves_io *io, int k, int nbuf, double *y, double *x, double *phi,
-                                  ves_io_snapinfo *si) {
-  VES_CHECK(io && k >= 0 && k < io->nsnap && nbuf > 0, VES_ERR_ARG);
+static ves_status read_snapshot_raw(ves_io *io, int k, int nbuf, double *y, double *x, double *phi,
+                                    ves_io_snapinfo *si) {
   char name[48];
   snprintf(name, sizeof name, "snapshots/%d", k);
   hid_t g = H5Gopen2(io->file, name, H5P_DEFAULT);
   if (g < 0) return VES_ERR_IO;
   hsize_t n = (hsize_t)nbuf; /* the datasets must have exactly this size */
   ves_status st = VES_OK;
-  if (y) st = io_dset_read(g, "y", H5T_NATIVE_DOUBLE, 2 * n, y);
+  const char *bad = NULL; /* the dataset that does not read */
+  if (y && (st = io_dset_read(g, "y", H5T_NATIVE_DOUBLE, 2 * n, y)) != VES_OK) bad = "y";
   /* format 1 has no x: its snapshots showed the coefficients */
-  if (st == VES_OK && x)
-    st = io_dset_read(g, io->info.format_version >= 2 ? "x" : "y", H5T_NATIVE_DOUBLE, 2 * n, x);
-  if (st == VES_OK && phi) st = io_dset_read(g, "phi", H5T_NATIVE_DOUBLE, n, phi);
+  if (st == VES_OK && x &&
+      (st = io_dset_read(g, io->info.format_version >= 2 ? "x" : "y", H5T_NATIVE_DOUBLE, 2 * n,
+                         x)) != VES_OK)
+    bad = "x";
+  if (st == VES_OK && phi && (st = io_dset_read(g, "phi", H5T_NATIVE_DOUBLE, n, phi)) != VES_OK)
+    bad = "phi";
+  if (bad)
+    snprintf(io->corrupt, sizeof io->corrupt,
+             "/snapshots/%d/%s: does not read (missing, or of another size or type)", k, bad);
   if (st == VES_OK && si) {
     ves_sim_state *s = &si->state;
     memset(si, 0, sizeof *si);
@@ -224,6 +364,147 @@ ves_status ves_io_read_snapshot_n(ves_io *io, int k, int nbuf, double *y, double
   }
   H5Gclose(g);
   return st;
+}
+
+/* Snapshot k read whole (y, x, phi, its state and y_prev) and checked
+ * against its checksum and for finite numbers; the parts asked for copied
+ * out. A salvage (io->tolerant) and format 1 read it unchecked. */
+ves_status ves_io_read_snapshot_n(ves_io *io, int k, int nbuf, double *y, double *x, double *phi,
+                                  ves_io_snapinfo *si) {
+  VES_CHECK(io && k >= 0 && k < io->nsnap && nbuf > 0, VES_ERR_ARG);
+  if (io->tolerant || io->info.format_version < 2)
+    return read_snapshot_raw(io, k, nbuf, y, x, phi, si);
+  /* only the state asked for: verified on the snapshot's own node set (a
+   * remeshing's, not the header's) */
+  const int nk = !y && !x && !phi ? ves_io_snapshot_nodes(io, k) : -1;
+  if (nk > 0) nbuf = nk;
+  const size_t n = (size_t)nbuf;
+  double *ty = y ? y : malloc(2 * n * sizeof *ty), *tx = x ? x : malloc(2 * n * sizeof *tx);
+  double *tp = phi ? phi : malloc(n * sizeof *tp), *yp = NULL;
+  ves_io_snapinfo tsi, *s = si ? si : &tsi;
+  io->corrupt[0] = 0;
+  ves_status st = ty && tx && tp ? read_snapshot_raw(io, k, nbuf, ty, tx, tp, s) : VES_ERR_ALLOC;
+  if (st != VES_OK && st != VES_ERR_ALLOC && !io->corrupt[0])
+    snprintf(io->corrupt, sizeof io->corrupt,
+             "/snapshots/%d: an attribute of its state does not read (missing, or of another "
+             "type)",
+             k);
+  const ves_sim_state *ss = &s->state;
+  const struct {
+    const char *name;
+    double v;
+  } fin[] = {{"t", ss->t}, {"dt", ss->dt}, {"E", ss->E}, {"A", ss->A}, {"V", ss->V}};
+  for (size_t i = 0; st == VES_OK && i < sizeof fin / sizeof fin[0]; i++)
+    if (!isfinite(fin[i].v)) {
+      snprintf(io->corrupt, sizeof io->corrupt, "/snapshots/%d: attribute %s = %g (not finite)", k,
+               fin[i].name, fin[i].v);
+      st = VES_ERR_CONFIG;
+    }
+  char name[48];
+  snprintf(name, sizeof name, "snapshots/%d", k);
+  hid_t g = st == VES_OK ? H5Gopen2(io->file, name, H5P_DEFAULT) : -1;
+  uint64_t want = 0;
+  if (g >= 0 && H5Aexists(g, "checksum") > 0) {
+    if (ss->dt_prev > 0 && !(yp = malloc(2 * n * sizeof *yp))) st = VES_ERR_ALLOC;
+    if (st == VES_OK && ss->dt_prev > 0 &&
+        (st = ves_io_read_snapshot_prev(io, k, nbuf, yp)) != VES_OK)
+      snprintf(io->corrupt, sizeof io->corrupt, "/snapshots/%d/y_prev: does not read", k);
+    if (st == VES_OK && (io_attr_read(g, "checksum", H5T_NATIVE_UINT64, &want) != VES_OK ||
+                         io_snap_sum(nbuf, ty, tx, tp, yp, s) != want)) {
+      snprintf(io->corrupt, sizeof io->corrupt,
+               "/snapshots/%d: its data (y, x, phi%s) and state attributes do not match its "
+               "checksum",
+               k, ss->dt_prev > 0 ? ", y_prev" : "");
+      st = VES_ERR_CONFIG;
+    }
+  }
+  if (g >= 0) H5Gclose(g);
+  if (!y) free(ty);
+  if (!x) free(tx);
+  if (!phi) free(tp);
+  free(yp);
+  return st;
+}
+
+/* Reference k against its checksum. */
+static ves_status reference_intact(ves_io *io, int k) {
+  char name[48];
+  snprintf(name, sizeof name, "references/%d", k);
+  hid_t g = H5Gopen2(io->file, name, H5P_DEFAULT);
+  if (g < 0) return VES_ERR_CONFIG;
+  static const char *const part[5] = {"x", "h", "points", "weights", "phi0"};
+  double *v[5] = {0};
+  hsize_t c[5] = {0};
+  long step = 0;
+  uint64_t want = 0;
+  int ok = 1;
+  if (H5Aexists(g, "checksum") > 0) {
+    ok = io_attr_read(g, "checksum", H5T_NATIVE_UINT64, &want) == VES_OK &&
+         io_attr_read(g, "step", H5T_NATIVE_LONG, &step) == VES_OK;
+    for (int i = 0; i < 5 && ok; i++) {
+      hid_t d = H5Dopen2(g, part[i], H5P_DEFAULT);
+      hid_t sp = d < 0 ? -1 : H5Dget_space(d);
+      const hssize_t np = sp < 0 ? -1 : H5Sget_simple_extent_npoints(sp);
+      ok = np > 0 && io_numeric_type_ok(d, 0) && (v[i] = malloc((size_t)np * sizeof *v[i])) &&
+           H5Dread(d, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, v[i]) >= 0;
+      c[i] = ok ? (hsize_t)np : 0;
+      if (sp >= 0) H5Sclose(sp);
+      if (d >= 0) H5Dclose(d);
+    }
+    const long n = (long)c[1], nq = (long)c[3];
+    ok = ok && c[0] == 2 * (hsize_t)n && c[2] == 2 * c[3] && c[4] == 6 * c[3] &&
+         io_ref_sum(n, nq, v[0], v[1], v[2], v[3], v[4], step) == want;
+  }
+  for (int i = 0; i < 5; i++) free(v[i]);
+  H5Gclose(g);
+  if (!ok)
+    snprintf(io->corrupt, sizeof io->corrupt,
+             "/references/%d: its data (x, h, points, weights, phi0) do not match its checksum", k);
+  return ok ? VES_OK : VES_ERR_CONFIG;
+}
+
+ves_status ves_io_verify_snapshot(ves_io *io, int k) {
+  VES_CHECK(io && k >= 0 && k < io->nsnap, VES_ERR_ARG);
+  const int nk = ves_io_snapshot_nodes(io, k);
+  if (nk <= 0) {
+    snprintf(io->corrupt, sizeof io->corrupt, "/snapshots/%d/y: missing or malformed", k);
+    return VES_ERR_CONFIG;
+  }
+  ves_io_snapinfo si;
+  VES_CALL(ves_io_read_snapshot_n(io, k, nk, NULL, NULL, NULL, &si));
+  VES_CALL(series_intact(io, k, si.rows));
+  /* the references it stands on that the file holds (a file with fewer is
+   * refused by the restart's rebuild, which says how many it needs) */
+  for (int r = 0; r < si.reconnections && r < ves_io_references(io); r++)
+    VES_CALL(reference_intact(io, r));
+  for (int j = 0; j < ves_io_remeshes(io); j++) {
+    long step = 0;
+    uint64_t sum = 0;
+    char name[48];
+    snprintf(name, sizeof name, "remeshes/%d", j);
+    hid_t rg = H5Gopen2(io->file, name, H5P_DEFAULT);
+    int ok = rg >= 0 && io_attr_read(rg, "step", H5T_NATIVE_LONG, &step) == VES_OK;
+    if (ok && step <= si.state.nstep && H5Aexists(rg, "checksum") > 0)
+      ok = io_attr_read(rg, "checksum", H5T_NATIVE_UINT64, &sum) == VES_OK &&
+           io_group_sum(rg, io_remesh_parts, IO_NREMESH_PARTS) == sum;
+    if (rg >= 0) H5Gclose(rg);
+    if (!ok) {
+      snprintf(io->corrupt, sizeof io->corrupt,
+               "/remeshes/%d: its data or step do not match its checksum", j);
+      return VES_ERR_CONFIG;
+    }
+    if (step > si.state.nstep) break;
+  }
+  return VES_OK;
+}
+
+int ves_io_last_intact(ves_io *io, int k) {
+  char keep[sizeof io->corrupt];
+  snprintf(keep, sizeof keep, "%s", io->corrupt);
+  int j = k - 1;
+  while (j >= 0 && ves_io_verify_snapshot(io, j) != VES_OK) j--;
+  snprintf(io->corrupt, sizeof io->corrupt, "%s", keep);
+  return j;
 }
 
 /* A dataset of snapshot k that not every snapshot holds (2 nbuf values):

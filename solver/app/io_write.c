@@ -51,7 +51,7 @@ static ves_status write_header(ves_io *io, const ves_io_header *h) {
   VES_CALL(io_attr_str(f, "version", h->version));
   VES_CALL(io_attr_str(f, "backend", h->backend));
   VES_CALL(io_attr_int(f, "nodes", h->n));
-  VES_CALL(io_attr_str(f, "problem", h->problem));
+  VES_CALL(io_attr_problem(f, h->problem));
   VES_CALL(io_attr_str(f, "source", h->source ? h->source : ""));
   VES_CALL(io_attr_double(f, "E0", h->E0));
   VES_CALL(io_attr_double(f, "A0", h->A0));
@@ -338,7 +338,7 @@ ves_status ves_io_set_problem(ves_io *io, const ves_config *cfg) {
   char *text = NULL;
   VES_CALL(ves_config_to_text(cfg, &text));
   ves_status st = io_reserve(io, IO_ROOM_MARGIN + 4.0 * strlen(text));
-  if (st == VES_OK) st = io_attr_str(io->file, "problem", text);
+  if (st == VES_OK) st = io_attr_problem(io->file, text);
   if (st == VES_OK) st = write_parameters(io->file, cfg);
   if (st == VES_OK) {
     free(io->info.problem);

@@ -465,6 +465,7 @@ ves_status ves_plot_write(ves_io *io, const ves_plot_params *p, char *err, size_
   VES_CHECK(io && p && p->outdir && p->stem && p->ntimes >= 0 && p->ntimes <= VES_PLOT_MAXTIMES,
             VES_ERR_ARG);
   const ves_io_info *in = ves_io_get_info(io);
+  if (err && errlen) err[0] = 0;
   long R = ves_io_rows(io);
   int S = ves_io_snapshots(io);
   if (R < 1 || S < 1) {
@@ -516,6 +517,12 @@ ves_status ves_plot_write(ves_io *io, const ves_plot_params *p, char *err, size_
   if ((st = ves_plot_run_gnuplot(script, err, errlen)) != VES_OK) goto done;
   st = figures_commit(p, err, errlen);
 done:
+  if (st != VES_OK && st != VES_ERR_ALLOC && err && errlen && !err[0]) { /* a read failed */
+    const char *c = ves_io_corruption(io);
+    ves_error_say(err, errlen, "corrupt: %s",
+                  c[0] ? c : "a dataset does not read (missing, or of another shape or type)");
+    st = VES_ERR_CONFIG;
+  }
   for (int k = 0; k < VES_PLOT_NFIG; k++) { /* no partial figure stays behind */
     char part[PATH_MAX];
     fig_path(part, sizeof part, p, k, 1);
