@@ -85,12 +85,13 @@ $(BUILD)/obj/%.o: solver/%.c
 $(BUILD)/obj/%.o: solver/%.cpp
 	@mkdir -p $(@D)
 	$(CXX) $(CXXFLAGS_CGAL) -c $< -o $@
+# (made anew each time: an object whose source is gone must not linger)
 $(BUILD)/libvesica.a: $(LIB_OBJ)
-	ar rcs $@ $^
+	rm -f $@ && ar rcs $@ $^
 # the program's objects (solver/app) in an archive of their own, which the
 # tests of the program link too
 $(BUILD)/libvesica_app.a: $(CLI_OBJ)
-	ar rcs $@ $^
+	rm -f $@ && ar rcs $@ $^
 $(BUILD)/vesica: $(CLI_OBJ) $(BUILD)/libvesica.a
 	$(CC) $(LDFLAGS) -o $@ $(CLI_OBJ) $(BUILD)/libvesica.a $(LDLIBS)
 $(BUILD)/tests/%: tests/%.c $(BUILD)/libvesica_app.a $(BUILD)/libvesica.a | $(BUILD)/tests
