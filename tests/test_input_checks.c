@@ -56,7 +56,17 @@ static ves_status read_points(const char *p, char *err, size_t len, int *n) {
   return st;
 }
 
-/* 200,001 points read and checked in well under 2 s (all segment pairs:
+/* The time bounds below separate the linear curve check from the
+ * all-pairs one (minutes at 200,001 points) by two orders of magnitude; a
+ * build with AddressSanitizer and UBSan (make test SAN=1) runs this code a
+ * few times slower, so its bounds are 5x wider, still far from quadratic. */
+#ifdef __SANITIZE_ADDRESS__
+#define SLOWDOWN 5.0
+#else
+#define SLOWDOWN 1.0
+#endif
+
+/* 200,001 points read and checked in ~0.2 s, bound 2 s (all segment pairs:
  * minutes); the same curve with one point moved across it is refused,
  * with the lines of the first crossing pair, as the all-pairs test named. */
 static void test_long_curve_linear(void **state) {
@@ -69,11 +79,11 @@ static void test_long_curve_linear(void **state) {
   assert_int_equal(read_points(p, err, sizeof err, &n), VES_OK);
   const double dt = cpu(0) - t0;
   assert_int_equal(n, 200001);
-  assert_true(dt < 1.0);
+  assert_true(dt < 2.0 * SLOWDOWN);
   write_curve(p, 200001, 1);
   t0 = cpu(0);
   assert_int_equal(read_points(p, err, sizeof err, &n), VES_ERR_CONFIG);
-  assert_true(cpu(0) - t0 < 1.0);
+  assert_true(cpu(0) - t0 < 2.0 * SLOWDOWN);
   printf("200001 points read and checked: %.2f s\n", dt);
   assert_non_null(strstr(err, "crosses itself: the segment of lines 100000-100001 meets that of "
                               "lines 100003-100004"));
@@ -90,8 +100,10 @@ static void test_long_curve_linear(void **state) {
   unlink(p);
 }
 
-/* vesica check of a problem on a 200,001-point curve: under 2 s of
- * processor time (the whole check, setup included). */
+/* vesica check of a problem on a 200,001-point curve: 0.9-1.6 s of
+ * processor time on this machine, idle or loaded (the whole check, setup
+ * included); the bound of 4 s leaves room for a loaded machine's caches and
+ * is still 50x below the all-pairs check (~200 s). */
 static void test_check_long_curve(void **state) {
   (void)state;
   char p[PATH_MAX], ini[PATH_MAX];
@@ -107,7 +119,7 @@ static void test_check_long_curve(void **state) {
   if (r.code != 0) fprintf(stderr, "%s", r.err);
   assert_int_equal(r.code, 0);
   printf("vesica check, 200001-point curve: %.2f s\n", dt);
-  assert_true(dt < 2.0);
+  assert_true(dt < 4.0 * SLOWDOWN);
   unlink(p), unlink(ini);
 }
 
