@@ -10,6 +10,8 @@
  * or section and the key); and the array of a partly or wholly finished
  * study (only the cells without a result; none: no script). Run from the
  * repository root. */
+#include <sys/file.h>
+
 #include "cli_test_impl.h"
 
 #include "app/study.h"
@@ -394,6 +396,39 @@ static void test_slurm_pending(void **state) {
   rm_tree(out);
 }
 
+/* A local study holds its folder: a second `vesica study` on the folder a
+ * running one holds (here this process's flock stands for it) is refused
+ * with exit 2 and runs nothing; a study file or a file as --out is refused;
+ * once the folder is free the study runs. */
+static void test_study_folder_held(void **state) {
+  (void)state;
+  char study[PATH_MAX], out[PATH_MAX], cells[PATH_MAX + 8];
+  tmp_path(study, sizeof study, "h.ini");
+  tmp_path(out, sizeof out, "h_out");
+  write_study(study, "");
+  mkdir(out, 0777);
+  int fd = open(out, O_RDONLY | O_DIRECTORY);
+  assert_true(fd >= 0);
+  assert_int_equal(flock(fd, LOCK_EX | LOCK_NB), 0);
+  result r;
+  run(&r, "study", study, "--out", out, "--quiet", NULL);
+  printf("# held -> %d: %s", r.code, r.err);
+  assert_int_equal(r.code, 2);
+  assert_non_null(strstr(r.err, "in use by a running vesica study"));
+  snprintf(cells, sizeof cells, "%s/cells", out);
+  assert_false(exists(cells)); /* nothing run */
+  run(&r, "study", study, "--out", study, "--quiet", NULL);
+  assert_int_equal(r.code, 2);
+  assert_non_null(strstr(r.err, "is the study file itself"));
+  close(fd);
+  run(&r, "study", study, "--out", out, "--quiet", NULL);
+  if (r.code != 0) printf("# free -> %d: %s", r.code, r.err);
+  assert_int_equal(r.code, 0);
+  assert_true(exists(cells));
+  rm_tree(out);
+  unlink(study);
+}
+
 int main(int argc, char **argv) {
   (void)argc;
   if (cli_find_vesica(argv[0], "test_study_input")) return 1;
@@ -403,6 +438,7 @@ int main(int argc, char **argv) {
       cmocka_unit_test(test_slurm_keys),
       cmocka_unit_test(test_study_duplicates),
       cmocka_unit_test(test_slurm_pending),
+      cmocka_unit_test(test_study_folder_held),
   };
   // clang-format on
   return cmocka_run_group_tests_name("study_input", tests, input_setup, input_teardown);

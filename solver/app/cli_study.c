@@ -2,10 +2,12 @@
  * docs/manual.md; docs/design.md, "The program"). */
 
 #include <errno.h>
+#include <fcntl.h>
 #include <limits.h>
 #include <signal.h>
 #include <stdio.h>
 #include <string.h>
+#include <sys/file.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -200,6 +202,47 @@ static int study_other(const ves_study *s, const study_args *o, const char *dir,
   return 0;
 }
 
+/* The study folder dir of a local run, made if missing and held with an
+ * exclusive flock on it for the run (*fd, closed on exec so that the cells
+ * do not inherit it): never the study file itself or a file, never a folder
+ * another vesica study is running in (two runners would run its cells
+ * twice and write the same files). The Slurm tasks (--cell) share the
+ * folder and take no lock. 0, or 2 with the reason (3 when the folder
+ * cannot be made). */
+static int study_hold(const char *dir, const char *study, int *fd) {
+  struct stat sb;
+  if (cli_same_file(dir, study)) {
+    fprintf(stderr, "vesica study: --out %s: is the study file itself\n", dir);
+    return 2;
+  }
+  if (mkdir(dir, 0777) != 0 && errno != EEXIST) {
+    fprintf(stderr, "vesica study: --out %s: cannot make the folder: %s\n", dir, strerror(errno));
+    return 3;
+  }
+  if (stat(dir, &sb) != 0 || !S_ISDIR(sb.st_mode)) {
+    fprintf(stderr, "vesica study: --out %s: is a file, not a study folder\n", dir);
+    return 2;
+  }
+  *fd = open(dir, O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (*fd < 0) {
+    fprintf(stderr, "vesica study: --out %s: %s\n", dir, strerror(errno));
+    return 3;
+  }
+  if (flock(*fd, LOCK_EX | LOCK_NB) != 0) {
+    const int e = errno;
+    close(*fd), *fd = -1;
+    if (e == EWOULDBLOCK) {
+      fprintf(stderr,
+              "vesica study: --out %s: in use by a running vesica study (it holds a lock on "
+              "the folder); wait for it, or stop it and rerun to continue\n",
+              dir);
+      return 2;
+    }
+    /* a file system without locks: run unguarded, as the outputs of run do */
+  }
+  return 0;
+}
+
 int cmd_study(int argc, char **argv) {
   study_args o;
   int rc = study_parse(argc, argv, &o);
@@ -232,7 +275,13 @@ int cmd_study(int argc, char **argv) {
     return 3;
   }
   self[n] = 0;
+  int lock = -1; /* a local run holds its folder: another vesica study is refused */
+  if (!o.collect && !o.emit && o.cell < 0 && (rc = study_hold(dir, o.path, &lock))) {
+    ves_study_destroy(&s);
+    return rc;
+  }
   rc = o.collect || o.emit ? study_other(s, &o, dir, self) : study_run(s, &o, dir, self);
+  if (lock >= 0) close(lock); /* releases the folder */
   ves_study_destroy(&s);
   return rc;
 }
