@@ -296,13 +296,15 @@ static inline long same_runs(const char *full, const char *part) {
   return R;
 }
 
-/* Remove a run's file FILE.h5 and its FILE.xdmf. */
+/* Remove a run's file FILE.h5, its FILE.xdmf and FILE_last.xmf. */
 static inline void rm_run(const char *h5) {
   char x[PATH_MAX];
   unlink(h5);
   const size_t n = strlen(h5);
   if (n > 3 && !strcmp(h5 + n - 3, ".h5")) {
     snprintf(x, sizeof x, "%.*s.xdmf", (int)(n - 3), h5);
+    unlink(x);
+    snprintf(x, sizeof x, "%.*s_last.xmf", (int)(n - 3), h5);
     unlink(x);
   }
 }
