@@ -298,9 +298,10 @@ static ves_status panels_write(FILE *f, ves_io *io, const int *sel, int nsel, pa
 /* A multiplot of np shape panels: its layout and canvas (PLOT_PANEL
  * pixels on the view's longer side, room for the labels and the colour
  * bar) and the axes: the meridian plane mirrored at r = 0, at equal scale,
- * phi's palette with its colour bar labelled. */
-static void panels_begin(FILE *f, const ves_plot_params *p, int fig, const panels *pn, int np,
-                         const char *title, int extra_top) {
+ * phi's palette with its colour bar labelled. The pixels of a panel's
+ * height (its data area). */
+static int panels_begin(FILE *f, const ves_plot_params *p, int fig, const panels *pn, int np,
+                        const char *title, int extra_top) {
   const int cols = np <= 3 ? np : np == 4 ? 2 : (np + 1) / 2, rows = (np + cols - 1) / cols;
   const double a = 2 * pn->VR / (pn->Z1 - pn->Z0); /* the view's width / height */
   const int pw = a >= 1 ? PLOT_PANEL : (int)(PLOT_PANEL * a),
@@ -315,6 +316,7 @@ static void panels_begin(FILE *f, const ves_plot_params *p, int fig, const panel
           "set cbtics 0.5\nset cblabel '{/Symbol f} at the nodes'\n"
           "set xlabel 'r / R_0'\nset ylabel 'z / R_0'\nunset key\n",
           -pn->VR, pn->VR, pn->Z0, pn->Z1);
+  return ph;
 }
 
 /* The plot command's node points and phi = 0 curve of panel j (the
@@ -354,7 +356,7 @@ static void fig_snapshots(FILE *f, const ves_plot_params *p, const ves_io_info *
            in->format_version >= 2 ? "material at the nodes, y(X_a, t),"
                                    : "nodal coefficients y^a(t)",
            pn->n[pn->nsel - 1], ref);
-  panels_begin(f, p, 1, pn, pn->nsel, title, 0);
+  (void)panels_begin(f, p, 1, pn, pn->nsel, title, 0);
   for (int j = 0; j < pn->nsel; j++) {
     fprintf(f, "set title 't* = %.4g%s'\n", pn->t[j],
             pn->curve[j] ? "" : " (no {/Symbol f} = 0 curve)");
@@ -460,7 +462,7 @@ static ves_status fig_flow(FILE *f, ves_io *io, const ves_plot_params *p, const 
              "%s: no flow stored at the chosen snapshots (at t* = 0 none is; a file may store "
              "none)\n{/Symbol f} (colour), {/Symbol f} = 0 (black)",
              stem);
-    panels_begin(f, p, 3, pn, 1, title, 0);
+    (void)panels_begin(f, p, 3, pn, 1, title, 0);
     fprintf(f, "set title 't* = %.4g'\n", pn->t[pn->nsel - 1]);
     panel_layers(f, pn, pn->nsel - 1, 0.6 * point_size(pn, pn->nsel - 1), 0);
     fprintf(f, "\nunset multiplot\n");
@@ -471,26 +473,30 @@ static ves_status fig_flow(FILE *f, ves_io *io, const ves_plot_params *p, const 
            "one arrow scale for all panels: length 0.1 R_0 = speed %.3g R_0/t*; "
            "slower than %.2g R_0/t*: not drawn",
            stem, scale > 0 ? 0.1 / scale : 0, PLOT_ARROW_MIN * cell / (scale > 0 ? scale : 1));
-  panels_begin(f, p, 3, pn, np, title, 40);
-  fprintf(f, "set tmargin 6\n"); /* the title, then the scale arrow, above each panel */
-  const double L = scale * ref;  /* the scale arrow's length (R0) */
+  /* above each panel its title, then the scale arrow: placed in graph units
+   * from the panel's height in pixels (character offsets differ between
+   * the terminals) */
+  const int ph = panels_begin(f, p, 3, pn, np, title, 40);
+  const double above = 1 + 14.0 / ph, up = 40.0 / ph;
+  fprintf(f, "set tmargin 6\n");
+  const double L = scale * ref; /* the scale arrow's length (R0) */
   for (int i = 0; i < np; i++) {
     const int j = panel[i];
     if (vall > 0) {
       fprintf(f,
-              "set arrow 1 from first %.6g, graph 1.04 rto first %.6g, first 0 head filled "
+              "set arrow 1 from first %.6g, graph %.4f rto first %.6g, first 0 head filled "
               "size screen 0.006,20 lw 1.2 lc rgb 'black'\n"
-              "set label 1 'scale: %.3g R_0/t*' at first %.6g, graph 1.04 left offset 1,0\n",
-              -pn->VR, L, ref, -pn->VR + L);
+              "set label 1 'scale: %.3g R_0/t*' at first %.6g, graph %.4f left offset 1,0\n",
+              -pn->VR, above, L, ref, -pn->VR + L, above);
     }
     if (drawn[i])
-      fprintf(f, "set title \"t* = %.4g, fastest node %.3g R_0/t*\" offset 0,1.6\n", pn->t[j],
-              vmax[i]);
+      fprintf(f, "set title \"t* = %.4g, fastest node %.3g R_0/t*\" offset graph 0,%.4f\n",
+              pn->t[j], vmax[i], up);
     else
       fprintf(f,
               "set title \"t* = %.4g, fastest node %.3g R_0/t*\\n(slower than the arrows "
-              "show)\" offset 0,1.6\n",
-              pn->t[j], vmax[i]);
+              "show)\" offset graph 0,%.4f\n",
+              pn->t[j], vmax[i], up);
     panel_layers(f, pn, j, 0.6 * point_size(pn, j), 0);
     if (drawn[i])
       fprintf(f,
