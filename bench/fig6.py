@@ -8,12 +8,14 @@ Usage: /usr/bin/python3 bench/fig6.py RUN.h5 [FIGDIR [NSHOT]]
   RUN.h5 is the run (bench/paper.sh: OUT/fig6.h5; a run still being written can be read from a
   copy, or with HDF5_USE_FILE_LOCKING=FALSE); its working files go to a folder RUN.fig6/ beside
   it. FIGDIR (default bench/figures/paper) gets fig6_epsE.png (RUN_pearls.png for a run
-  without a C0 ramp, e.g. problems/prolate_c0.ini's Fig. 5 right, titled by its protocol): top, the nodes y(X_a) coloured by
-  phi at NSHOT (default 6) snapshots (those nearest t* = 0, half and end of the C0 ramp, and
-  equal steps in t* from there to the last; the meridian plane mirrored to R < 0, as the paper
-  shows it); bottom, E* against
-  t* with C0 R0 and the phase field's reduced volume v on a second axis, the resets and
-  remeshings marked.
+  without a C0 ramp, e.g. problems/prolate_c0.ini's Fig. 5 right, titled by its protocol):
+  top, the nodes y(X_a) coloured by phi at NSHOT (default 6) snapshots (those nearest t* = 0,
+  half and end of the C0 ramp, and equal steps in t* from there to the last; the meridian plane
+  mirrored to r < 0, as the paper shows it) with each snapshot's phi = 0 curve in black
+  (python/vesica.py's Snapshot.interface, on the triangles in use at it), axes r/R0 and z/R0
+  fitted to the curves, one colour bar for phi; bottom, E* = E/k against t* with C0 R0 and 10 v
+  (v the phase field's reduced volume) on a second axis fitted to them, the resets (grey ticks)
+  and remeshings (red dashes) marked, the legend below the axes.
 Prints Markdown tables: the shape along the run (per snapshot: t*, step, nodes, E*, C0 R0, v,
 the length along the axis, the pieces of the inside on the axis, the number of pearls, their
 radii and the neck radii between them, the fastest node of the flow), and the remeshings (what each changed). Needs h5py and
@@ -35,7 +37,9 @@ import h5py
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "python"))
 from fig7 import segments  # noqa: E402  (phi = 0 segments on triangles)
+import vesica  # noqa: E402  (the reader: a snapshot's phi = 0 curves, its .interface)
 
 
 def triangles_for(f, step):
@@ -107,7 +111,7 @@ def main():
     path = sys.argv[1]
     figdir = sys.argv[2] if len(sys.argv) > 2 else "bench/figures/paper"
     nshot = int(sys.argv[3]) if len(sys.argv) > 3 else 6
-    f = h5py.File(path, "r")
+    f = vesica._open(path)  # with the reader's flags: vesica.load opens it again
     eps = float(f["parameters"].attrs["geometry.epsilon"])
     ser = f["series"]
     t, E, V, c0 = (ser[k][()] for k in ("t", "E", "V", "c0"))
@@ -169,15 +173,23 @@ def main():
     else:
         want = np.linspace(ts[0], ts[-1], nshot)
     pick = sorted(set(int(np.argmin(np.abs(ts - w))) for w in want))
-    zlim = 0.0
+    run = vesica.load(path)
+    rlim, zlim = 0.0, 0.0
     for k in pick:
         g = f[f"snapshots/{k}"]
         x, phi = g["x"][()], g["phi"][()]
         np.savetxt(os.path.join(tmp, f"nodes_{k}.txt"),
                    np.column_stack([np.concatenate([x[:, 0], -x[:, 0]]), np.concatenate([x[:, 1], x[:, 1]]),
                                     np.concatenate([phi, phi])]), fmt="%.6g")
-        inner = x[phi > -0.9]
-        zlim = max(zlim, np.abs(inner[:, 1]).max() + 0.3)
+        with open(os.path.join(tmp, f"curve_{k}.txt"), "w") as o:  # its pieces apart by a blank line
+            for piece in run.snapshots[k].interface:
+                for r_, z_ in piece:
+                    o.write(f"{r_:.6g} {z_:.6g}\n")
+                o.write("\n")
+                rlim = max(rlim, np.abs(piece[:, 0]).max())
+                zlim = max(zlim, np.abs(piece[:, 1]).max())
+    # the view: the curves and 0.3 R0 around them (the diffuse layer: ~2.7 eps at eps 0.08)
+    rlim, zlim = np.ceil((rlim + 0.3) * 10) / 10, np.ceil((zlim + 0.3) * 10) / 10
     ev = np.column_stack([t, E, c0, v])
     np.savetxt(os.path.join(tmp, "series.txt"), ev)
     marks = []
@@ -191,30 +203,47 @@ def main():
     os.makedirs(figdir, exist_ok=True)
     if ramp > 0:  # the C0 ramp of problems/pearling.ini: Fig. 6
         png = os.path.join(figdir, f"fig6_eps{eps:g}.png")
-        what = f"Fig. 6 at eps {eps}: v 0.9 -> 0.55 at constant area, C0 R0 0 -> 12"
+        par = f["parameters"].attrs
+        what = (f"Fig. 6 at eps {eps}: v {float(par['shape.reduced_volume']):g} -> {v[-1]:.2f} at "
+                f"constant area, C_0 R_0 {float(par['material.c0']):g} -> "
+                f"{float(par['protocol.c0_ramp_to']):g}")
     else:  # any other run (e.g. problems/prolate_c0.ini, Fig. 5 right): named by its file
         png = os.path.join(figdir, f"{os.path.splitext(os.path.basename(path))[0]}_pearls.png")
         par = f["parameters"].attrs
-        what = (f"eps {eps}, v {float(par['shape.reduced_volume']):g}: C0 R0 "
+        what = (f"eps {eps}, v {float(par['shape.reduced_volume']):g}: C_0 R_0 "
                 f"{float(par['material.c0']):g} -> {float(par['protocol.c0_after']):g} "
                 f"at t* {float(par['protocol.c0_time']):g}")
-    w = 1.0 / len(pick)
-    xr = min(2.0, 1.5)
-    g = ["set terminal pngcairo size 1600,1000 font ',11'", f"set output '{png}'",
-         f"set multiplot title '{what} "
-         f"({len(t)} steps, resets grey, remeshings red dashed)'",
-         "set palette defined (-1 '#3060c0', 0 '#f0f0f0', 1 '#c03030'); set cbrange [-1:1]; unset colorbox",
-         "set size ratio -1; unset key; set tics font ',8'"]
+    # the shape panels side by side at equal scale, the last with the colour bar; below them the
+    # series, its right axis fitted to C0 R0 and 10 v
+    w = 0.92 / len(pick)
+    y2max = 1.08 * max(np.nanmax(c0), np.nanmax(10 * v))
+    g = ["set terminal pngcairo size 1600,1050 font ',11'", f"set output '{png}'",
+         f"set multiplot title '{what} ({len(t)} steps)' . \"\\n\" . 'the nodes coloured by "
+         "{/Symbol f}; black: {/Symbol f} = 0'",
+         "set palette defined (-1 '#3060c0', 0 '#a0a0a0', 1 '#c03030'); set cbrange [-1:1]",
+         "set cblabel '{/Symbol f} at the nodes'; set cbtics 0.5",
+         "set size ratio -1; unset key; set tics font ',9'; set xlabel 'r / R_0'"]
     for j, k in enumerate(pick):
-        g += [f"set origin {j * w},0.42; set size {w},0.56", f"set xrange [-{xr}:{xr}]; set yrange [-{zlim}:{zlim}]",
-              f"set title 't* = {ts[k]:.3g}, C0 R0 = {st[k]['c0']:.2f}'",
-              f"plot '{tmp}/nodes_{k}.txt' u 1:2:3 w p pt 7 ps 0.12 lc palette"]
-    g += ["set size ratio 0; set tics font ',10'; set origin 0,0; set size 1,0.42; unset title",
-          "set xlabel 't*'; set ylabel 'E*'; set y2label 'C0 R0, 10 v'; set ytics nomirror; set y2tics",
-          "set xrange [*:*]; set yrange [*:*]; set key top left"] + marks
+        last = j == len(pick) - 1
+        g += [f"set origin {j * w},0.40; set size {w + (0.08 if last else 0)},0.54",
+              "set colorbox" if last else "unset colorbox",
+              "set ylabel 'z / R_0'" if j == 0 else "unset ylabel",
+              f"set xrange [-{rlim}:{rlim}]; set yrange [-{zlim}:{zlim}]",
+              f"set title 't* = {ts[k]:.3g}, C_0 R_0 = {st[k]['c0']:.2f}'",
+              f"plot '{tmp}/nodes_{k}.txt' u 1:2:3 w p pt 7 ps 0.12 lc palette, "
+              f"'{tmp}/curve_{k}.txt' u 1:2 w l lw 1.5 lc rgb 'black', "
+              f"'{tmp}/curve_{k}.txt' u (-$1):2 w l lw 1.5 lc rgb 'black'"]
+    g += ["unset colorbox; set size ratio 0; set tics font ',10'; set origin 0,0; set size 1,0.40",
+          "unset title; set format x '%g'; set xlabel 't* = t k / ({/Symbol m} R_0^3)'",
+          "set ylabel 'E* = E / k'",
+          "set y2label 'C_0 R_0, 10 v'; set ytics nomirror; set y2tics",
+          f"set xrange [{t[0]:.6g}:{t[-1]:.6g}]; set yrange [0:*]; set y2range [0:{y2max:.3g}]",
+          "set key below horizontal"] + marks
     g.append(f"plot '{tmp}/series.txt' u 1:2 w l lw 2 lc rgb 'black' t 'E*', "
-             f"'' u 1:3 axes x1y2 w l lw 1 lc rgb '#1f77b4' t 'C0 R0', "
-             f"'' u 1:($4*10) axes x1y2 w l lw 1 lc rgb '#2ca02c' t '10 v'")
+             f"'' u 1:3 axes x1y2 w l lw 1.5 lc rgb '#1f77b4' t 'C_0 R_0 (right axis)', "
+             f"'' u 1:($4*10) axes x1y2 w l lw 1.5 lc rgb '#2ca02c' t '10 v (right axis)', "
+             "NaN w l dt 2 lc rgb '#d62728' t 'remeshing', "
+             "NaN w l lc rgb '#888888' t 'reset (tick at the bottom)'")
     g.append("unset multiplot")
     subprocess.run(["gnuplot"], input="\n".join(g) + "\n", text=True, check=True)
     print()

@@ -6,9 +6,10 @@ problems/deflate_{slow,medium,fast}.ini, in the paper's layout, and the numbers 
 Usage: /usr/bin/python3 bench/fig7.py DIR [FIGDIR [VESICA]]
   DIR holds fig7_{slow,medium,fast}.h5 and fig7_*.done (bench/paper.sh's layout); its working
   files go to DIR/fig7_plot/. FIGDIR (default bench/figures/paper) gets fig7_epsE.png: top left
-  V/V0 against t*, bottom left E* against t*, right the phi = 0 curves at the energy's maximum
-  (A fast, B medium, C slow; the end of each ramp) and at the end of the runs, with the sharp
-  equilibrium D at the final shapes' reduced volume. VESICA (default build/vesica) runs
+  V/V0 against t*, bottom left E* = E/k against t* (time axes from the first step to the
+  last), right the phi = 0 curves at the energy's maximum (A fast, B medium, C slow; the end of
+  each ramp) and at the end of the runs, with the sharp equilibrium D at the final shapes'
+  reduced volume, in r/R0 and z/R0 fitted to the curves. VESICA (default build/vesica) runs
   `vesica check` on each of those shapes.
 Prints Markdown tables: per rate the ramp's end, E* max and its t*, E* final, the final
 interface's max distance from the other rates' and its up-down asymmetry; per shape (at the
@@ -298,18 +299,32 @@ def main():
     png = os.path.join(figdir, f"fig7_eps{eps:g}.png")
     col = {"fast": "#d62728", "medium": "#2ca02c", "slow": "#1f77b4"}
     lab = {"fast": "A", "medium": "B", "slow": "C"}
-    g = [f"set terminal pngcairo size 1500,860 font ',11'", f"set output '{png}'",
-         f"set multiplot title 'Fig. 7 at eps {eps}: deflation to V/V0 = {V_FINAL} at three rates'", "set size 0.5,0.47; set origin 0,0.47", "set xlabel 't*'; set ylabel 'V/V0'",
-         "set logscale x; set xrange [1e-4:*]; set key bottom left",
+    # the axes fitted to the data: time from the first step to the last, the shapes' box from
+    # their curves (and D's) with 0.05 R0 around
+    tmax = max(ser[n][-1, 1] for n in runs)
+    tmin = min(ser[n][0, 1] for n in runs)
+    pts = np.concatenate([dense(rampend[n][2]) for n in runs] + [dense(final[n]) for n in runs]
+                         + [np.column_stack([eq["r"], eq["z"]])])
+    rmax = np.ceil((pts[:, 0].max() + 0.05) * 10) / 10
+    zmax = np.ceil((np.abs(pts[:, 1]).max() + 0.05) * 10) / 10
+    g = [f"set terminal pngcairo size 1500,900 font ',11'", f"set output '{png}'",
+         f"set multiplot title 'Fig. 7 at eps {eps}: deflation to V/V_0 = {V_FINAL} at three rates'",
+         "set size 0.5,0.46; set origin 0,0.48", "set xlabel 't* = t k / ({/Symbol m} R_0^3)'",
+         "set ylabel 'V / V_0'",
+         f"set logscale x; set format x '10^{{%L}}'; set xrange [{tmin:.3g}:{tmax:.3g}]",
+         "set offsets 0, 0, graph 0.05, graph 0.05; set key bottom left",
          "plot " + ", ".join(f"'{tmp}/{n}.series' u 1:2 w l lw 2 lc rgb '{col[n]}' t '{n} ({lab[n]})'"
                              for n in runs),
-         "set size 0.5,0.47; set origin 0,0; set ylabel 'E*'; set key top left",
+         "set size 0.5,0.46; set origin 0,0; set ylabel 'E* = E / k'; set key top left",
+         "set offsets 0, 0, graph 0.25, graph 0.05",  # room above the peaks for the legend
          "plot " + ", ".join(f"'{tmp}/{n}.series' u 1:3 w lp pt 7 ps 0.4 lw 2 lc rgb '{col[n]}' t '{n}'"
                              for n in runs) + f", {eq['E']} w l dt 2 lc rgb 'black' t 'D sharp ({eq['E']:.3f})'"
          + (f", {cD[0]} w l dt 3 lc rgb 'black' t 'D as a phase field at eps {eps} ({cD[0]:.3f})'" if cD else ""),
-         "unset logscale x; set size 0.5,0.94; set origin 0.5,0; set xrange [0:1.4]; set yrange [-0.6:0.6]",
-         "set size ratio -1; set xlabel 'R'; set ylabel 'Z'; set key below maxrows 4",
-         f'set title "phi = 0 at the energy maximum (A, B, C) and at the end (dotted);\\nD: the sharp discocyte at v {vD:.4f}"',
+         "unset logscale x; set format x '%g'; set offsets 0, 0, 0, 0",
+         f"set size 0.5,0.94; set origin 0.5,0; set xrange [0:{rmax:g}]; set yrange [-{zmax:g}:{zmax:g}]",
+         "set size ratio -1; set xlabel 'r / R_0'; set ylabel 'z / R_0'; set key below maxrows 4",
+         f'set title "{{/Symbol f}} = 0 at the energy maximum (A, B, C) and at the end (dotted);\\n'
+         f'D: the sharp discocyte at v {vD:.4f}"',
          "plot " + ", ".join(f"'{tmp}/{n}.ramp' w l lw 2 lc rgb '{col[n]}' t '{lab[n]}: {n}, E* max, t* {rampend[n][1]:.3g}', "
                              f"'{tmp}/{n}.final' w l dt 3 lw 2 lc rgb '{col[n]}' t '{n}, end'" for n in runs)
          + f", '{tmp}/D.curve' w l lw 1 lc rgb 'black' t 'D (sharp, z-centred)'",

@@ -19,7 +19,8 @@
 # next call skips; a run interrupted (killed, a full disk, the machine
 # lost) is continued with `vesica run --restart` from its last snapshot.
 # Figures: `vesica plot` into bench/figures/paper/ (E* and dt* against t*,
-# the nodes coloured by phi, the constraints and the volume protocol);
+# the nodes coloured by phi with the phi = 0 curve, the constraints and the
+# volume protocol, the flow on one arrow scale);
 # the table of each result next to the paper's statement:
 # bench/PAPER.md, rewritten from whatever has finished at every call.
 # Fig. 6 (pearling, problems/pearling.ini) and Fig. 7 also get their own

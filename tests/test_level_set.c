@@ -1,6 +1,8 @@
 /* vesica — tests of the sharp interface of a nodal field: exact on a
  * plane, the signed volume through a fold, second order on a sphere, the
- * argument checks. */
+ * argument checks; its zero set as ordered curves whose segments give the
+ * same volume and area (sphere, oblate, two pieces, a closed loop, phi = 0
+ * at nodes and along edges, pieces ending on the box). */
 #include <stdarg.h>
 #include <stddef.h>
 #include <stdint.h>
@@ -100,8 +102,160 @@ static void test_level_set(void **state) {
   }
 }
 
+/* V and A of the pieces of c by the segment sums of level_set.h (each piece
+ * has the region it encloses on its right). */
+static void curve_measures(const ves_level_set_curves *c, double *V, double *A) {
+  double v = 0, a = 0;
+  for (int i = 0; i < c->npieces; i++)
+    for (int j = c->start[i]; j + 1 < c->start[i + 1]; j++) {
+      const double *p = c->rz + 2 * j, *q = p + 2;
+      v += (p[0] * p[0] + p[0] * q[0] + q[0] * q[0]) * (p[1] - q[1]) / 3;
+      a += 0.5 * (p[0] + q[0]) * hypot(q[0] - p[0], q[1] - p[1]);
+    }
+  *V = M_PI * v, *A = 2 * M_PI * a;
+}
+
+/* The structural promises of one result: offsets increasing, no point equal
+ * to another of its piece (but a loop's last to its first), an open piece
+ * starting at its end of larger z, a loop clockwise from its top, pieces
+ * sorted by their largest z. */
+static void check_curves(const ves_level_set_curves *c) {
+  assert_int_equal(c->start[0], 0);
+  double zprev = INFINITY;
+  for (int i = 0; i < c->npieces; i++) {
+    const int s = c->start[i], e = c->start[i + 1], m = e - s;
+    const double *P = c->rz + 2 * s;
+    assert_true(m >= 2);
+    const int distinct = c->closed[i] ? m - 1 : m;
+    if (c->closed[i]) assert_true(P[0] == P[2 * (m - 1)] && P[1] == P[2 * (m - 1) + 1]);
+    for (int a = 0; a < distinct; a++)
+      for (int b = a + 1; b < distinct; b++)
+        assert_false(P[2 * a] == P[2 * b] && P[2 * a + 1] == P[2 * b + 1]);
+    double zmax = -INFINITY, area2 = 0;
+    for (int a = 0; a < m; a++) zmax = fmax(zmax, P[2 * a + 1]);
+    assert_true(zmax <= zprev);
+    zprev = zmax;
+    if (c->closed[i]) {
+      for (int a = 0; a + 1 < m; a++)
+        area2 += P[2 * a] * P[2 * a + 3] - P[2 * a + 2] * P[2 * a + 1];
+      assert_true(area2 < 0);    /* clockwise */
+      assert_true(P[1] == zmax); /* from the top */
+    } else {
+      const double *q = P + 2 * (m - 1);
+      assert_true(P[1] > q[1] || (P[1] == q[1] && P[0] < q[0]));
+    }
+  }
+}
+
+/* eval and curves_eval on one field: the segment sums equal eval's volume
+ * and area up to rounding (1e-12 relative: sums of ~1e3 terms, each exact to
+ * ~1e-16, the crossing points of a shared edge computed once here and twice,
+ * from either end, in eval); prints and returns the pieces. */
+static void compare_eval(int n, int ntri, const int *tri, const double *x, const double *phi,
+                         const char *what, ves_level_set_curves *c) {
+  ves_level_set ls;
+  assert_int_equal(ves_level_set_eval(n, ntri, tri, x, phi, &ls), VES_OK);
+  assert_int_equal(ves_level_set_curves_eval(n, ntri, tri, x, phi, c), VES_OK);
+  check_curves(c);
+  double V, A;
+  curve_measures(c, &V, &A);
+  printf("# %s: %d pieces, %d points; volume %.15f (eval %.15f), area %.15f (eval %.15f)\n", what,
+         c->npieces, c->start[c->npieces], V, ls.volume, A, ls.area);
+  assert_true(fabs(V - ls.volume) <= 1e-12 * ls.volume);
+  assert_true(fabs(A - ls.area) <= 1e-12 * ls.area);
+}
+
+/* ves_level_set_curves_eval: a sphere and an oblate closed by the axis (one
+ * piece, north pole to south pole), two separate vesicles (two pieces, the
+ * upper first), a torus-like closed loop, phi = 0 exactly at nodes and along
+ * edges (a diamond whose upper half passes through nodes and lower half runs
+ * along edges: no duplicate point, one piece), a plane ending on the box. */
+static void test_level_set_curves(void **state) {
+  (void)state;
+  const int k = 49, nr = k, nz = 2 * k - 1, n = nr * nz, ntri = 2 * (nr - 1) * (nz - 1);
+  double *x, *phi = malloc((size_t)n * sizeof *phi);
+  int *tri;
+  grid(nr, nz, 1.5, 1.5, &x, &tri); /* h = 1.5 / 48 = 1/32: the nodes exact */
+  assert_non_null(phi);
+  ves_level_set_curves c;
+  /* sphere */
+  for (int a = 0; a < n; a++) phi[a] = 1 - hypot(x[2 * a], x[2 * a + 1]);
+  compare_eval(n, ntri, tri, x, phi, "sphere", &c);
+  assert_int_equal(c.npieces, 1);
+  assert_int_equal(c.closed[0], 0);
+  const int m = c.start[1];
+  /* from the north pole to the south pole on the axis (the grid nodes
+   * (0, +-1) have phi = 0 exactly) */
+  assert_true(c.rz[0] == 0 && c.rz[1] == 1 && c.rz[2 * (m - 1)] == 0 && c.rz[2 * m - 1] == -1);
+  ves_level_set_curves_free(&c);
+  assert_null(c.rz);
+  /* oblate: semi-axes 1.2 in r, 0.6 in z */
+  for (int a = 0; a < n; a++) phi[a] = 1 - hypot(x[2 * a] / 1.2, x[2 * a + 1] / 0.6);
+  compare_eval(n, ntri, tri, x, phi, "oblate", &c);
+  assert_int_equal(c.npieces, 1);
+  assert_true(c.rz[0] == 0 && c.rz[1] > 0 && c.rz[2 * c.start[1] - 2] == 0);
+  ves_level_set_curves_free(&c);
+  /* two vesicles: radius 0.5 about z = 0.8, radius 0.4 about z = -0.7 */
+  for (int a = 0; a < n; a++) {
+    const double r = x[2 * a], z = x[2 * a + 1];
+    phi[a] = fmax(0.5 - hypot(r, z - 0.8), 0.4 - hypot(r, z + 0.7));
+  }
+  compare_eval(n, ntri, tri, x, phi, "two pieces", &c);
+  assert_int_equal(c.npieces, 2);
+  assert_true(c.closed[0] == 0 && c.closed[1] == 0);
+  assert_true(c.rz[1] > 1.2 && c.rz[2 * c.start[1] + 1] < -0.2); /* the upper first */
+  ves_level_set_curves_free(&c);
+  /* a torus: the disc of radius 0.3 about (0.8, 0.1) */
+  for (int a = 0; a < n; a++) phi[a] = 0.3 - hypot(x[2 * a] - 0.8, x[2 * a + 1] - 0.1);
+  compare_eval(n, ntri, tri, x, phi, "torus", &c);
+  assert_int_equal(c.npieces, 1);
+  assert_int_equal(c.closed[0], 1);
+  ves_level_set_curves_free(&c);
+  /* the diamond phi = 1 - r - |z|: exact in the interpolant (linear on each
+   * triangle, the kink on the row z = 0), so the measures are the double
+   * cone's, V = 2 pi / 3, A = 2 pi sqrt 2 (1e-13: rounding); for z > 0 the
+   * zero line crosses the cells' diagonals through the 33 nodes r + z = 1,
+   * for z < 0 it runs along the diagonals: 33 nodes + 32 midpoints above and
+   * 32 more nodes below, 97 points, none twice */
+  for (int a = 0; a < n; a++) phi[a] = 1 - x[2 * a] - fabs(x[2 * a + 1]);
+  compare_eval(n, ntri, tri, x, phi, "diamond", &c);
+  assert_int_equal(c.npieces, 1);
+  assert_int_equal(c.start[1], 97);
+  double V, A;
+  curve_measures(&c, &V, &A);
+  assert_true(fabs(V - 2 * M_PI / 3) <= 1e-13 && fabs(A - 2 * M_PI * sqrt(2)) <= 1e-13);
+  ves_level_set_curves_free(&c);
+  /* a plane on a row of nodes (phi = 0 along the row's edges) and between
+   * rows: one open piece from the axis to the box at r = 1.5, nr points on
+   * the row (each edge once), 2 nr - 1 between (nodes' edges and diagonals) */
+  for (int pass = 0; pass < 2; pass++) {
+    const double z0 = pass ? 0.25 : 0.25 + 1.0 / 64;
+    for (int a = 0; a < n; a++) phi[a] = z0 - x[2 * a + 1];
+    assert_int_equal(ves_level_set_curves_eval(n, ntri, tri, x, phi, &c), VES_OK);
+    check_curves(&c);
+    assert_int_equal(c.npieces, 1);
+    assert_int_equal(c.start[1], pass ? nr : 2 * nr - 1);
+    const double *e = c.rz + 2 * (c.start[1] - 1);
+    assert_true(c.rz[0] == 0 && c.rz[1] == z0 && e[0] == 1.5 && e[1] == z0);
+    ves_level_set_curves_free(&c);
+  }
+  /* nothing: no pieces; errors as eval's */
+  for (int a = 0; a < n; a++) phi[a] = -1;
+  assert_int_equal(ves_level_set_curves_eval(n, ntri, tri, x, phi, &c), VES_OK);
+  assert_int_equal(c.npieces, 0);
+  ves_level_set_curves_free(&c);
+  assert_int_equal(ves_level_set_curves_eval(n, 0, tri, x, phi, &c), VES_ERR_ARG);
+  assert_int_equal(ves_level_set_curves_eval(n, ntri, NULL, x, phi, &c), VES_ERR_ARG);
+  assert_int_equal(ves_level_set_curves_eval(n - 1, ntri, tri, x, phi, &c), VES_ERR_ARG);
+  phi[0] = NAN;
+  assert_int_equal(ves_level_set_curves_eval(n, ntri, tri, x, phi, &c), VES_ERR_ARG);
+  ves_level_set_curves_free(NULL);
+  free(x), free(tri), free(phi);
+}
+
 int main(void) {
   setvbuf(stdout, NULL, _IOLBF, 0); /* keep output in order with cmocka's stderr */
-  const struct CMUnitTest tests[] = {cmocka_unit_test(test_level_set)};
+  const struct CMUnitTest tests[] = {cmocka_unit_test(test_level_set),
+                                     cmocka_unit_test(test_level_set_curves)};
   return cmocka_run_group_tests_name("level_set", tests, NULL, NULL);
 }
