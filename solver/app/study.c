@@ -6,6 +6,7 @@
 #include "app/study.h"
 
 #include <ctype.h>
+#include <dirent.h>
 #include <errno.h>
 #include <math.h>
 #include <stdlib.h>
@@ -129,10 +130,20 @@ static const char *axis_short(const ves_study *s, int a) {
   return k;
 }
 
-static void sanitize_append(char *buf, size_t len, size_t *at, const char *t) {
-  for (; *t && *at + 1 < len; t++) {
-    const char c = *t;
-    buf[(*at)++] = isalnum((unsigned char)c) || c == '.' || c == '+' || c == '-' ? c : '_';
+/* t appended to buf[len] at *at: letters, digits and . _ + - as they are,
+ * every other byte as %XX (two upper-case hex digits), so that '=', ',' and
+ * '%' never appear unescaped and a name parses back to its keys and values. */
+static void name_append(char *buf, size_t len, size_t *at, const char *t) {
+  static const char hex[] = "0123456789ABCDEF";
+  for (; *t; t++) {
+    const unsigned char c = (unsigned char)*t;
+    if (isalnum(c) || c == '.' || c == '_' || c == '+' || c == '-') {
+      if (*at + 1 >= len) break;
+      buf[(*at)++] = (char)c;
+    } else {
+      if (*at + 3 >= len) break;
+      buf[(*at)++] = '%', buf[(*at)++] = hex[c >> 4], buf[(*at)++] = hex[c & 15];
+    }
   }
   buf[*at] = 0;
 }
@@ -143,10 +154,28 @@ void ves_study_cell_name(const ves_study *s, long k, char *buf, size_t len) {
   size_t at = 0;
   buf[0] = 0;
   for (int a = 0; a < s->naxes; a++) {
-    if (a) sanitize_append(buf, len, &at, "_");
-    sanitize_append(buf, len, &at, axis_short(s, a));
-    if (at + 1 < len) buf[at++] = '-', buf[at] = 0;
-    sanitize_append(buf, len, &at, s->axis[a].values[idx[a]]);
+    if (a && at + 1 < len) buf[at++] = ',', buf[at] = 0;
+    name_append(buf, len, &at, axis_short(s, a));
+    if (at + 1 < len) buf[at++] = '=', buf[at] = 0;
+    name_append(buf, len, &at, s->axis[a].values[idx[a]]);
+  }
+}
+
+/* The name cell k gets in the scheme "key-value" joined by "_" (bytes other
+ * than letters, digits, '.', '+', '-' as '_'), which cannot be parsed back
+ * (keys hold '_', values '-'): a folder holding such files is recognised
+ * and refused rather than run again under other names. */
+static void cell_name_dashed(const ves_study *s, long k, char *buf, size_t len) {
+  int idx[VES_STUDY_MAX_AXES];
+  ves_study_cell_index(s, k, idx);
+  size_t at = 0;
+  buf[0] = 0;
+  for (int a = 0; a < s->naxes; a++) {
+    const char *part[3] = {axis_short(s, a), "-", s->axis[a].values[idx[a]]};
+    if (a && at + 1 < len) buf[at++] = '_', buf[at] = 0;
+    for (int j = 0; j < 3; j++)
+      for (const char *t = part[j]; *t && at + 1 < len; t++)
+        buf[at++] = isalnum((unsigned char)*t) || strchr(".+-", *t) ? *t : '_', buf[at] = 0;
   }
 }
 
@@ -154,7 +183,14 @@ ves_status ves_study_cell_sets(const ves_study *s, long k, char buf[][VES_STUDY_
                                char *err, size_t errlen) {
   int idx[VES_STUDY_MAX_AXES], n = 0;
   ves_study_cell_index(s, k, idx);
-  for (int i = 0; i < s->nset; i++) snprintf(buf[n++], VES_STUDY_SETLEN, "%s", s->set[i]);
+  for (int i = 0; i < s->nset; i++) {
+    const size_t kl = strcspn(s->set[i], "=");
+    int replaced = 0; /* a [set] key the command line sets again */
+    for (int j = 0; j < s->ncli && !replaced; j++)
+      replaced = !strncmp(s->cli[j], s->set[i], kl + 1);
+    if (!replaced) snprintf(buf[n++], VES_STUDY_SETLEN, "%s", s->set[i]);
+  }
+  for (int i = 0; i < s->ncli; i++) snprintf(buf[n++], VES_STUDY_SETLEN, "%s", s->cli[i]);
   for (int a = 0; a < s->naxes; a++)
     snprintf(buf[n++], VES_STUDY_SETLEN, "%s=%s", s->axis[a].key, s->axis[a].values[idx[a]]);
   ves_config cfg;
@@ -270,6 +306,104 @@ ves_status ves_study_cell_argv(const ves_study *s, long k, const char *program, 
   return VES_OK;
 }
 
+/* ---- the study folder ---------------------------------------------------- */
+
+static int cmp_text(const void *a, const void *b) {
+  return strcmp((const char *)a, (const char *)b);
+}
+
+/* The overrides of list[n] sorted and joined by " --set " into buf[len]
+ * ("(none)" when n = 0), for a message. */
+static void sets_text(char (*list)[VES_STUDY_SETLEN], int n, char *buf, size_t len) {
+  qsort(list, (size_t)n, sizeof *list, cmp_text);
+  size_t at = 0;
+  buf[0] = 0;
+  if (!n) snprintf(buf, len, "no --set");
+  for (int i = 0; i < n && at < len; i++)
+    at += (size_t)snprintf(buf + at, len - at, "%s--set %s", i ? " " : "", list[i]);
+}
+
+/* Whether dir/cells holds any file (a folder with cells run or started). */
+static int folder_has_cells(const char *dir) {
+  char path[PATH_MAX + 8];
+  snprintf(path, sizeof path, "%s/cells", dir);
+  DIR *d = opendir(path);
+  struct dirent *e;
+  int any = 0;
+  while (d && !any && (e = readdir(d))) any = strcmp(e->d_name, ".") && strcmp(e->d_name, "..");
+  if (d) closedir(d);
+  return any;
+}
+
+ves_status ves_study_check_folder(const ves_study *s, const char *dir, int write_record, char *err,
+                                  size_t errlen) {
+  VES_CHECK(s && dir, VES_ERR_ARG);
+  char path[PATH_MAX + 16], name[PATH_MAX / 2];
+  struct stat sb;
+  for (long k = 0; k < s->ncells; k++) { /* cells named key-value_key-value */
+    cell_name_dashed(s, k, name, sizeof name);
+    const char *ext[] = {".result", ".h5"};
+    for (int e = 0; e < 2; e++) {
+      snprintf(path, sizeof path, "%s/cells/%s%s", dir, name, ext[e]);
+      if (stat(path, &sb) == 0) {
+        char now[PATH_MAX / 2];
+        ves_study_cell_name(s, k, now, sizeof now);
+        ves_error_say(err, errlen,
+                      "%s: a cell named in the scheme key-value_key-value, which does not parse "
+                      "back; this vesica names it %s: rename its files (.h5, .xdmf, .log, "
+                      ".result) to that name to keep them, or use another --out",
+                      path, now);
+        return VES_ERR_CONFIG;
+      }
+    }
+  }
+  char(*had)[VES_STUDY_SETLEN] = malloc(2 * VES_STUDY_MAX_SET * sizeof *had);
+  if (!had) return VES_ERR_ALLOC;
+  char(*want)[VES_STUDY_SETLEN] = had + VES_STUDY_MAX_SET;
+  int nhad = 0, same;
+  snprintf(path, sizeof path, "%s/study.set", dir);
+  FILE *f = fopen(path, "r");
+  const int recorded = f != NULL;
+  char line[VES_STUDY_SETLEN + 8];
+  while (f && fgets(line, sizeof line, f) && nhad < VES_STUDY_MAX_SET) {
+    line[strcspn(line, "\n")] = 0;
+    if (line[0] && line[0] != '#') snprintf(had[nhad++], VES_STUDY_SETLEN, "%.191s", line);
+  }
+  if (f) fclose(f);
+  for (int i = 0; i < s->ncli; i++) snprintf(want[i], VES_STUDY_SETLEN, "%s", s->cli[i]);
+  qsort(had, (size_t)nhad, sizeof *had, cmp_text);
+  qsort(want, (size_t)s->ncli, sizeof *want, cmp_text);
+  same = nhad == s->ncli || (!recorded && !folder_has_cells(dir)); /* a fresh folder */
+  for (int i = 0; i < nhad && same && nhad == s->ncli; i++) same = !strcmp(had[i], want[i]);
+  ves_status st = VES_OK;
+  if (!same) {
+    char a[2048], b[2048];
+    sets_text(had, nhad, a, sizeof a);
+    sets_text(want, s->ncli, b, sizeof b);
+    ves_error_say(err, errlen,
+                  "%s: the study in this folder was made with %s%s; this call gives %s: one "
+                  "folder holds one study (the same --set continues it; another --out for "
+                  "another)",
+                  dir, a, recorded ? " (its study.set)" : " (the folder has no study.set)", b);
+    st = VES_ERR_CONFIG;
+  } else if (!recorded && write_record) {
+    char tmp[PATH_MAX + 48];
+    snprintf(tmp, sizeof tmp, "%s.%ld.tmp", path, (long)getpid());
+    f = fopen(tmp, "w");
+    if (f) {
+      fprintf(f, "# vesica study: the command line's --set of the study in this folder\n");
+      for (int i = 0; i < s->ncli; i++) fprintf(f, "%s\n", s->cli[i]);
+    }
+    if (!f || ferror(f) | (fclose(f) != 0) || rename(tmp, path) != 0) {
+      ves_error_say(err, errlen, "%s: cannot write: %s", path, strerror(errno));
+      remove(tmp);
+      st = VES_ERR_IO;
+    }
+  }
+  free(had);
+  return st;
+}
+
 /* ---- the study file ------------------------------------------------------ */
 
 static int cmp_names(const void *a, const void *b) {
@@ -303,11 +437,7 @@ static ves_status check_cells(const ves_study *s, char *err, size_t errlen) {
     qsort(names, (size_t)s->ncells, sizeof *names, cmp_names);
     for (long k = 1; k < s->ncells; k++)
       if (!strcmp(names[k - 1], names[k])) {
-        ves_error_say(
-            err, errlen,
-            "%s: [axes]: two cells are both named '%s' (values that differ only in characters "
-            "a file name cannot hold)",
-            s->path, names[k]);
+        ves_error_say(err, errlen, "%s: [axes]: two cells are both named '%s'", s->path, names[k]);
         st = VES_ERR_CONFIG;
         break;
       }
@@ -320,7 +450,8 @@ static ves_status check_cells(const ves_study *s, char *err, size_t errlen) {
 
 /* The keys of [study] and [slurm]. */
 static const char *const STUDY_KEYS[] = {"problem", "run", "steps", "time_limit"};
-static const char *const SLURM_KEYS[] = {"partition", "account", "mem", "cpus_per_task"};
+static const char *const SLURM_KEYS[] = {"partition",     "account",  "mem",
+                                         "cpus_per_task", "throttle", "setup"};
 
 static int in_list(const char *k, const char *const *list, int n) {
   for (int i = 0; i < n; i++)
@@ -387,14 +518,33 @@ static ves_status study_key_slurm(ves_study *s, const char *key, const char *val
                                   size_t errlen) {
   double num;
   ves_status st = VES_OK;
-  if (!in_list(key, SLURM_KEYS, 4)) {
+  if (!in_list(key, SLURM_KEYS, 6)) {
     ves_error_say(err, errlen,
-                  "%s: [slurm] %s: unknown key (partition, account, mem, cpus_per_task)", s->path,
-                  key);
+                  "%s: [slurm] %s: unknown key (partition, account, mem, cpus_per_task, throttle, "
+                  "setup)",
+                  s->path, key);
     st = VES_ERR_CONFIG;
   } else if (!strcasecmp(key, "cpus_per_task")) {
     if ((st = study_number(s, "slurm", key, val, 1, 1024, 1, &num, err, errlen)) == VES_OK)
       s->cpus_per_task = (int)num;
+  } else if (!strcasecmp(key, "throttle")) {
+    if ((st = study_number(s, "slurm", key, val, 1, 1e9, 1, &num, err, errlen)) == VES_OK)
+      s->throttle = (long)num;
+  } else if (!strcasecmp(key, "setup")) {
+    /* shell text run by the job: any printable text on one line; a control
+     * byte (a NUL, a newline or carriage return that would start another
+     * line of the script) is refused */
+    int bad = !*val || strlen(val) >= sizeof s->setup;
+    for (const unsigned char *c = (const unsigned char *)val; *c && !bad; c++)
+      bad = *c < 0x20 || *c == 0x7f;
+    if (bad) {
+      ves_error_say(err, errlen,
+                    "%s: [slurm] setup: empty, longer than %zu characters, or holding a control "
+                    "character (one line of shell commands, e.g. module load hdf5)",
+                    s->path, sizeof s->setup - 1);
+      st = VES_ERR_CONFIG;
+    } else
+      snprintf(s->setup, sizeof s->setup, "%s", val);
   } else {
     char *dst = !strcasecmp(key, "partition") ? s->partition
                 : !strcasecmp(key, "account") ? s->account
@@ -566,9 +716,55 @@ static ves_status check_axis_values(const ves_study *s, char *err, size_t errlen
   return st;
 }
 
+/* The command line's overrides into s->cli: "section.key=value" with a
+ * problem key that no axis sweeps (the values are checked with every
+ * cell's problem). */
+static ves_status study_cli_sets(ves_study *s, int nset, const char *const *set, char *err,
+                                 size_t errlen) {
+  if (nset > VES_STUDY_MAX_SET) {
+    ves_error_say(err, errlen, "--set: more than %d overrides", VES_STUDY_MAX_SET);
+    return VES_ERR_CONFIG;
+  }
+  for (int i = 0; i < nset; i++) {
+    const char *eq = strchr(set[i], '=');
+    char key[64], canon[64], val[VES_STUDY_SETLEN];
+    if (!eq || trim_copy(key, sizeof key, set[i], (size_t)(eq - set[i])) ||
+        trim_copy(val, sizeof val, eq + 1, strlen(eq + 1)) || !*val) {
+      ves_error_say(err, errlen, "--set %s: expected section.key=value", set[i]);
+      return VES_ERR_CONFIG;
+    }
+    if (canonical_key(key, canon, sizeof canon)) {
+      ves_error_say(err, errlen, "--set: %s: unknown key (see vesica keys)", key);
+      return VES_ERR_CONFIG;
+    }
+    for (int a = 0; a < s->naxes; a++)
+      if (!strcmp(s->axis[a].key, canon)) {
+        ves_error_say(err, errlen, "--set %s: %s is an axis of %s (its values are the cells')",
+                      set[i], canon, s->path);
+        return VES_ERR_CONFIG;
+      }
+    for (int j = 0; j < s->ncli; j++)
+      if (!strncmp(s->cli[j], canon, strlen(canon)) && s->cli[j][strlen(canon)] == '=') {
+        ves_error_say(err, errlen, "--set %s: %s given twice", set[i], canon);
+        return VES_ERR_CONFIG;
+      }
+    if (strlen(val) > 127) {
+      ves_error_say(err, errlen, "--set %s: a value longer than 127 characters", set[i]);
+      return VES_ERR_CONFIG;
+    }
+    snprintf(s->cli[s->ncli++], VES_STUDY_SETLEN, "%.63s=%.127s", canon, val);
+  }
+  return VES_OK;
+}
+
 ves_status ves_study_load(const char *path, long max_cells, ves_study **out, char *err,
                           size_t errlen) {
-  VES_CHECK(path && out, VES_ERR_ARG);
+  return ves_study_load_set(path, max_cells, 0, NULL, out, err, errlen);
+}
+
+ves_status ves_study_load_set(const char *path, long max_cells, int nset, const char *const *set,
+                              ves_study **out, char *err, size_t errlen) {
+  VES_CHECK(path && out && (nset == 0 || set), VES_ERR_ARG);
   *out = NULL;
   ves_study *s = calloc(1, sizeof *s);
   if (!s) return VES_ERR_ALLOC;
@@ -579,6 +775,7 @@ ves_status ves_study_load(const char *path, long max_cells, ves_study **out, cha
   study_reader r = {.s = s, .problem = ""};
   ves_status st = ves_ini_load(path, path, "study file", study_item, &r, err, errlen);
   if (st == VES_OK) st = study_check(s, r.problem, err, errlen);
+  if (st == VES_OK) st = study_cli_sets(s, nset, set, err, errlen);
   if (st == VES_OK) { /* the grid's size, without overflow */
     s->ncells = 1;
     for (int a = 0; a < s->naxes; a++) {
@@ -632,6 +829,12 @@ void ves_study_print_keys(FILE *f) {
        "--emit slurm: #SBATCH --mem"},
       {"slurm", "cpus_per_task", "integer", "1", "1 to 1024",
        "--emit slurm: #SBATCH --cpus-per-task, the cell's OMP_NUM_THREADS"},
+      {"slurm", "throttle", "integer", "(none)", "1 to 1e9",
+       "--emit slurm: at most N array tasks at a time, #SBATCH --array=...%N (--throttle N "
+       "overrides it)"},
+      {"slurm", "setup", "text", "(none)", "one line, no control characters",
+       "--emit slurm: shell commands each task runs before its cell, placed verbatim in the "
+       "script (e.g. `module load hdf5`)"},
   };
   fprintf(f, "| section | key | type | default | allowed | meaning |\n|---|---|---|---|---|---|\n");
   for (size_t i = 0; i < sizeof rows / sizeof rows[0]; i++)

@@ -55,6 +55,8 @@ typedef struct {
   double time_limit;      /* [study] time_limit: wall seconds per cell, 0 none */
   int nset;               /* fixed overrides, applied to every cell */
   char set[VES_STUDY_MAX_SET][VES_STUDY_SETLEN]; /* "section.key=value" */
+  int ncli; /* the command line's --set overrides, applied to every cell after [set] */
+  char cli[VES_STUDY_MAX_SET][VES_STUDY_SETLEN]; /* "section.key=value", key canonical */
   int naxes;                                     /* >= 1 */
   ves_study_axis axis[VES_STUDY_MAX_AXES];       /* the first axis varies slowest */
   long ncells;                                   /* product of the axes' sizes */
@@ -63,6 +65,8 @@ typedef struct {
   char account[64];   /* "" for none */
   char mem[32];       /* e.g. "4G" */
   int cpus_per_task;  /* threads of one cell */
+  long throttle;      /* array tasks at a time (--array=...%N), 0 none */
+  char setup[1024];   /* shell lines run by each task before the cell ("" none) */
 } ves_study;
 
 /* Read and validate the study file `path`: unknown sections or keys, an
@@ -73,6 +77,24 @@ typedef struct {
  * (ves_config_load), nothing is run or written. *out is taken by the caller. */
 ves_status ves_study_load(const char *path, long max_cells, ves_study **out, char *err,
                           size_t errlen);
+
+/* ves_study_load with the command line's overrides set[nset]
+ * ("section.key=value", as vesica run --set): a problem key (its value
+ * checked in every cell's problem), not an axis; one that [set] fixes
+ * replaces it. They are part of the cells' commands and signatures. */
+ves_status ves_study_load_set(const char *path, long max_cells, int nset, const char *const *set,
+                              ves_study **out, char *err, size_t errlen);
+
+/* The study folder dir against this study, before anything in it is run,
+ * written or read: its cells must not be named in the "key-value_key-value"
+ * scheme (not parsed back: refused, renaming them is the user's choice), and
+ * its record of the command line's --set (DIR/study.set, one override a
+ * line) must be this study's. A folder without the record is taken as made
+ * without --set; with write_record the record is written when missing.
+ * VES_ERR_CONFIG with what differs in err; VES_ERR_IO when the record
+ * cannot be written. */
+ves_status ves_study_check_folder(const ves_study *s, const char *dir, int write_record, char *err,
+                                  size_t errlen);
 
 /* Print the study file's sections and keys as a Markdown table (section,
  * key, type, default, allowed, meaning), as problems/README.md has it. */
@@ -90,19 +112,20 @@ ves_status ves_study_parse_axis(const char *text, ves_study_axis *ax, char *err,
  * varies slowest). */
 void ves_study_cell_index(const ves_study *s, long k, int idx[VES_STUDY_MAX_AXES]);
 
-/* The cell's name: its axis values, "key-value" joined by "_" (key without
- * its section unless two axes share it; characters other than letters,
- * digits, '.', '+' and '-' become '_'), e.g. "backend-newton_dt_initial-0.001".
- * Independent of the axes' order of values, so a grown grid keeps the names
- * of its old cells. */
+/* The cell's name: its axis values, "key=value" joined by "," (key without
+ * its section unless two axes share it; bytes other than letters, digits,
+ * '.', '_', '+' and '-' as %XX, so the name parses back to its keys and
+ * values), e.g. "backend=newton,dt_initial=0.001". Independent of the axes' order of values, so a
+ * grown grid keeps the names of its old cells. */
 void ves_study_cell_name(const ves_study *s, long k, char *buf, size_t len);
 
-/* The overrides of cell k: the fixed ones, the axis values, then for
+/* The overrides of cell k: the fixed ones ([set], then the command line's),
+ * the axis values, then for
  * VES_STUDY_STEP time.adaptive=0 and dt_min = dt_max = t_end = dt_initial.
- * set[*nset] point into buf (size VES_STUDY_MAX_SET + VES_STUDY_MAX_AXES + 4
- * entries of VES_STUDY_SETLEN). VES_ERR_CONFIG when the cell's problem does
+ * set[*nset] point into buf (VES_STUDY_CELL_SETS entries of
+ * VES_STUDY_SETLEN). VES_ERR_CONFIG when the cell's problem does
  * not load (message in err). */
-#define VES_STUDY_CELL_SETS (VES_STUDY_MAX_SET + VES_STUDY_MAX_AXES + 4)
+#define VES_STUDY_CELL_SETS (2 * VES_STUDY_MAX_SET + VES_STUDY_MAX_AXES + 4)
 ves_status ves_study_cell_sets(const ves_study *s, long k, char buf[][VES_STUDY_SETLEN], int *nset,
                                char *err, size_t errlen);
 

@@ -588,9 +588,14 @@ ves_status ves_study_write_sbatch(const ves_study *s, const char *program, const
   char *array = malloc(16 * (size_t)s->ncells + 16);
   if (!array) return VES_ERR_ALLOC;
   *ntasks = pending_array(s, adir, exists, retry_failed, array, 16 * (size_t)s->ncells + 16);
-  if (*ntasks <= 0) { /* every cell has its result: nothing to submit */
+  if (*ntasks <= 0) { /* every cell has its result: nothing to submit, and a script of an
+                         earlier emit is removed so that it is not submitted by mistake */
     free(array);
     *ntasks = 0;
+    if (exists && remove(path) != 0 && errno != ENOENT) {
+      ves_error_say(err, errlen, "%s: cannot remove: %s", path, strerror(errno));
+      return VES_ERR_IO;
+    }
     return VES_OK;
   }
   if ((!exists && mkdir(adir, 0777) != 0) || (mkdir(logs, 0777) != 0 && errno != EEXIST)) {
@@ -616,7 +621,9 @@ ves_status ves_study_write_sbatch(const ves_study *s, const char *program, const
   fputs(" --out ", f);
   sh_word(f, adir);
   fputs(" --collect\n", f);
-  fprintf(f, "#SBATCH --job-name=%s\n#SBATCH --array=%s\n#SBATCH --ntasks=1\n", job, array);
+  fprintf(f, "#SBATCH --job-name=%s\n#SBATCH --array=%s", job, array);
+  if (s->throttle > 0) fprintf(f, "%%%ld", s->throttle); /* at most N tasks at a time */
+  fprintf(f, "\n#SBATCH --ntasks=1\n");
   fprintf(f, "#SBATCH --cpus-per-task=%d\n#SBATCH --mem=%s\n", s->cpus_per_task, s->mem);
   if (s->time_limit > 0) /* the cell's own limit stops it first */
     fprintf(f, "#SBATCH --time=%ld\n", (long)ceil(s->time_limit / 60) + 5);
@@ -624,12 +631,19 @@ ves_status ves_study_write_sbatch(const ves_study *s, const char *program, const
   if (s->partition[0]) fprintf(f, "#SBATCH --partition=%s\n", s->partition);
   if (s->account[0]) fprintf(f, "#SBATCH --account=%s\n", s->account);
   fprintf(f, "export OMP_NUM_THREADS=\"${SLURM_CPUS_PER_TASK:-%d}\"\n", s->cpus_per_task);
-  fprintf(f, "export OPENBLAS_NUM_THREADS=1\nexec ");
+  fprintf(f, "export OPENBLAS_NUM_THREADS=1\n");
+  if (s->setup[0]) /* the site's set-up, verbatim: shell run by the job ([slurm] setup) */
+    fprintf(f, "# [slurm] setup\n%s\n", s->setup);
+  fputs("exec ", f);
   sh_word(f, program);
   fputs(" study ", f);
   sh_word(f, study);
   fputs(" --out ", f);
   sh_word(f, adir);
+  for (int i = 0; i < s->ncli; i++) { /* the command line's overrides: part of the study */
+    fputs(" --set ", f);
+    sh_word(f, s->cli[i]);
+  }
   fprintf(f, " --max-cells %ld%s --cell \"${SLURM_ARRAY_TASK_ID:?not a Slurm array task}\"\n",
           s->ncells > VES_STUDY_MAX_CELLS ? s->ncells : (long)VES_STUDY_MAX_CELLS,
           retry_failed ? " --retry-failed" : "");
