@@ -100,19 +100,21 @@ static void move_aside(const char *h5, int log_fd, const char *why) {
 /* Start cell k in sl. An interrupted cell of this study (its .h5 and the
  * record of its command, no .result) continues from its last intact
  * snapshot with `program run --restart` (resume, the log appended to);
- * otherwise its old files are removed and it starts from its problem.
- * 0 or -1 (errno). */
+ * otherwise its old files are removed and it starts from its problem
+ * (with resume -1: after a restart that failed, its log kept). 0 or -1. */
 static int start_cell(const ves_study *s, const ves_study_run_opts *o, long k, int threads,
                       slot *sl, int resume, char *err, size_t errlen) {
+  const int append = resume < 0;
   char path[PATH_MAX], log[PATH_MAX], h5[PATH_MAX], res[PATH_MAX];
   ves_study_cell_path(s, k, o->dir, ".h5", h5, sizeof h5);
   ves_study_cell_path(s, k, o->dir, ".result", res, sizeof res);
   ves_study_cell_path(s, k, o->dir, ".log", log, sizeof log);
   struct stat sb;
   int from = -1;
-  if (resume && (stat(res, &sb) == 0 || stat(h5, &sb) != 0 || !cmd_matches(s, o, k)))
+  if (resume < 0 ||
+      (resume && (stat(res, &sb) == 0 || stat(h5, &sb) != 0 || !cmd_matches(s, o, k))))
     resume = 0; /* ended (a retry starts over), not begun, or another study's */
-  int fd = open(log, O_WRONLY | O_CREAT | (resume ? O_APPEND : O_TRUNC), 0644);
+  int fd = open(log, O_WRONLY | O_CREAT | (resume || append ? O_APPEND : O_TRUNC), 0644);
   if (fd < 0) {
     ves_error_say(err, errlen, "%s: cannot write: %s", log, strerror(errno));
     return -1;
@@ -254,7 +256,7 @@ static void reap_cells(const ves_study *s, const ves_study_run_opts *o, slot *sl
       const int fd = open(log, O_WRONLY | O_APPEND);
       move_aside(h5, fd, "the restart refused it: see the line above");
       if (fd >= 0) close(fd);
-      if (start_cell(s, o, k, threads, c, 0, err, errlen) == 0) continue;
+      if (start_cell(s, o, k, threads, c, -1, err, errlen) == 0) continue;
       if (*st == VES_OK) *st = VES_ERR_IO;
     }
     p->running--;
