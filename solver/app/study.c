@@ -16,6 +16,8 @@
 #include <unistd.h>
 
 #include "app/config.h"
+#include "app/problem.h"
+#include "ves/shape.h"
 
 /* Longest cell name: NAME.result must fit a file name (255 bytes). */
 #define STUDY_NAME_MAX 200
@@ -402,6 +404,129 @@ ves_status ves_study_check_folder(const ves_study *s, const char *dir, int write
   }
   free(had);
   return st;
+}
+
+/* ---- the setup's geometric checks ------------------------------------------ */
+
+/* The geometry of cfg that the checks below depend on, as text (cells with
+ * the same text pass or fail them together). */
+static void geometry_key(const ves_config *c, char *buf, size_t len) {
+  snprintf(buf, len, "%s|%s|%.17g|%.17g|%s|%d|%.17g|%.17g|%.17g|%.17g|%.17g|%.17g|%d",
+           c->shape_type, c->points, c->radius, c->reduced_volume, c->orientation, c->mode,
+           c->delta, c->epsilon, c->box_r, c->box_z, c->band, c->h_band, c->band_layers);
+}
+
+/* The checks of ves_setup_nodes (model/setup.c) that come before any node
+ * is made, with its messages: the shape with its band of (band + 1) eps in
+ * the box, and with band_layers the band's offset curves within the
+ * shape's radii of curvature. What vesica check refuses with exit 2 as
+ * "bad input" although every key is in range; milliseconds, not a setup. */
+static ves_status geometry_check(const ves_config *c, char *err, size_t errlen) {
+  ves_shape *shape = NULL;
+  ves_discret_params d;
+  char msg[1024] = "";
+  ves_status st = ves_problem_shape(c, &shape, msg, sizeof msg);
+  if (st == VES_OK) st = ves_problem_discret(c, &d, msg, sizeof msg);
+  if (st == VES_OK) {
+    double rmax, zmax;
+    const double margin = (d.band + 1) * d.eps;
+    ves_shape_extent(shape, &rmax, &zmax);
+    if (rmax + margin >= d.box_r || zmax + margin >= d.box_z) {
+      snprintf(msg, sizeof msg,
+               "[geometry] box_r = %g, box_z = %g: the shape (R up to %.3f, |Z| up to %.3f) with "
+               "its band of (band + 1) eps = %.3f does not fit",
+               d.box_r, d.box_z, rmax, zmax, margin);
+      st = VES_ERR_CONFIG;
+    }
+  }
+  if (st == VES_OK && d.band_layers) {
+    int n = 0, *flag = NULL;
+    double *x = NULL;
+    st = ves_shape_band_nodes(shape, d.h_band * d.eps, d.band * d.eps, &n, &x, &flag);
+    free(x), free(flag);
+    if (st == VES_ERR_GEOM) {
+      snprintf(msg, sizeof msg,
+               "band layers: %s: band*epsilon = %g exceeds a radius of curvature of the shape "
+               "(set a smaller [geometry] band, or band_layers = 0)",
+               ves_error_text(VES_ERR_CONFIG), d.band * d.eps); /* as setup.c words it */
+      st = VES_ERR_CONFIG;
+    } else
+      st = VES_OK; /* another failure is the run's to report */
+  }
+  ves_shape_destroy(&shape);
+  if (st == VES_ERR_CONFIG) {
+    ves_error_say(err, errlen, "%s", msg);
+    return st;
+  }
+  return VES_OK; /* a shape that fails otherwise is the run's to report */
+}
+
+ves_status ves_study_cell_check(const ves_study *s, long k, char *err, size_t errlen) {
+  char(*sets)[VES_STUDY_SETLEN] = malloc(VES_STUDY_CELL_SETS * sizeof *sets);
+  if (!sets) return VES_ERR_ALLOC;
+  const char *ptr[VES_STUDY_CELL_SETS];
+  int n = 0;
+  ves_config cfg;
+  ves_status st = ves_study_cell_sets(s, k, sets, &n, err, errlen);
+  for (int i = 0; i < n; i++) ptr[i] = sets[i];
+  if (st == VES_OK) st = ves_config_load(s->problem, n, ptr, &cfg, err, errlen);
+  free(sets);
+  if (st == VES_OK) st = geometry_check(&cfg, err, errlen);
+  return st;
+}
+
+/* Every cell through the geometric checks, each distinct geometry once:
+ * when every cell fails them, the study is refused (VES_ERR_CONFIG, the
+ * first cell's message); when some do, those cells are recorded as
+ * bad_input without running (ves_study_run). */
+static ves_status check_geometry(const ves_study *s, char *err, size_t errlen) {
+  enum { MEMO = 64 };
+  char(*key)[4 * VES_CONFIG_STR + 256] = malloc(MEMO * sizeof *key), cur[4 * VES_CONFIG_STR + 256],
+                                  msg[1024] = "", first[1024] = "";
+  int *ok = malloc(MEMO * sizeof *ok), nmemo = 0, geometric = 0;
+  if (!key || !ok) {
+    free(key), free(ok);
+    return VES_ERR_ALLOC;
+  }
+  for (int a = 0; a < s->naxes; a++) /* does any axis change what the checks read? */
+    geometric |= !strncmp(s->axis[a].key, "geometry.", 9) || !strncmp(s->axis[a].key, "shape.", 6);
+  long fails = 0, k;
+  for (k = 0; k < s->ncells && fails == k; k++) { /* until one cell passes */
+    char(*sets)[VES_STUDY_SETLEN] = malloc(VES_STUDY_CELL_SETS * sizeof *sets);
+    const char *ptr[VES_STUDY_CELL_SETS];
+    int n = 0, m, pass;
+    ves_config cfg;
+    if (!sets || ves_study_cell_sets(s, k, sets, &n, NULL, 0) != VES_OK) {
+      free(sets);
+      break;
+    }
+    for (int i = 0; i < n; i++) ptr[i] = sets[i];
+    ves_status st = ves_config_load(s->problem, n, ptr, &cfg, NULL, 0);
+    free(sets);
+    if (st != VES_OK) break;
+    geometry_key(&cfg, cur, sizeof cur);
+    for (m = 0; m < nmemo && strcmp(key[m], cur); m++) {
+    }
+    if (m < nmemo) {
+      pass = ok[m];
+    } else {
+      pass = geometry_check(&cfg, msg, sizeof msg) == VES_OK;
+      if (!first[0] && !pass) snprintf(first, sizeof first, "%s", msg);
+      if (nmemo < MEMO) snprintf(key[nmemo], sizeof key[nmemo], "%s", cur), ok[nmemo++] = pass;
+    }
+    fails += !pass;
+    if (!geometric) break; /* one geometry for every cell */
+  }
+  free(key), free(ok);
+  if (fails && (fails == s->ncells || !geometric)) {
+    char name[PATH_MAX / 2];
+    ves_study_cell_name(s, 0, name, sizeof name);
+    ves_error_say(err, errlen, "%s: %s: %s (vesica check refuses %s; no cell is run)", s->path,
+                  s->problem, first,
+                  geometric ? "every cell's problem" : "the problem with the study's overrides");
+    return VES_ERR_CONFIG;
+  }
+  return VES_OK;
 }
 
 /* ---- the study file ------------------------------------------------------ */
@@ -796,6 +921,7 @@ ves_status ves_study_load_set(const char *path, long max_cells, int nset, const 
   }
   if (st == VES_OK) st = check_cells(s, err, errlen);
   if (st == VES_OK) st = check_axis_values(s, err, errlen);
+  if (st == VES_OK) st = check_geometry(s, err, errlen);
   if (st != VES_OK) {
     free(s);
     return st;

@@ -129,6 +129,14 @@ void ves_study_cell_name(const ves_study *s, long k, char *buf, size_t len);
 ves_status ves_study_cell_sets(const ves_study *s, long k, char buf[][VES_STUDY_SETLEN], int *nset,
                                char *err, size_t errlen);
 
+/* Whether cell k's problem passes the setup's geometric checks that come
+ * before any node is made (its shape with the band of (band + 1) eps inside
+ * the box; with band_layers, band*eps within the shape's radii of
+ * curvature), as vesica check applies them: VES_ERR_CONFIG with check's
+ * message in err when not. ves_study_load refuses a study whose every cell
+ * fails them; ves_study_run records the others as bad_input unrun. */
+ves_status ves_study_cell_check(const ves_study *s, long k, char *err, size_t errlen);
+
 /* The command of cell k: program run PROBLEM --out DIR/cells/NAME.h5 --quiet
  * [--max-steps N] --set ... ; argv (NULL-terminated, *argc entries) and its
  * strings in one malloc'd block *argv, taken by the caller (free(*argv)). */

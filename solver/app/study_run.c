@@ -276,6 +276,37 @@ static void reap_cells(const ves_study *s, const ves_study_run_opts *o, slot *sl
   }
 }
 
+/* Cell k recorded without a process when its problem fails the setup's
+ * geometric checks (ves_study_cell_check: what vesica check refuses): its
+ * .result bad_input with check's message, a progress report. 1 when so
+ * (*st VES_ERR_IO, the message in err, when the .result cannot be written),
+ * 0 when the cell is to run. */
+static int refuse_cell(const ves_study *s, const ves_study_run_opts *o, long k,
+                       ves_study_progress *p, char *err, size_t errlen, ves_status *st) {
+  ves_study_result r;
+  memset(&r, 0, sizeof r);
+  if (ves_study_cell_check(s, k, r.reason, sizeof r.reason) != VES_ERR_CONFIG) return 0;
+  char path[PATH_MAX];
+  snprintf(r.outcome, sizeof r.outcome, "bad_input");
+  r.exit_code = 2;
+  ves_study_cell_signature(s, k, r.signature, sizeof r.signature);
+  const char *old[] = {".h5", ".xdmf", "_last.xmf", ".log"};
+  for (int i = 0; i < 4; i++) {
+    ves_study_cell_path(s, k, o->dir, old[i], path, sizeof path);
+    remove(path);
+  }
+  ves_study_cell_path(s, k, o->dir, ".result", path, sizeof path);
+  if (ves_study_result_write(path, &r) != VES_OK) {
+    ves_error_say(err, errlen, "%s: cannot write: %s", path, strerror(errno));
+    *st = VES_ERR_IO;
+  }
+  p->done++, p->failed++;
+  p->cell = k, p->result = &r;
+  if (o->progress) o->progress(o->ctx, p);
+  p->cell = -1, p->result = NULL;
+  return 1;
+}
+
 /* The cells as processes, o->jobs at a time (study.h). A little over 80
  * lines, on purpose: one polling loop (stop, start, watch the limits, reap)
  * whose state (the slots, the progress, stopping) all four parts share. */
@@ -317,6 +348,10 @@ ves_status ves_study_run(const ves_study *s, const ves_study_run_opts *o, char *
     }
     for (int j = 0; j < o->jobs && next < npending && !stopping && st == VES_OK; j++)
       if (!sl[j].pid) {
+        if (refuse_cell(s, o, pending[next], &p, err, errlen, &st)) { /* bad input: not run */
+          next++, j--;
+          continue;
+        }
         if (start_cell(s, o, pending[next], threads, &sl[j], 1, err, errlen)) {
           st = VES_ERR_IO;
           stopping = 1;
