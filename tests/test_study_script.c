@@ -43,6 +43,11 @@ static void test_set_identity(void **state) {
   run(&r, "study", study, "--out", dir, "--set", "solver.max_iter=50", "--quiet", NULL);
   if (r.code) fail_msg("study: exit %d: %s", r.code, r.err);
   assert_non_null(strstr(r.out, "1 of 1 cells, 1 converged"));
+  /* a sweep of C0 (no dt axis) has its figure */
+  assert_non_null(strstr(r.out, "/study_sweep.png\n"));
+  snprintf(path, sizeof path, "%s/study_sweep.png", dir);
+  slurp(path, text, 8);
+  assert_memory_equal(text, "\x89PNG\r\n\x1a", 7);
   snprintf(path, sizeof path, "%s/study.set", dir);
   slurp(path, text, sizeof text);
   assert_non_null(strstr(text, "\nsolver.max_iter=50\n"));

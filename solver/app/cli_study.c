@@ -24,7 +24,8 @@ static void usage_study(FILE *f) {
           "own 'vesica run' of the base problem with the cell's --set overrides, writing\n"
           "DIR/cells/NAME.h5 and its log; then DIR/study.csv (one row per cell: the swept\n"
           "values, status and reason, steps, iterations, evaluations, seconds, memory, E*)\n"
-          "and, with a time.dt_initial axis, DIR/study_frontier.png and DIR/study_cost.png.\n"
+          "and DIR/study_sweep.png (E*, steps and wall time against the first numeric axis),\n"
+          "with a time.dt_initial axis also DIR/study_frontier.png and DIR/study_cost.png.\n"
           "A rerun skips the cells that ended (failed ones too: --retry-failed reruns them) and\n"
           "continues an interrupted cell from its last snapshot (vesica run --restart).\n"
           "  --set k=v       override a problem key in every cell (repeatable; part of the\n"
@@ -80,12 +81,17 @@ static int study_collect(const ves_study *s, const char *dir, int quiet) {
     return 3;
   }
   printf("%s/study.csv: %ld of %ld cells, %ld converged\n", dir, t.rows, t.cells, t.converged);
+  (void)quiet;
   ves_status st = ves_study_plot(s, dir, err, sizeof err);
-  if (st == VES_OK)
-    printf("%s/study_frontier.png\n%s/study_cost.png\n", dir, dir);
-  else if (!quiet || st != VES_STEP_REJECTED)
+  if (st != VES_OK) {
     fprintf(stderr, "vesica study: figures: %s\n", err);
-  return st < 0 ? 3 : 0;
+    return 3;
+  }
+  printf("%s/study_sweep.png\n", dir);
+  for (int a = 0; a < s->naxes; a++)
+    if (!strcmp(s->axis[a].key, "time.dt_initial"))
+      printf("%s/study_frontier.png\n%s/study_cost.png\n", dir, dir);
+  return 0;
 }
 
 /* The command's options. */

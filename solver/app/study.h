@@ -193,11 +193,15 @@ typedef struct {
 ves_status ves_study_collect(const ves_study *s, const char *dir, ves_study_table *t, char *err,
                              size_t errlen);
 
-/* Figures of DIR/study.csv through gnuplot (pngcairo), when the grid has a
- * time.dt_initial axis: DIR/study_frontier.png (per group of the other axes'
- * values: the largest converged dt and the status of every dt) and
- * DIR/study_cost.png (seconds per step against dt, log axes). VES_STEP_REJECTED
- * (nothing written) without a dt axis; VES_ERR_IO with gnuplot's message. */
+/* Figures of the done cells through gnuplot (pngcairo): DIR/study_sweep.png
+ * for any grid (E*_final, accepted steps and wall seconds against the
+ * first numeric axis, or the first axis as named categories; one curve per
+ * value of the other axes; log x when the values span more than a decade;
+ * cells that did not converge crossed in red), and with a time.dt_initial
+ * axis DIR/study_frontier.png (per group of the other axes' values: the
+ * largest converged dt and the status of every dt) and DIR/study_cost.png
+ * (seconds per step against dt, log axes). VES_ERR_IO with gnuplot's
+ * message. */
 ves_status ves_study_plot(const ves_study *s, const char *dir, char *err, size_t errlen);
 
 /* DIR/study.sbatch: a Slurm job array of the cells not done
