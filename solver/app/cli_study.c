@@ -41,7 +41,7 @@ static void usage_study(FILE *f) {
           "  --quiet         no progress line\n"
           "Exit 0 when every cell ran (whatever its outcome: see the table), 2 on bad input\n"
           "(nothing run), 3 when the folder or table cannot be written, 130/143 when stopped\n"
-          "by SIGINT/SIGTERM (running cells are stopped and rerun next time).\n",
+          "by SIGINT/SIGTERM (running cells save a snapshot and continue from it next time).\n",
           VES_STUDY_MAX_CELLS);
 }
 

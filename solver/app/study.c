@@ -1,7 +1,8 @@
 /* vesica — studies: parsing the study file (sections [study], [set], [axes],
- * [slurm]), the grid of cells, their names, overrides, signatures and
- * commands. No process is started here (study_run.c runs the cells,
- * study_output.c writes the table, figures and Slurm script). User-facing
+ * [slurm]) and the command line's --set, the grid of cells, their names,
+ * overrides, signatures and commands, the setup's geometric checks of each
+ * cell, and the study folder's identity (DIR/study.set). No process is started here (study_run.c
+ * runs the cells, study_output.c writes the table, figures and Slurm script). User-facing
  * behaviour: docs/manual.md; docs/design.md, "The program". */
 #include "app/study.h"
 

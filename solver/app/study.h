@@ -5,7 +5,8 @@
  * DIR/cells/NAME.h5 and, once it has ended, DIR/cells/NAME.result (how it
  * ended: outcome, reason, wall and CPU seconds, peak memory). A cell with a
  * .result file is done: a rerun skips it (failed ones too, unless asked to
- * retry them). The table DIR/study.csv is collected from the .result and .h5
+ * retry them); one interrupted (an .h5, no .result) continues from its last
+ * snapshot (vesica run --restart). The table DIR/study.csv is collected from the .result and .h5
  * files of whatever cells are done, so a local run, a Slurm job array
  * (ves_study_write_sbatch) and a partial study give the same table.
  *
@@ -206,11 +207,13 @@ ves_status ves_study_plot(const ves_study *s, const char *dir, char *err, size_t
 
 /* DIR/study.sbatch: a Slurm job array of the cells not done
  * (ves_study_cell_done with retry_failed), one task per cell (--array=
- * their indices as ranges, e.g. 0-3,7), each running `program study STUDY
- * --out DIR [--retry-failed] --cell $SLURM_ARRAY_TASK_ID`; --time from the
- * cell limit (+ 5 minutes), resources from [slurm]; task logs in
+ * their indices as ranges, e.g. 0-3,7, with %N for s->throttle), each
+ * running [slurm] setup verbatim, then `program study STUDY --out DIR
+ * [--set ...] [--retry-failed] --cell $SLURM_ARRAY_TASK_ID`; --time from
+ * the cell limit (+ 5 minutes), resources from [slurm]; task logs in
  * DIR/slurm/. *ntasks gets the number of tasks; with none, nothing is
- * written (DIR not created either) and VES_OK. DIR is created when missing
+ * written (DIR not created either; a DIR/study.sbatch of an earlier call
+ * removed) and VES_OK. DIR is created when missing
  * (its parent must exist). Every name goes into the script as one bash
  * word on one line ('...', or $'...' with \xHH escapes for control bytes
  * and bytes that are not UTF-8); the values of the #SBATCH lines, which
@@ -253,7 +256,11 @@ typedef struct {
  * stdout and stderr to DIR/cells/NAME.log, OMP_NUM_THREADS (unless set) from
  * the cores and jobs, OPENBLAS_NUM_THREADS=1 (unless set); a cell past
  * time_limit gets SIGTERM, then SIGKILL after opts->grace. Writes each
- * ended cell's .result. VES_ERR_IO when the folder cannot be made (err);
+ * ended cell's .result. A cell interrupted before (its .h5 and .cmd, no
+ * .result) continues from its last intact snapshot with `program run
+ * --restart`; a file that cannot be continued is moved to NAME.h5.unusable
+ * and the cell starts over. A cell failing ves_study_cell_check gets a
+ * bad_input .result without a process. VES_ERR_IO when the folder cannot be made (err);
  * VES_STEP_REJECTED when stopped through opts->stop. */
 ves_status ves_study_run(const ves_study *s, const ves_study_run_opts *opts, char *err,
                          size_t errlen);

@@ -2,8 +2,11 @@
  * given program with the cell's command), a fixed number at a time, each
  * with a wall-time limit; the .result file of a cell is written when its
  * process has ended, so a study stopped or killed at any point loses no
- * ended cell, and reruns only those that were running (study.h;
- * docs/design.md, "The program"). */
+ * ended cell; those that were running continue from their last snapshot
+ * at the next call (vesica run --restart; a file that cannot be continued
+ * is moved aside and the cell starts over). A cell whose problem fails the
+ * setup's geometric checks is recorded bad_input without a process
+ * (study.h; docs/design.md, "The program"). */
 /* wait4 (one child's own CPU time and peak memory) is a BSD call */
 #define _DEFAULT_SOURCE
 #include "app/study.h"
