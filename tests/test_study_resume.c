@@ -120,6 +120,7 @@ static void interrupted_cell(int sig) {
   run(&r, "study", study, "--out", cut, "--jobs", "1", NULL);
   if (r.code) fail_msg("rerun: exit %d: %s", r.code, r.err);
   assert_non_null(strstr(r.out, "1 of 1 cells, 1 converged"));
+  assert_non_null(strstr(r.err, "cell c0=0: continues from its last snapshot"));
   snprintf(log, sizeof log, "%s/cells/c0=0.log", cut);
   char want[256];
   slurp(log, text, sizeof text);
@@ -178,8 +179,10 @@ static void test_unusable_file_moved_aside(void **state) {
   snprintf(log, sizeof log, "%s/cells/c0=0.log", dir);
   unlink(res); /* as if killed: no result, its file overwritten by garbage */
   write_file(h5, "not an HDF5 file\n");
-  run(&r, "study", study, "--out", dir, "--jobs", "1", "--quiet", NULL);
+  run(&r, "study", study, "--out", dir, "--jobs", "1", NULL);
   if (r.code) fail_msg("rerun: exit %d: %s", r.code, r.err);
+  printf("# %s", r.err);
+  assert_non_null(strstr(r.err, "c0=0.h5 cannot be continued"));
   assert_non_null(strstr(r.out, "1 of 1 cells, 1 converged"));
   char text[8192];
   slurp(aside, text, sizeof text);

@@ -57,6 +57,12 @@ typedef struct {
 static void study_progress(void *ctx, const ves_study_progress *p) {
   const study_view *v = ctx;
   if (v->quiet) return;
+  if (p->cell >= 0 && p->note) { /* a cell continued, or its file moved aside */
+    char name[PATH_MAX / 2];
+    ves_study_cell_name(v->s, p->cell, name, sizeof name);
+    fprintf(stderr, "%scell %s: %s\n", v->tty ? "\r\033[K" : "", name, p->note);
+    return;
+  }
   if (p->cell >= 0 && p->result && (!v->tty || strcmp(p->result->outcome, "converged"))) {
     char name[PATH_MAX / 2];
     ves_study_cell_name(v->s, p->cell, name, sizeof name);

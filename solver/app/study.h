@@ -234,6 +234,8 @@ typedef struct {
   double eta;   /* seconds to the end (mean cell time x cells left / jobs), -1 unknown */
   long cell;    /* the cell that just ended, or -1 */
   const ves_study_result *result; /* its result, or NULL */
+  const char *note; /* about cell: it continues from its snapshot, or its file was moved
+                       aside (result NULL); NULL otherwise */
 } ves_study_progress;
 
 typedef void (*ves_study_progress_fn)(void *ctx, const ves_study_progress *p);

@@ -84,20 +84,21 @@ static int resume_from(const char *path) {
 }
 
 /* Move the cell's .h5 that cannot be continued aside (NAME.h5.unusable,
- * .unusable.1, ...: kept, never deleted); a line in log_fd says so. */
-static void move_aside(const char *h5, int log_fd, const char *why) {
+ * .unusable.1, ...: kept, never deleted); a line in log_fd and note[len]
+ * say so. */
+static void move_aside(const char *h5, int log_fd, const char *why, char *note, size_t len) {
   char to[PATH_MAX + 32];
   struct stat sb;
   snprintf(to, sizeof to, "%s.unusable", h5);
   for (int i = 1; stat(to, &sb) == 0 && i < 1000; i++)
     snprintf(to, sizeof to, "%s.unusable.%d", h5, i);
   if (rename(h5, to) == 0)
-    dprintf(log_fd,
-            "vesica study: %s cannot be continued (%s): moved to %s; the cell starts over\n", h5,
-            why, to);
+    snprintf(note, len, "%s cannot be continued (%s): moved to %s; the cell starts over", h5, why,
+             to);
   else
-    dprintf(log_fd, "vesica study: %s cannot be continued (%s) nor moved aside: %s\n", h5, why,
-            strerror(errno));
+    snprintf(note, len, "%s cannot be continued (%s) nor moved aside: %s", h5, why,
+             strerror(errno));
+  if (log_fd >= 0) dprintf(log_fd, "vesica study: %s\n", note);
 }
 
 /* Start cell k in sl. An interrupted cell of this study (its .h5 and the
@@ -106,7 +107,7 @@ static void move_aside(const char *h5, int log_fd, const char *why) {
  * otherwise its old files are removed and it starts from its problem
  * (with resume -1: after a restart that failed, its log kept). 0 or -1. */
 static int start_cell(const ves_study *s, const ves_study_run_opts *o, long k, int threads,
-                      slot *sl, int resume, char *err, size_t errlen) {
+                      slot *sl, int resume, char *note, size_t notelen, char *err, size_t errlen) {
   const int append = resume < 0;
   char path[PATH_MAX], log[PATH_MAX], h5[PATH_MAX], res[PATH_MAX];
   ves_study_cell_path(s, k, o->dir, ".h5", h5, sizeof h5);
@@ -123,7 +124,7 @@ static int start_cell(const ves_study *s, const ves_study_run_opts *o, long k, i
     return -1;
   }
   if (resume && (from = resume_from(h5)) == -2) {
-    move_aside(h5, fd, "no intact snapshot");
+    move_aside(h5, fd, "no intact snapshot", note, notelen);
     resume = 0;
   }
   if (!resume) {
@@ -149,6 +150,7 @@ static int start_cell(const ves_study *s, const ves_study_run_opts *o, long k, i
     rargv[ra] = NULL;
     dprintf(fd, "vesica study: continuing the interrupted cell from %s (vesica run --restart)\n",
             h5);
+    snprintf(note, notelen, "continues from its last snapshot (vesica run --restart)");
   } else if (ves_study_cell_argv(s, k, o->program, o->dir, &argc, &argv, msg, sizeof msg) !=
              VES_OK) {
     ves_error_say(err, errlen, "%s%s", "cell command: ", msg);
@@ -257,9 +259,13 @@ static void reap_cells(const ves_study *s, const ves_study_run_opts *o, slot *sl
         restart_refused(WEXITSTATUS(status), log)) { /* the file cannot be continued */
       ves_study_cell_path(s, k, o->dir, ".h5", h5, sizeof h5);
       const int fd = open(log, O_WRONLY | O_APPEND);
-      move_aside(h5, fd, "the restart refused it: see the line above");
+      char note[PATH_MAX * 2 + 256] = "";
+      move_aside(h5, fd, "the restart refused it: see its log", note, sizeof note);
       if (fd >= 0) close(fd);
-      if (start_cell(s, o, k, threads, c, -1, err, errlen) == 0) continue;
+      p->cell = k, p->note = note;
+      if (o->progress) o->progress(o->ctx, p);
+      p->cell = -1, p->note = NULL;
+      if (start_cell(s, o, k, threads, c, -1, note, sizeof note, err, errlen) == 0) continue;
       if (*st == VES_OK) *st = VES_ERR_IO;
     }
     p->running--;
@@ -355,12 +361,18 @@ ves_status ves_study_run(const ves_study *s, const ves_study_run_opts *o, char *
           next++, j--;
           continue;
         }
-        if (start_cell(s, o, pending[next], threads, &sl[j], 1, err, errlen)) {
+        char note[PATH_MAX * 2 + 256] = "";
+        if (start_cell(s, o, pending[next], threads, &sl[j], 1, note, sizeof note, err, errlen)) {
           st = VES_ERR_IO;
           stopping = 1;
           for (int i = 0; i < o->jobs; i++)
             if (sl[i].pid) kill(sl[i].pid, SIGTERM), sl[i].term_at = ves_wall_seconds();
           break;
+        }
+        if (note[0] && o->progress) { /* continued, or its file moved aside */
+          p.cell = pending[next], p.note = note;
+          o->progress(o->ctx, &p);
+          p.cell = -1, p.note = NULL;
         }
         next++, p.running++;
       }
