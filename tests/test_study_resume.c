@@ -1,6 +1,7 @@
 /* vesica — tests of a study's interrupted cells (build/vesica study, run as
  * child processes): a study killed in the middle of a cell (SIGKILL, as a
- * node failure; SIGTERM, as Slurm's end of a job) continues that cell at
+ * node failure; SIGTERM to the study, or to it and its cell as Slurm does
+ * at the end of a job) continues that cell at
  * the next call from its last snapshot with vesica run --restart, and the
  * cell ends in the state of an uninterrupted study bit for bit (restarts
  * are bit for bit: docs/manual.md, "Continuing a run"); a cell file that
@@ -73,11 +74,11 @@ static double *final_state(const char *h5, int *n, long *rows, double **t, doubl
 /* A study interrupted by sig in the middle of its cell, then rerun: the
  * cell's log says it continues from a snapshot after step 0, and its file
  * ends as the uninterrupted study's, bit for bit. */
-static void interrupted_cell(int sig) {
+static void interrupted_cell(int sig, int cell_too) {
   char study[128], ref[128], cut[128], h5[PATH_MAX], log[PATH_MAX], res[PATH_MAX];
   write_study(study, sizeof study);
   tmp_path(ref, sizeof ref, "ref");
-  tmp_path(cut, sizeof cut, sig == SIGKILL ? "killed" : "termed");
+  tmp_path(cut, sizeof cut, sig == SIGKILL ? "killed" : cell_too ? "termed_both" : "termed");
   rm_tree(ref), rm_tree(cut);
   result r;
   run(&r, "study", study, "--out", ref, "--jobs", "1", "--quiet", NULL);
@@ -101,6 +102,14 @@ static void interrupted_cell(int sig) {
     seen = strstr(text, "/snapshots/2/x") != NULL;
   }
   if (!seen) fail_msg("%s: no snapshot 2 within 60 s", xdmf);
+  if (cell_too) { /* as Slurm does: the signal to every process of the task, the cell first */
+    char children[128], list[256] = "";
+    snprintf(children, sizeof children, "/proc/%d/task/%d/children", (int)pid, (int)pid);
+    slurp(children, list, sizeof list);
+    const int cell = atoi(list);
+    assert_true(cell > 0);
+    kill(cell, sig);
+  }
   kill(pid, sig);
   collect(pid, &r);
   assert_int_equal(r.code, 128 + sig);
@@ -150,7 +159,7 @@ static void interrupted_cell(int sig) {
  * signal); the cell continues from its last regular snapshot. */
 static void test_resume_after_sigkill(void **state) {
   (void)state;
-  interrupted_cell(SIGKILL);
+  interrupted_cell(SIGKILL, 0);
 }
 
 /* SIGTERM (what Slurm sends at a job's end or scancel): the study stops its
@@ -158,7 +167,16 @@ static void test_resume_after_sigkill(void **state) {
  * from that one. */
 static void test_resume_after_sigterm(void **state) {
   (void)state;
-  interrupted_cell(SIGTERM);
+  interrupted_cell(SIGTERM, 0);
+}
+
+/* SIGTERM to the cell and the study at once (Slurm's end of a task: every
+ * process of it): the study's own SIGTERM may reach the cell as its second
+ * signal, which ends it at once without a stop snapshot; either way the
+ * cell continues from the last snapshot in its file. */
+static void test_resume_after_sigterm_to_all(void **state) {
+  (void)state;
+  interrupted_cell(SIGTERM, 1);
 }
 
 /* An interrupted cell whose file cannot be continued (not an HDF5 file):
@@ -204,6 +222,7 @@ int main(int argc, char **argv) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_resume_after_sigkill),
       cmocka_unit_test(test_resume_after_sigterm),
+      cmocka_unit_test(test_resume_after_sigterm_to_all),
       cmocka_unit_test(test_unusable_file_moved_aside),
   };
   return cmocka_run_group_tests_name("study_resume", tests, setup_all, teardown_all);
