@@ -216,19 +216,23 @@ static int study_other(const ves_study *s, const study_args *o, const char *dir,
     fprintf(stderr, "vesica study: %s\n", err[0] ? err : ves_status_str(st));
     return st == VES_ERR_CONFIG ? 2 : 3;
   }
+  char sets[MAX_SET * (VES_STUDY_SETLEN + 10)] = ""; /* the --set to give again */
+  size_t at = 0;
+  for (int i = 0; i < s->ncli && at < sizeof sets; i++)
+    at += (size_t)snprintf(sets + at, sizeof sets - at, " --set '%s'", s->cli[i]);
   if (ntasks == 0) {
     printf("every cell of the study has its result: nothing to submit, no script written "
-           "(vesica study %s --out %s --collect for the table)\n",
-           o->path, dir);
+           "(vesica study %s%s --out %s --collect for the table)\n",
+           o->path, sets, dir);
     return 0;
   }
   if (ves_study_check_folder(s, dir, 1, err, sizeof err) != VES_OK) {
     fprintf(stderr, "vesica study: %s\n", err);
     return 3;
   }
-  printf("%s/study.sbatch: %ld array tasks (of %ld cells); sbatch it, then vesica study %s --out "
-         "%s --collect\n",
-         dir, ntasks, s->ncells, o->path, dir);
+  printf("%s/study.sbatch: %ld array tasks (of %ld cells); sbatch it, then vesica study %s%s "
+         "--out %s --collect\n",
+         dir, ntasks, s->ncells, o->path, sets, dir);
   return 0;
 }
 

@@ -787,6 +787,10 @@ ves_status ves_study_write_sbatch(const ves_study *s, const char *program, const
   sh_word(f, path);
   fputs("\n# Then: vesica study ", f);
   sh_word(f, study);
+  for (int i = 0; i < s->ncli; i++) { /* a --collect must give the study's --set too */
+    fputs(" --set ", f);
+    sh_word(f, s->cli[i]);
+  }
   fputs(" --out ", f);
   sh_word(f, adir);
   fputs(" --collect\n", f);
