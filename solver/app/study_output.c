@@ -432,8 +432,10 @@ static void sweep_script(FILE *f, const ves_study *s, const char *dir, const cha
     fputc('\n', f);
   }
   fprintf(f, "NaN NaN NaN NaN NaN\nEOD\n$x << EOD\n");
+  long nfailed = 0;
   for (long i = 0; i < np; i++) {
     if (pt[i].conv) continue;
+    nfailed++;
     fprintf(f, "%ld %.12g", pt[i].g, pt[i].x);
     for (int m = 0; m < 3; m++) {
       const double span = isfinite(ymin[m]) && ymax[m] > ymin[m] ? ymax[m] - ymin[m] : 1.0;
@@ -467,7 +469,10 @@ static void sweep_script(FILE *f, const ves_study *s, const char *dir, const cha
   }
   fprintf(f, "set multiplot layout 3,1 title ");
   char t[PATH_MAX + 512];
-  snprintf(t, sizeof t, "%.2000s: every done cell against %s (red x: not converged)", title, xl);
+  snprintf(t, sizeof t,
+           "%.2000s: every done cell against %s (red x: not converged; below the others "
+           "when it has no value)",
+           title, xl);
   ves_plot_gp_quote(f, t);
   fprintf(f, "\n");
   static const char *const ylab[3] = {"E*_{final} (units of k)", "accepted steps",
@@ -495,10 +500,10 @@ static void sweep_script(FILE *f, const ves_study *s, const char *dir, const cha
               3 + m, numeric ? "lp" : "p");
       ves_plot_gp_quote(f, label);
     }
-    fprintf(f,
-            ", \\\n  $x u 2:%d w p pt 2 ps 2.5 lw 2 lc rgb '#d73027' t 'not converged (no value: "
-            "below)'\n",
-            3 + m);
+    if (nfailed)
+      fprintf(f, ", \\\n  $x u 2:%d w p pt 2 ps 2.5 lw 2 lc rgb '#d73027' t 'not converged'",
+              3 + m);
+    fputc('\n', f);
   }
   fprintf(f, "unset multiplot\n");
 }
