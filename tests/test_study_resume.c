@@ -212,6 +212,19 @@ static void test_unusable_file_moved_aside(void **state) {
   ves_io *io = open_ro(h5);
   assert_int_equal(ves_io_rows(io), 20); /* run again from its problem */
   ves_io_close(&io);
+  /* an interrupted file started by another command (the study file changed
+   * since): kept aside as well, never deleted */
+  char cmd[PATH_MAX], aside1[PATH_MAX + 8];
+  snprintf(cmd, sizeof cmd, "%s/cells/c0=0.cmd", dir);
+  snprintf(aside1, sizeof aside1, "%s.1", aside);
+  unlink(res);
+  write_file(cmd, "run /elsewhere/other.ini\n");
+  run(&r, "study", study, "--out", dir, "--jobs", "1", NULL);
+  if (r.code) fail_msg("rerun: exit %d: %s", r.code, r.err);
+  printf("# %s", r.err);
+  assert_non_null(strstr(r.err, "started with another command"));
+  assert_true(exists(aside1));
+  assert_non_null(strstr(r.out, "1 of 1 cells, 1 converged"));
   rm_tree(dir);
 }
 

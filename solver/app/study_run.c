@@ -115,14 +115,17 @@ static int start_cell(const ves_study *s, const ves_study_run_opts *o, long k, i
   ves_study_cell_path(s, k, o->dir, ".log", log, sizeof log);
   struct stat sb;
   int from = -1;
-  if (resume < 0 ||
-      (resume && (stat(res, &sb) == 0 || stat(h5, &sb) != 0 || !cmd_matches(s, o, k))))
+  const int foreign = /* interrupted, but started by another version of the study */
+      resume > 0 && stat(res, &sb) != 0 && stat(h5, &sb) == 0 && !cmd_matches(s, o, k);
+  if (resume < 0 || (resume && (stat(res, &sb) == 0 || stat(h5, &sb) != 0 || foreign)))
     resume = 0; /* ended (a retry starts over), not begun, or another study's */
   int fd = open(log, O_WRONLY | O_CREAT | (resume || append ? O_APPEND : O_TRUNC), 0644);
   if (fd < 0) {
     ves_error_say(err, errlen, "%s: cannot write: %s", log, strerror(errno));
     return -1;
   }
+  if (foreign) /* kept: hours of a run are not deleted for a changed study file */
+    move_aside(h5, fd, "started with another command: the study file changed", note, notelen);
   if (resume && (from = resume_from(h5)) == -2) {
     move_aside(h5, fd, "no intact snapshot", note, notelen);
     resume = 0;
