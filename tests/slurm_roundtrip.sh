@@ -6,7 +6,9 @@
 # on the tiny problem of tests/test_study.c locally, submits the same study
 # with the script `vesica study --emit slurm` writes, waits for the array,
 # runs --collect and checks that both tables agree in every column but the
-# timing and memory ones. Stops every daemon it started and removes the
+# timing and memory ones; the study carries a command-line --set, a throttle
+# and a [slurm] setup line (seen run in the tasks' logs), and a second
+# --emit slurm on the finished study writes no script. Stops every daemon it started and removes the
 # folder on exit; exit 1 with a message on any failure.
 #
 #   sh tests/slurm_roundtrip.sh [build/vesica]     (as root)
@@ -174,6 +176,8 @@ shape.mode = 2
 shape.delta = 0.15
 [slurm]
 mem = 1G
+throttle = 2
+setup = "echo 'slurm setup ran'; export VESICA_RT=1"
 [axes]
 solver.backend = newton, euler
 time.dt_initial = 5e-3, 1
@@ -181,11 +185,14 @@ EOF
 NCELLS=4
 
 t0=$(date +%s)
-"$V" study "$T/study.ini" --out "$T/local" --jobs 2 --quiet || fail "the local study failed"
+SET="--set solver.max_iter=100"
+"$V" study "$T/study.ini" $SET --out "$T/local" --jobs 2 --quiet || fail "the local study failed"
 say "local study: $(($(date +%s) - t0)) s"
 
-"$V" study "$T/study.ini" --out "$T/slurm" --emit slurm || fail "--emit slurm failed"
-grep -E '^#SBATCH|^exec' "$T/slurm/study.sbatch" | sed 's/^/  /'
+"$V" study "$T/study.ini" $SET --out "$T/slurm" --emit slurm || fail "--emit slurm failed"
+grep -E '^#SBATCH|^exec|^echo' "$T/slurm/study.sbatch" | sed 's/^/  /'
+grep -q '^#SBATCH --array=0-3%2$' "$T/slurm/study.sbatch" || fail "no --array=0-3%2 in the script"
+grep -q -- "--set 'solver.max_iter=100' --max-cells" "$T/slurm/study.sbatch" || fail "the script does not pass --set"
 cd "$T" || fail "cd $T"
 t0=$(date +%s)
 sub=$(sbatch "$T/slurm/study.sbatch" 2>&1) || fail "sbatch: $sub"
@@ -218,7 +225,12 @@ echo "job completion log ($T/jobcomp.txt):"
 tr ' ' '\n' <"$T/jobcomp.txt" | grep -E '^(JobId|JobState|NodeList|ArrayTaskId|ExitCode)=' |
   paste -d ' ' - - - - - | sed 's/^/  /'
 
-"$V" study "$T/study.ini" --out "$T/slurm" --collect --quiet || fail "--collect failed"
+n=$(cat "$T"/slurm/slurm/*.out | grep -c '^slurm setup ran$')
+[ "$n" -eq $NCELLS ] || fail "the [slurm] setup line ran in $n of $NCELLS tasks' logs"
+"$V" study "$T/study.ini" $SET --out "$T/slurm" --collect --quiet || fail "--collect failed"
+again=$("$V" study "$T/study.ini" $SET --out "$T/slurm" --emit slurm) || fail "a second --emit failed"
+[ -e "$T/slurm/study.sbatch" ] && fail "--emit slurm on a finished study left a script: $again"
+say "a second --emit: $again"
 
 # ---- the tables: equal but for the timing and memory columns -------------
 # RFC 4180 fields (quoted, quotes doubled) split by hand: mawk has no FPAT.

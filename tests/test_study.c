@@ -166,9 +166,9 @@ static void test_grid(void **state) {
   assert_int_equal(s->mode, VES_STUDY_STEP);
   assert_true(s->problem[0] == '/'); /* resolved next to the study file */
   /* the first axis varies slowest */
-  const char *names[] = {"backend-newton_dt_initial-0.001", "backend-newton_dt_initial-0.1",
-                         "backend-ipopt_dt_initial-0.001",  "backend-ipopt_dt_initial-0.1",
-                         "backend-euler_dt_initial-0.001",  "backend-euler_dt_initial-0.1"};
+  const char *names[] = {"backend=newton,dt_initial=0.001", "backend=newton,dt_initial=0.1",
+                         "backend=ipopt,dt_initial=0.001",  "backend=ipopt,dt_initial=0.1",
+                         "backend=euler,dt_initial=0.001",  "backend=euler,dt_initial=0.1"};
   for (long k = 0; k < 6; k++) {
     char name[256];
     int idx[VES_STUDY_MAX_AXES];
@@ -187,7 +187,7 @@ static void test_grid(void **state) {
   assert_string_equal(argv[1], "run");
   assert_string_equal(argv[2], s->problem);
   assert_string_equal(argv[3], "--out");
-  assert_string_equal(argv[4], "/d/cells/backend-ipopt_dt_initial-0.1.h5");
+  assert_string_equal(argv[4], "/d/cells/backend=ipopt,dt_initial=0.1.h5");
   assert_string_equal(argv[5], "--quiet");
   assert_string_equal(argv[6], "--max-steps");
   assert_string_equal(argv[7], "1");
@@ -215,7 +215,7 @@ static void test_grid(void **state) {
   assert_int_equal(t->ncells, 9);
   char name[256];
   ves_study_cell_name(t, 0, name, sizeof name);
-  assert_string_equal(name, "dt_initial-0.1_backend-euler");
+  assert_string_equal(name, "dt_initial=0.1,backend=euler");
   assert_int_equal(ves_study_cell_argv(t, 0, "/p", "/d", &argc, &argv, err, sizeof err), VES_OK);
   assert_string_equal(argv[7], "3"); /* --max-steps 3, no one-step settings */
   assert_string_equal(argv[argc - 1], "solver.backend=euler");
@@ -252,7 +252,9 @@ static void test_bad_studies(void **state) {
        "the grid has 121 cells, more than the limit 100", 100},
       {"[set]\n", "[axes]: no axis", 1000},
       {"[axes]\ngeometry.epsilon = 0.04, 0.4\n", "too large for the box", 1000}, /* a cell */
-      {"[axes]\nshape.points = a b, a_b\n", "two cells are both named", 1000},
+      {"[slurm]\nsetup = module\tload hdf5\n[axes]\nmaterial.c0 = 0, 1\n",
+       "[slurm] setup: empty, longer than 1023 characters, or holding a control", 1000},
+      {"[slurm]\nthrottle = 0\n[axes]\nmaterial.c0 = 0, 1\n", "[slurm] throttle", 1000},
       {"[axes]\nmaterial.c0 = 0.10000000000000000000000000000000000000000000000000000001\n"
        "material.k = 1.0000000000000000000000000000000000000000000000000000001\n"
        "material.mu = 1.0000000000000000000000000000000000000000000000000000001\n"
@@ -458,7 +460,7 @@ static void test_csv(void **state) {
     if (!strcmp(f[i], "wall_seconds")) col_wall = i;
   assert_true(col_wall > 0);
   assert_int_equal(csv_split(line[1], f, 40), nh); /* every row as wide as the header */
-  assert_string_equal(f[0], "dt_initial-0.001");
+  assert_string_equal(f[0], "dt_initial=0.001");
   assert_string_equal(f[1], "0.001");
   assert_string_equal(f[2], "bad_input");
   assert_string_equal(f[3], "x.ini: [time] dt = \"1\", or so"); /* quoted, quotes doubled */
@@ -466,7 +468,7 @@ static void test_csv(void **state) {
   assert_string_equal(f[5], ""); /* steps: unknown without an output file */
   assert_string_equal(f[col_wall], "0.125");
   assert_int_equal(csv_split(line[2], f, 40), nh);
-  assert_string_equal(f[0], "dt_initial-0.003");
+  assert_string_equal(f[0], "dt_initial=0.003");
   assert_string_equal(f[2], "no_output");
   ves_study_destroy(&s);
 }
@@ -700,14 +702,14 @@ static void test_program(void **state) {
   stable_columns(csv, table, sizeof table);
   printf("# %s", table);
   /* newton at 5e-3: converged in one step, E* down; euler at 1: failed */
-  char *l = strstr(table, "backend-newton_dt_initial-5e-3,newton,5e-3,converged,,1,");
+  char *l = strstr(table, "backend=newton,dt_initial=5e-3,newton,5e-3,converged,,1,");
   assert_non_null(l);
   double it, g, h, E0, E1;
-  assert_int_equal(sscanf(l + strlen("backend-newton_dt_initial-5e-3,newton,5e-3,converged,,1,"),
+  assert_int_equal(sscanf(l + strlen("backend=newton,dt_initial=5e-3,newton,5e-3,converged,,1,"),
                           "%lf,%lf,%lf,%lf,%lf", &it, &g, &h, &E0, &E1),
                    5);
   assert_true(it >= 1 && g >= 1 && h >= 1 && E1 < E0);
-  assert_non_null(strstr(table, "backend-euler_dt_initial-1,euler,1,failed,no acceptable step"));
+  assert_non_null(strstr(table, "backend=euler,dt_initial=1,euler,1,failed,no acceptable step"));
   /* the figures exist and are PNG files */
   char png[PATH_MAX + 32], head[8];
   snprintf(png, sizeof png, "%s/study_frontier.png", dir);

@@ -385,7 +385,7 @@ static void test_slurm_pending(void **state) {
   assert_non_null(strstr(text, " --retry-failed --cell "));
   unlink(script);
   char rp[PATH_MAX + 64];
-  snprintf(rp, sizeof rp, "%s/cells/c0-0.result", out);
+  snprintf(rp, sizeof rp, "%s/cells/c0=0.result", out);
   assert_int_equal(unlink(rp), 0);
   run(&r, "study", study, "--out", out, "--emit", "slurm", NULL);
   assert_int_equal(r.code, 0);

@@ -16,25 +16,32 @@
 
 static void usage_study(FILE *f) {
   fprintf(f,
-          "usage: vesica study STUDY.ini [--jobs N] [--out DIR] [--retry-failed] [--max-cells N]\n"
-          "       vesica study STUDY.ini [--out DIR] --emit slurm | --cell K | --collect\n"
+          "usage: vesica study STUDY.ini [--set section.key=value]... [--jobs N] [--out DIR]\n"
+          "                   [--retry-failed] [--max-cells N] [--quiet]\n"
+          "       vesica study STUDY.ini [--set ...]... [--out DIR] --emit slurm [--throttle N]\n"
+          "       vesica study STUDY.ini [--set ...]... [--out DIR] --cell K | --collect\n"
           "Runs the grid of a study file (problems/README.md, 'Study files'): every cell is its\n"
           "own 'vesica run' of the base problem with the cell's --set overrides, writing\n"
           "DIR/cells/NAME.h5 and its log; then DIR/study.csv (one row per cell: the swept\n"
           "values, status and reason, steps, iterations, evaluations, seconds, memory, E*)\n"
-          "and, with a time.dt_initial axis, DIR/study_frontier.png and DIR/study_cost.png.\n"
-          "A rerun skips the cells that ended (failed ones too: --retry-failed reruns them).\n"
+          "and DIR/study_sweep.png (E*, steps and wall time against the first numeric axis),\n"
+          "with a time.dt_initial axis also DIR/study_frontier.png and DIR/study_cost.png.\n"
+          "A rerun skips the cells that ended (failed ones too: --retry-failed reruns them) and\n"
+          "continues an interrupted cell from its last snapshot (vesica run --restart).\n"
+          "  --set k=v       override a problem key in every cell (repeatable; part of the\n"
+          "                  study: DIR/study.set records it, a rerun must give the same)\n"
           "  --jobs N        cells at a time (default: the number of cores)\n"
           "  --out DIR       the study folder (default: the study file's name, here)\n"
           "  --max-cells N   allow a grid of up to N cells (default %d)\n"
           "  --emit slurm    write DIR/study.sbatch: a job array, one task per cell without a\n"
           "                  result (sbatch it, then --collect)\n"
+          "  --throttle N    with --emit slurm: at most N array tasks at a time (--array=...%%N)\n"
           "  --cell K        run cell K (0-based) only, as an array task does\n"
           "  --collect       write the table and figures from the cells that have ended\n"
           "  --quiet         no progress line\n"
           "Exit 0 when every cell ran (whatever its outcome: see the table), 2 on bad input\n"
           "(nothing run), 3 when the folder or table cannot be written, 130/143 when stopped\n"
-          "by SIGINT/SIGTERM (running cells are stopped and rerun next time).\n",
+          "by SIGINT/SIGTERM (running cells save a snapshot and continue from it next time).\n",
           VES_STUDY_MAX_CELLS);
 }
 
@@ -50,6 +57,12 @@ typedef struct {
 static void study_progress(void *ctx, const ves_study_progress *p) {
   const study_view *v = ctx;
   if (v->quiet) return;
+  if (p->cell >= 0 && p->note) { /* a cell continued, or its file moved aside */
+    char name[PATH_MAX / 2];
+    ves_study_cell_name(v->s, p->cell, name, sizeof name);
+    fprintf(stderr, "%scell %s: %s\n", v->tty ? "\r\033[K" : "", name, p->note);
+    return;
+  }
   if (p->cell >= 0 && p->result && (!v->tty || strcmp(p->result->outcome, "converged"))) {
     char name[PATH_MAX / 2];
     ves_study_cell_name(v->s, p->cell, name, sizeof name);
@@ -74,19 +87,25 @@ static int study_collect(const ves_study *s, const char *dir, int quiet) {
     return 3;
   }
   printf("%s/study.csv: %ld of %ld cells, %ld converged\n", dir, t.rows, t.cells, t.converged);
+  (void)quiet;
   ves_status st = ves_study_plot(s, dir, err, sizeof err);
-  if (st == VES_OK)
-    printf("%s/study_frontier.png\n%s/study_cost.png\n", dir, dir);
-  else if (!quiet || st != VES_STEP_REJECTED)
+  if (st != VES_OK) {
     fprintf(stderr, "vesica study: figures: %s\n", err);
-  return st < 0 ? 3 : 0;
+    return 3;
+  }
+  printf("%s/study_sweep.png\n", dir);
+  for (int a = 0; a < s->naxes; a++)
+    if (!strcmp(s->axis[a].key, "time.dt_initial"))
+      printf("%s/study_frontier.png\n%s/study_cost.png\n", dir, dir);
+  return 0;
 }
 
 /* The command's options. */
 typedef struct {
   const char *path, *out, *emit;
-  long jobs, max_cells, cell; /* cell -1: every cell */
-  int retry, collect, quiet;
+  long jobs, max_cells, cell, throttle; /* cell -1: every cell; throttle 0: none given */
+  int retry, collect, quiet, nset;
+  const char *set[MAX_SET]; /* --set, as given */
 } study_args;
 
 /* argv into o. 0 to go on, -1 after --help, else the exit code. */
@@ -100,7 +119,7 @@ static int study_parse(int argc, char **argv, study_args *o) {
       usage_study(stdout);
       return -1;
     } else if (!strcmp(a, "--jobs") || !strcmp(a, "--out") || !strcmp(a, "--max-cells") ||
-               !strcmp(a, "--cell") || !strcmp(a, "--emit")) {
+               !strcmp(a, "--cell") || !strcmp(a, "--emit") || !strcmp(a, "--throttle")) {
       if (i + 1 >= argc) {
         fprintf(stderr, "vesica study: %s needs a value (see vesica study --help)\n", a);
         return 2;
@@ -112,10 +131,13 @@ static int study_parse(int argc, char **argv, study_args *o) {
         o->emit = v;
       else if ((rc = cli_parse_long("study", a, v, !strcmp(a, "--cell") ? 0 : 1,
                                     !strcmp(a, "--jobs") ? 1024 : 1000000000L,
-                                    !strcmp(a, "--jobs")   ? &o->jobs
-                                    : !strcmp(a, "--cell") ? &o->cell
-                                                           : &o->max_cells)))
+                                    !strcmp(a, "--jobs")       ? &o->jobs
+                                    : !strcmp(a, "--cell")     ? &o->cell
+                                    : !strcmp(a, "--throttle") ? &o->throttle
+                                                               : &o->max_cells)))
         return rc;
+    } else if (!strcmp(a, "--set")) {
+      if ((rc = cli_take_set("study", argc, argv, &i, &o->nset, o->set))) return rc;
     } else if (!strcmp(a, "--retry-failed")) {
       o->retry = 1;
     } else if (!strcmp(a, "--collect")) {
@@ -129,6 +151,10 @@ static int study_parse(int argc, char **argv, study_args *o) {
   if (cli_need(o->path, usage_study)) return 2;
   if (o->emit && strcmp(o->emit, "slurm")) {
     fprintf(stderr, "vesica study: --emit '%s': only slurm\n", o->emit);
+    return 2;
+  }
+  if (o->throttle && !o->emit) {
+    fprintf(stderr, "vesica study: --throttle goes with --emit slurm\n");
     return 2;
   }
   if ((o->emit != NULL) + o->collect + (o->cell >= 0) > 1) {
@@ -190,15 +216,23 @@ static int study_other(const ves_study *s, const study_args *o, const char *dir,
     fprintf(stderr, "vesica study: %s\n", err[0] ? err : ves_status_str(st));
     return st == VES_ERR_CONFIG ? 2 : 3;
   }
+  char sets[MAX_SET * (VES_STUDY_SETLEN + 10)] = ""; /* the --set to give again */
+  size_t at = 0;
+  for (int i = 0; i < s->ncli && at < sizeof sets; i++)
+    at += (size_t)snprintf(sets + at, sizeof sets - at, " --set '%s'", s->cli[i]);
   if (ntasks == 0) {
     printf("every cell of the study has its result: nothing to submit, no script written "
-           "(vesica study %s --out %s --collect for the table)\n",
-           o->path, dir);
+           "(vesica study %s%s --out %s --collect for the table)\n",
+           o->path, sets, dir);
     return 0;
   }
-  printf("%s/study.sbatch: %ld array tasks (of %ld cells); sbatch it, then vesica study %s --out "
-         "%s --collect\n",
-         dir, ntasks, s->ncells, o->path, dir);
+  if (ves_study_check_folder(s, dir, 1, err, sizeof err) != VES_OK) {
+    fprintf(stderr, "vesica study: %s\n", err);
+    return 3;
+  }
+  printf("%s/study.sbatch: %ld array tasks (of %ld cells); sbatch it, then vesica study %s%s "
+         "--out %s --collect\n",
+         dir, ntasks, s->ncells, o->path, sets, dir);
   return 0;
 }
 
@@ -249,11 +283,22 @@ int cmd_study(int argc, char **argv) {
   if (rc) return rc < 0 ? 0 : rc;
   char err[1024] = "", dir[PATH_MAX], self[PATH_MAX];
   ves_study *s = NULL;
-  ves_status st = ves_study_load(o.path, o.max_cells, &s, err, sizeof err);
+  ves_status st = ves_study_load_set(o.path, o.max_cells, o.nset, o.set, &s, err, sizeof err);
   if (st != VES_OK) {
     fprintf(stderr, "vesica study: %s\n", err);
     return 2;
   }
+  if (o.throttle) s->throttle = o.throttle; /* over [slurm] throttle */
+  for (int i = 0; i < s->ncli && s->mode == VES_STUDY_STEP; i++)
+    for (int j = 0; j < 4; j++) { /* what run = step sets in every cell */
+      static const char *const fixed[] = {
+          "time.t_end=", "time.dt_min=", "time.dt_max=", "time.adaptive="};
+      if (!strncmp(s->cli[i], fixed[j], strlen(fixed[j])))
+        fprintf(stderr,
+                "vesica study: note: --set %s has no effect: with run = step every cell takes one "
+                "step of dt_initial (t_end = dt_min = dt_max = dt_initial, adaptive = 0)\n",
+                s->cli[i]);
+    }
   if (o.cell >= s->ncells) {
     fprintf(stderr, "vesica study: --cell %ld: the grid has %ld cells (0 to %ld)\n", o.cell,
             s->ncells, s->ncells - 1);
@@ -280,7 +325,15 @@ int cmd_study(int argc, char **argv) {
     ves_study_destroy(&s);
     return rc;
   }
-  rc = o.collect || o.emit ? study_other(s, &o, dir, self) : study_run(s, &o, dir, self);
+  if (!o.collect && !o.emit && o.cell >= 0 && mkdir(dir, 0777) != 0 && errno != EEXIST) {
+    fprintf(stderr, "vesica study: --out %s: cannot make the folder: %s\n", dir, strerror(errno));
+    rc = 3;
+  } else if ((st = ves_study_check_folder(s, dir, !o.collect && !o.emit, err, sizeof err)) !=
+             VES_OK) { /* another study's folder, or cells under names not parsed back */
+    fprintf(stderr, "vesica study: %s\n", err);
+    rc = st == VES_ERR_CONFIG ? 2 : 3;
+  } else
+    rc = o.collect || o.emit ? study_other(s, &o, dir, self) : study_run(s, &o, dir, self);
   if (lock >= 0) close(lock); /* releases the folder */
   ves_study_destroy(&s);
   return rc;

@@ -1,11 +1,13 @@
 /* vesica — studies: parsing the study file (sections [study], [set], [axes],
- * [slurm]), the grid of cells, their names, overrides, signatures and
- * commands. No process is started here (study_run.c runs the cells,
- * study_output.c writes the table, figures and Slurm script). User-facing
+ * [slurm]) and the command line's --set, the grid of cells, their names,
+ * overrides, signatures and commands, the setup's geometric checks of each
+ * cell, and the study folder's identity (DIR/study.set). No process is started here (study_run.c
+ * runs the cells, study_output.c writes the table, figures and Slurm script). User-facing
  * behaviour: docs/manual.md; docs/design.md, "The program". */
 #include "app/study.h"
 
 #include <ctype.h>
+#include <dirent.h>
 #include <errno.h>
 #include <math.h>
 #include <stdlib.h>
@@ -15,6 +17,8 @@
 #include <unistd.h>
 
 #include "app/config.h"
+#include "app/problem.h"
+#include "ves/shape.h"
 
 /* Longest cell name: NAME.result must fit a file name (255 bytes). */
 #define STUDY_NAME_MAX 200
@@ -129,10 +133,20 @@ static const char *axis_short(const ves_study *s, int a) {
   return k;
 }
 
-static void sanitize_append(char *buf, size_t len, size_t *at, const char *t) {
-  for (; *t && *at + 1 < len; t++) {
-    const char c = *t;
-    buf[(*at)++] = isalnum((unsigned char)c) || c == '.' || c == '+' || c == '-' ? c : '_';
+/* t appended to buf[len] at *at: letters, digits and . _ + - as they are,
+ * every other byte as %XX (two upper-case hex digits), so that '=', ',' and
+ * '%' never appear unescaped and a name parses back to its keys and values. */
+static void name_append(char *buf, size_t len, size_t *at, const char *t) {
+  static const char hex[] = "0123456789ABCDEF";
+  for (; *t; t++) {
+    const unsigned char c = (unsigned char)*t;
+    if (isalnum(c) || c == '.' || c == '_' || c == '+' || c == '-') {
+      if (*at + 1 >= len) break;
+      buf[(*at)++] = (char)c;
+    } else {
+      if (*at + 3 >= len) break;
+      buf[(*at)++] = '%', buf[(*at)++] = hex[c >> 4], buf[(*at)++] = hex[c & 15];
+    }
   }
   buf[*at] = 0;
 }
@@ -143,10 +157,28 @@ void ves_study_cell_name(const ves_study *s, long k, char *buf, size_t len) {
   size_t at = 0;
   buf[0] = 0;
   for (int a = 0; a < s->naxes; a++) {
-    if (a) sanitize_append(buf, len, &at, "_");
-    sanitize_append(buf, len, &at, axis_short(s, a));
-    if (at + 1 < len) buf[at++] = '-', buf[at] = 0;
-    sanitize_append(buf, len, &at, s->axis[a].values[idx[a]]);
+    if (a && at + 1 < len) buf[at++] = ',', buf[at] = 0;
+    name_append(buf, len, &at, axis_short(s, a));
+    if (at + 1 < len) buf[at++] = '=', buf[at] = 0;
+    name_append(buf, len, &at, s->axis[a].values[idx[a]]);
+  }
+}
+
+/* The name cell k gets in the scheme "key-value" joined by "_" (bytes other
+ * than letters, digits, '.', '+', '-' as '_'), which cannot be parsed back
+ * (keys hold '_', values '-'): a folder holding such files is recognised
+ * and refused rather than run again under other names. */
+static void cell_name_dashed(const ves_study *s, long k, char *buf, size_t len) {
+  int idx[VES_STUDY_MAX_AXES];
+  ves_study_cell_index(s, k, idx);
+  size_t at = 0;
+  buf[0] = 0;
+  for (int a = 0; a < s->naxes; a++) {
+    const char *part[3] = {axis_short(s, a), "-", s->axis[a].values[idx[a]]};
+    if (a && at + 1 < len) buf[at++] = '_', buf[at] = 0;
+    for (int j = 0; j < 3; j++)
+      for (const char *t = part[j]; *t && at + 1 < len; t++)
+        buf[at++] = isalnum((unsigned char)*t) || strchr(".+-", *t) ? *t : '_', buf[at] = 0;
   }
 }
 
@@ -154,7 +186,14 @@ ves_status ves_study_cell_sets(const ves_study *s, long k, char buf[][VES_STUDY_
                                char *err, size_t errlen) {
   int idx[VES_STUDY_MAX_AXES], n = 0;
   ves_study_cell_index(s, k, idx);
-  for (int i = 0; i < s->nset; i++) snprintf(buf[n++], VES_STUDY_SETLEN, "%s", s->set[i]);
+  for (int i = 0; i < s->nset; i++) {
+    const size_t kl = strcspn(s->set[i], "=");
+    int replaced = 0; /* a [set] key the command line sets again */
+    for (int j = 0; j < s->ncli && !replaced; j++)
+      replaced = !strncmp(s->cli[j], s->set[i], kl + 1);
+    if (!replaced) snprintf(buf[n++], VES_STUDY_SETLEN, "%s", s->set[i]);
+  }
+  for (int i = 0; i < s->ncli; i++) snprintf(buf[n++], VES_STUDY_SETLEN, "%s", s->cli[i]);
   for (int a = 0; a < s->naxes; a++)
     snprintf(buf[n++], VES_STUDY_SETLEN, "%s=%s", s->axis[a].key, s->axis[a].values[idx[a]]);
   ves_config cfg;
@@ -270,6 +309,227 @@ ves_status ves_study_cell_argv(const ves_study *s, long k, const char *program, 
   return VES_OK;
 }
 
+/* ---- the study folder ---------------------------------------------------- */
+
+static int cmp_text(const void *a, const void *b) {
+  return strcmp((const char *)a, (const char *)b);
+}
+
+/* The overrides of list[n] sorted and joined by " --set " into buf[len]
+ * ("(none)" when n = 0), for a message. */
+static void sets_text(char (*list)[VES_STUDY_SETLEN], int n, char *buf, size_t len) {
+  qsort(list, (size_t)n, sizeof *list, cmp_text);
+  size_t at = 0;
+  buf[0] = 0;
+  if (!n) snprintf(buf, len, "no --set");
+  for (int i = 0; i < n && at < len; i++)
+    at += (size_t)snprintf(buf + at, len - at, "%s--set %s", i ? " " : "", list[i]);
+}
+
+/* Whether dir/cells holds any file (a folder with cells run or started). */
+static int folder_has_cells(const char *dir) {
+  char path[PATH_MAX + 8];
+  snprintf(path, sizeof path, "%s/cells", dir);
+  DIR *d = opendir(path);
+  struct dirent *e;
+  int any = 0;
+  while (d && !any && (e = readdir(d))) any = strcmp(e->d_name, ".") && strcmp(e->d_name, "..");
+  if (d) closedir(d);
+  return any;
+}
+
+ves_status ves_study_check_folder(const ves_study *s, const char *dir, int write_record, char *err,
+                                  size_t errlen) {
+  VES_CHECK(s && dir, VES_ERR_ARG);
+  char path[PATH_MAX + 16], name[PATH_MAX / 2];
+  struct stat sb;
+  for (long k = 0; k < s->ncells; k++) { /* cells named key-value_key-value */
+    cell_name_dashed(s, k, name, sizeof name);
+    const char *ext[] = {".result", ".h5"};
+    for (int e = 0; e < 2; e++) {
+      snprintf(path, sizeof path, "%s/cells/%s%s", dir, name, ext[e]);
+      if (stat(path, &sb) == 0) {
+        char now[PATH_MAX / 2];
+        ves_study_cell_name(s, k, now, sizeof now);
+        ves_error_say(err, errlen,
+                      "%s: a cell named in the scheme key-value_key-value, which does not parse "
+                      "back; this vesica names it %s: rename its files (.h5, .xdmf, .log, "
+                      ".result) to that name to keep them, or use another --out",
+                      path, now);
+        return VES_ERR_CONFIG;
+      }
+    }
+  }
+  char(*had)[VES_STUDY_SETLEN] = malloc(2 * VES_STUDY_MAX_SET * sizeof *had);
+  if (!had) return VES_ERR_ALLOC;
+  char(*want)[VES_STUDY_SETLEN] = had + VES_STUDY_MAX_SET;
+  int nhad = 0, same;
+  snprintf(path, sizeof path, "%s/study.set", dir);
+  FILE *f = fopen(path, "r");
+  const int recorded = f != NULL;
+  char line[VES_STUDY_SETLEN + 8];
+  while (f && fgets(line, sizeof line, f) && nhad < VES_STUDY_MAX_SET) {
+    line[strcspn(line, "\n")] = 0;
+    if (line[0] && line[0] != '#') snprintf(had[nhad++], VES_STUDY_SETLEN, "%.191s", line);
+  }
+  if (f) fclose(f);
+  for (int i = 0; i < s->ncli; i++) snprintf(want[i], VES_STUDY_SETLEN, "%s", s->cli[i]);
+  qsort(had, (size_t)nhad, sizeof *had, cmp_text);
+  qsort(want, (size_t)s->ncli, sizeof *want, cmp_text);
+  same = nhad == s->ncli || (!recorded && !folder_has_cells(dir)); /* a fresh folder */
+  for (int i = 0; i < nhad && same && nhad == s->ncli; i++) same = !strcmp(had[i], want[i]);
+  ves_status st = VES_OK;
+  if (!same) {
+    char a[2048], b[2048];
+    sets_text(had, nhad, a, sizeof a);
+    sets_text(want, s->ncli, b, sizeof b);
+    ves_error_say(err, errlen,
+                  "%s: the study in this folder was made with %s%s; this call gives %s: one "
+                  "folder holds one study (the same --set continues it; another --out for "
+                  "another)",
+                  dir, a, recorded ? " (its study.set)" : " (the folder has no study.set)", b);
+    st = VES_ERR_CONFIG;
+  } else if (!recorded && write_record) {
+    char tmp[PATH_MAX + 48];
+    snprintf(tmp, sizeof tmp, "%s.%ld.tmp", path, (long)getpid());
+    f = fopen(tmp, "w");
+    if (f) {
+      fprintf(f, "# vesica study: the command line's --set of the study in this folder\n");
+      for (int i = 0; i < s->ncli; i++) fprintf(f, "%s\n", s->cli[i]);
+    }
+    if (!f || ferror(f) | (fclose(f) != 0) || rename(tmp, path) != 0) {
+      ves_error_say(err, errlen, "%s: cannot write: %s", path, strerror(errno));
+      remove(tmp);
+      st = VES_ERR_IO;
+    }
+  }
+  free(had);
+  return st;
+}
+
+/* ---- the setup's geometric checks ------------------------------------------ */
+
+/* The geometry of cfg that the checks below depend on, as text (cells with
+ * the same text pass or fail them together). */
+static void geometry_key(const ves_config *c, char *buf, size_t len) {
+  snprintf(buf, len, "%s|%s|%.17g|%.17g|%s|%d|%.17g|%.17g|%.17g|%.17g|%.17g|%.17g|%d",
+           c->shape_type, c->points, c->radius, c->reduced_volume, c->orientation, c->mode,
+           c->delta, c->epsilon, c->box_r, c->box_z, c->band, c->h_band, c->band_layers);
+}
+
+/* The checks of ves_setup_nodes (model/setup.c) that come before any node
+ * is made, with its messages: the shape with its band of (band + 1) eps in
+ * the box, and with band_layers the band's offset curves within the
+ * shape's radii of curvature. What vesica check refuses with exit 2 as
+ * "bad input" although every key is in range; milliseconds, not a setup. */
+static ves_status geometry_check(const ves_config *c, char *err, size_t errlen) {
+  ves_shape *shape = NULL;
+  ves_discret_params d;
+  char msg[1024] = "";
+  ves_status st = ves_problem_shape(c, &shape, msg, sizeof msg);
+  if (st == VES_OK) st = ves_problem_discret(c, &d, msg, sizeof msg);
+  if (st == VES_OK) {
+    double rmax, zmax;
+    const double margin = (d.band + 1) * d.eps;
+    ves_shape_extent(shape, &rmax, &zmax);
+    if (rmax + margin >= d.box_r || zmax + margin >= d.box_z) {
+      snprintf(msg, sizeof msg,
+               "[geometry] box_r = %g, box_z = %g: the shape (R up to %.3f, |Z| up to %.3f) with "
+               "its band of (band + 1) eps = %.3f does not fit",
+               d.box_r, d.box_z, rmax, zmax, margin);
+      st = VES_ERR_CONFIG;
+    }
+  }
+  if (st == VES_OK && d.band_layers) {
+    int n = 0, *flag = NULL;
+    double *x = NULL;
+    st = ves_shape_band_nodes(shape, d.h_band * d.eps, d.band * d.eps, &n, &x, &flag);
+    free(x), free(flag);
+    if (st == VES_ERR_GEOM) {
+      snprintf(msg, sizeof msg,
+               "band layers: %s: band*epsilon = %g exceeds a radius of curvature of the shape "
+               "(set a smaller [geometry] band, or band_layers = 0)",
+               ves_error_text(VES_ERR_CONFIG), d.band * d.eps); /* as setup.c words it */
+      st = VES_ERR_CONFIG;
+    } else
+      st = VES_OK; /* another failure is the run's to report */
+  }
+  ves_shape_destroy(&shape);
+  if (st == VES_ERR_CONFIG) {
+    ves_error_say(err, errlen, "%s", msg);
+    return st;
+  }
+  return VES_OK; /* a shape that fails otherwise is the run's to report */
+}
+
+ves_status ves_study_cell_check(const ves_study *s, long k, char *err, size_t errlen) {
+  char(*sets)[VES_STUDY_SETLEN] = malloc(VES_STUDY_CELL_SETS * sizeof *sets);
+  if (!sets) return VES_ERR_ALLOC;
+  const char *ptr[VES_STUDY_CELL_SETS];
+  int n = 0;
+  ves_config cfg;
+  ves_status st = ves_study_cell_sets(s, k, sets, &n, err, errlen);
+  for (int i = 0; i < n; i++) ptr[i] = sets[i];
+  if (st == VES_OK) st = ves_config_load(s->problem, n, ptr, &cfg, err, errlen);
+  free(sets);
+  if (st == VES_OK) st = geometry_check(&cfg, err, errlen);
+  return st;
+}
+
+/* Every cell through the geometric checks, each distinct geometry once:
+ * when every cell fails them, the study is refused (VES_ERR_CONFIG, the
+ * first cell's message); when some do, those cells are recorded as
+ * bad_input without running (ves_study_run). */
+static ves_status check_geometry(const ves_study *s, char *err, size_t errlen) {
+  enum { MEMO = 64 };
+  char(*key)[4 * VES_CONFIG_STR + 256] = malloc(MEMO * sizeof *key), cur[4 * VES_CONFIG_STR + 256],
+                                  msg[1024] = "", first[1024] = "";
+  int *ok = malloc(MEMO * sizeof *ok), nmemo = 0, geometric = 0;
+  if (!key || !ok) {
+    free(key), free(ok);
+    return VES_ERR_ALLOC;
+  }
+  for (int a = 0; a < s->naxes; a++) /* does any axis change what the checks read? */
+    geometric |= !strncmp(s->axis[a].key, "geometry.", 9) || !strncmp(s->axis[a].key, "shape.", 6);
+  long fails = 0, k;
+  for (k = 0; k < s->ncells && fails == k; k++) { /* until one cell passes */
+    char(*sets)[VES_STUDY_SETLEN] = malloc(VES_STUDY_CELL_SETS * sizeof *sets);
+    const char *ptr[VES_STUDY_CELL_SETS];
+    int n = 0, m, pass;
+    ves_config cfg;
+    if (!sets || ves_study_cell_sets(s, k, sets, &n, NULL, 0) != VES_OK) {
+      free(sets);
+      break;
+    }
+    for (int i = 0; i < n; i++) ptr[i] = sets[i];
+    ves_status st = ves_config_load(s->problem, n, ptr, &cfg, NULL, 0);
+    free(sets);
+    if (st != VES_OK) break;
+    geometry_key(&cfg, cur, sizeof cur);
+    for (m = 0; m < nmemo && strcmp(key[m], cur); m++) {
+    }
+    if (m < nmemo) {
+      pass = ok[m];
+    } else {
+      pass = geometry_check(&cfg, msg, sizeof msg) == VES_OK;
+      if (!first[0] && !pass) snprintf(first, sizeof first, "%s", msg);
+      if (nmemo < MEMO) snprintf(key[nmemo], sizeof key[nmemo], "%s", cur), ok[nmemo++] = pass;
+    }
+    fails += !pass;
+    if (!geometric) break; /* one geometry for every cell */
+  }
+  free(key), free(ok);
+  if (fails && (fails == s->ncells || !geometric)) {
+    char name[PATH_MAX / 2];
+    ves_study_cell_name(s, 0, name, sizeof name);
+    ves_error_say(err, errlen, "%s: %s: %s (vesica check refuses %s; no cell is run)", s->path,
+                  s->problem, first,
+                  geometric ? "every cell's problem" : "the problem with the study's overrides");
+    return VES_ERR_CONFIG;
+  }
+  return VES_OK;
+}
+
 /* ---- the study file ------------------------------------------------------ */
 
 static int cmp_names(const void *a, const void *b) {
@@ -303,11 +563,7 @@ static ves_status check_cells(const ves_study *s, char *err, size_t errlen) {
     qsort(names, (size_t)s->ncells, sizeof *names, cmp_names);
     for (long k = 1; k < s->ncells; k++)
       if (!strcmp(names[k - 1], names[k])) {
-        ves_error_say(
-            err, errlen,
-            "%s: [axes]: two cells are both named '%s' (values that differ only in characters "
-            "a file name cannot hold)",
-            s->path, names[k]);
+        ves_error_say(err, errlen, "%s: [axes]: two cells are both named '%s'", s->path, names[k]);
         st = VES_ERR_CONFIG;
         break;
       }
@@ -320,7 +576,8 @@ static ves_status check_cells(const ves_study *s, char *err, size_t errlen) {
 
 /* The keys of [study] and [slurm]. */
 static const char *const STUDY_KEYS[] = {"problem", "run", "steps", "time_limit"};
-static const char *const SLURM_KEYS[] = {"partition", "account", "mem", "cpus_per_task"};
+static const char *const SLURM_KEYS[] = {"partition",     "account",  "mem",
+                                         "cpus_per_task", "throttle", "setup"};
 
 static int in_list(const char *k, const char *const *list, int n) {
   for (int i = 0; i < n; i++)
@@ -387,14 +644,33 @@ static ves_status study_key_slurm(ves_study *s, const char *key, const char *val
                                   size_t errlen) {
   double num;
   ves_status st = VES_OK;
-  if (!in_list(key, SLURM_KEYS, 4)) {
+  if (!in_list(key, SLURM_KEYS, 6)) {
     ves_error_say(err, errlen,
-                  "%s: [slurm] %s: unknown key (partition, account, mem, cpus_per_task)", s->path,
-                  key);
+                  "%s: [slurm] %s: unknown key (partition, account, mem, cpus_per_task, throttle, "
+                  "setup)",
+                  s->path, key);
     st = VES_ERR_CONFIG;
   } else if (!strcasecmp(key, "cpus_per_task")) {
     if ((st = study_number(s, "slurm", key, val, 1, 1024, 1, &num, err, errlen)) == VES_OK)
       s->cpus_per_task = (int)num;
+  } else if (!strcasecmp(key, "throttle")) {
+    if ((st = study_number(s, "slurm", key, val, 1, 1e9, 1, &num, err, errlen)) == VES_OK)
+      s->throttle = (long)num;
+  } else if (!strcasecmp(key, "setup")) {
+    /* shell text run by the job: any printable text on one line; a control
+     * byte (a NUL, a newline or carriage return that would start another
+     * line of the script) is refused */
+    int bad = !*val || strlen(val) >= sizeof s->setup;
+    for (const unsigned char *c = (const unsigned char *)val; *c && !bad; c++)
+      bad = *c < 0x20 || *c == 0x7f;
+    if (bad) {
+      ves_error_say(err, errlen,
+                    "%s: [slurm] setup: empty, longer than %zu characters, or holding a control "
+                    "character (one line of shell commands, e.g. module load hdf5)",
+                    s->path, sizeof s->setup - 1);
+      st = VES_ERR_CONFIG;
+    } else
+      snprintf(s->setup, sizeof s->setup, "%s", val);
   } else {
     char *dst = !strcasecmp(key, "partition") ? s->partition
                 : !strcasecmp(key, "account") ? s->account
@@ -566,9 +842,55 @@ static ves_status check_axis_values(const ves_study *s, char *err, size_t errlen
   return st;
 }
 
+/* The command line's overrides into s->cli: "section.key=value" with a
+ * problem key that no axis sweeps (the values are checked with every
+ * cell's problem). */
+static ves_status study_cli_sets(ves_study *s, int nset, const char *const *set, char *err,
+                                 size_t errlen) {
+  if (nset > VES_STUDY_MAX_SET) {
+    ves_error_say(err, errlen, "--set: more than %d overrides", VES_STUDY_MAX_SET);
+    return VES_ERR_CONFIG;
+  }
+  for (int i = 0; i < nset; i++) {
+    const char *eq = strchr(set[i], '=');
+    char key[64], canon[64], val[VES_STUDY_SETLEN];
+    if (!eq || trim_copy(key, sizeof key, set[i], (size_t)(eq - set[i])) ||
+        trim_copy(val, sizeof val, eq + 1, strlen(eq + 1)) || !*val) {
+      ves_error_say(err, errlen, "--set %s: expected section.key=value", set[i]);
+      return VES_ERR_CONFIG;
+    }
+    if (canonical_key(key, canon, sizeof canon)) {
+      ves_error_say(err, errlen, "--set: %s: unknown key (see vesica keys)", key);
+      return VES_ERR_CONFIG;
+    }
+    for (int a = 0; a < s->naxes; a++)
+      if (!strcmp(s->axis[a].key, canon)) {
+        ves_error_say(err, errlen, "--set %s: %s is an axis of %s (its values are the cells')",
+                      set[i], canon, s->path);
+        return VES_ERR_CONFIG;
+      }
+    for (int j = 0; j < s->ncli; j++)
+      if (!strncmp(s->cli[j], canon, strlen(canon)) && s->cli[j][strlen(canon)] == '=') {
+        ves_error_say(err, errlen, "--set %s: %s given twice", set[i], canon);
+        return VES_ERR_CONFIG;
+      }
+    if (strlen(val) > 127) {
+      ves_error_say(err, errlen, "--set %s: a value longer than 127 characters", set[i]);
+      return VES_ERR_CONFIG;
+    }
+    snprintf(s->cli[s->ncli++], VES_STUDY_SETLEN, "%.63s=%.127s", canon, val);
+  }
+  return VES_OK;
+}
+
 ves_status ves_study_load(const char *path, long max_cells, ves_study **out, char *err,
                           size_t errlen) {
-  VES_CHECK(path && out, VES_ERR_ARG);
+  return ves_study_load_set(path, max_cells, 0, NULL, out, err, errlen);
+}
+
+ves_status ves_study_load_set(const char *path, long max_cells, int nset, const char *const *set,
+                              ves_study **out, char *err, size_t errlen) {
+  VES_CHECK(path && out && (nset == 0 || set), VES_ERR_ARG);
   *out = NULL;
   ves_study *s = calloc(1, sizeof *s);
   if (!s) return VES_ERR_ALLOC;
@@ -579,6 +901,7 @@ ves_status ves_study_load(const char *path, long max_cells, ves_study **out, cha
   study_reader r = {.s = s, .problem = ""};
   ves_status st = ves_ini_load(path, path, "study file", study_item, &r, err, errlen);
   if (st == VES_OK) st = study_check(s, r.problem, err, errlen);
+  if (st == VES_OK) st = study_cli_sets(s, nset, set, err, errlen);
   if (st == VES_OK) { /* the grid's size, without overflow */
     s->ncells = 1;
     for (int a = 0; a < s->naxes; a++) {
@@ -599,6 +922,7 @@ ves_status ves_study_load(const char *path, long max_cells, ves_study **out, cha
   }
   if (st == VES_OK) st = check_cells(s, err, errlen);
   if (st == VES_OK) st = check_axis_values(s, err, errlen);
+  if (st == VES_OK) st = check_geometry(s, err, errlen);
   if (st != VES_OK) {
     free(s);
     return st;
@@ -632,6 +956,12 @@ void ves_study_print_keys(FILE *f) {
        "--emit slurm: #SBATCH --mem"},
       {"slurm", "cpus_per_task", "integer", "1", "1 to 1024",
        "--emit slurm: #SBATCH --cpus-per-task, the cell's OMP_NUM_THREADS"},
+      {"slurm", "throttle", "integer", "(none)", "1 to 1e9",
+       "--emit slurm: at most N array tasks at a time, #SBATCH --array=...%N (--throttle N "
+       "overrides it)"},
+      {"slurm", "setup", "text", "(none)", "one line, no control characters",
+       "--emit slurm: shell commands each task runs before its cell, placed verbatim in the "
+       "script (e.g. `module load hdf5`)"},
   };
   fprintf(f, "| section | key | type | default | allowed | meaning |\n|---|---|---|---|---|---|\n");
   for (size_t i = 0; i < sizeof rows / sizeof rows[0]; i++)

@@ -5,7 +5,8 @@
  * DIR/cells/NAME.h5 and, once it has ended, DIR/cells/NAME.result (how it
  * ended: outcome, reason, wall and CPU seconds, peak memory). A cell with a
  * .result file is done: a rerun skips it (failed ones too, unless asked to
- * retry them). The table DIR/study.csv is collected from the .result and .h5
+ * retry them); one interrupted (an .h5, no .result) continues from its last
+ * snapshot (vesica run --restart). The table DIR/study.csv is collected from the .result and .h5
  * files of whatever cells are done, so a local run, a Slurm job array
  * (ves_study_write_sbatch) and a partial study give the same table.
  *
@@ -55,6 +56,8 @@ typedef struct {
   double time_limit;      /* [study] time_limit: wall seconds per cell, 0 none */
   int nset;               /* fixed overrides, applied to every cell */
   char set[VES_STUDY_MAX_SET][VES_STUDY_SETLEN]; /* "section.key=value" */
+  int ncli; /* the command line's --set overrides, applied to every cell after [set] */
+  char cli[VES_STUDY_MAX_SET][VES_STUDY_SETLEN]; /* "section.key=value", key canonical */
   int naxes;                                     /* >= 1 */
   ves_study_axis axis[VES_STUDY_MAX_AXES];       /* the first axis varies slowest */
   long ncells;                                   /* product of the axes' sizes */
@@ -63,6 +66,8 @@ typedef struct {
   char account[64];   /* "" for none */
   char mem[32];       /* e.g. "4G" */
   int cpus_per_task;  /* threads of one cell */
+  long throttle;      /* array tasks at a time (--array=...%N), 0 none */
+  char setup[1024];   /* shell lines run by each task before the cell ("" none) */
 } ves_study;
 
 /* Read and validate the study file `path`: unknown sections or keys, an
@@ -73,6 +78,24 @@ typedef struct {
  * (ves_config_load), nothing is run or written. *out is taken by the caller. */
 ves_status ves_study_load(const char *path, long max_cells, ves_study **out, char *err,
                           size_t errlen);
+
+/* ves_study_load with the command line's overrides set[nset]
+ * ("section.key=value", as vesica run --set): a problem key (its value
+ * checked in every cell's problem), not an axis; one that [set] fixes
+ * replaces it. They are part of the cells' commands and signatures. */
+ves_status ves_study_load_set(const char *path, long max_cells, int nset, const char *const *set,
+                              ves_study **out, char *err, size_t errlen);
+
+/* The study folder dir against this study, before anything in it is run,
+ * written or read: its cells must not be named in the "key-value_key-value"
+ * scheme (not parsed back: refused, renaming them is the user's choice), and
+ * its record of the command line's --set (DIR/study.set, one override a
+ * line) must be this study's. A folder without the record is taken as made
+ * without --set; with write_record the record is written when missing.
+ * VES_ERR_CONFIG with what differs in err; VES_ERR_IO when the record
+ * cannot be written. */
+ves_status ves_study_check_folder(const ves_study *s, const char *dir, int write_record, char *err,
+                                  size_t errlen);
 
 /* Print the study file's sections and keys as a Markdown table (section,
  * key, type, default, allowed, meaning), as problems/README.md has it. */
@@ -90,21 +113,30 @@ ves_status ves_study_parse_axis(const char *text, ves_study_axis *ax, char *err,
  * varies slowest). */
 void ves_study_cell_index(const ves_study *s, long k, int idx[VES_STUDY_MAX_AXES]);
 
-/* The cell's name: its axis values, "key-value" joined by "_" (key without
- * its section unless two axes share it; characters other than letters,
- * digits, '.', '+' and '-' become '_'), e.g. "backend-newton_dt_initial-0.001".
- * Independent of the axes' order of values, so a grown grid keeps the names
- * of its old cells. */
+/* The cell's name: its axis values, "key=value" joined by "," (key without
+ * its section unless two axes share it; bytes other than letters, digits,
+ * '.', '_', '+' and '-' as %XX, so the name parses back to its keys and
+ * values), e.g. "backend=newton,dt_initial=0.001". Independent of the axes' order of values, so a
+ * grown grid keeps the names of its old cells. */
 void ves_study_cell_name(const ves_study *s, long k, char *buf, size_t len);
 
-/* The overrides of cell k: the fixed ones, the axis values, then for
+/* The overrides of cell k: the fixed ones ([set], then the command line's),
+ * the axis values, then for
  * VES_STUDY_STEP time.adaptive=0 and dt_min = dt_max = t_end = dt_initial.
- * set[*nset] point into buf (size VES_STUDY_MAX_SET + VES_STUDY_MAX_AXES + 4
- * entries of VES_STUDY_SETLEN). VES_ERR_CONFIG when the cell's problem does
+ * set[*nset] point into buf (VES_STUDY_CELL_SETS entries of
+ * VES_STUDY_SETLEN). VES_ERR_CONFIG when the cell's problem does
  * not load (message in err). */
-#define VES_STUDY_CELL_SETS (VES_STUDY_MAX_SET + VES_STUDY_MAX_AXES + 4)
+#define VES_STUDY_CELL_SETS (2 * VES_STUDY_MAX_SET + VES_STUDY_MAX_AXES + 4)
 ves_status ves_study_cell_sets(const ves_study *s, long k, char buf[][VES_STUDY_SETLEN], int *nset,
                                char *err, size_t errlen);
+
+/* Whether cell k's problem passes the setup's geometric checks that come
+ * before any node is made (its shape with the band of (band + 1) eps inside
+ * the box; with band_layers, band*eps within the shape's radii of
+ * curvature), as vesica check applies them: VES_ERR_CONFIG with check's
+ * message in err when not. ves_study_load refuses a study whose every cell
+ * fails them; ves_study_run records the others as bad_input unrun. */
+ves_status ves_study_cell_check(const ves_study *s, long k, char *err, size_t errlen);
 
 /* The command of cell k: program run PROBLEM --out DIR/cells/NAME.h5 --quiet
  * [--max-steps N] --set ... ; argv (NULL-terminated, *argc entries) and its
@@ -162,20 +194,26 @@ typedef struct {
 ves_status ves_study_collect(const ves_study *s, const char *dir, ves_study_table *t, char *err,
                              size_t errlen);
 
-/* Figures of DIR/study.csv through gnuplot (pngcairo), when the grid has a
- * time.dt_initial axis: DIR/study_frontier.png (per group of the other axes'
- * values: the largest converged dt and the status of every dt) and
- * DIR/study_cost.png (seconds per step against dt, log axes). VES_STEP_REJECTED
- * (nothing written) without a dt axis; VES_ERR_IO with gnuplot's message. */
+/* Figures of the done cells through gnuplot (pngcairo): DIR/study_sweep.png
+ * for any grid (E*_final, accepted steps and wall seconds against the
+ * first numeric axis, or the first axis as named categories; one curve per
+ * value of the other axes; log x when the values span more than a decade;
+ * cells that did not converge crossed in red), and with a time.dt_initial
+ * axis DIR/study_frontier.png (per group of the other axes' values: the
+ * largest converged dt and the status of every dt) and DIR/study_cost.png
+ * (seconds per step against dt, log axes). VES_ERR_IO with gnuplot's
+ * message. */
 ves_status ves_study_plot(const ves_study *s, const char *dir, char *err, size_t errlen);
 
 /* DIR/study.sbatch: a Slurm job array of the cells not done
  * (ves_study_cell_done with retry_failed), one task per cell (--array=
- * their indices as ranges, e.g. 0-3,7), each running `program study STUDY
- * --out DIR [--retry-failed] --cell $SLURM_ARRAY_TASK_ID`; --time from the
- * cell limit (+ 5 minutes), resources from [slurm]; task logs in
+ * their indices as ranges, e.g. 0-3,7, with %N for s->throttle), each
+ * running [slurm] setup verbatim, then `program study STUDY --out DIR
+ * [--set ...] [--retry-failed] --cell $SLURM_ARRAY_TASK_ID`; --time from
+ * the cell limit (+ 5 minutes), resources from [slurm]; task logs in
  * DIR/slurm/. *ntasks gets the number of tasks; with none, nothing is
- * written (DIR not created either) and VES_OK. DIR is created when missing
+ * written (DIR not created either; a DIR/study.sbatch of an earlier call
+ * removed) and VES_OK. DIR is created when missing
  * (its parent must exist). Every name goes into the script as one bash
  * word on one line ('...', or $'...' with \xHH escapes for control bytes
  * and bytes that are not UTF-8); the values of the #SBATCH lines, which
@@ -196,6 +234,8 @@ typedef struct {
   double eta;   /* seconds to the end (mean cell time x cells left / jobs), -1 unknown */
   long cell;    /* the cell that just ended, or -1 */
   const ves_study_result *result; /* its result, or NULL */
+  const char *note; /* about cell: it continues from its snapshot, or its file was moved
+                       aside (result NULL); NULL otherwise */
 } ves_study_progress;
 
 typedef void (*ves_study_progress_fn)(void *ctx, const ves_study_progress *p);
@@ -218,7 +258,11 @@ typedef struct {
  * stdout and stderr to DIR/cells/NAME.log, OMP_NUM_THREADS (unless set) from
  * the cores and jobs, OPENBLAS_NUM_THREADS=1 (unless set); a cell past
  * time_limit gets SIGTERM, then SIGKILL after opts->grace. Writes each
- * ended cell's .result. VES_ERR_IO when the folder cannot be made (err);
+ * ended cell's .result. A cell interrupted before (its .h5 and .cmd, no
+ * .result) continues from its last intact snapshot with `program run
+ * --restart`; a file that cannot be continued is moved to NAME.h5.unusable
+ * and the cell starts over. A cell failing ves_study_cell_check gets a
+ * bad_input .result without a process. VES_ERR_IO when the folder cannot be made (err);
  * VES_STEP_REJECTED when stopped through opts->stop. */
 ves_status ves_study_run(const ves_study *s, const ves_study_run_opts *opts, char *err,
                          size_t errlen);

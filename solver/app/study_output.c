@@ -335,16 +335,184 @@ static void frontier_data(FILE *f, const ves_study *s, const char *dir, int ad, 
   }
 }
 
+/* The label of axis key on a figure: the key with its unit (lengths in R0,
+ * times in t*, widths in eps, C0 in 1/R0), as the key table gives them. */
+static void axis_label(const char *key, char *buf, size_t len) {
+  static const char *const unit[][2] = {
+      {"time.t_end", "t*"},          {"time.dt_initial", "t*"},
+      {"time.dt_max", "t*"},         {"time.dt_min", "t*"},
+      {"geometry.epsilon", "R0"},    {"geometry.box_r", "R0"},
+      {"geometry.box_z", "R0"},      {"geometry.h_far", "R0"},
+      {"geometry.band", "eps"},      {"geometry.h_band", "eps"},
+      {"shape.radius", "R0"},        {"material.c0", "1/R0"},
+      {"material.k", "energy unit"}, {"shape.reduced_volume", "dimensionless"}};
+  char e[128];
+  ves_plot_gp_escape(e, sizeof e, key);
+  for (size_t i = 0; i < sizeof unit / sizeof unit[0]; i++)
+    if (!strcmp(key, unit[i][0])) {
+      snprintf(buf, len, "%s (%s)", e, unit[i][1]);
+      return;
+    }
+  snprintf(buf, len, "%s", e);
+}
+
+/* Whether every value of axis a reads as a finite number (*lo, *hi: the
+ * smallest and largest). */
+static int axis_numeric(const ves_study_axis *ax, double *lo, double *hi) {
+  *lo = INFINITY, *hi = -INFINITY;
+  for (int i = 0; i < ax->nvalues; i++) {
+    char *end;
+    const double v = strtod(ax->values[i], &end);
+    if (end == ax->values[i] || *end || !isfinite(v)) return 0;
+    *lo = fmin(*lo, v), *hi = fmax(*hi, v);
+  }
+  return 1;
+}
+
+/* The figure of any sweep, DIR/study_sweep.png: E*_final, accepted steps
+ * and wall seconds of every done cell against the first numeric axis (or
+ * the first axis, as categories named on the x axis), one curve per value
+ * of the other axes; log x when the values span more than a decade; the
+ * cells that did not converge crossed in red (at the bottom of a panel when
+ * the value is unknown). Its gnuplot script into f. */
+static void sweep_script(FILE *f, const ves_study *s, const char *dir, const char *title) {
+  int xa = -1;
+  double lo = 0, hi = 0;
+  for (int a = 0; a < s->naxes && xa < 0; a++)
+    if (axis_numeric(&s->axis[a], &lo, &hi)) xa = a;
+  const int numeric = xa >= 0;
+  if (!numeric) xa = 0;
+  const ves_study_axis *ax = &s->axis[xa];
+  const long G = s->ncells / ax->nvalues; /* curves: the other axes' values */
+  int order[VES_STUDY_MAX_VALUES];        /* the axis's values in increasing order */
+  for (int i = 0; i < ax->nvalues; i++) order[i] = i;
+  for (int i = 1; i < ax->nvalues && numeric; i++)
+    for (int j = i;
+         j > 0 && strtod(ax->values[order[j]], NULL) < strtod(ax->values[order[j - 1]], NULL);
+         j--) {
+      const int t = order[j];
+      order[j] = order[j - 1], order[j - 1] = t;
+    }
+  long stride = 1; /* cell k of group g and value i: mixed radix, xa's digit */
+  for (int a = s->naxes - 1; a > xa; a--) stride *= s->axis[a].nvalues;
+  typedef struct {
+    long g;
+    double x, v[3];
+    int conv;
+  } point;
+  point *pt = malloc((size_t)s->ncells * sizeof *pt);
+  long np = 0;
+  double ymin[3] = {INFINITY, INFINITY, INFINITY}, ymax[3] = {-INFINITY, -INFINITY, -INFINITY};
+  for (long g = 0; g < G && pt; g++) {
+    const long hi_part = g / stride, lo_part = g % stride;
+    for (int i = 0; i < ax->nvalues; i++) {
+      const long k = (hi_part * ax->nvalues + order[i]) * stride + lo_part;
+      cell_row r;
+      if (!read_row(s, k, dir, &r)) continue;
+      point *q = &pt[np++];
+      q->g = g, q->conv = !strcmp(r.status, "converged");
+      /* categories: the groups' points side by side around their category */
+      q->x = numeric ? strtod(ax->values[order[i]], NULL)
+                     : order[i] + (G > 1 ? 0.3 * ((double)g / (double)(G - 1) - 0.5) : 0.0);
+      q->v[0] = r.have && r.steps ? r.E1 : NAN, q->v[1] = r.have ? (double)r.steps : NAN;
+      q->v[2] = r.res.wall_seconds;
+      for (int m = 0; m < 3; m++)
+        if (isfinite(q->v[m])) ymin[m] = fmin(ymin[m], q->v[m]), ymax[m] = fmax(ymax[m], q->v[m]);
+    }
+  }
+  /* $s: group, x, E*, steps, wall (a blank line between groups); $x: the
+   * cells that did not converge, an unknown value below the panel's known
+   * ones (by a tenth of their range) */
+  fprintf(f, "$s << EOD\n");
+  for (long i = 0; i < np; i++) {
+    if (i && pt[i].g != pt[i - 1].g) fputc('\n', f);
+    fprintf(f, "%ld %.12g", pt[i].g, pt[i].x);
+    for (int m = 0; m < 3; m++)
+      isfinite(pt[i].v[m]) ? fprintf(f, " %.12g", pt[i].v[m]) : fprintf(f, " NaN");
+    fputc('\n', f);
+  }
+  fprintf(f, "NaN NaN NaN NaN NaN\nEOD\n$x << EOD\n");
+  long nfailed = 0;
+  for (long i = 0; i < np; i++) {
+    if (pt[i].conv) continue;
+    nfailed++;
+    fprintf(f, "%ld %.12g", pt[i].g, pt[i].x);
+    for (int m = 0; m < 3; m++) {
+      const double span = isfinite(ymin[m]) && ymax[m] > ymin[m] ? ymax[m] - ymin[m] : 1.0;
+      fprintf(f, " %.12g",
+              isfinite(pt[i].v[m]) ? pt[i].v[m]
+              : isfinite(ymin[m])  ? ymin[m] - 0.1 * span
+                                   : 0.0);
+    }
+    fputc('\n', f);
+  }
+  fprintf(f, "NaN NaN NaN NaN NaN\nEOD\n");
+  free(pt);
+  char path[PATH_MAX + 32], xl[256];
+  snprintf(path, sizeof path, "%s/study_sweep.png", dir);
+  axis_label(ax->key, xl, sizeof xl);
+  fprintf(f, "set terminal pngcairo size 1000,1100 font ',10'\nset output ");
+  ves_plot_gp_quote(f, path);
+  fprintf(f, "\nset grid\nset key outside right top\nset offsets graph 0.04, graph 0.04, "
+             "graph 0.08, graph 0.08\n");
+  if (numeric && lo > 0 && hi / lo > 10) fprintf(f, "set logscale x\nset format x '10^{%%L}'\n");
+  if (!numeric) {
+    fprintf(f, "set xrange [-0.5:%d.5]\nset xtics (", ax->nvalues - 1);
+    for (int i = 0; i < ax->nvalues; i++) {
+      char e[128];
+      ves_plot_gp_escape(e, sizeof e, ax->values[i]);
+      fprintf(f, "%s", i ? ", " : "");
+      ves_plot_gp_quote(f, e);
+      fprintf(f, " %d", i);
+    }
+    fprintf(f, ")\n");
+  }
+  fprintf(f, "set multiplot layout 3,1 title ");
+  char t[PATH_MAX + 512];
+  snprintf(t, sizeof t,
+           "%.2000s: every done cell against %s (red x: not converged; below the others "
+           "when it has no value)",
+           title, xl);
+  ves_plot_gp_quote(f, t);
+  fprintf(f, "\n");
+  static const char *const ylab[3] = {"E*_{final} (units of k)", "accepted steps",
+                                      "wall time of the cell (s)"};
+  for (int m = 0; m < 3; m++) {
+    fprintf(f, "set ylabel '%s'\nset xlabel ", ylab[m]);
+    ves_plot_gp_quote(f, m == 2 ? xl : "");
+    fprintf(f, "\nplot ");
+    for (long g = 0; g < G; g++) {
+      char label[256] = "";
+      size_t at = 0;
+      int idx[VES_STUDY_MAX_AXES];
+      ves_study_cell_index(s, (g / stride) * ax->nvalues * stride + g % stride, idx);
+      for (int a = 0; a < s->naxes; a++) {
+        if (a == xa) continue;
+        char e[128];
+        ves_plot_gp_escape(e, sizeof e, s->axis[a].values[idx[a]]);
+        const char *dot = strchr(s->axis[a].key, '.');
+        at += (size_t)snprintf(label + at, sizeof label - at, "%s%s=%s", at ? ", " : "",
+                               dot ? dot + 1 : s->axis[a].key, e);
+        if (at >= sizeof label) at = sizeof label - 1;
+      }
+      if (!label[0]) snprintf(label, sizeof label, "cells");
+      fprintf(f, "%s$s u ($1 == %ld ? $2 : NaN):%d w %s pt 7 ps 1.2 t ", g ? ", \\\n  " : "", g,
+              3 + m, numeric ? "lp" : "p");
+      ves_plot_gp_quote(f, label);
+    }
+    if (nfailed)
+      fprintf(f, ", \\\n  $x u 2:%d w p pt 2 ps 2.5 lw 2 lc rgb '#d73027' t 'not converged'",
+              3 + m);
+    fputc('\n', f);
+  }
+  fprintf(f, "unset multiplot\n");
+}
+
 ves_status ves_study_plot(const ves_study *s, const char *dir, char *err, size_t errlen) {
   VES_CHECK(s && dir, VES_ERR_ARG);
   int ad = -1;
   for (int a = 0; a < s->naxes; a++)
     if (!strcmp(s->axis[a].key, "time.dt_initial")) ad = a;
-  if (ad < 0) {
-    ves_error_say(err, errlen, "no time.dt_initial axis: no figures");
-    return VES_STEP_REJECTED;
-  }
-  const long G = s->ncells / s->axis[ad].nvalues; /* groups: the other axes' values */
   char script[PATH_MAX];
   const char *tdir = getenv("TMPDIR");
   snprintf(script, sizeof script, "%s/vesica_study_XXXXXX", tdir && *tdir ? tdir : "/tmp");
@@ -355,47 +523,53 @@ ves_status ves_study_plot(const ves_study *s, const char *dir, char *err, size_t
     ves_error_say(err, errlen, "cannot create a temporary file %s: %s", script, strerror(errno));
     return VES_ERR_IO;
   }
-  double *front = malloc((size_t)G * sizeof *front);
-  char(*label)[256] = malloc((size_t)G * sizeof *label);
-  if (!front || !label) {
-    fclose(f), unlink(script), free(front), free(label);
-    return VES_ERR_ALLOC;
-  }
-  frontier_data(f, s, dir, ad, G, front, label);
-  fprintf(f, "NaN NaN NaN NaN\nEOD\n$front << EOD\n");
-  for (long g = 0; g < G; g++) fprintf(f, "%ld %.9g\n", g, front[g]);
-  fprintf(f, "EOD\n");
   char title[PATH_MAX + 64], path[PATH_MAX];
   const char *base = strrchr(s->path, '/') ? strrchr(s->path, '/') + 1 : s->path;
   ves_plot_gp_escape(title, sizeof title, base);
-  fprintf(
-      f, "set terminal pngcairo size 900,%ld font ',10'\nset logscale x\nset format x '10^{%%L}'\n",
-      480 + 24 * (G > 8 ? G - 8 : 0));
-  fprintf(f, "set grid\nset key outside right top\nset offsets graph 0.04, graph 0.04\n");
-  snprintf(path, sizeof path, "%s/study_frontier.png", dir);
-  fputs("set output ", f), ves_plot_gp_quote(f, path), fputc('\n', f);
-  fprintf(f, "set title 'robustness frontier: %s (circled: the largest converged dt*)'\n", title);
-  fprintf(f, "set xlabel 'dt*'\nset ylabel ''\nset yrange [-0.5:%ld.5]\nset ytics (", G - 1);
-  for (long g = 0; g < G; g++) {
-    fprintf(f, "%s", g ? ", " : "");
-    ves_plot_gp_quote(f, label[g]);
-    fprintf(f, " %ld", g);
+  sweep_script(f, s, dir, title);
+  if (ad >= 0) { /* the robustness frontier and the cost against dt */
+    const long G = s->ncells / s->axis[ad].nvalues; /* groups: the other axes' values */
+    double *front = malloc((size_t)G * sizeof *front);
+    char(*label)[256] = malloc((size_t)G * sizeof *label);
+    if (!front || !label) {
+      fclose(f), unlink(script), free(front), free(label);
+      return VES_ERR_ALLOC;
+    }
+    frontier_data(f, s, dir, ad, G, front, label);
+    fprintf(f, "NaN NaN NaN NaN\nEOD\n$front << EOD\n");
+    for (long g = 0; g < G; g++) fprintf(f, "%ld %.9g\n", g, front[g]);
+    fprintf(f, "EOD\nreset\n");
+    fprintf(f,
+            "set terminal pngcairo size 900,%ld font ',10'\nset logscale x\nset format x "
+            "'10^{%%L}'\n",
+            480 + 24 * (G > 8 ? G - 8 : 0));
+    fprintf(f, "set grid\nset key outside right top\nset offsets graph 0.04, graph 0.04\n");
+    snprintf(path, sizeof path, "%s/study_frontier.png", dir);
+    fputs("set output ", f), ves_plot_gp_quote(f, path), fputc('\n', f);
+    fprintf(f, "set title 'robustness frontier: %s (circled: the largest converged dt*)'\n", title);
+    fprintf(f, "set xlabel 'dt* (t*)'\nset ylabel ''\nset yrange [-0.5:%ld.5]\nset ytics (", G - 1);
+    for (long g = 0; g < G; g++) {
+      fprintf(f, "%s", g ? ", " : "");
+      ves_plot_gp_quote(f, label[g]);
+      fprintf(f, " %ld", g);
+    }
+    fprintf(f, ")\nplot $d u 2:($3 == 1 ? $1 : NaN) w p pt 7 ps 1.5 lc rgb '#1a9850' "
+               "t 'converged', \\\n  $d u 2:($3 == 0 ? $1 : NaN) w p pt 2 ps 1.5 lc rgb "
+               "'#d73027' t 'not converged', \\\n  $front u 2:1 w p pt 6 ps 3 lc rgb 'black' "
+               "t 'largest'\n");
+    snprintf(path, sizeof path, "%s/study_cost.png", dir);
+    fputs("set output ", f), ves_plot_gp_quote(f, path), fputc('\n', f);
+    fprintf(f,
+            "set title 'cost: %s (converged cells)'\nset ytics auto\nset autoscale y\n"
+            "set logscale y\nset ylabel 'seconds per step (s)'\nplot ",
+            title);
+    for (long g = 0; g < G; g++) {
+      fprintf(f, "%s$d u ($1 == %ld ? $2 : NaN):4 w lp pt 7 t ", g ? ", \\\n  " : "", g);
+      ves_plot_gp_quote(f, label[g]);
+    }
+    fputc('\n', f);
+    free(front), free(label);
   }
-  fprintf(f, ")\nplot $d u 2:($3 == 1 ? $1 : NaN) w p pt 7 ps 1.5 lc rgb '#1a9850' "
-             "t 'converged', \\\n  $d u 2:($3 == 0 ? $1 : NaN) w p pt 2 ps 1.5 lc rgb '#d73027' "
-             "t 'not converged', \\\n  $front u 2:1 w p pt 6 ps 3 lc rgb 'black' t 'largest'\n");
-  snprintf(path, sizeof path, "%s/study_cost.png", dir);
-  fputs("set output ", f), ves_plot_gp_quote(f, path), fputc('\n', f);
-  fprintf(f,
-          "set title 'cost: %s (converged cells)'\nset ytics auto\nset autoscale y\n"
-          "set logscale y\nset ylabel 'seconds per step'\nplot ",
-          title);
-  for (long g = 0; g < G; g++) {
-    fprintf(f, "%s$d u ($1 == %ld ? $2 : NaN):4 w lp pt 7 t ", g ? ", \\\n  " : "", g);
-    ves_plot_gp_quote(f, label[g]);
-  }
-  fputc('\n', f);
-  free(front), free(label);
   int bad = ferror(f);
   bad |= fclose(f) != 0;
   if (bad) {
@@ -588,9 +762,14 @@ ves_status ves_study_write_sbatch(const ves_study *s, const char *program, const
   char *array = malloc(16 * (size_t)s->ncells + 16);
   if (!array) return VES_ERR_ALLOC;
   *ntasks = pending_array(s, adir, exists, retry_failed, array, 16 * (size_t)s->ncells + 16);
-  if (*ntasks <= 0) { /* every cell has its result: nothing to submit */
+  if (*ntasks <= 0) { /* every cell has its result: nothing to submit, and a script of an
+                         earlier emit is removed so that it is not submitted by mistake */
     free(array);
     *ntasks = 0;
+    if (exists && remove(path) != 0 && errno != ENOENT) {
+      ves_error_say(err, errlen, "%s: cannot remove: %s", path, strerror(errno));
+      return VES_ERR_IO;
+    }
     return VES_OK;
   }
   if ((!exists && mkdir(adir, 0777) != 0) || (mkdir(logs, 0777) != 0 && errno != EEXIST)) {
@@ -613,10 +792,16 @@ ves_status ves_study_write_sbatch(const ves_study *s, const char *program, const
   sh_word(f, path);
   fputs("\n# Then: vesica study ", f);
   sh_word(f, study);
+  for (int i = 0; i < s->ncli; i++) { /* a --collect must give the study's --set too */
+    fputs(" --set ", f);
+    sh_word(f, s->cli[i]);
+  }
   fputs(" --out ", f);
   sh_word(f, adir);
   fputs(" --collect\n", f);
-  fprintf(f, "#SBATCH --job-name=%s\n#SBATCH --array=%s\n#SBATCH --ntasks=1\n", job, array);
+  fprintf(f, "#SBATCH --job-name=%s\n#SBATCH --array=%s", job, array);
+  if (s->throttle > 0) fprintf(f, "%%%ld", s->throttle); /* at most N tasks at a time */
+  fprintf(f, "\n#SBATCH --ntasks=1\n");
   fprintf(f, "#SBATCH --cpus-per-task=%d\n#SBATCH --mem=%s\n", s->cpus_per_task, s->mem);
   if (s->time_limit > 0) /* the cell's own limit stops it first */
     fprintf(f, "#SBATCH --time=%ld\n", (long)ceil(s->time_limit / 60) + 5);
@@ -624,12 +809,19 @@ ves_status ves_study_write_sbatch(const ves_study *s, const char *program, const
   if (s->partition[0]) fprintf(f, "#SBATCH --partition=%s\n", s->partition);
   if (s->account[0]) fprintf(f, "#SBATCH --account=%s\n", s->account);
   fprintf(f, "export OMP_NUM_THREADS=\"${SLURM_CPUS_PER_TASK:-%d}\"\n", s->cpus_per_task);
-  fprintf(f, "export OPENBLAS_NUM_THREADS=1\nexec ");
+  fprintf(f, "export OPENBLAS_NUM_THREADS=1\n");
+  if (s->setup[0]) /* the site's set-up, verbatim: shell run by the job ([slurm] setup) */
+    fprintf(f, "# [slurm] setup\n%s\n", s->setup);
+  fputs("exec ", f);
   sh_word(f, program);
   fputs(" study ", f);
   sh_word(f, study);
   fputs(" --out ", f);
   sh_word(f, adir);
+  for (int i = 0; i < s->ncli; i++) { /* the command line's overrides: part of the study */
+    fputs(" --set ", f);
+    sh_word(f, s->cli[i]);
+  }
   fprintf(f, " --max-cells %ld%s --cell \"${SLURM_ARRAY_TASK_ID:?not a Slurm array task}\"\n",
           s->ncells > VES_STUDY_MAX_CELLS ? s->ncells : (long)VES_STUDY_MAX_CELLS,
           retry_failed ? " --retry-failed" : "");
