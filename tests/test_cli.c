@@ -474,11 +474,13 @@ static void test_progress_eta(void **state) {
   unlink(ini), rm_run(out);
 }
 
-/* --series: a header naming every column of the rows (it named 15 of
- * the 17 once), one row per accepted step whose step, t and E are the
- * file's series (to the 9-12 printed digits: 1e-8 relative), and on a
- * step with retries the rejected attempts' iterations (adaptive Euler
- * grows dt until a step raises E, as in test_progress_eta).
+/* --series: one header line naming the columns of vesica info --series
+ * (no comment mark), the row of the initial state (step 0, t = 0), then one
+ * row per accepted step whose step, t and E are the file's series (to the
+ * 12 printed digits: 1e-11 relative covers the rounding), its retries and
+ * factorizations the file's too (adaptive Euler grows dt until a step
+ * raises E and is retried, as in test_progress_eta). The whole text against
+ * info's: tests/test_series_tsv.py.
  * Kept whole (84 lines): one scenario whose checks build on each other. */
 static void test_series(void **state) {
   (void)state;
@@ -496,44 +498,46 @@ static void test_series(void **state) {
   assert_int_equal(ves_io_open(out, 0, &io, err, sizeof err), VES_OK);
   const long R = ves_io_rows(io);
   double *t = series(io, "t"), *E = series(io, "E"), *fac = series(io, "factorizations");
+  double *ret = series(io, "retries");
   FILE *f = fopen(tsv, "r");
   assert_non_null(f);
-  char line[1024], head[1024] = "";
+  char line[2048], head[2048] = "";
   int nhead = 0, rows = 0, retried = 0;
+  assert_non_null(fgets(head, sizeof head, f));
+  nhead = tsv_fields(head);
   while (fgets(line, sizeof line, f)) {
-    if (!strncmp(line, "# step", 6)) {
-      snprintf(head, sizeof head, "%s", line);
-      nhead = tsv_fields(line);
-      continue;
-    }
-    if (line[0] == '#') continue;
     assert_int_equal(tsv_fields(line), nhead);
     long step;
     double tt, dt, e;
     assert_int_equal(sscanf(line, "%ld\t%lf\t%lf\t%lf", &step, &tt, &dt, &e), 4);
-    assert_true(step == rows + 1 && rows < R);
-    assert_true(fabs(tt / t[rows] - 1) <= 1e-8 && fabs(e / E[rows] - 1) <= 1e-8);
-    /* rejected_iterations > 0 exactly when retries > 0; the factorizations
-     * (the last column) as in the file, and euler's one a solve at least */
+    assert_true(step == rows && rows <= R);
+    if (rows == 0) { /* the initial state */
+      assert_true(tt == 0 && dt == 0);
+      rows++;
+      continue;
+    }
+    assert_true(fabs(tt / t[rows - 1] - 1) <= 1e-11 && fabs(e / E[rows - 1] - 1) <= 1e-11);
+    /* retries (column 18) and factorizations (21, the last) as in the file */
     const char *c = line;
-    double v[18];
-    for (int k = 0; k < 18; k++) {
+    double v[21];
+    for (int k = 0; k < 21; k++) {
       v[k] = strtod(c, NULL);
       c = strchr(c, '\t');
-      if (k < 17) assert_non_null(c), c++;
+      if (k < 20) assert_non_null(c), c++;
     }
-    assert_true((v[13] > 0) == (v[15] > 0));
-    assert_true(v[17] >= 1 && v[17] == fac[rows]);
-    retried += v[13] > 0;
+    assert_true(v[17] == ret[rows - 1] && v[20] == fac[rows - 1] && v[20] >= 1);
+    retried += v[17] > 0;
     rows++;
   }
   fclose(f);
   printf("# series: %d columns named, %d rows (file %ld), %d with retries\n", nhead, rows, R,
          retried);
-  assert_int_equal(nhead, 18);
-  assert_non_null(strstr(head, "\trejected_iterations\trejected_seconds\tfactorizations\n"));
-  assert_int_equal(rows, R);
+  assert_int_equal(nhead, 21);
+  assert_int_equal(strncmp(head, "step\tt\tdt\tE\tA\tV\tV_target\t", 25), 0);
+  assert_non_null(strstr(head, "\treconnections\tfactorizations\n"));
+  assert_int_equal(rows, R + 1);
   assert_true(retried > 0);
+  free(ret);
   /* vesica info --series N: the file's last N rows, step first, the values to the 12
    * digits printed (%.12g: 1e-11 relative covers its rounding) */
   run(&r, "info", out, "--series", "2", NULL);

@@ -120,10 +120,8 @@ static void series_failed(run_ctx *r, long step, int e) {
 
 /* The accepted step's line of the --series text, flushed with it. */
 static void series_row(run_ctx *r, const ves_io_row *row) {
-  double A0, V0;
-  ves_sim_initial(r->sim, NULL, &A0, &V0);
   errno = 0;
-  if (ves_io_tsv_row(r->series, row, A0) != VES_OK || fflush(r->series) != 0) {
+  if (ves_io_text_row(r->series, row) != VES_OK || fflush(r->series) != 0) {
     series_failed(r, row->step, errno);
     return;
   }
