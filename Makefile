@@ -64,7 +64,7 @@ TESTS_LONG = test_integrate test_cli_restart test_cli test_cli_disk test_backend
 TESTS    = $(addprefix $(BUILD)/tests/,$(TESTS_LONG)) \
            $(filter-out $(addprefix $(BUILD)/tests/,$(TESTS_LONG)), \
              $(patsubst tests/%.c,$(BUILD)/tests/%,$(wildcard tests/test_*.c))) \
-           tests/test_reader.py
+           tests/test_reader.py tests/test_series_tsv.py
 BENCHES  = $(patsubst bench/%.c,$(BUILD)/bench/%,$(wildcard bench/bench_*.c))
 # make bench runs them all with their defaults (hours: bench_table1 and
 # bench_robust include explicit Euler and NLopt); docs/results.md gives the

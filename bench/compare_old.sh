@@ -9,8 +9,9 @@
 #
 # R times each, recording wall time, user + sys CPU time and peak memory
 # (/usr/bin/time), setup_seconds (printed by check; from `vesica info` of
-# the run's file), the mean per-step solve seconds (column 13 of the series)
-# and the Newton iterations (column 9, summed: the same work on both sides);
+# the run's file), the mean per-step solve seconds (the series text's
+# solve_seconds, "seconds" in an older text) and the Newton iterations
+# (iterations, or "iter"; summed: the same work on both sides);
 # then prints one table of old, new and old/new ratio, each the median over
 # the R repeats.
 #
@@ -78,6 +79,18 @@ runenv() { env $ENVSET OMP_NUM_THREADS="$THREADS" OPENBLAS_NUM_THREADS="$THREADS
 RAW=$tmp/raw.tsv # side cmd repeat wall cpu peak_MB setup_s step_s iters
 : >"$RAW"
 
+# The sum (what = sum) or mean (mean) over the accepted steps of the --series
+# text FILE's column named NAME, or OLDNAME in an older text (whose column
+# names follow a '# ' on its second line; a newer text has one header line of
+# names and a row of t = 0, step 0, left out here); NA without rows.
+col_stat() { # FILE WHAT NAME OLDNAME
+  awk -F'\t' -v what="$2" -v a="$3" -v b="$4" '
+    NR == 1 || /^# step/ { sub(/^# /, ""); for (i = 1; i <= NF; i++) if (!c && ($i == a || $i == b)) c = i; next }
+    /^#/ { next }
+    c && $1 > 0 { s += $c; k++ }
+    END { if (!k) print "NA"; else if (what == "mean") printf "%.3f", s / k; else print s }' "$1"
+}
+
 # one measured run: side (old|new), binary, command (check|run), repeat
 measure() {
   side=$1 bin=$2 cmd=$3 i=$4
@@ -103,8 +116,8 @@ measure() {
     runenv "$bin" info "$tmp/$tag.h5" >"$tmp/$tag.info" 2>>"$tmp/$tag.err" || {
       echo "compare_old.sh: $side info of $tmp/$tag.h5 failed" >&2; return 1; }
     setup=$(awk -F' = ' '$1 == "setup_seconds" {print $2}' "$tmp/$tag.info")
-    step=$(awk '!/^#/ {s += $13; n++} END {if (n) printf "%.3f", s / n; else print "NA"}' "$tmp/$tag.tsv")
-    iters=$(awk '!/^#/ {s += $9; n++} END {if (n) print s; else print "NA"}' "$tmp/$tag.tsv")
+    step=$(col_stat "$tmp/$tag.tsv" mean solve_seconds seconds)
+    iters=$(col_stat "$tmp/$tag.tsv" sum iterations iter)
   fi
   # /usr/bin/time: wall, user, sys (s), max RSS (kB); the last line (a
   # signal or exit note may come first)

@@ -83,7 +83,8 @@ run() {
     echo "paper: $name: done (remove $OUT/$name.done to rerun)"
   elif [ -f "$h5" ]; then
     echo "paper: $name: continuing $h5"
-    echo "# restarted: rows missing" >> "$OUT/$name.tsv" # --series is not allowed with --restart
+    # --series is not allowed with --restart: the text keeps the rows of the first part, and
+    # the run's file all of them (vesica info FILE.h5 --series 0)
     "$VESICA" run --restart "$h5" --quiet || { echo "paper: $name: failed (exit $?)"; failed=1; return; }
   else
     echo "paper: $name: $problem at eps $eps"

@@ -56,7 +56,7 @@ for r in $ALL; do
   [ -f "$OUT/$r.tsv" ] || continue
   info=$("$V" info "$OUT/$r.h5" 2>/dev/null)
   get() { printf '%s\n' "$info" | sed -n "s/^$1 = //p" | head -1; }
-  em=$(awk -v T="$TMARK" '!/^#/ && $2 <= T + 1e-9 { e = $4 } END { printf "%.6f", e }' "$OUT/$r.tsv")
+  em=$(awk -v T="$TMARK" 'NR > 1 && $2 <= T + 1e-9 { e = $4 } END { printf "%.6f", e }' "$OUT/$r.tsv")
   printf '| %s | %s | %s | %s | %s | %.6f | %s | %s | %s | %s | %.0f | %s |\n' "$r" \
     "$(get reconnections)" "$(get steps)" "$(get t_final)" "$em" "$(get energy_final)" \
     "$(get energy_monotone)" "$(get retries)" "$(get interface_volume_drift_max)" \

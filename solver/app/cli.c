@@ -22,7 +22,9 @@ static void usage(FILE *f) {
           "  run --restart FILE.h5 [--set solver.KEY=V|time.t_end=T]... [--max-steps N] [--quiet]\n"
           "                     integrate in time, writing FILE.h5 (+ FILE.xdmf)\n"
           "  check CONFIG.ini [--set section.key=value]... [--phi0 l2|sampled]\n"
+          "        [--print-config]\n"
           "                     build the initial state and print its derived quantities\n"
+          "                     (--print-config: every key's effective value, a problem file)\n"
           "  info FILE.h5 [--series N]\n"
           "                     summary of a run, one 'key = value' per line (--series:\n"
           "                     its last N series rows)\n"
@@ -37,7 +39,8 @@ static void usage(FILE *f) {
           "  study STUDY.ini [--jobs N] [--out DIR] [--retry-failed] [--emit slurm]\n"
           "        [--cell K] [--collect]\n"
           "                     a grid of runs (robustness studies, sweeps): one table, figures\n"
-          "  keys               print every problem-file key with its default and range\n"
+          "  keys [--study | KEY]\n"
+          "                     every problem-file key (or KEY's row) with default and range\n"
           "  --version          print the version\n"
           "  --help             this text (also: vesica COMMAND --help)\n"
           "  help [COMMAND]     this text, or the command's (as vesica COMMAND --help)\n"
@@ -76,17 +79,29 @@ static int command(int argc, char **argv) {
   if (!strcmp(argv[1], "study")) return cmd_study(argc - 2, argv + 2);
   if (!strcmp(argv[1], "keys")) {
     if (argc > 2 && (!strcmp(argv[2], "--help") || !strcmp(argv[2], "-h"))) {
-      printf("usage: vesica keys [--study]\nPrints every problem-file key (--study: every "
+      printf("usage: vesica keys [--study | KEY]\nPrints every problem-file key (--study: every "
              "study-file key) as a Markdown\ntable: section, key, type, default, allowed values "
-             "and meaning (as in\nproblems/README.md).\n");
+             "and meaning (as in\nproblems/README.md). KEY (section.key, or key for every "
+             "section's key of that\nname): its rows alone, under the table's header; an "
+             "unknown KEY exits 2 naming\nthe closest key.\n");
       return 0;
     }
     if (argc == 3 && !strcmp(argv[2], "--study")) {
       ves_study_print_keys(stdout);
       return 0;
     }
-    if (argc > 2) {
-      fprintf(stderr, "vesica keys: takes no arguments ('%s')\n", argv[2]);
+    if (argc > 3 || (argc == 3 && argv[2][0] == '-')) {
+      fprintf(stderr, "vesica keys: '%s': takes --study or one KEY (see vesica keys --help)\n",
+              argv[argc == 3 ? 2 : 3]);
+      return 2;
+    }
+    if (argc == 3) {
+      char near[128];
+      if (ves_config_print_key(stdout, argv[2], near, sizeof near) > 0) return 0;
+      fprintf(stderr,
+              "vesica keys: '%s': not a problem-file key (the closest: %s; vesica keys "
+              "lists them all)\n",
+              argv[2], near);
       return 2;
     }
     ves_config_print_keys(stdout);

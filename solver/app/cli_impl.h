@@ -127,6 +127,24 @@ int cli_rebuild_at(run_ctx *r, const char *pre, int S, ves_io_snapinfo *si);
 const char *cli_io_cause(const ves_io *io, ves_status st);
 /* The time loop: steps, rows, snapshots, progress. Returns the exit code. */
 int cli_loop(run_ctx *r);
+/* The progress line's estimate of the steps left, a range [*nlo, *nhi]
+ * (cli_loop.c): t reached, dt_next the next step's dt, t_back the time k
+ * steps before (k = 0: none), nstep the steps accepted in all; --max-steps
+ * max_steps (0: none) caps it. A pure function of its arguments. */
+void cli_eta_steps(const ves_config *c, long max_steps, long nstep, double t, double dt_next,
+                   double t_back, int k, double *nlo, double *nhi);
+/* The ETA text of the wall-time range [lo, hi] (seconds): "LO-HI UNIT", or
+ * "V UNIT" when both print the same; UNIT s (hi below 120 s, whole
+ * seconds), min (below 120 min) or h (one decimal below 10). */
+void cli_eta_text(char *buf, size_t len, double lo, double hi);
+/* vesica spectrum's verdict line into buf (cli_spectrum.c): the modes
+ * below -1e-3 1/t* counted from below (the exact count of eigenvalues
+ * below --above) and mu[nmodes] (the eigenvalues found above it, in
+ * increasing order). Returns that count (a lower bound when every mode
+ * found is below -1e-3), or -1 when it cannot be told (eigenvalues below an
+ * --above higher than -1e-3). */
+int cli_spectrum_verdict(char *buf, size_t len, double above, int below, int nmodes,
+                         const double *mu);
 /* Continue FILE.h5 from its last snapshot with the overrides set[nset]. */
 int cli_run_restart(run_ctx *r, const char *file, int nset, const char *const *set);
 /* The keys a restart may change, "a, b and c", then " tail", into f: the

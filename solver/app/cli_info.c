@@ -13,7 +13,7 @@ static void usage_info(FILE *f) {
   fprintf(f, "usage: vesica info FILE.h5 [--series N]\n"
              "  --series N  instead of the summary, the last N rows of the file's series (every\n"
              "              row with N = 0) as tab-separated text, a '# name...' header first:\n"
-             "              the columns /series holds (README, output layout), step first;\n"
+             "              the columns of /series, step first (manual: \"The series\");\n"
              "              also of a run still being written.\n"
              "Summary of a run, one 'key = value' per line (stable keys, for scripts):\n"
              "  file, format_version, version, status (running = still running or killed,\n"

@@ -25,34 +25,73 @@ static void on_signal(int sig) {
   (void)w;
 }
 
-/* The progress line's time to the end of the run, from the mean wall time
- * w of the recent steps: (t_end - t) / dt steps of w with constant steps;
- * with adaptive ones the step count lies between (t_end - t) / dt_max (dt
- * grows to its cap) and (t_end - t) / dt (it stays); --max-steps caps both.
- * One value once the two are within 1.5x, a range lo-hi within 10x, and
- * "unknown" beyond (a range over orders of magnitude says nothing). A
- * linear extrapolation in t* is off by the growth of dt, orders of
- * magnitude early in a run. */
+/* The progress line's time to the end of the run: the steps left times the
+ * mean wall time of the recent steps. With constant steps (or adaptive ones
+ * at dt_max) the steps left are (t_end - t) / dt. With adaptive steps below
+ * dt_max they follow the relative step r = dt/t: a step size that grows with
+ * t (as the energy's relaxation lets it) makes steps of constant r, a
+ * constant number per e-fold of t, up to dt_max and then steps of dt_max.
+ * Two values of r bound the estimate: the next step's (dt_next / t) and the
+ * recent window's ((t / t_back)^(1/k) - 1 over its k steps); the range lies
+ * within the steps at dt_max and at dt_next, and --max-steps caps both. */
 static double steps_left(double left, double dt) {
   double n = ceil(left / dt - 1e-9); /* a step that ends at t_end up to rounding is the last */
   return n > 0 ? n : 0.0;            /* not -0 */
 }
 
-static void eta_text(char *buf, size_t len, const ves_config *c, double t, double dt, double w,
-                     long nstep, long max_steps) {
+/* Steps from t to t_end of relative size r (dt = r t) up to dt_max, then of
+ * dt_max. */
+static double steps_relative(double t, double t_end, double r, double dt_max) {
+  double n = 0, tc = dt_max / r; /* the time at which r t reaches dt_max */
+  if (tc > t) {
+    const double te = fmin(tc, t_end);
+    n += log(te / t) / log1p(r), t = te;
+  }
+  if (t < t_end) n += (t_end - t) / dt_max;
+  return n > 1e-9 ? ceil(n - 1e-9) : 0.0;
+}
+
+void cli_eta_steps(const ves_config *c, long max_steps, long nstep, double t, double dt_next,
+                   double t_back, int k, double *nlo, double *nhi) {
   const double left = c->t_end - t;
-  double nhi = steps_left(left, dt), nlo = c->adaptive ? steps_left(left, c->dt_max) : nhi;
+  double lo, hi;
+  if (left <= 0) {
+    lo = hi = 0;
+  } else if (!c->adaptive || dt_next >= c->dt_max || !(t > 0)) { /* steps of dt_next */
+    lo = hi = steps_left(left, dt_next);
+  } else {
+    const double r1 = dt_next / t, r2 = k > 0 && t_back > 0 ? pow(t / t_back, 1.0 / k) - 1 : r1;
+    const double lin_lo = steps_left(left, c->dt_max), lin_hi = steps_left(left, dt_next);
+    lo = steps_relative(t, c->t_end, fmax(r1, r2), c->dt_max);
+    hi = r2 > 0 ? steps_relative(t, c->t_end, fmin(r1, r2), c->dt_max) : lin_hi;
+    lo = fmin(fmax(lo, lin_lo), lin_hi), hi = fmin(fmax(hi, lo), lin_hi);
+  }
   if (max_steps > 0) { /* --max-steps stops the run first when it comes first */
     const double m = max_steps > nstep ? (double)(max_steps - nstep) : 0.0;
-    nhi = fmin(nhi, m), nlo = fmin(nlo, m);
+    lo = fmin(lo, m), hi = fmin(hi, m);
   }
-  const double hi = w * nhi, lo = w * nlo;
-  if (hi <= 1.5 * lo || floor(hi + 0.5) == floor(lo + 0.5))
-    snprintf(buf, len, "%.0f s", hi);
-  else if (hi <= 10 * lo)
-    snprintf(buf, len, "%.0f-%.0f s", lo, hi);
+  *nlo = lo, *nhi = hi;
+}
+
+/* A duration v (seconds) in the unit u (60: minutes, 3600: hours): one
+ * decimal below 10 units, whole ones above. */
+static void duration(char *buf, size_t len, double v, double u) {
+  const double x = v / u;
+  snprintf(buf, len, x < 9.95 ? "%.1f" : "%.0f", x);
+}
+
+void cli_eta_text(char *buf, size_t len, double lo, double hi) {
+  const double u = hi < 120 ? 1 : hi < 7200 ? 60 : 3600;
+  const char *unit = u == 1 ? "s" : u == 60 ? "min" : "h";
+  char a[32], b[32];
+  if (u == 1) /* seconds: whole ones */
+    snprintf(a, sizeof a, "%.0f", lo), snprintf(b, sizeof b, "%.0f", hi);
   else
-    snprintf(buf, len, "unknown (dt* adapting)");
+    duration(a, sizeof a, lo, u), duration(b, sizeof b, hi, u);
+  if (!strcmp(a, b))
+    snprintf(buf, len, "%s %s", b, unit);
+  else
+    snprintf(buf, len, "%s-%s %s", a, b, unit);
 }
 
 /* Why a write to the output failed: the cause the io module recorded (no
@@ -63,10 +102,15 @@ const char *cli_io_cause(const ves_io *io, ves_status st) {
 
 /* What the loop carries from step to step. */
 typedef struct {
-  double t0;         /* wall clock at the start of this process's loop */
-  double recent[10]; /* wall times at the ends of the last 10 steps (ring) */
-  int tty;           /* stderr is a terminal: the progress line is redrawn */
-  long iters, steps; /* backend iterations and steps of this process */
+  double t0;           /* wall clock at the start of this process's loop */
+  double recent[10];   /* wall times at the ends of the last 10 steps (ring) */
+  double recent_t[10]; /* t* at the ends of the last 10 steps (ring) */
+  double t_start;      /* t* at the start of this process's loop */
+  double t_first;      /* t* after its first step */
+  double t_back;       /* t* at the start of the ETA's window of steps */
+  int k_back;          /* the window's steps (0: none) */
+  int tty;             /* stderr is a terminal: the progress line is redrawn */
+  long iters, steps;   /* backend iterations and steps of this process */
 } loop_ctx;
 
 /* Install the handlers of SIGINT and SIGTERM (stop after the current step;
@@ -120,10 +164,8 @@ static void series_failed(run_ctx *r, long step, int e) {
 
 /* The accepted step's line of the --series text, flushed with it. */
 static void series_row(run_ctx *r, const ves_io_row *row) {
-  double A0, V0;
-  ves_sim_initial(r->sim, NULL, &A0, &V0);
   errno = 0;
-  if (ves_io_tsv_row(r->series, row, A0) != VES_OK || fflush(r->series) != 0) {
+  if (ves_io_text_row(r->series, row) != VES_OK || fflush(r->series) != 0) {
     series_failed(r, row->step, errno);
     return;
   }
@@ -168,7 +210,12 @@ static void report_step(const run_ctx *r, const ves_step_report *rep, const loop
   const int tty = L->tty;
   if (!r->quiet && (tty || rep->step % 10 == 0)) {
     char eta[64];
-    eta_text(eta, sizeof eta, &r->cfg, rep->t, rep->dt, w, rep->step, r->max_steps);
+    ves_sim_state now; /* the next step's dt */
+    ves_sim_get_state(r->sim, &now, NULL);
+    double nlo, nhi;
+    cli_eta_steps(&r->cfg, r->max_steps, rep->step, rep->t, now.dt, L->t_back, L->k_back, &nlo,
+                  &nhi);
+    cli_eta_text(eta, sizeof eta, w * nlo, w * nhi);
     fprintf(stderr, "%sstep %ld  t* %.4g/%.4g  dt* %.3g  E* %.6f  iter %d  ETA %s%s",
             tty ? "\r" : "", rep->step, rep->t, r->cfg.t_end, rep->dt, rep->E,
             rep->stats.iterations, eta, tty ? "   " : "\n");
@@ -269,10 +316,6 @@ static int finish(run_ctx *r, const loop_ctx *L, ves_status st, ves_status wst, 
             r->label, fin.t, r->cfg.dt_min, cli_why(st), fin.nstep, r->out);
     status = "failed", code = 3;
   } else if (stop_signal) {
-    fprintf(stderr,
-            "vesica run: stopped by signal %d at step %ld, t* = %.6g; continue with "
-            "vesica run --restart %s\n",
-            (int)stop_signal, fin.nstep, fin.t, r->out);
     status = "stopped", code = 128 + (int)stop_signal;
   } else if (st != VES_DONE && fin.t < tend - 1e-12 * (1 + fabs(tend))) {
     status = "stopped"; /* --max-steps */
@@ -287,12 +330,20 @@ static int finish(run_ctx *r, const loop_ctx *L, ves_status st, ves_status wst, 
     fprintf(stderr, "vesica run: %s: cannot write: %s\n", r->out, cli_io_cause(r->io, wst));
     return 3;
   }
-  if (!r->quiet && code == 0)
+  /* the closing line: how the run ended, where, and what it cost (a signal's
+   * even with --quiet: it says how to continue) */
+  char how[64];
+  if (stop_signal)
+    snprintf(how, sizeof how, "interrupted by signal %d", (int)stop_signal);
+  else
+    snprintf(how, sizeof how, "%s",
+             !strcmp(status, "finished") ? "finished (t_end reached)" : "stopped at --max-steps");
+  if (strcmp(status, "failed") && (stop_signal || !r->quiet))
     fprintf(stderr,
-            "vesica run: %s at step %ld, t* = %.6g: %ld steps, %ld iterations, %.1f s; "
-            "wrote %s\n",
-            !strcmp(status, "finished") ? "t_end reached" : "--max-steps reached", fin.nstep, fin.t,
-            L->steps, L->iters, ves_wall_seconds() - L->t0, r->out);
+            "vesica run: %s at step %ld, t* = %.6g, E* = %.9g: %ld steps, %ld iterations, "
+            "%.1f s; %s %s\n",
+            how, fin.nstep, fin.t, fin.E, L->steps, L->iters, ves_wall_seconds() - L->t0,
+            stop_signal ? "continue with vesica run --restart" : "wrote", r->out);
   if (r->series_errno) { /* the run is whole, an output is not */
     series_warn(r, "");
     if (!code) code = 3;
@@ -302,6 +353,9 @@ static int finish(run_ctx *r, const loop_ctx *L, ves_status st, ves_status wst, 
 
 int cli_loop(run_ctx *r) {
   loop_ctx L = {.t0 = ves_wall_seconds(), .tty = isatty(2)};
+  ves_sim_state start;
+  ves_sim_get_state(r->sim, &start, NULL);
+  L.t_start = start.t;
   ves_problem_params p; /* whether a step may write a reference (resets, remeshings) */
   ves_problem_params_from_config(&r->cfg, &p);
   ves_step_report rep;
@@ -322,7 +376,16 @@ int cli_loop(run_ctx *r) {
     const double el = ves_wall_seconds() - L.t0;     /* this process's loop */
     const int nr = L.steps < 10 ? (int)L.steps : 10; /* steps in the window */
     const double w = (el - (L.steps > 10 ? L.recent[L.steps % 10] : 0.0)) / nr;
-    L.recent[L.steps % 10] = el;
+    /* the ETA's window in t*: the last 10 steps, or this process's steps
+     * so far (from its first step's end when it started at t = 0) */
+    if (L.steps == 1) L.t_first = rep.t;
+    if (L.steps > 10)
+      L.t_back = L.recent_t[L.steps % 10], L.k_back = 10;
+    else if (L.t_start > 0)
+      L.t_back = L.t_start, L.k_back = (int)L.steps;
+    else
+      L.t_back = L.t_first, L.k_back = (int)L.steps - 1;
+    L.recent[L.steps % 10] = el, L.recent_t[L.steps % 10] = rep.t;
     report_step(r, &rep, &L, w);
   }
   if (L.tty && !r->quiet && L.steps) fputc('\n', stderr);

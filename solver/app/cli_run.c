@@ -36,20 +36,22 @@ static void usage_run(FILE *f) {
           "  --from-snapshot K with --restart: continue from snapshot K (the snapshots after it\n"
           "                    are dropped), the way past a corrupt last snapshot\n"
           "  --max-steps N     stop (with a snapshot, exit 0) once N steps are accepted in all\n"
-          "  --series FILE.tsv also one tab-separated line per accepted step: step t dt E\n"
-          "                    A/A0-1 V/Vtarget-1 lambda_A lambda_V iterations f_evals g_evals\n"
-          "                    h_evals seconds retries resets (reference resets so far)\n"
-          "                    rejected_iterations rejected_seconds (attempts retried at dt/2);\n"
-          "                    a write that fails (a full disk) ends the text, not the run,\n"
-          "                    which then exits 3 (vesica info FILE.h5 --series 0: every row)\n"
+          "  --series FILE.tsv also the series as tab-separated text: one header line of the\n"
+          "                    column names, the row of the initial state (t = 0), then one\n"
+          "                    line per accepted step; the columns of vesica info --series,\n"
+          "                    described in docs/manual.md, \"The series\"; a write that fails\n"
+          "                    (a full disk) ends the text, not the run, which then exits 3\n"
+          "                    (vesica info FILE.h5 --series 0: every row)\n"
           "  --force           overwrite an existing FILE.h5, FILE.xdmf, FILE_last.xmf or --series "
           "file\n"
           "                    (without it they are refused, exit 2; the problem file, its\n"
           "                    points file and the files of a running vesica never are)\n"
-          "  --quiet           no progress line (otherwise one line on stderr: step, t*, dt*,\n"
-          "                    E*, iterations, ETA (a range lo-hi while adaptive steps\n"
-          "                    are below dt_max, 'unknown' when that range spans more than\n"
-          "                    10x; --max-steps counted); updated in place on a terminal)\n"
+          "  --quiet           no progress line and no closing line (otherwise on stderr:\n"
+          "                    step, t*, dt*, E*, iterations, ETA (a range lo-hi while adaptive\n"
+          "                    steps are below dt_max: the steps left at the next step's and\n"
+          "                    the recent steps' dt/t; --max-steps counted), updated in place\n"
+          "                    on a terminal; at the end how the run ended (finished, stopped\n"
+          "                    at --max-steps, interrupted), its step, t*, E*, steps and time)\n"
           "Exit 0 at t_end (or --max-steps), 2 on bad input (nothing written), 3 when a step\n"
           "fails down to dt_min (the last good state is saved as the last snapshot) or an\n"
           "output cannot be written, 130/143 on SIGINT/SIGTERM after the current step (state\n"
@@ -160,15 +162,33 @@ static int create_output(run_ctx *r, const char *path) {
   return 0;
 }
 
+/* The --series text's first row: the initial state at t = 0 (step 0; E, A,
+ * V, V_target = V0, the multipliers and C0 the integrator starts from; the
+ * counts, times and dt of a step 0). */
+static void initial_row(const run_ctx *r, ves_io_row *row) {
+  ves_sim_state s;
+  ves_sim_get_state(r->sim, &s, NULL);
+  *row = (ves_io_row){.step = s.nstep,
+                      .t = s.t,
+                      .E = s.E,
+                      .A = s.A,
+                      .V = s.V,
+                      .V_target = s.V0,
+                      .lambda_A = s.lambda[0],
+                      .lambda_V = s.lambda[1],
+                      .c0 = s.c0,
+                      .reconnections = ves_sim_reconnections(r->sim)};
+}
+
 /* The --series file: opened without truncating, locked (held until the
  * run closes it: no other vesica writes it meanwhile, cli_check_output),
- * then emptied, and its two header lines (the run, then the columns)
- * written and flushed. A file another vesica locked in the moment since
- * the check is refused (2; on a file system without locks it is written
- * unlocked); a header that cannot be written (a full disk) ends the run
- * before its first step (3): nothing is lost, and the files created are
- * removed. 0 or the exit code. */
-static int open_series(run_ctx *r, const char *path, const char *series) {
+ * then emptied, and its header line (the column names) and the row of the
+ * initial state written and flushed. A file another vesica locked in the
+ * moment since the check is refused (2; on a file system without locks it
+ * is written unlocked); a header that cannot be written (a full disk) ends
+ * the run before its first step (3): nothing is lost, and the files
+ * created are removed. 0 or the exit code. */
+static int open_series(run_ctx *r, const char *series) {
   int rc = 0, fd = open(series, O_WRONLY | O_CREAT | O_CLOEXEC, 0666);
   r->series_path = series;
   if (fd < 0) {
@@ -193,13 +213,11 @@ static int open_series(run_ctx *r, const char *path, const char *series) {
     remove_output(r->out);
     return rc;
   }
-  double E0, A0, V0;
-  ves_sim_initial(r->sim, &E0, &A0, &V0);
+  ves_io_row row0;
+  initial_row(r, &row0);
   errno = 0;
-  int bad =
-      fprintf(r->series, "# vesica %s run %s backend %s nodes %d E0 %.12g A0 %.12g V0 %.12g\n",
-              VES_VERSION, path, r->bk->name, r->setup->nodes->n, E0, A0, V0) < 0;
-  bad |= ves_io_tsv_header(r->series) != VES_OK;
+  int bad = ves_io_text_header(r->series) != VES_OK;
+  bad |= ves_io_text_row(r->series, &row0) != VES_OK;
   bad |= fflush(r->series) != 0;
   if (bad) {
     const int e = errno ? errno : EIO;
@@ -240,7 +258,7 @@ static int run_new(run_ctx *r, const char *path, const char *out, const char *ba
   if ((rc = check_outputs(r, path, out, series, force)) ||
       (rc = cli_setup_estimate("run", &r->cfg, r->quiet)) || (rc = cli_build(r)) ||
       (rc = check_outputs(r, path, out, series, force)) || (rc = create_output(r, path)) ||
-      (series && (rc = open_series(r, path, series))))
+      (series && (rc = open_series(r, series))))
     return rc;
   return cli_loop(r);
 }
@@ -299,6 +317,14 @@ int cmd_run(int argc, char **argv) {
     } else if (cli_operand("run", "configuration file", a[0] == '-', a, &path)) {
       return 2;
     }
+  }
+  if (restart && series) { /* the text of the first part ends where that process stopped */
+    fprintf(stderr,
+            "vesica run: --series with --restart: a restart does not continue a --series text "
+            "(the steps after the last snapshot would repeat in it); vesica info %s --series 0 "
+            "prints every row of the run\n",
+            restart);
+    return 2;
   }
   if (restart && (path || backend || out || series || force)) {
     fprintf(stderr,

@@ -129,6 +129,51 @@ static int write_modes(const run_ctx *r, const ves_spectrum *sp, const spectrum_
   return -1;
 }
 
+/* The verdict line's threshold: a mode below it is unstable. -1e-3 1/t*
+ * (an e-fold of growth per 1000 t*, far slower than any relaxation the
+ * runs resolve) is the project's criterion for the discrete energy's
+ * negative modes (docs/results.md, "The discrete energy's negative modes"):
+ * the default stabilization keeps the sphere at rest above it, and the
+ * neutral modes (the vesicle translated in the box, mu ~ 0 up to the
+ * solves' rounding) stay clear of it. */
+#define UNSTABLE_BELOW (-1e-3)
+
+int cli_spectrum_verdict(char *buf, size_t len, double above, int below, int nmodes,
+                         const double *mu) {
+  int found = 0, valid = 0; /* the modes found below the threshold; found at all (not NaN) */
+  while (valid < nmodes && !isnan(mu[valid])) valid++;
+  while (found < valid && mu[found] < UNSTABLE_BELOW) found++;
+  const double lowest = valid > 0 ? mu[0] : NAN;
+  if (below > 0 && above > UNSTABLE_BELOW) { /* those below --above may lie either side */
+    snprintf(buf, len,
+             "verdict: undetermined (%d eigenvalue(s) below --above %g, above -1e-3 or not; "
+             "rerun with --above -1e-3 or lower)",
+             below, above);
+    return -1;
+  }
+  const int n = below + found;
+  if (valid == 0 && n == 0) {
+    snprintf(buf, len,
+             "verdict: undetermined (no eigenvalue found above --above %g; raise "
+             "--lanczos)",
+             above);
+    return -1;
+  }
+  if (n == 0)
+    snprintf(buf, len, "verdict: stable (no mode below -1e-3; lowest mu_1 = %.3e)", lowest);
+  else if (found == valid) /* the modes found end below the threshold: more may follow */
+    snprintf(buf, len,
+             "verdict: at least %d unstable modes (below -1e-3; %d below --above %g, lowest found "
+             "mu_1 = %.3e; raise --modes to count them all)",
+             n, below, above, lowest);
+  else
+    snprintf(buf, len,
+             "verdict: %d unstable mode%s (below -1e-3; %d below --above %g, lowest "
+             "found mu_1 = %.3e)",
+             n, n == 1 ? "" : "s", below, above, lowest);
+  return n;
+}
+
 /* The analysis sp of snapshot k (its state si) as key = value lines. */
 static void print_spectrum(const char *path, long k, const ves_io_snapinfo *si, const run_ctx *r,
                            const ves_spectrum *sp, double above) {
@@ -231,6 +276,9 @@ static int analyse(run_ctx *r, const spectrum_args *o, const char *pre, long k,
   } else {
     print_spectrum(o->path, k, si, r, sp, o->above);
     printf("seconds = %.1f\n", ves_wall_seconds() - t0);
+    char verdict[320];
+    cli_spectrum_verdict(verdict, sizeof verdict, o->above, sp->below, sp->nmodes, sp->mu);
+    printf("%s\n", verdict);
     if (sp->below > 0)
       fprintf(stderr,
               "vesica spectrum: %d eigenvalue(s) lie below --above %g: lower it to see them\n",

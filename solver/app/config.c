@@ -5,6 +5,7 @@
 
 #include <ctype.h>
 #include <errno.h>
+#include <limits.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -745,20 +746,70 @@ static void cell(FILE *f, const char *t) {
   fputc(' ', f);
 }
 
+#define KEYS_HEAD                                                                                  \
+  "| section | key | type | default | allowed | meaning |\n|---|---|---|---|---|---|\n"
+
+/* The table row of key k. */
+static void print_key_row(FILE *f, const key_spec *k) {
+  char range[96];
+  if (k->type == KEY_STRING)
+    snprintf(range, sizeof range, "%s", k->choice ? k->choice : "text");
+  else
+    snprintf(range, sizeof range, "%.10g to %.10g", k->min, k->max);
+  cell(f, k->section), cell(f, k->key);
+  cell(f, k->type == KEY_DOUBLE ? "real" : k->type == KEY_INT ? "integer" : "text");
+  cell(f, k->def), cell(f, range), cell(f, k->doc);
+  fputs("|\n", f);
+}
+
 void ves_config_print_keys(FILE *f) {
-  fprintf(f, "| section | key | type | default | allowed | meaning |\n|---|---|---|---|---|---|\n");
+  fputs(KEYS_HEAD, f);
+  for (int i = 0; i < NKEYS; i++) print_key_row(f, &KEYS[i]);
+}
+
+/* The edit distance of a and b (insertions, deletions, substitutions),
+ * case-insensitive; names are short (a row of 64 is enough: longer names
+ * count their tail as differing). */
+static int edit_distance(const char *a, const char *b) {
+  int row[65], la = (int)strlen(a), lb = (int)strlen(b);
+  if (lb > 64) lb = 64;
+  for (int j = 0; j <= lb; j++) row[j] = j;
+  for (int i = 1; i <= la; i++) {
+    int diag = row[0];
+    row[0] = i;
+    for (int j = 1; j <= lb; j++) {
+      const int up = row[j];
+      const int same = tolower((unsigned char)a[i - 1]) == tolower((unsigned char)b[j - 1]);
+      int v = diag + !same;
+      if (up + 1 < v) v = up + 1;
+      if (row[j - 1] + 1 < v) v = row[j - 1] + 1;
+      row[j] = v, diag = up;
+    }
+  }
+  return row[lb];
+}
+
+int ves_config_print_key(FILE *f, const char *name, char *near, size_t nearlen) {
+  const char *dot = strchr(name, '.');
+  int found = 0, best = INT_MAX;
+  if (near && nearlen) near[0] = 0;
   for (int i = 0; i < NKEYS; i++) {
     const key_spec *k = &KEYS[i];
-    char range[96];
-    if (k->type == KEY_STRING)
-      snprintf(range, sizeof range, "%s", k->choice ? k->choice : "text");
-    else
-      snprintf(range, sizeof range, "%.10g to %.10g", k->min, k->max);
-    cell(f, k->section), cell(f, k->key);
-    cell(f, k->type == KEY_DOUBLE ? "real" : k->type == KEY_INT ? "integer" : "text");
-    cell(f, k->def), cell(f, range), cell(f, k->doc);
-    fputs("|\n", f);
+    const int match = dot ? (size_t)(dot - name) == strlen(k->section) &&
+                                !strncmp(name, k->section, (size_t)(dot - name)) &&
+                                !strcmp(dot + 1, k->key)
+                          : !strcmp(name, k->key);
+    if (match) {
+      if (!found) fputs(KEYS_HEAD, f);
+      print_key_row(f, k), found++;
+      continue;
+    }
+    char full[128];
+    snprintf(full, sizeof full, "%s.%s", k->section, k->key);
+    const int d = edit_distance(name, dot ? full : k->key);
+    if (d < best && near && nearlen) best = d, snprintf(near, nearlen, "%s", full);
   }
+  return found;
 }
 
 /* Orientation of the triangle a, b, c: > 0 counter-clockwise. */

@@ -170,5 +170,10 @@ ves_status ves_config_read_points(const ves_config *cfg, int *n, double **pts, c
 /* Print every key: section, key, type, default, range, units and meaning
  * (the table problems/README.md is written from). */
 void ves_config_print_keys(FILE *f);
+/* The table of the keys named name ("section.key", or "key": every section's
+ * key of that name) into f: the header and their rows, as in
+ * ves_config_print_keys. Returns how many; with none, near (when not NULL)
+ * receives the closest key's "section.key" (edit distance). */
+int ves_config_print_key(FILE *f, const char *name, char *near, size_t nearlen);
 
 #endif

@@ -135,12 +135,25 @@ typedef struct {
 void ves_io_row_from_step(const ves_step_report *rep, int reconnections, double wall_seconds,
                           ves_io_row *row);
 
-/* The series as tab-separated text (vesica run --series), from the same
+/* The series as tab-separated text in columns of its own (the table's tsv
+ * fields: A and V as drifts, two columns the file lacks), from the same
  * table of columns as the file's series: the header line naming the columns
  * ("# step<TAB>t<TAB>dt<TAB>E<TAB>A/A0-1 ..."), and one line a row (A0: the
- * run's initial area). VES_ERR_IO when a write fails. */
+ * run's initial area). VES_ERR_IO when a write fails. The program writes
+ * ves_io_text_* below instead. */
 ves_status ves_io_tsv_header(FILE *f);
 ves_status ves_io_tsv_row(FILE *f, const ves_io_row *row, double A0);
+
+/* The series as tab-separated text in the columns of vesica info --series
+ * (vesica run --series; docs/manual.md, "The series"): every column of the
+ * file under its name, step first, then the file's order. The name of text
+ * column k (0-based; NULL past the last); the header line of the names (no
+ * comment mark: numpy.genfromtxt(names=True) and pandas read it); one line
+ * a row, each value %.12g as vesica info prints it. VES_ERR_IO when a write
+ * fails. */
+const char *ves_io_text_column(int k);
+ves_status ves_io_text_header(FILE *f);
+ves_status ves_io_text_row(FILE *f, const ves_io_row *row);
 
 /* What was written with a snapshot besides y and phi. */
 typedef struct {

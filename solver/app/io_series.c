@@ -400,3 +400,50 @@ ves_status ves_io_summarize(ves_io *io, double c0, ves_io_summary *s) {
   for (int c = 0; c < NSUM; c++) free(col[c]);
   return st;
 }
+
+/* The series as text, in the columns of vesica info --series: every column
+ * of the file (the first IO_NSERIES of io_series) under its file name,
+ * "step" first, then the file's order; each value with 12 significant
+ * digits (%.12g of the value as a double, as vesica info prints the file's
+ * rows), so the text of a row and info's line of it are the same. */
+static const series_spec *text_column(int k) {
+  return k < 0 || k >= IO_NSERIES ? NULL : io_series + (k + IO_NSERIES - 1) % IO_NSERIES;
+}
+
+const char *ves_io_text_column(int k) {
+  const series_spec *c = text_column(k);
+  return c ? c->name : NULL;
+}
+
+ves_status ves_io_text_header(FILE *f) {
+  VES_CHECK(f, VES_ERR_ARG);
+  int e = 0;
+  for (int k = 0; text_column(k); k++)
+    e |= fprintf(f, "%s%s", k ? "\t" : "", text_column(k)->name) < 0;
+  e |= fputc('\n', f) == EOF;
+  return e ? VES_ERR_IO : VES_OK;
+}
+
+ves_status ves_io_text_row(FILE *f, const ves_io_row *row) {
+  VES_CHECK(f && row, VES_ERR_ARG);
+  int e = 0;
+  for (int k = 0; text_column(k); k++) {
+    const series_spec *c = text_column(k);
+    const char *p = (const char *)row + c->offset;
+    double v;
+    if (c->type == COL_LONG) {
+      long l;
+      memcpy(&l, p, sizeof l);
+      v = (double)l;
+    } else if (c->type == COL_INT) {
+      int i;
+      memcpy(&i, p, sizeof i);
+      v = i;
+    } else {
+      memcpy(&v, p, sizeof v);
+    }
+    e |= fprintf(f, "%s%.12g", k ? "\t" : "", v) < 0;
+  }
+  e |= fputc('\n', f) == EOF;
+  return e ? VES_ERR_IO : VES_OK;
+}

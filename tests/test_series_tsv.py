@@ -1,0 +1,147 @@
+#!/usr/bin/python3
+"""The --series text of `vesica run` as a script reads it (docs/manual.md, "The series"): one
+short adaptive run of build/vesica (the TINY settings of tests/cli_test_impl.h, 6 steps) with
+--series. numpy.genfromtxt(names=True) reads every column by name with no NaN; the first row is
+the initial state at t = 0 (E0, A0, V0 of the file); the names, their order and every row's
+values are those of `vesica info FILE.h5 --series 0`; the manual's table of the columns names
+the same columns in that order, with the units the file's datasets carry.
+
+Run with Debian's python3 (numpy, h5py): /usr/bin/python3 tests/test_series_tsv.py; prints
+cmocka's summary lines for tests/run.sh; exit 1 when a check fails. VESICA names the program
+(default build/vesica, else build-san/vesica)."""
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import traceback
+
+import h5py
+import numpy as np
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+VESICA = os.environ.get("VESICA", os.path.join(ROOT, "build", "vesica"))
+if "VESICA" not in os.environ and not os.path.exists(VESICA):  # a SAN=1 build alone
+    VESICA = os.path.join(ROOT, "build-san", "vesica")
+TINY = ["geometry.epsilon=0.2", "geometry.box_r=2", "geometry.box_z=2", "geometry.band=2",
+        "geometry.h_band=0.7", "geometry.h_far=0.3", "shape.mode=2", "shape.delta=0.15",
+        "time.dt_initial=5e-3", "time.dE_target=0.05"]
+STEPS = 6
+TMP = tempfile.mkdtemp(prefix="vesica_series_tsv_")
+OUT = os.path.join(TMP, "s.h5")
+TSV = os.path.join(TMP, "s.tsv")
+
+
+def setup():
+    ini = os.path.join(TMP, "s.ini")
+    with open(ini, "w") as f:
+        f.write("[time]\nt_end = 1\n")  # adaptive steps, stopped by --max-steps
+    cmd = [VESICA, "run", ini, "--out", OUT, "--series", TSV, "--quiet",
+           "--max-steps", str(STEPS)]
+    for s in TINY:
+        cmd += ["--set", s]
+    p = subprocess.run(cmd, capture_output=True, text=True,
+                       env=dict(os.environ, OPENBLAS_NUM_THREADS="1"))
+    if p.returncode != 0:
+        raise AssertionError(f"{' '.join(cmd)}: exit {p.returncode}: {p.stderr}")
+
+
+def info_series():
+    """vesica info --series 0: the names (after '# ') and the rows as lists of fields."""
+    p = subprocess.run([VESICA, "info", OUT, "--series", "0"], capture_output=True, text=True)
+    assert p.returncode == 0, f"vesica info --series 0: exit {p.returncode}: {p.stderr}"
+    lines = p.stdout.splitlines()
+    assert lines[0].startswith("# "), lines[0]
+    return lines[0][2:].split("\t"), [line.split("\t") for line in lines[1:]]
+
+
+def tsv_lines():
+    with open(TSV) as f:
+        return f.read().splitlines()
+
+
+def test_genfromtxt_reads_every_column():
+    a = np.genfromtxt(TSV, names=True, delimiter="\t")
+    names, _ = info_series()
+    assert list(a.dtype.names) == names, (a.dtype.names, names)
+    assert a.shape == (STEPS + 1,), a.shape  # the t = 0 row and one a step
+    for n in a.dtype.names:
+        assert np.all(np.isfinite(a[n])), (n, a[n])
+    # the header is one line of names: no comment mark, nothing before it
+    first = tsv_lines()[0]
+    assert not first.startswith("#") and first.split("\t") == names, first
+
+
+def test_first_row_is_t0():
+    a = np.genfromtxt(TSV, names=True, delimiter="\t")
+    assert a["t"][0] == 0 and a["step"][0] == 0 and a["dt"][0] == 0, a[0]
+    assert list(a["step"]) == list(range(STEPS + 1)), a["step"]
+    assert np.all(np.diff(a["t"]) > 0), a["t"]
+    with h5py.File(OUT, "r") as f:
+        E0, A0, V0 = (float(f.attrs[k]) for k in ("E0", "A0", "V0"))
+    # the text holds 12 significant digits (%.12g): 1e-11 relative covers its rounding
+    for name, v in (("E", E0), ("A", A0), ("V", V0), ("V_target", V0)):
+        assert abs(a[name][0] / v - 1) <= 1e-11, (name, a[name][0], v)
+
+
+def test_rows_equal_info_series():
+    names, rows = info_series()
+    lines = tsv_lines()
+    assert lines[0].split("\t") == names
+    text = {int(line.split("\t")[0]): line.split("\t") for line in lines[1:]}
+    steps = [int(r[0]) for r in rows]
+    # the file's rows: every accepted step (and its t = 0 row when it keeps one)
+    assert set(range(1, STEPS + 1)) <= set(steps) <= set(range(STEPS + 1)), steps
+    for r in rows:  # the same text, field by field: both print %.12g of the same values
+        assert text[int(r[0])] == r, (r, text[int(r[0])])
+
+
+def test_manual_table_names_and_units():
+    with open(os.path.join(ROOT, "docs", "manual.md")) as f:
+        doc = f.read()
+    sec = doc[doc.index("### The series: one row per accepted step"):]
+    sec = sec[:sec.index("\n### ")]
+    table = re.findall(r"^\| `(\w+)` \| ([^|]+) \|", sec, re.M)
+    names, _ = info_series()
+    assert [n for n, _ in table] == names, ([n for n, _ in table], names)
+    with h5py.File(OUT, "r") as f:
+        for n, units in table:
+            u = f["series"][n].attrs["units"]
+            u = u.decode() if isinstance(u, bytes) else str(u)
+            assert units.strip() == u, (n, units, u)
+
+
+TESTS = [test_genfromtxt_reads_every_column, test_first_row_is_t0, test_rows_equal_info_series,
+         test_manual_table_names_and_units]
+
+
+def main():
+    failed = []
+    print(f"[==========] Running {len(TESTS)} test(s).")
+    try:
+        setup()
+    except Exception:
+        traceback.print_exc(file=sys.stdout)
+        failed = [t.__name__ for t in TESTS]
+    for t in TESTS if not failed else []:
+        print(f"[ RUN      ] {t.__name__}")
+        sys.stdout.flush()
+        try:
+            t()
+            print(f"[       OK ] {t.__name__}")
+        except Exception:
+            traceback.print_exc(file=sys.stdout)
+            print(f"[  ERROR   ] --- {t.__name__}")
+            failed.append(t.__name__)
+    shutil.rmtree(TMP, ignore_errors=True)
+    print(f"[==========] {len(TESTS)} test(s) run.")
+    print(f"[  PASSED  ] {len(TESTS) - len(failed)} test(s).")
+    if failed:
+        print(f"[  FAILED  ] {len(failed)} test(s), listed below:")
+        for name in failed:
+            print(f"[  FAILED  ] {name}")
+    return 1 if failed else 0
+
+
+sys.exit(main())
