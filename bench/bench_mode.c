@@ -149,7 +149,7 @@ int main(int argc, char **argv) {
   ves_quad_field(s->quad, s->phi0c, 0, phi);
   ves_integrate_params ip;
   bench_constant_params(&cfg, dt, to, &ip);
-  ip.profile_every = restore;
+  ip.profile_every = restore ? restore : (split ? 0 : cfg.profile_every); /* or the key's */
   ves_backend_options bo;
   bench_backend_options(&cfg, &bo);
   ves_sim *sim = NULL;

@@ -20,6 +20,7 @@
 struct ves_profile {
   const ves_model *model; /* the model the tables and coefficients belong to */
   ves_quad *at_nodes;     /* points at its nodes, with tables */
+  ves_projector *proj;    /* the L2 projection on its points, factorized */
   int n;                  /* its real nodes */
   double *c;              /* n: nodal coefficients of its phi0 */
   int have_c;             /* c holds them */
@@ -49,6 +50,7 @@ ves_status ves_profile_create(ves_profile **out) {
 void ves_profile_forget(ves_profile *p) {
   if (!p) return;
   ves_quad_destroy(&p->at_nodes);
+  ves_projector_destroy(&p->proj);
   free(p->c);
   p->c = NULL, p->have_c = 0, p->model = NULL, p->n = 0;
 }
@@ -78,10 +80,11 @@ static ves_status bind(ves_profile *p, const ves_model *m) {
   ves_status st = p->c && pd ? VES_OK : VES_ERR_ALLOC;
   if (st == VES_OK) st = ves_quad_create_at_nodes(nd, &p->at_nodes);
   if (st == VES_OK) st = ves_quad_tables(p->at_nodes, nd, &q->lme, NULL);
+  if (st == VES_OK) st = ves_projector_create(q, p->n, &p->proj);
   if (st == VES_OK) {
     ves_model_point_data(m, pd);
     for (int al = 0; al < q->nq; al++) pd[al] = pd[6 * (size_t)al];
-    st = ves_project_l2(q, p->n, pd, p->c, 1e-12, 3, NULL, NULL);
+    st = ves_projector_apply(p->proj, pd, p->c, 1e-12, 3);
     if (st == VES_MAXITER) st = VES_OK; /* the best iterate: far below the band's resolution */
   }
   free(pd);
@@ -375,7 +378,7 @@ ves_status ves_profile_restore(ves_profile *p, ves_model *m, const double *y,
       max_dphi = fmax(max_dphi, fabs(f[al] - old));
       if (fabs(old) < 0.9) max_shift = fmax(max_shift, fabs(d - w * atanh(old)));
     }
-    st = ves_project_l2(q, n, f, p->c, 1e-12, 3, NULL, NULL);
+    st = ves_projector_apply(p->proj, f, p->c, 1e-12, 3);
     if (st == VES_MAXITER) st = VES_OK;
   }
   if (st == VES_OK) {
