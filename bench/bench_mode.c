@@ -16,8 +16,14 @@
  * Prints a header, then "t E* Q_l" per step (with --print), then one line
  *   l eps h_band lambda_ratio dt nodes s_raw s 2s
  * fitted over [--from, --to]. Threads: OMP_NUM_THREADS.
+ * --restore M restores phi's tanh profile after every M steps (profile.h,
+ * [solver] profile_every); the per-step line then adds E* after the
+ * restoration and the largest shift of the level sets it made. --split
+ * (without --restore) adds per step E* of the restored profile at the same
+ * positions, the model put back after: E* - E*(restored) is the energy of the
+ * profile's stretch.
  * Usage: bench_mode [CONFIG] [--set section.key=value]... [--dt DT]
- *        [--from T] [--to T] [--print]
+ *        [--from T] [--to T] [--print] [--restore M] [--split]
  * (default: problems/mode2.ini, dt 0.04, window [0.4, 1.6]). */
 #include <math.h>
 #include <stdio.h>
@@ -28,6 +34,7 @@
 #include "app/config.h"
 #include "app/problem.h"
 #include "ves/integrate.h"
+#include "ves/profile.h"
 #include "ves/setup.h"
 #include "bench_common.h"
 #include "app/blas_core_impl.h"
@@ -91,7 +98,7 @@ int main(int argc, char **argv) {
   ves_blas_core_fix(argv); /* OpenBLAS's kernels (blas_core_impl.h) */
   setvbuf(stdout, NULL, _IOLBF, 0);
   const char *path = "problems/mode2.ini", *set[MAX_SET];
-  int nset = 0, print = 0;
+  int nset = 0, print = 0, restore = 0, split = 0;
   double dt = 0.04, from = 0.4, to = 1.6;
   for (int i = 1; i < argc; i++) {
     const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
@@ -105,6 +112,10 @@ int main(int argc, char **argv) {
       to = atof(v), i++;
     else if (!strcmp(a, "--print"))
       print = 1;
+    else if (!strcmp(a, "--restore") && v)
+      restore = atoi(v), i++;
+    else if (!strcmp(a, "--split"))
+      split = 1;
     else if (a[0] != '-')
       path = a;
     else {
@@ -112,8 +123,9 @@ int main(int argc, char **argv) {
       return 2;
     }
   }
-  if (!(dt > 0 && to > from && from >= 0)) {
-    fprintf(stderr, "bench_mode: need dt > 0 and 0 <= from < to\n");
+  if (!(dt > 0 && to > from && from >= 0 && restore >= 0 && !(split && restore))) {
+    fprintf(stderr,
+            "bench_mode: need dt > 0, 0 <= from < to, --restore M >= 0, not with --split\n");
     return 2;
   }
   ves_config cfg;
@@ -137,6 +149,7 @@ int main(int argc, char **argv) {
   ves_quad_field(s->quad, s->phi0c, 0, phi);
   ves_integrate_params ip;
   bench_constant_params(&cfg, dt, to, &ip);
+  ip.profile_every = restore ? restore : (split ? 0 : cfg.profile_every); /* or the key's */
   ves_backend_options bo;
   bench_backend_options(&cfg, &bo);
   ves_sim *sim = NULL;
@@ -157,10 +170,28 @@ int main(int argc, char **argv) {
   /* least squares of log|Q| against t over the window */
   double n = 0, sx = 0, sy = 0, sxx = 0, sxy = 0;
   ves_step_report rep;
+  ves_profile *prof = NULL;
+  if (split && ves_profile_create(&prof) != VES_OK) return 3;
   while ((st = ves_sim_step(sim, &rep)) == VES_OK) {
+    ves_model_point_data(ves_sim_model(sim), phi); /* the restored phi0 too */
     point_state(s, phi, ves_sim_y(sim), ps);
     const double Q = moment(s, ps, l);
-    if (print) printf("%.6f %.12f %.9e\n", rep.t, rep.E, Q);
+    if (print && restore) {
+      ves_sim_state ss;
+      ves_sim_get_state(sim, &ss, NULL);
+      printf("%.6f %.12f %.9e %.12f %.3e\n", rep.t, rep.E, Q, ss.E, rep.profile_shift);
+    } else if (print && split) {
+      ves_model *m = ves_sim_model(sim);
+      ves_profile_info info = {0, NAN, NAN};
+      double Er = NAN;
+      if (ves_profile_restore(prof, m, ves_sim_y(sim), &info) == VES_OK &&
+          ves_model_eval(m, ves_sim_y(sim), VES_F_E, &Er, NULL, NULL, NULL, NULL, NULL) == VES_OK)
+        Er /= ves_model_get_k(m);
+      ves_profile_forget(prof);           /* its coefficients are the restored ones */
+      (void)ves_model_set_points(m, phi); /* phi holds the run's point data */
+      printf("%.6f %.12f %.9e %.12f %.3e\n", rep.t, rep.E, Q, Er, info.max_shift);
+    } else if (print)
+      printf("%.6f %.12f %.9e\n", rep.t, rep.E, Q);
     if (rep.t >= from - 1e-12 && rep.t <= to + 1e-12) {
       const double x = rep.t, yv = log(fabs(Q));
       n++, sx += x, sy += yv, sxx += x * x, sxy += x * yv;
@@ -179,6 +210,7 @@ int main(int argc, char **argv) {
   printf("l %d eps %g h_band %g lambda_ratio %g dt %g nodes %d s_raw %.5f s %.5f 2s %.5f\n", l,
          cfg.epsilon, cfg.h_band, cfg.lambda_ratio, dt, s->nodes->n, r, sl, 2 * sl);
   ves_sim_destroy(&sim);
+  ves_profile_destroy(&prof);
   free(phi);
   free(ps);
   ves_setup_destroy(&s);

@@ -63,6 +63,9 @@ typedef struct {
   double reconnect_det_min;  /* reset when min det F drops below this (0: off; else in (0, 1)) */
   int reconnect_nodes;       /* where the new nodes go: a ves_reset_nodes (reconnect.h);
                                 default VES_RESET_NODES_COEF, the paper's y^a */
+  int profile_every;         /* restore phi's tanh profile (profile.h) after every this many
+                                accepted steps (0: never, the default); A and V move by the
+                                restoration and the next step's constraints bring them back */
 } ves_integrate_params;
 
 /* What one accepted step did. */
@@ -96,6 +99,10 @@ typedef struct {
   int remeshed;             /* 1: the state was remeshed (node count may change) */
   ves_remesh_info remesh;   /* remeshed: what it changed (remesh.h) */
   ves_status remesh_status; /* VES_OK, or why a due remeshing failed (the step stands) */
+  /* restoration of the profile after the step (ip.profile_every; all zero when none) */
+  int profile_restored;      /* 1: phi0 restored (E, A, V above are the step's, before it) */
+  double profile_shift;      /* restored: max shift of the level sets |phi| < 0.9 (units R0) */
+  ves_status profile_status; /* VES_OK, or why the restoration failed (the step stands) */
 } ves_step_report;
 
 typedef struct ves_sim ves_sim;

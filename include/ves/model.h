@@ -77,6 +77,12 @@ ves_status ves_model_create_points(const ves_nodes *nodes, const ves_quad *q, co
 /* The model's point data pd[6 nq] (layout of ves_model_create_points). */
 void ves_model_point_data(const ves_model *m, double *pd);
 
+/* Replace the model's phi0 point data by pd[6 nq] (layout of
+ * ves_model_create_points, copied): a restoration of the profile (profile.h).
+ * The nodes, tables and pattern stay. VES_ERR_ARG for a non-finite entry
+ * (then nothing is changed). */
+ves_status ves_model_set_points(ves_model *m, const double *pd);
+
 /* The parameters in force (c0 as last set by ves_model_set_c0). */
 void ves_model_get_params(const ves_model *m, ves_model_params *par);
 

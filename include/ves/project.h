@@ -55,4 +55,15 @@ ves_status ves_project_l2(const ves_quad *q, int n, const double *f, double *c, 
 ves_status ves_project_l2_fields(const ves_quad *q, int n, int nf, const double *f, double *c,
                                  double rtol, int maxref, int *refinements, double *relres);
 
+/* ves_project_l2 with M assembled and factorized once, for repeated fields
+ * on the same points (q, n borrowed and unchanged while it lives): create
+ * builds and factorizes M; apply gives the coefficients c[n] of f[nq] as
+ * ves_project_l2 does (same M, same refinement, VES_MAXITER when rtol is
+ * missed, c then the best iterate). *out taken by the caller. */
+typedef struct ves_projector ves_projector;
+ves_status ves_projector_create(const ves_quad *q, int n, ves_projector **out);
+ves_status ves_projector_apply(ves_projector *p, const double *f, double *c, double rtol,
+                               int maxref);
+void ves_projector_destroy(ves_projector **p);
+
 #endif

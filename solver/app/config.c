@@ -157,6 +157,10 @@ static const key_spec KEYS[] = {
     {"solver", "drift_damping", KEY_DOUBLE, OFF(drift_damping), "0", 0, 1e6, NULL,
      "viscous penalty alpha on the rate of the coefficient drift y^a - y(X_a), added to the "
      "dissipation (0: off; docs/design.md, \"Numerical choices and why\")"},
+    {"solver", "profile_every", KEY_INT, OFF(profile_every), "0", 0, 1000000, NULL,
+     "restore phi to tanh(d / (sqrt2 eps)) of the signed distance d to its current zero set "
+     "every this many accepted steps, positions kept (0: off; removes the band's resistance to "
+     "normal stretch: shape-mode rates, docs/results.md; a restart does not carry it)"},
     {"reconnect", "every", KEY_INT, OFF(reconnect_every), "0", 0, 1000000, NULL,
      "reset the reference configuration to the current positions every this many accepted "
      "steps (paper Fig. 5: 20; 0: off)"},

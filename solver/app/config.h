@@ -77,6 +77,7 @@ typedef struct {
   int freeze_hessian;                    /* newton: Hessian once per step */
   char factor_precision[VES_CONFIG_STR]; /* newton, euler: single | double */
   double drift_damping;                  /* alpha of the drift damping (model.h), 0: off */
+  int profile_every; /* restore phi's tanh profile every this many steps (profile.h), 0: off */
   /* [reconnect] reference-configuration resets (all 0: none) */
   int reconnect_every;       /* accepted steps between resets (0: off) */
   double reconnect_cond_max; /* reset when max cond_2 F exceeds this (0: off, else > 1) */

@@ -25,6 +25,7 @@ static void integrate_params(const ves_config *c, ves_integrate_params *ip) {
   ip->c0_ramp_start = c->c0_ramp_start, ip->c0_ramp_end = c->c0_ramp_end;
   ip->c0_ramp_to = c->c0_ramp_to;
   ip->reconnect_every = c->reconnect_every, ip->reconnect_cond_max = c->reconnect_cond_max;
+  ip->profile_every = c->profile_every;
   ip->reconnect_det_min = c->reconnect_det_min;
   ip->reconnect_nodes =
       strcmp(c->reconnect_nodes, "motion") ? VES_RESET_NODES_COEF : VES_RESET_NODES_MOTION;

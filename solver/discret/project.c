@@ -602,3 +602,85 @@ done:
   ves_ldl_destroy(&ldl);
   return s;
 }
+
+/* ves_projector: the projection's M factorized once for repeated fields on
+ * the same points (the profile's restoration, profile.h). */
+struct ves_projector {
+  const ves_quad *q;
+  int n, *ptr, *col, *irow;
+  double *val, *r, *cbest;
+  folded fo;
+  ves_ldl *ldl;
+};
+
+void ves_projector_destroy(ves_projector **p) {
+  if (!p || !*p) return;
+  folded_free(&(*p)->fo);
+  free((*p)->ptr), free((*p)->col), free((*p)->irow), free((*p)->val);
+  free((*p)->r), free((*p)->cbest);
+  ves_ldl_destroy(&(*p)->ldl);
+  free(*p);
+  *p = NULL;
+}
+
+ves_status ves_projector_create(const ves_quad *q, int n, ves_projector **out) {
+  VES_CHECK(out, VES_ERR_ARG);
+  *out = NULL;
+  VES_CHECK(q && q->tab && n > 0, VES_ERR_ARG);
+  ves_projector *p = calloc(1, sizeof *p);
+  if (!p) return VES_ERR_ALLOC;
+  p->q = q, p->n = n;
+  ves_status s;
+  if ((s = folded_create(q, n, 1, &p->fo)) != VES_OK) goto fail;
+  for (int a = 0; a < n; a++)
+    if (p->fo.npt[a + 1] == p->fo.npt[a]) {
+      s = VES_ERR_SINGULAR;
+      goto fail;
+    }
+  if ((s = node_pattern(&p->fo, 1, n, &p->ptr, &p->col)) != VES_OK) goto fail;
+  s = VES_ERR_ALLOC;
+  const int nnz = p->ptr[n];
+  p->irow = malloc((size_t)nnz * sizeof *p->irow);
+  p->val = calloc((size_t)nnz, sizeof *p->val);
+  p->r = malloc((size_t)n * sizeof *p->r);
+  p->cbest = malloc((size_t)n * sizeof *p->cbest);
+  if (!p->irow || !p->val || !p->r || !p->cbest) goto fail;
+  if (normal_equations(q, &p->fo, n, p->ptr, p->col, p->irow, p->val)) goto fail;
+  if ((s = ves_ldl_create(n, nnz, p->irow, p->col, 1, &p->ldl)) != VES_OK) goto fail;
+  if ((s = ves_ldl_factor(p->ldl, p->val)) != VES_OK) goto fail;
+  *out = p;
+  return VES_OK;
+fail:
+  ves_projector_destroy(&p);
+  return s;
+}
+
+ves_status ves_projector_apply(ves_projector *p, const double *f, double *c, double rtol,
+                               int maxref) {
+  VES_CHECK(p && f && c && rtol >= 0 && maxref >= 0, VES_ERR_ARG);
+  const int n = p->n;
+  double *b = malloc((size_t)n * sizeof *b);
+  if (!b) return VES_ERR_ALLOC;
+  right_hand_side(p->q, &p->fo, n, f, b);
+  double bnorm = 0.0;
+  for (int a = 0; a < n; a++) bnorm += b[a] * b[a];
+  bnorm = sqrt(bnorm);
+  memcpy(c, b, (size_t)n * sizeof *c);
+  ves_status s = ves_ldl_solve(p->ldl, c);
+  if (s == VES_OK) {
+    double res = residual(n, p->ptr, p->col, p->val, b, c, bnorm, p->r), best = res;
+    memcpy(p->cbest, c, (size_t)n * sizeof *c);
+    for (int it = 0; res > rtol && it < maxref; it++) {
+      if ((s = ves_ldl_solve(p->ldl, p->r)) != VES_OK) break;
+      for (int a = 0; a < n; a++) c[a] += p->r[a];
+      res = residual(n, p->ptr, p->col, p->val, b, c, bnorm, p->r);
+      if (!(res < best)) break;
+      best = res;
+      memcpy(p->cbest, c, (size_t)n * sizeof *c);
+    }
+    memcpy(c, p->cbest, (size_t)n * sizeof *c);
+    if (s == VES_OK) s = best <= rtol ? VES_OK : VES_MAXITER;
+  }
+  free(b);
+  return s;
+}

@@ -152,6 +152,18 @@ void ves_model_point_data(const ves_model *m, double *pd) {
   }
 }
 
+ves_status ves_model_set_points(ves_model *m, const double *pd) {
+  VES_CHECK(m && pd, VES_ERR_ARG);
+  for (size_t i = 0; i < 6 * (size_t)m->q->nq; i++) VES_CHECK(isfinite(pd[i]), VES_ERR_ARG);
+  for (int al = 0; al < m->q->nq; al++) {
+    const double *f = pd + 6 * (size_t)al;
+    m->pt[al].phi0 = f[0];
+    m->pt[al].dphi0[0] = f[1], m->pt[al].dphi0[1] = f[2];
+    m->pt[al].ddphi0[0] = f[3], m->pt[al].ddphi0[1] = f[4], m->pt[al].ddphi0[2] = f[5];
+  }
+  return VES_OK;
+}
+
 void ves_model_get_params(const ves_model *m, ves_model_params *par) { *par = m->par; }
 
 const ves_nodes *ves_model_nodes(const ves_model *m) { return m->nodes; }

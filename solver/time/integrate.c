@@ -30,6 +30,7 @@
 #include "ves/quad.h"
 #include "ves/reconnect.h"
 #include "ves/remesh.h"
+#include "ves/profile.h"
 #include "ves/project.h"
 
 struct ves_sim {
@@ -75,6 +76,10 @@ struct ves_sim {
   double *yprev;                   /* 2n: y before the last accepted step (predictor) */
   double dt_prev;                  /* that step's dt */
   int have_prev;                   /* yprev is on the current reference */
+  ves_profile *prof;               /* the profile's restorer (ip.profile_every > 0) */
+  int restored;                    /* 1: phi0 restored since the model was made (its nodal
+                                      coefficients are then the restorer's) */
+  int restored_last;               /* 1: the last accepted step was followed by a restoration */
 };
 
 void ves_integrate_params_default(ves_integrate_params *p) {
@@ -106,6 +111,7 @@ void ves_integrate_params_default(ves_integrate_params *p) {
   p->reconnect_cond_max = 0.0;
   p->reconnect_det_min = 0.0;
   p->reconnect_nodes = VES_RESET_NODES_COEF;
+  p->profile_every = 0;
 }
 
 void ves_sim_destroy(ves_sim **s) {
@@ -114,6 +120,7 @@ void ves_sim_destroy(ves_sim **s) {
   if (p->backend && p->bstate) p->backend->destroy(&p->bstate);
   ves_step_destroy(&p->step);
   ves_reconnect_destroy(&p->ref); /* after the step problem and backend built on it */
+  ves_profile_destroy(&p->prof);
   ves_remesh_destroy(&p->mesh);
   ves_quad_destroy(&p->at_nodes);
   free(p->node_phi), free(p->coef);
@@ -142,6 +149,7 @@ ves_status ves_sim_create(ves_model *model, const ves_backend_type *backend,
   VES_CHECK(ip->retry_memory >= 0, VES_ERR_ARG);
   VES_CHECK(ip->retry_cap > 0 && ip->retry_cap <= 1, VES_ERR_ARG);
   VES_CHECK(ip->reconnect_every >= 0, VES_ERR_ARG);
+  VES_CHECK(ip->profile_every >= 0, VES_ERR_ARG);
   VES_CHECK(ip->reconnect_cond_max == 0 || ip->reconnect_cond_max > 1, VES_ERR_ARG);
   VES_CHECK(ip->reconnect_det_min >= 0 && ip->reconnect_det_min < 1, VES_ERR_ARG);
   VES_CHECK(ip->reconnect_nodes == VES_RESET_NODES_COEF ||
@@ -164,6 +172,7 @@ ves_status ves_sim_create(ves_model *model, const ves_backend_type *backend,
   s->yprev = malloc(2 * (size_t)s->n * sizeof *s->yprev);
   if (!s->y || !s->ynew || !s->yprev) goto fail;
   ves_model_reference(model, s->y);
+  if (ip->profile_every > 0 && (st = ves_profile_create(&s->prof)) != VES_OK) goto fail;
   if ((st = ves_step_create(model, &s->step)) != VES_OK) goto fail;
   s->nvar = ves_step_nvar(s->step);
   s->x = malloc((size_t)s->nvar * sizeof *s->x);
@@ -266,6 +275,7 @@ static ves_status switch_reference(ves_sim *s, ves_reconnect *nr, const ves_step
   ves_reconnect_destroy(&s->ref);
   ves_remesh_destroy(&s->mesh); /* nr borrows nothing from it */
   s->ref = nr, s->model = m, s->step = step, s->bstate = bstate;
+  ves_profile_forget(s->prof), s->restored = 0; /* a new model: its own phi0 */
   s->fresh_next = 1;
   s->have_prev = 0;
   memcpy(s->y, y, 2 * (size_t)s->n * sizeof *s->y);
@@ -420,6 +430,7 @@ static ves_status switch_remesh(ves_sim *s, ves_remesh *nm, double V_target) {
   ves_reconnect_destroy(&s->ref);
   ves_remesh_destroy(&s->mesh);
   s->mesh = nm, s->model = m, s->step = step, s->bstate = bstate;
+  ves_profile_forget(s->prof), s->restored = 0; /* a new model: its own phi0 */
   free(s->y), free(s->ynew), free(s->x), free(s->yprev);
   s->y = y, s->ynew = ynew, s->x = x, s->yprev = yprev;
   s->have_prev = 0;
@@ -591,7 +602,7 @@ static void next_dt(ves_sim *s, double dt, double dE, int iterations, int factor
  * (remesh_due), so the resets keep running meanwhile and the steps do not
  * each pay a failed remeshing (docs/results.md, "Resets and remeshing").
  * sp: the step's parameters (a reset rebuilds the step problem with them). */
-static void after_step(ves_sim *s, const ves_step_params *sp, ves_step_report *rep) {
+static void after_step_reference(ves_sim *s, const ves_step_params *sp, ves_step_report *rep) {
   int remesh_now = s->remesh_on && remesh_due(s, rep), tried = remesh_now;
   if (remesh_now) { /* due by its own rules */
     rep->remesh_status = remesh(s, &rep->remesh);
@@ -627,6 +638,27 @@ static void after_step(ves_sim *s, const ves_step_params *sp, ves_step_report *r
   }
 }
 
+/* The profile's restoration after every ip.profile_every accepted steps
+ * (profile.h): E, A, V re-evaluated on the restored phi0; the next step
+ * starts afresh, and its energy is not compared with this E when A or V is
+ * held (the restoration moves them off their targets, which the step
+ * restores). A failed restoration leaves the model as it was. */
+static void restore_profile(ves_sim *s, ves_step_report *rep) {
+  if (!s->prof || s->nstep % s->ip.profile_every != 0) return;
+  ves_profile_info info;
+  rep->profile_status = ves_profile_restore(s->prof, s->model, s->y, &info);
+  if (rep->profile_status != VES_OK) return;
+  rep->profile_restored = 1, rep->profile_shift = info.max_shift;
+  s->restored = 1, s->restored_last = 1, s->node_phi_ok = 0, s->fresh_next = 1;
+  rep->profile_status = ves_model_eval(s->model, s->y, VES_F_E | VES_F_A | VES_F_V, &s->E, &s->A,
+                                       &s->V, NULL, NULL, NULL);
+}
+
+static void after_step(ves_sim *s, const ves_step_params *sp, ves_step_report *rep) {
+  after_step_reference(s, sp, rep);
+  restore_profile(s, rep);
+}
+
 /* Take the attempt's result (positions s->ynew, E, A, V, multipliers lam,
  * the C0 and volume target it was solved at) as the new state. */
 static void accept(ves_sim *s, double dt, double E, double A, double V, const double lam[2],
@@ -635,7 +667,7 @@ static void accept(ves_sim *s, double dt, double E, double A, double V, const do
   memcpy(s->yprev, s->y, 2 * (size_t)s->n * sizeof *s->y);
   s->dt_prev = dt, s->have_prev = 1;
   memcpy(s->y, s->ynew, 2 * (size_t)s->n * sizeof *s->y);
-  s->fresh_next = 0;
+  s->fresh_next = 0, s->restored_last = 0;
   s->t += dt;
   s->nstep++;
   s->E = E, s->A = A, s->V = V;
@@ -686,6 +718,8 @@ ves_status ves_sim_step(ves_sim *s, ves_step_report *rep) {
     int fixed_targets = fabs(Vt - volume_target(s, s->t)) <= 1e-14 * s->V0;
     const double c0n = ramp ? c0_ramp(s, s->t + dt) : s->c0;
     if (c0n != s->c0) fixed_targets = 0; /* the ramp moves the landscape during the step */
+    if (s->restored_last && (s->ip.hold_area || s->ip.hold_volume))
+      fixed_targets = 0; /* y^n off the targets after a restoration */
     if ((st = ves_model_set_c0(s->model, c0n)) != VES_OK) return st;
     ves_step_params sp = {.dt = dt,
                           .hold_area = s->ip.hold_area,
@@ -821,6 +855,7 @@ static ves_status node_points(ves_sim *s) {
  * reset), or the creation model's before any reset or remeshing; NULL
  * after a reset (its model has point values only). */
 static const double *known_coefficients(const ves_sim *s) {
+  if (s->restored) return ves_profile_coefficients(s->prof);
   if (s->mesh) return ves_remesh_phi0c(s->mesh);
   return s->ref ? NULL : s->coef;
 }
