@@ -280,6 +280,23 @@ long ves_io_rows(const ves_io *io);
  * VES_ERR_ARG for an unknown name. */
 ves_status ves_io_read_series(ves_io *io, const char *name, double *out);
 
+/* Whether the file's series start with the row of the initial state (step
+ * 0 at t = 0: E0, A0, V0 and the problem's C0; files of this version), which
+ * ves_io_rows, ves_io_read_series and the snapshots' rows do not count. */
+int ves_io_initial_row(const ves_io *io);
+
+/* Series `name` with that row first when the file has it: out[rows + 1]
+ * (ves_io_initial_row), else as ves_io_read_series. */
+ves_status ves_io_read_series_all(ves_io *io, const char *name, double *out);
+
+/* Runs recorded in /provenance (0 for a file of an older version). */
+int ves_io_provenance_runs(const ves_io *io);
+
+/* Item i (0, 1, ...) of run k's provenance: its name into key and its value
+ * as text into value (truncated to fit). VES_ERR_ARG past the last item. */
+ves_status ves_io_provenance(ves_io *io, int k, int i, char *key, size_t keylen, char *value,
+                             size_t valuelen);
+
 /* The name of the file's series column i, in the layout's order (t first,
  * step last), for 0 <= i < the number of columns; NULL past the last. */
 const char *ves_io_series_name(int i);

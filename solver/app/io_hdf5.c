@@ -337,6 +337,7 @@ ves_io *io_alloc(const char *path, int writable) {
   for (int i = 0; i < IO_NSERIES; i++) io->series[i] = -1;
   snprintf(io->path, sizeof io->path, "%s", path);
   ves_io_xdmf_path(path, io->xdmf, sizeof io->xdmf);
+  io_utc_now(io->started, sizeof io->started);
   return io;
 }
 
@@ -358,6 +359,7 @@ void ves_io_close(ves_io **pio) {
   free(io->info.problem);
   free(io->info.source);
   free(io->snap_t);
+  free(io->tri_now);
   free(io);
   *pio = NULL;
 }
