@@ -62,8 +62,10 @@ ves_status io_read_header(ves_io *io) {
       io_attr_read_buf(f, "program", prog, sizeof prog) != VES_OK || strcmp(prog, "vesica"))
     return VES_ERR_CONFIG;
   if (in->format_version < 1 || in->format_version > VES_IO_FORMAT) return VES_ERR_CONFIG;
-  /* format 1 snapshots have no x: read-only (a restart would mix formats) */
-  if (io->writable && in->format_version != VES_IO_FORMAT) return VES_ERR_CONFIG;
+  /* format 1 snapshots have no x: read-only (a restart would mix formats); a
+   * format 2 file is continued as written (no initial state's row; its new
+   * snapshots get interface curves, which its readers pass by) */
+  if (io->writable && in->format_version < 2) return VES_ERR_CONFIG;
   VES_CALL(io_attr_read_buf(f, "version", in->version, sizeof in->version));
   VES_CALL(io_attr_read_buf(f, "backend", in->backend, sizeof in->backend));
   /* a salvage takes a file whose status (written last) was lost as killed */
@@ -298,7 +300,7 @@ ves_status ves_io_open(const char *path, int writable, ves_io **out, char *err, 
       ves_error_say(err, errlen, "%s: format_version %d: this vesica reads format_version 1 to %d",
                     path, io->info.format_version, VES_IO_FORMAT);
     else if (st == VES_ERR_CONFIG && writable && io->info.format_version >= 1 &&
-             io->info.format_version < VES_IO_FORMAT)
+             io->info.format_version < 2)
       ves_error_say(err, errlen, "%s: format_version %d is read-only: it cannot be continued", path,
                     io->info.format_version);
     else if (st == VES_ERR_CONFIG)

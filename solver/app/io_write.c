@@ -63,8 +63,8 @@ static ves_status write_header(ves_io *io, const ves_io_header *h) {
   VES_CALL(io_attr_double(f, "setup_seconds", h->setup_seconds));
   VES_CALL(io_attr_status(f, "running"));
   VES_CALL(io_attr_str(f, "format_description",
-                       "vesica HDF5 output, layout format_version 2: solver/app/io.h and "
-                       "README.md (Output) of vesica"));
+                       "vesica HDF5 output, layout format_version 3: docs/manual.md (Output "
+                       "format) and solver/app/io.h of vesica"));
   VES_CALL(io_describe(f,
                        "lengths R0 = sqrt(A0/4 pi), time t* = t k/(mu R0^3), energy k (E* = E/k)",
                        "a vesica run: header attributes, parameters, mesh, series, snapshots"));
