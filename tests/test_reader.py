@@ -5,7 +5,8 @@ every step (12 snapshots, so HDF5's listing '0', '1', '10', '11', '2', ... is
 not their order), one remeshing every 2 steps. Checks the series from
 t = 0 (stored, and built for a file without that row), the snapshots'
 order, the stored interface curves (their area and volume against `vesica
-info`, against marching triangles here), the provenance, the triangles of
+info`, against marching triangles here), the provenance (a restart's too,
+and its rows once), the triangles of
 a remeshed snapshot, and that meshio.read opens FILE_last.xmf
 (docs/manual.md, "XDMF and ParaView").
 
@@ -160,6 +161,22 @@ def test_provenance():
         assert all(isinstance(v, str) for k, v in p.items() if k not in ("runs", "threads", "format_version", "setup_seconds"))
 
 
+def test_restart_adds_a_run():
+    # a restart records its own provenance and appends after the rows it
+    # keeps: every step once, the initial row once
+    again = os.path.join(TMP, "again.h5")
+    shutil.copy(PLAIN, again)
+    p = subprocess.run([VESICA, "run", "--restart", again, "--set", "time.t_end=0.065", "--quiet"],
+                       capture_output=True, text=True, env=dict(os.environ, OPENBLAS_NUM_THREADS="1"))
+    assert p.returncode == 0, p.stderr
+    r = vesica.load(again)
+    runs = r.provenance["runs"]
+    assert len(runs) == 2 and "--restart" in runs[1]["command"] and "--restart" not in runs[0]["command"], runs
+    step = r.series["step"]
+    assert np.array_equal(step, np.arange(len(step))) and len(step) == 14, step
+    assert np.all(np.diff(r.series["t"]) > 0)
+
+
 def test_remeshed_triangles():
     d = info(REMESH)
     assert int(d["remeshings"]) >= 1, d["remeshings"]
@@ -219,8 +236,8 @@ def test_interface_synthetic():
 
 
 TESTS = [test_series_from_t0, test_snapshots_in_time_order, test_interface_matches_info,
-         test_provenance, test_remeshed_triangles, test_meshio_reads_last_xmf,
-         test_interface_synthetic]
+         test_provenance, test_restart_adds_a_run, test_remeshed_triangles,
+         test_meshio_reads_last_xmf, test_interface_synthetic]
 
 
 def main():
