@@ -159,6 +159,11 @@ def test_provenance():
         assert isinstance(p["threads"], int) and p["threads"] >= 1
         assert len(p["runs"]) == 1 and p["runs"][0]["started"].endswith("Z")
         assert all(isinstance(v, str) for k, v in p.items() if k not in ("runs", "threads", "format_version", "setup_seconds"))
+        # vesica info --provenance prints the same items
+        q = subprocess.run([VESICA, "info", path, "--provenance"], capture_output=True, text=True)
+        lines = dict(line.split(" = ", 1) for line in q.stdout.splitlines())
+        assert q.returncode == 0 and lines["run.0.commit"] == p["commit"], (q.returncode, q.stdout)
+        assert lines["run.0.command"] == p["command"] and int(lines["run.0.threads"]) == p["threads"]
 
 
 def test_restart_adds_a_run():
