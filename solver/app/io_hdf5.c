@@ -102,7 +102,8 @@ ves_status io_reserve(ves_io *io, double bytes) {
  * every IO_CHUNK rows (with its B-tree node), and HDF5's metadata. */
 double io_row_bytes(const ves_io *io) {
   double need = IO_ROOM_MARGIN;
-  if (ves_io_rows(io) % IO_CHUNK == 0) need += IO_NSERIES * (IO_CHUNK * 8.0 + 4096);
+  const long next = ves_io_rows(io) + io->row0; /* the dataset row written next */
+  if (next % IO_CHUNK == 0 || io->row0_pending) need += IO_NSERIES * (IO_CHUNK * 8.0 + 4096);
   return need;
 }
 

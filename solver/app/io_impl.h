@@ -73,6 +73,7 @@ struct ves_io {
   char started[32];         /* UTC ISO 8601 time the handle was made (the run's start) */
   int *tri_now;             /* the triangles of the node set in use (interface curves) */
   int ntri_now;             /* their count (0: not read yet) */
+  double iface_bytes;       /* bytes the last snapshot's interface group takes at most */
 };
 
 /* The dataset rows a snapshot's series_checksum covers for its `rows` step

@@ -318,8 +318,8 @@ const char *ves_io_series_name(int i) {
   return i >= 0 && i < IO_NSERIES ? io_series[i].name : NULL;
 }
 
-/* Series `name` from row `from` of the dataset on, `rows` rows. */
-static ves_status read_series_from(ves_io *io, const char *name, hsize_t zero, hsize_t rows,
+/* Series `name`: `rows` rows of its dataset from row `first` on. */
+static ves_status read_series_from(ves_io *io, const char *name, hsize_t first, hsize_t rows,
                                    double *out) {
   VES_CHECK(io && name && out, VES_ERR_ARG);
   int i = 0;
@@ -332,7 +332,7 @@ static ves_status read_series_from(ves_io *io, const char *name, hsize_t zero, h
   }
   hid_t fs = H5Dget_space(io->series[i]), ms = H5Screate_simple(1, &rows, NULL);
   herr_t e =
-      fs < 0 || ms < 0 ? -1 : H5Sselect_hyperslab(fs, H5S_SELECT_SET, &zero, NULL, &rows, NULL);
+      fs < 0 || ms < 0 ? -1 : H5Sselect_hyperslab(fs, H5S_SELECT_SET, &first, NULL, &rows, NULL);
   if (e >= 0) e = H5Dread(io->series[i], H5T_NATIVE_DOUBLE, ms, fs, H5P_DEFAULT, out);
   if (ms >= 0) H5Sclose(ms);
   if (fs >= 0) H5Sclose(fs);

@@ -18,9 +18,9 @@
  * a bound measured with room to spare: a 64-snapshot file grows by < 8 KiB
  * a snapshot beyond its data). */
 static double snapshot_bytes(const ves_io *io, int snapshots) {
-  /* and the interface: at most one point per edge of the triangulation
-   * (< 3n edges, 16 bytes a point) and a dataset's metadata per piece */
-  return IO_ROOM_MARGIN + snapshots * ((9 + 6) * 8.0 * io_nodes_now(io) + 8192);
+  /* and the interface: twice the last one's (io->iface_bytes; a snapshot
+   * reserves its own, known then, before it writes) */
+  return IO_ROOM_MARGIN + snapshots * (9 * 8.0 * io_nodes_now(io) + 4096 + 2 * io->iface_bytes);
 }
 
 /* Every configuration key as a typed attribute of /parameters. */
@@ -222,19 +222,31 @@ static ves_status triangles_now(ves_io *io) {
   return VES_OK;
 }
 
-/* Group `interface` of snapshot g: the sharp interface {phi = 0} of the
- * piecewise-linear phi on the triangles in use moved to x (level_set.h):
- * one dataset per piece ("0", "1", ...: m x 2, r z in R0, attribute closed)
- * and the measures as attributes. Derived data (recomputable from x, phi
- * and the triangles): outside the snapshot's checksum, read by no restart.
- * A state the level set refuses (a non-finite x or phi) gets no group. */
-static ves_status write_interface(ves_io *io, hid_t g, int n, const double *x, const double *phi) {
+/* The sharp interface {phi = 0} of the piecewise-linear phi on the
+ * triangles in use moved to x (level_set.h): *have 0 when the level set
+ * refuses the state (a non-finite x or phi), which then gets no group;
+ * io->iface_bytes what the group takes in the file at most. */
+static ves_status interface_of(ves_io *io, int n, const double *x, const double *phi,
+                               ves_level_set *ls, ves_level_set_curves *c, int *have) {
+  *have = 0;
   VES_CALL(triangles_now(io));
-  ves_level_set ls;
-  ves_level_set_curves c;
-  if (ves_level_set_eval(n, io->ntri_now, io->tri_now, x, phi, &ls) != VES_OK) return VES_OK;
-  const ves_status cs = ves_level_set_curves_eval(n, io->ntri_now, io->tri_now, x, phi, &c);
+  if (ves_level_set_eval(n, io->ntri_now, io->tri_now, x, phi, ls) != VES_OK) return VES_OK;
+  const ves_status cs = ves_level_set_curves_eval(n, io->ntri_now, io->tri_now, x, phi, c);
   if (cs != VES_OK) return cs == VES_ERR_ALLOC ? cs : VES_OK;
+  *have = 1;
+  /* 16 bytes a point, a dataset's object header and attributes a piece, the group's */
+  io->iface_bytes = 16.0 * c->start[c->npieces] + 1024.0 * c->npieces + 2048;
+  return VES_OK;
+}
+
+/* Group `interface` of snapshot g (interface_of): one dataset per piece
+ * ("0", "1", ...: m x 2, r z in R0, attribute closed) and the measures as
+ * attributes. Derived data (recomputable from x, phi and the triangles):
+ * outside the snapshot's checksum, read by no restart. */
+static ves_status write_interface(hid_t g, const ves_level_set *pls,
+                                  const ves_level_set_curves *pc) {
+  const ves_level_set ls = *pls;
+  const ves_level_set_curves c = *pc;
   hid_t ig = H5Gcreate2(g, "interface", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
   ves_status st = ig < 0 ? VES_ERR_IO : VES_OK;
   for (int i = 0; i < c.npieces && st == VES_OK; i++) {
@@ -270,7 +282,6 @@ static ves_status write_interface(ves_io *io, hid_t g, int n, const double *x, c
         "(2 pi int r ds), volume (2 pi int r dA over phi > 0), reduced_volume (V / (4 pi/3 "
         "(A/4 pi)^(3/2))), inverted (triangles of non-positive image area)");
   if (ig >= 0) H5Gclose(ig);
-  ves_level_set_curves_free(&c);
   return st;
 }
 
@@ -283,18 +294,28 @@ static ves_status snapshot(ves_io *io, const double *y, const double *x, const d
     io->snap_t = t, io->snap_cap = cap;
   }
   const hsize_t n = (hsize_t)io_nodes_now(io); /* the last remeshing's node set */
-  VES_CALL(io_reserve(io, snapshot_bytes(io, 1) + (io->row0_pending ? io_row_bytes(io) : 0)));
+  ves_level_set ls;
+  ves_level_set_curves c = {0};
+  int have = 0;
+  ves_status st = interface_of(io, (int)n, x, phi, &ls, &c, &have);
+  if (st == VES_OK)
+    st = io_reserve(io, snapshot_bytes(io, 1) + (io->row0_pending ? io_row_bytes(io) : 0));
   hid_t s, g;
-  VES_CALL(io_counted_open(io->file, "snapshots", io->nsnap, &s, &g));
+  if (st == VES_OK) st = io_counted_open(io->file, "snapshots", io->nsnap, &s, &g);
+  if (st != VES_OK) {
+    ves_level_set_curves_free(&c);
+    return st;
+  }
   const hid_t F = H5T_IEEE_F64LE, M = H5T_NATIVE_DOUBLE;
-  ves_status st = io_dset_write(g, "y", F, M, n, 2, y);
+  st = io_dset_write(g, "y", F, M, n, 2, y);
   if (st == VES_OK) st = io_dset_write(g, "x", F, M, n, 2, x);
   if (st == VES_OK) st = io_dset_write(g, "phi", F, M, n, 0, phi);
   if (st == VES_OK && si->state.dt_prev > 0)
     st = io_dset_write(g, "y_prev", F, M, n, 2, si->y_prev);
   if (st == VES_OK && si->velocity) st = io_dset_write(g, "velocity", F, M, n, 2, si->velocity);
   if (st == VES_OK) st = snapshot_attrs(g, si);
-  if (st == VES_OK) st = write_interface(io, g, (int)n, x, phi);
+  if (st == VES_OK && have) st = write_interface(g, &ls, &c);
+  ves_level_set_curves_free(&c);
   /* checksums for a salvage: of the snapshot, and of the series rows up to
    * it (when the file holds them: always in a run) */
   uint64_t rows_checksum = 0;
