@@ -82,6 +82,19 @@ all: deps
 $(BUILD)/obj/%.o: solver/%.c
 	@mkdir -p $(@D)
 	$(CC) $(CFLAGS) -c $< -o $@
+# The provenance every output file records (solver/app/io_provenance.c): the
+# commit built (git describe --always --dirty; "unknown" outside a git
+# checkout) and the compiler flags. Only that object is rebuilt when they
+# change: it depends on a stamp rewritten only then.
+VES_COMMIT := $(shell git describe --always --dirty 2>/dev/null || echo unknown)
+PROV_CFLAGS := $(strip $(CFLAGS))
+$(BUILD)/provenance.stamp: FORCE
+	@mkdir -p $(@D); printf '%s\n' "$(VES_COMMIT) $(PROV_CFLAGS)" | cmp -s - $@ || \
+	  printf '%s\n' "$(VES_COMMIT) $(PROV_CFLAGS)" > $@
+$(BUILD)/obj/app/io_provenance.o: $(BUILD)/provenance.stamp
+$(BUILD)/obj/app/io_provenance.o: CFLAGS += -DVES_COMMIT='"$(VES_COMMIT)"' -DVES_CFLAGS='"$(PROV_CFLAGS)"'
+.PHONY: FORCE
+FORCE:
 $(BUILD)/obj/%.o: solver/%.cpp
 	@mkdir -p $(@D)
 	$(CXX) $(CXXFLAGS_CGAL) -c $< -o $@

@@ -12,6 +12,7 @@ PYTHONPATH) and
     for r_z in last.interface:                      # the phi = 0 curve(s)
         r, z = r_z.T
     last.interface_area(), last.interface_volume()  # as `vesica info` computes them
+    run.provenance["commit"]                        # what made the file
 
 The layout read here is docs/manual.md, "Output format" (and
 solver/app/io.h). Lengths are in R0, times in t*, energies in k.
@@ -58,14 +59,14 @@ class Series(dict):
     solve_seconds, wall_seconds, retries, status, reconnections,
     factorizations, step; docs/manual.md, "The series").
 
-    The file's series starts at step 1 (row i holds accepted step i + 1): the
-    first row here is the initial state at t = 0, built from the file's root
-    attributes E0, A0, V0 (E = E0, A = A0, V = V_target = V0, step 0) and
-    snapshot 0's state (c0, lambda_A, lambda_V); the columns that describe a
-    step (dt, iterations, evaluations, violation, solve_seconds, retries,
-    status, factorizations) are NaN there, wall_seconds and reconnections 0.
-    Hence every column is float. `file_rows` holds the file's rows alone,
-    with their own types. Only complete rows are read (a run killed during an
+    The first row is the initial state at t = 0 (step 0). A file of this
+    version stores it (its columns that describe a step, dt, iterations,
+    evaluations, ..., are 0 there); for an older file, whose series starts at
+    step 1, it is built from the root attributes E0, A0, V0 (E = E0, A = A0,
+    V = V_target = V0) and snapshot 0's state (c0, lambda_A, lambda_V), the
+    columns that describe a step NaN, wall_seconds and reconnections 0.
+    Every column is float. `file_rows` holds the file's rows as stored, with
+    their own types. Only complete rows are read (a run killed during an
     append leaves some columns one row longer: the shortest length counts).
     """
 
@@ -146,29 +147,58 @@ class Snapshot:
     @property
     def interface(self):
         """The phi = 0 curve(s) of the piecewise-linear interpolant of phi on
-        the triangles at the positions x (marching triangles, the crossing
-        points linear on the edges): a list of m x 2 arrays (r, z) in R0, one
-        per connected piece, each ordered with phi > 0 on its left (for a
-        vesicle with phi > 0 inside: from the lower pole up to the upper one,
-        or counter-clockwise when closed; a closed piece repeats its first
-        point at the end). `r, z = piece.T`. Empty, and the area and volume
-        NaN, when x or phi hold NaN (a snapshot whose material could not be
-        evaluated)."""
+        the triangles at the positions x: a list of m x 2 arrays (r, z) in R0,
+        one per connected piece, sorted by their largest z. An open piece runs
+        from its end of larger z to the other (north pole to south pole for a
+        vesicle closed by the axis), a closed piece clockwise from its top,
+        repeating its first point at the end: the region a piece encloses
+        lies on its right. `r, z = piece.T`. Read from the file
+        (/snapshots/<k>/interface, written by vesica's
+        ves_level_set_curves_eval) when it stores them, else found here by
+        marching triangles (files of older versions). Empty, and the area and
+        volume NaN, when x or phi hold NaN (a snapshot whose material could
+        not be evaluated)."""
         return self._interface()[0]
+
+    @property
+    def interface_stored(self):
+        """Whether the file stores this snapshot's interface (then .interface
+        and the measures are the file's)."""
+        return self._stored_interface() is not None
+
+    def _stored_interface(self):
+        if "stored" not in self._cache:
+            with _open(self._run.path) as f:
+                g = f[f"snapshots/{self.index}"]
+                if "interface" in g:
+                    ig = g["interface"]
+                    count = int(ig.attrs.get("pieces", 0))
+                    self._cache["stored"] = ([ig[str(i)][()] for i in range(count)],
+                                             {k: _text(v) for k, v in ig.attrs.items()})
+                else:
+                    self._cache["stored"] = None
+        return self._cache["stored"]
 
     def _interface(self):
         if self._curves is None:
+            stored = self._stored_interface()
             x, phi = self.x, self.phi
             if not (np.all(np.isfinite(x)) and np.all(np.isfinite(phi))):
                 # the material could not be evaluated (docs/manual.md,
                 # "The HDF5 file"): no curve, area and volume NaN
                 self._curves = [], None
+            elif stored is not None:
+                self._curves = stored[0], None
             else:
                 self._curves = interface_curves(x, phi, self.triangles)
         return self._curves
 
     def interface_area(self):
-        """2 pi int r ds over the phi = 0 segments (R0^2): `vesica info`'s interface_area."""
+        """2 pi int r ds over the phi = 0 segments (R0^2): `vesica info`'s
+        interface_area (the file's attribute when it stores the interface)."""
+        stored = self._stored_interface()
+        if stored is not None:  # written only for a finite state
+            return float(stored[1]["area"])
         seg = self._interface()[1]
         if seg is None:
             return math.nan
@@ -184,7 +214,11 @@ class Snapshot:
         segments, each with phi > 0 on its left within its triangle (Green's
         theorem; the axis r = 0 adds nothing): `vesica info`'s
         interface_volume, the same sum the C code (solver/analysis/level_set.c)
-        takes over the clipped triangles."""
+        takes over the clipped triangles (the file's attribute when it
+        stores the interface)."""
+        stored = self._stored_interface()
+        if stored is not None:
+            return float(stored[1]["volume"])
         seg = self._interface()[1]
         if seg is None:
             return math.nan
@@ -241,7 +275,29 @@ def interface_curves(x, phi, triangles):
         out_key[leave], out_pt[leave] = key[leave], q[leave]
         in_key[enter], in_pt[enter] = key[enter], q[enter]
     segments = np.stack([out_pt, in_pt], axis=1)
-    return _chain(out_key, in_key, out_pt, in_pt), segments
+    return _orient(_chain(out_key, in_key, out_pt, in_pt)), segments
+
+
+def _orient(curves):
+    """The pieces as vesica stores them (level_set.h): an open piece from its
+    end of larger z (at equal z, of smaller r), a closed one clockwise from
+    its point of largest z (at equal z, of smallest r); sorted by their
+    largest z, descending."""
+    out = []
+    for c in curves:
+        closed = len(c) > 2 and np.array_equal(c[0], c[-1])
+        if not closed:
+            if c[-1, 1] > c[0, 1] or (c[-1, 1] == c[0, 1] and c[-1, 0] < c[0, 0]):
+                c = c[::-1]
+        else:
+            v = c[:-1]
+            top = max(range(len(v)), key=lambda i: (v[i, 1], -v[i, 0]))
+            v = np.roll(v, -top, axis=0)
+            if np.sum(v[:, 0] * np.roll(v[:, 1], -1) - np.roll(v[:, 0], -1) * v[:, 1]) > 0:
+                v = np.concatenate([v[:1], v[1:][::-1]])  # clockwise, from the top
+            c = np.concatenate([v, v[:1]])
+        out.append(np.ascontiguousarray(c))
+    return sorted(out, key=lambda c: (-c[:, 1].max(), c[0, 0]))
 
 
 def _chain(ka, kb, pa, pb):
@@ -296,6 +352,7 @@ class Run:
             self.parameters = (
                 {k: _text(v) for k, v in f["parameters"].attrs.items()} if "parameters" in f else {}
             )
+            self._runs = self._read_provenance(f)
             self.remeshes = self._read_remeshes(f)
             self.snapshots = self._read_snapshots(f)
             self.series = self._read_series(f)
@@ -306,16 +363,27 @@ class Run:
 
     @property
     def provenance(self):
-        """Who and what made the file: the root attributes program, version,
-        backend, source, format_version, setup_seconds, status (None where the file has
-        none) and any other root attribute naming the host, user, command,
-        commit or provenance."""
+        """Who and what made the file, a dict: the root attributes program,
+        version, backend, source, format_version, setup_seconds, status (None
+        where the file has none); the items of the run that created the file
+        (/provenance/0: version, commit, compiler, cflags, hdf5, mumps,
+        ipopt, nlopt, openblas, openblas_core, host, threads, started,
+        command; docs/manual.md, "Output format"); and "runs", the items of
+        every run that wrote the file (the first, then each restart), in
+        order ([] for a file of an older version)."""
         keys = ["program", "version", "backend", "source", "format_version", "setup_seconds", "status"]
         p = {k: self.attrs.get(k) for k in keys}
-        for k, v in self.attrs.items():
-            if any(w in k.lower() for w in ("provenance", "host", "user", "command", "commit", "git")):
-                p[k] = v
+        p.update(self._runs[0] if self._runs else {})
+        p["runs"] = [dict(r) for r in self._runs]
         return p
+
+    def _read_provenance(self, f):
+        if "provenance" not in f:
+            return []
+        g = f["provenance"]
+        count = int(g.attrs.get("count", 0))
+        return [{k: _text(v) for k, v in g[str(k)].attrs.items() if k not in ("units", "description")}
+                for k in range(count)]
 
     def _read_remeshes(self, f):
         if "remeshes" not in f:
@@ -355,6 +423,18 @@ class Run:
         names = list(g.keys())
         rows = min((g[c].shape[0] for c in names), default=0)
         file_rows = {c: g[c][:rows] for c in names}
+        # a run killed between extending "step" and writing it leaves 0 there
+        while rows > 0 and "step" in file_rows and int(file_rows["step"][rows - 1]) != rows - 1 \
+                and int(file_rows["step"][0]) == 0:
+            rows -= 1
+            file_rows = {c: v[:rows] for c, v in file_rows.items()}
+        known = [c for c in _SERIES_ORDER if c in file_rows]
+        order = known + sorted(c for c in file_rows if c not in _SERIES_ORDER) + \
+            (["step"] if "step" in file_rows else [])
+        if rows > 0 and "step" in file_rows and int(file_rows["step"][0]) == 0:
+            # the file stores the initial state's row (step 0, t = 0)
+            return Series({c: file_rows[c].astype(float) for c in order},
+                          {c: file_rows[c] for c in order})
         snap0 = self.snapshots[0].attrs if self.snapshots else {}
         at0 = {
             "t": 0.0, "step": 0, "E": self.attrs.get("E0"), "A": self.attrs.get("A0"),
@@ -368,8 +448,6 @@ class Run:
             first = np.array([np.nan if v0 is None else float(v0)])
             cols[c] = np.concatenate([first, file_rows[c].astype(float)])
         # the layout's order (docs/manual.md, "The series"), other columns after it, step last
-        known = [c for c in _SERIES_ORDER if c in cols]
-        order = known + sorted(c for c in cols if c not in _SERIES_ORDER) + (["step"] if "step" in cols else [])
         return Series({c: cols[c] for c in order}, {c: file_rows[c] for c in order})
 
     def _triangles(self, mesh):

@@ -552,10 +552,11 @@ static void test_series(void **state) {
   assert_int_equal(sscanf(l2 + 1, "%ld\t%lf\t%*f\t%lf", &s2, &t2, &e2), 3);
   assert_true(s1 == R - 1 && s2 == R);
   assert_true(fabs(t2 / t[R - 1] - 1) <= 1e-11 && fabs(e2 / E[R - 1] - 1) <= 1e-11);
-  run(&r, "info", out, "--series", "0", NULL); /* every row */
+  run(&r, "info", out, "--series", "0", NULL); /* every row: the header, t = 0, the R steps */
   int lines = 0;
   for (const char *c = r.out; *c; c++) lines += *c == '\n';
-  assert_int_equal(lines, R + 1);
+  assert_int_equal(lines, R + 2);
+  assert_int_equal(strncmp(strchr(r.out, '\n') + 1, "0\t0\t0\t", 6), 0);
   run(&r, "info", out, "--series", "-1", NULL);
   assert_int_equal(r.code, 2);
   assert_non_null(strstr(r.err, "not an integer"));

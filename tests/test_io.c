@@ -581,8 +581,9 @@ static void test_self_describing(void **state) {
   assert_true(h5 >= 0);
   int count = 0;
   assert_true(H5Ovisit(h5, H5_INDEX_NAME, H5_ITER_INC, described, &count) >= 0);
-  /* root, parameters, mesh + 3, series + 21, snapshots + 0 + 3, references + 0 + 5 */
-  assert_int_equal(count, 1 + 1 + 4 + 22 + 5 + 7);
+  /* root, parameters, mesh + 3, series + 21, snapshots + 0 + 3 + interface + its one piece,
+   * references + 0 + 5, provenance + 0 */
+  assert_int_equal(count, 1 + 1 + 4 + 22 + 7 + 7 + 2);
   const char *root[] = {"program", "version",        "problem",
                         "source",  "format_version", "format_description"};
   for (size_t i = 0; i < sizeof root / sizeof root[0]; i++)

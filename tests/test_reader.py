@@ -3,9 +3,12 @@
 TINY settings of tests/cli_test_impl.h): one of 11 steps with a snapshot at
 every step (12 snapshots, so HDF5's listing '0', '1', '10', '11', '2', ... is
 not their order), one remeshing every 2 steps. Checks the series from
-t = 0, the snapshots' order, the sharp interface's area and volume against
-`vesica info`, the triangles of a remeshed snapshot, and that meshio.read
-opens FILE_last.xmf (docs/manual.md, "XDMF and ParaView").
+t = 0 (stored, and built for a file without that row), the snapshots'
+order, the stored interface curves (their area and volume against `vesica
+info`, against marching triangles here), the provenance (a restart's too,
+and its rows once), the triangles of
+a remeshed snapshot, and that meshio.read opens FILE_last.xmf
+(docs/manual.md, "XDMF and ParaView").
 
 Run with Debian's python3 (numpy, h5py, meshio): /usr/bin/python3
 tests/test_reader.py; prints cmocka's summary lines for tests/run.sh; exit
@@ -71,17 +74,35 @@ def test_series_from_t0():
             E0, A0, V0 = (float(f.attrs[k]) for k in ("E0", "A0", "V0"))
             t_file = f["series/t"][()]
         assert set(r.series) == names, f"columns {sorted(r.series)} against {sorted(names)}"
-        assert all(len(v) == rows + 1 for v in r.series.values())
+        # the file stores the initial state's row: step 0 at t = 0, E0, A0, V0
+        assert all(len(v) == rows for v in r.series.values())
         s = r.series
         assert s["t"][0] == 0 and s["step"][0] == 0, (s["t"][0], s["step"][0])
         assert (s["E"][0], s["A"][0], s["V"][0]) == (E0, A0, V0)
-        assert np.array_equal(s["t"][1:], t_file) and np.array_equal(s["step"][1:], np.arange(1, rows + 1))
-        assert np.isnan(s["dt"][0]) and np.all(np.diff(s["t"]) > 0)
+        assert np.array_equal(s["t"], t_file) and np.array_equal(s["step"], np.arange(rows))
+        assert s["dt"][0] == 0 and np.all(np.diff(s["t"]) > 0)
+        # vesica info --series shows it too
+        p = subprocess.run([VESICA, "info", path, "--series", "0"], capture_output=True, text=True)
+        lines = p.stdout.splitlines()
+        assert p.returncode == 0 and lines[0].startswith("# step") and len(lines) == rows + 1, p
+        assert lines[1].split("\t")[:2] == ["0", "0"], lines[1]
         try:
             df = s.to_pandas()
-            assert df.shape == (rows + 1, len(names))
+            assert df.shape == (rows, len(names))
         except ImportError as e:
             assert "pandas" in str(e)
+    # a file of an older version (its series from step 1): the row built from E0, A0, V0
+    old = os.path.join(TMP, "older.h5")
+    shutil.copy(PLAIN, old)
+    with h5py.File(old, "r+") as f:
+        for c in f["series"]:
+            v = f["series"][c][()]
+            f["series"][c].resize((len(v) - 1,))
+            f["series"][c][...] = v[1:]
+        E0 = float(f.attrs["E0"])
+    s = vesica.load(old).series
+    assert s["step"][0] == 0 and s["t"][0] == 0 and s["E"][0] == E0 and np.isnan(s["dt"][0])
+    assert np.array_equal(s["t"], vesica.load(PLAIN).series["t"])
 
 
 def test_snapshots_in_time_order():
@@ -102,25 +123,63 @@ def test_snapshots_in_time_order():
 
 def test_interface_matches_info():
     # info prints 9 significant digits (agreement at full precision: the
-    # same sum, ~1e-15 relative); 1e-6 relative leaves room for that rounding
+    # same sums, ~1e-15 relative); 1e-6 relative leaves room for that rounding
     for path in (PLAIN, REMESH):
         r, d = vesica.load(path), info(path)
         for s, when in ((r.snapshots[0], "initial"), (r.snapshots[-1], "final")):
+            assert s.interface_stored, f"{path}: snapshot {s.index} stores no interface"
             a, v = float(d[f"interface_area_{when}"]), float(d[f"interface_volume_{when}"])
-            da, dv = abs(s.interface_area() / a - 1), abs(s.interface_volume() / v - 1)
-            print(f"# {os.path.basename(path)} {when}: area {s.interface_area():.12g} "
-                  f"(info {a:.9g}, {da:.1e}), volume {s.interface_volume():.12g} (info {v:.9g}, {dv:.1e})")
-            assert da < 1e-6 and dv < 1e-6
-            # one piece, from the lower pole on the axis to the upper one
+            # one piece, from the upper pole on the axis to the lower one
             assert len(s.interface) == 1, len(s.interface)
             c = s.interface[0]
-            assert abs(c[0, 0]) < 1e-12 and abs(c[-1, 0]) < 1e-12, (c[0], c[-1])
-            assert c[0, 1] < 0 < c[-1, 1], (c[0], c[-1])
-            # the curve's own sums: pi int r^2 dz and 2 pi int r ds along it
+            assert c[0, 0] == 0 and c[-1, 0] == 0, (c[0], c[-1])
+            assert c[0, 1] > 0 > c[-1, 1], (c[0], c[-1])
+            # the curve's own sums: pi int r^2 (-dz) and 2 pi int r ds along it
             r_, z_ = c[:, 0], c[:, 1]
-            vol = np.pi * np.sum(np.diff(z_) * (r_[:-1] ** 2 + r_[:-1] * r_[1:] + r_[1:] ** 2) / 3)
+            vol = np.pi * np.sum(-np.diff(z_) * (r_[:-1] ** 2 + r_[:-1] * r_[1:] + r_[1:] ** 2) / 3)
             area = np.pi * np.sum((r_[:-1] + r_[1:]) * np.hypot(np.diff(r_), np.diff(z_)))
+            da, dv = abs(area / a - 1), abs(vol / v - 1)
+            print(f"# {os.path.basename(path)} {when}: area {area:.12g} (info {a:.9g}, {da:.1e}), "
+                  f"volume {vol:.12g} (info {v:.9g}, {dv:.1e})")
+            assert da < 1e-6 and dv < 1e-6
+            # the stored measures are the curve's (the same segments: 1e-12 relative, rounding)
             assert abs(vol / s.interface_volume() - 1) < 1e-12 and abs(area / s.interface_area() - 1) < 1e-12
+            # marching triangles here (a file without stored curves) finds the same points
+            mine, _ = vesica.interface_curves(s.x, s.phi, s.triangles)
+            assert len(mine) == 1 and mine[0].shape == c.shape, (len(mine), mine[0].shape, c.shape)
+            assert np.allclose(mine[0], c, rtol=0, atol=1e-12)
+
+
+def test_provenance():
+    for path in (PLAIN, REMESH):
+        p = vesica.load(path).provenance
+        assert p["commit"] and p["command"].startswith(VESICA) and " run " in p["command"], p
+        for lib in ("hdf5", "mumps", "ipopt", "nlopt", "openblas"):
+            assert p[lib] and p[lib] != "unknown", (lib, p[lib])
+        assert isinstance(p["threads"], int) and p["threads"] >= 1
+        assert len(p["runs"]) == 1 and p["runs"][0]["started"].endswith("Z")
+        assert all(isinstance(v, str) for k, v in p.items() if k not in ("runs", "threads", "format_version", "setup_seconds"))
+        # vesica info --provenance prints the same items
+        q = subprocess.run([VESICA, "info", path, "--provenance"], capture_output=True, text=True)
+        lines = dict(line.split(" = ", 1) for line in q.stdout.splitlines())
+        assert q.returncode == 0 and lines["run.0.commit"] == p["commit"], (q.returncode, q.stdout)
+        assert lines["run.0.command"] == p["command"] and int(lines["run.0.threads"]) == p["threads"]
+
+
+def test_restart_adds_a_run():
+    # a restart records its own provenance and appends after the rows it
+    # keeps: every step once, the initial row once
+    again = os.path.join(TMP, "again.h5")
+    shutil.copy(PLAIN, again)
+    p = subprocess.run([VESICA, "run", "--restart", again, "--set", "time.t_end=0.065", "--quiet"],
+                       capture_output=True, text=True, env=dict(os.environ, OPENBLAS_NUM_THREADS="1"))
+    assert p.returncode == 0, p.stderr
+    r = vesica.load(again)
+    runs = r.provenance["runs"]
+    assert len(runs) == 2 and "--restart" in runs[1]["command"] and "--restart" not in runs[0]["command"], runs
+    step = r.series["step"]
+    assert np.array_equal(step, np.arange(len(step))) and len(step) == 14, step
+    assert np.all(np.diff(r.series["t"]) > 0)
 
 
 def test_remeshed_triangles():
@@ -170,10 +229,11 @@ def test_interface_synthetic():
         c = curves[0]
         if closed:
             assert np.array_equal(c[0], c[-1])
-            # counter-clockwise around phi > 0: positive signed area
-            assert np.sum(c[:-1, 0] * c[1:, 1] - c[1:, 0] * c[:-1, 1]) > 0
+            # clockwise (negative signed area) from its top, as vesica stores it
+            assert np.sum(c[:-1, 0] * c[1:, 1] - c[1:, 0] * c[:-1, 1]) < 0
+            assert c[0, 1] == c[:, 1].max()
         else:
-            assert c[0, 0] == 0 and c[-1, 0] == 0 and c[0, 1] < 0 < c[-1, 1], (c[0], c[-1])
+            assert c[0, 0] == 0 and c[-1, 0] == 0 and c[0, 1] > 0 > c[-1, 1], (c[0], c[-1])
         a = np.pi * np.sum((seg[:, 0, 0] + seg[:, 1, 0]) * np.hypot(*(seg[:, 1] - seg[:, 0]).T))
         ra, rb, dz = seg[:, 0, 0], seg[:, 1, 0], seg[:, 1, 1] - seg[:, 0, 1]
         v = np.pi * np.sum(dz * (ra * ra + ra * rb + rb * rb) / 3)
@@ -181,7 +241,8 @@ def test_interface_synthetic():
 
 
 TESTS = [test_series_from_t0, test_snapshots_in_time_order, test_interface_matches_info,
-         test_remeshed_triangles, test_meshio_reads_last_xmf, test_interface_synthetic]
+         test_provenance, test_restart_adds_a_run, test_remeshed_triangles,
+         test_meshio_reads_last_xmf, test_interface_synthetic]
 
 
 def main():

@@ -10,11 +10,16 @@
 #include "app/plot.h"
 
 static void usage_info(FILE *f) {
-  fprintf(f, "usage: vesica info FILE.h5 [--series N]\n"
+  fprintf(f, "usage: vesica info FILE.h5 [--series N | --provenance]\n"
              "  --series N  instead of the summary, the last N rows of the file's series (every\n"
              "              row with N = 0) as tab-separated text, a '# name...' header first:\n"
-             "              the columns of /series, step first (manual: \"The series\");\n"
-             "              also of a run still being written.\n"
+             "              the columns of /series, step first (manual: \"The series\"),\n"
+             "              from the initial state's row (step 0, t = 0) when the file has\n"
+             "              it; also of a run still being written.\n"
+             "  --provenance  instead of the summary, the provenance of every run that wrote\n"
+             "              the file (the first, then each restart): 'run.K.key = value' lines\n"
+             "              (version, commit, compiler, cflags, hdf5, mumps, ipopt, nlopt,\n"
+             "              openblas, openblas_core, host, threads, started, command).\n"
              "Summary of a run, one 'key = value' per line (stable keys, for scripts):\n"
              "  file, format_version, version, status (running = still running or killed,\n"
              "  finished, stopped, failed), backend, nodes, triangles, snapshots,\n"
@@ -128,7 +133,7 @@ static void print_parameters(const ves_config *cfg) {
 
 /* The last `last` rows of every series (all with last = 0), tab-separated. */
 static int print_series(const char *path, ves_io *io, long last) {
-  const long R = ves_io_rows(io), r0 = last > 0 && last < R ? R - last : 0;
+  const long R = ves_io_rows(io) + ves_io_initial_row(io), r0 = last > 0 && last < R ? R - last : 0;
   int nc = 0;
   while (ves_io_series_name(nc)) nc++;
   double *col = malloc((size_t)nc * (size_t)(R > 0 ? R : 1) * sizeof *col);
@@ -137,7 +142,7 @@ static int print_series(const char *path, ves_io *io, long last) {
     return 2;
   }
   for (int c = 0; c < nc; c++)
-    if (R > 0 && ves_io_read_series(io, ves_io_series_name(c), col + (size_t)c * R) != VES_OK) {
+    if (R > 0 && ves_io_read_series_all(io, ves_io_series_name(c), col + (size_t)c * R) != VES_OK) {
       fprintf(stderr, "vesica info: %s: cannot read the series %s\n", path, ves_io_series_name(c));
       free(col);
       return 2;
@@ -153,8 +158,25 @@ static int print_series(const char *path, ves_io *io, long last) {
   return 0;
 }
 
+/* The provenance of every run that wrote the file (ves_io_provenance). */
+static int print_provenance(const char *path, ves_io *io) {
+  const int runs = ves_io_provenance_runs(io);
+  if (runs <= 0) {
+    fprintf(stderr, "vesica info: %s: no provenance recorded (a file of an older version)\n", path);
+    return 2;
+  }
+  for (int k = 0; k < runs; k++) {
+    char key[64], value[4096];
+    for (int i = 0; ves_io_provenance(io, k, i, key, sizeof key, value, sizeof value) == VES_OK;
+         i++)
+      printf("run.%d.%s = %s\n", k, key, value);
+  }
+  return 0;
+}
+
 int cmd_info(int argc, char **argv) {
   const char *path = NULL;
+  int provenance = 0;
   long last = -1; /* --series N (-1: the summary) */
   for (int i = 0; i < argc; i++) {
     if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) {
@@ -166,6 +188,8 @@ int cmd_info(int argc, char **argv) {
         return 2;
       }
       if (cli_parse_long("info", "--series", argv[++i], 0, 1000000000L, &last)) return 2;
+    } else if (!strcmp(argv[i], "--provenance")) {
+      provenance = 1;
     } else if (cli_operand("info", "file", argv[i][0] == '-', argv[i], &path)) {
       return 2;
     }
@@ -177,8 +201,13 @@ int cmd_info(int argc, char **argv) {
     fprintf(stderr, "vesica info: %s\n", err);
     return 2;
   }
-  if (last >= 0) {
-    const int rc = print_series(path, io, last);
+  if (provenance && last >= 0) {
+    fprintf(stderr, "vesica info: --series and --provenance exclude each other\n");
+    ves_io_close(&io);
+    return 2;
+  }
+  if (provenance || last >= 0) {
+    const int rc = provenance ? print_provenance(path, io) : print_series(path, io, last);
     ves_io_close(&io);
     return rc;
   }

@@ -3,11 +3,14 @@
  * ParaView opens the snapshots as a time series. The module writes files and
  * never prints (docs/design.md, "The program"; io_*.c implement it).
  *
- * Layout (format_version 2; HDF5 1.10, default (earliest) format bounds, so a
- * killed writer leaves no "file open for writing" flag behind):
+ * Layout (format_version 3; HDF5 1.10, default (earliest) format bounds, so a
+ * killed writer leaves no "file open for writing" flag behind; format 2: the
+ * same without the series' initial row, snapshot interfaces and /provenance;
+ * docs/manual.md, "Output format", the reader's reference):
  *
  *   /                    attributes
- *     format_version     int 2 (1: the same without snapshot x; read-only)
+ *     format_version     int 3 (2: read and continued as written; 1: the same
+ *                        without snapshot x; read-only)
  *     program, version   "vesica", the program version
  *     backend            step solver of the run
  *     nodes              int n (real nodes; y has 2n entries)
@@ -37,8 +40,10 @@
  *                        lambda_V, c0, iterations, f_evals, g_evals, h_evals,
  *                        violation, solve_seconds, wall_seconds, retries,
  *                        status, reconnections, factorizations (optional:
- *                        a file without it reads -1) and last step (row i
- *                        holds step i + 1; the table io_series in io_series.c)
+ *                        a file without it reads -1) and last step (row 0
+ *                        the initial state, step 0 at t = 0, written with
+ *                        snapshot 0, which the API's rows do not count; row
+ *                        i holds step i; the table io_series in io_series.c)
  *   /snapshots           attribute count; groups "0", "1", ... each with
  *     y                  n x 2 nodal coefficients y^a (r, z) of the motion:
  *                        the state a restart continues from
@@ -55,9 +60,15 @@
  *                        V0 in model units, E* = E / k; lambda_A, lambda_V,
  *                        c0), wall_seconds, reconnections; checksum (uint64,
  *                        FNV-1a over y, x, phi and the state) and
- *                        series_checksum (over the series rows up to it), what
- *                        a salvage of a file cut short checks (optional: a
- *                        snapshot without them is not salvaged)
+ *                        series_checksum (over the series rows up to it, the
+ *                        initial row included; none before the first step),
+ *                        what a salvage of a file cut short checks (optional:
+ *                        a snapshot without them is not salvaged)
+ *     interface          group: the sharp interface phi = 0 on the triangles
+ *                        in use at x (level_set.h): datasets 0..pieces-1 (m x
+ *                        2, r z, attribute closed), attributes pieces, area,
+ *                        volume, reduced_volume, inverted; outside the
+ *                        checksum (derived data)
  *   /references          (runs with resets) attribute count; groups "0", "1",
  *                        ... one per reset of the reference configuration,
  *                        what ves_reconnect_restore rebuilds it from:
@@ -76,6 +87,12 @@
  *                        triangles; attribute checksum (uint64 FNV-1a over
  *                        x, h, flag, phi0c, triangles, vertices as doubles)
  *
+ *   /provenance          attribute count; groups "0", "1", ... one per run that
+ *                        wrote the file (the first, then each restart): string
+ *                        attributes version, commit, compiler, cflags, hdf5,
+ *                        mumps, ipopt, nlopt, openblas, openblas_core, host,
+ *                        started, command; int threads (io_provenance.c)
+ *
  * Snapshot 0 is the initial state; then every [output] snapshot_every steps
  * and the last state of a run (finished, stopped or failed). A restart
  * continues from the last snapshot (on reference reconnections - 1 when the
@@ -91,7 +108,9 @@
 #include "ves/integrate.h"
 #include "ves/status.h"
 
-#define VES_IO_FORMAT 2 /* format_version written; 1 is read too (read-only) */
+#define VES_IO_FORMAT                                                                              \
+  3 /* format_version written; 1 and 2 are read too, 2 continued (its                              \
+       series without the initial state's row, as written) */
 
 /* What a new file starts with (everything borrowed for the call). */
 typedef struct {
@@ -292,6 +311,23 @@ long ves_io_rows(const ves_io *io);
 /* Series `name` (one of the names in the layout) as doubles: out[rows].
  * VES_ERR_ARG for an unknown name. */
 ves_status ves_io_read_series(ves_io *io, const char *name, double *out);
+
+/* Whether the file's series start with the row of the initial state (step
+ * 0 at t = 0: E0, A0, V0 and the problem's C0; files of this version), which
+ * ves_io_rows, ves_io_read_series and the snapshots' rows do not count. */
+int ves_io_initial_row(const ves_io *io);
+
+/* Series `name` with that row first when the file has it: out[rows + 1]
+ * (ves_io_initial_row), else as ves_io_read_series. */
+ves_status ves_io_read_series_all(ves_io *io, const char *name, double *out);
+
+/* Runs recorded in /provenance (0 for a file of an older version). */
+int ves_io_provenance_runs(const ves_io *io);
+
+/* Item i (0, 1, ...) of run k's provenance: its name into key and its value
+ * as text into value (truncated to fit). VES_ERR_ARG past the last item. */
+ves_status ves_io_provenance(ves_io *io, int k, int i, char *key, size_t keylen, char *value,
+                             size_t valuelen);
 
 /* The name of the file's series column i, in the layout's order (t first,
  * step last), for 0 <= i < the number of columns; NULL past the last. */

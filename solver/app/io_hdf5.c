@@ -102,7 +102,8 @@ ves_status io_reserve(ves_io *io, double bytes) {
  * every IO_CHUNK rows (with its B-tree node), and HDF5's metadata. */
 double io_row_bytes(const ves_io *io) {
   double need = IO_ROOM_MARGIN;
-  if (ves_io_rows(io) % IO_CHUNK == 0) need += IO_NSERIES * (IO_CHUNK * 8.0 + 4096);
+  const long next = ves_io_rows(io) + io->row0; /* the dataset row written next */
+  if (next % IO_CHUNK == 0 || io->row0_pending) need += IO_NSERIES * (IO_CHUNK * 8.0 + 4096);
   return need;
 }
 
@@ -337,6 +338,7 @@ ves_io *io_alloc(const char *path, int writable) {
   for (int i = 0; i < IO_NSERIES; i++) io->series[i] = -1;
   snprintf(io->path, sizeof io->path, "%s", path);
   ves_io_xdmf_path(path, io->xdmf, sizeof io->xdmf);
+  io_utc_now(io->started, sizeof io->started);
   return io;
 }
 
@@ -358,6 +360,7 @@ void ves_io_close(ves_io **pio) {
   free(io->info.problem);
   free(io->info.source);
   free(io->snap_t);
+  free(io->tri_now);
   free(io);
   *pio = NULL;
 }

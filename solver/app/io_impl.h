@@ -63,7 +63,25 @@ struct ves_io {
   int reserved;             /* io_reserve took blocks past the end (freed at the close) */
   char corrupt[1024];       /* what reading found corrupt ("" none): ves_io_corruption */
   char note[256];           /* what reading could not verify ("" all): ves_io_note */
+  int row0;                 /* 1: the series start with the row of the initial state (step
+                               0, t = 0), which the API's rows do not count */
+  int row0_pending;         /* a new file: that row is written with the first snapshot or
+                               row (io_row0_write) */
+  ves_io_row row0_row;      /* its values */
+  int prov_pending;         /* opened to continue: the run's provenance is written before
+                               its first write of a row or snapshot */
+  char started[32];         /* UTC ISO 8601 time the handle was made (the run's start) */
+  int *tri_now;             /* the triangles of the node set in use (interface curves) */
+  int ntri_now;             /* their count (0: not read yet) */
+  double iface_bytes;       /* bytes the last snapshot's interface group takes at most */
 };
+
+/* The dataset rows a snapshot's series_checksum covers for its `rows` step
+ * rows: none for a snapshot before the first step (a salvage of it needs
+ * no series), else the initial state's row too when the file has one. */
+static inline long io_rows_covered(const ves_io *io, long rows) {
+  return rows > 0 ? rows + io->row0 : 0;
+}
 
 /* ---- the handle and HDF5's errors (io_hdf5.c) ---- */
 ves_io *io_alloc(const char *path, int writable); /* no file open yet */
@@ -121,6 +139,13 @@ uint64_t io_rows_sum(uint64_t h, void *const *col, long m);
 ves_status io_cols_read(hid_t const *series, long rows, void **col);
 ves_status io_series_sum(ves_io *io, long rows, uint64_t *out);
 ves_status io_create_series(ves_io *io, const hid_t *like);
+ves_status io_append_row(ves_io *io, const ves_io_row *row); /* no reservation, no provenance */
+ves_status io_row0_write(ves_io *io); /* the initial state's row when pending */
+
+/* ---- provenance (io_provenance.c) ---- */
+void io_utc_now(char *buf, size_t len); /* UTC ISO 8601, seconds */
+ves_status io_provenance_write(ves_io *io);
+ves_status io_provenance_pending(ves_io *io); /* io_provenance_write once, when pending */
 
 /* ---- reading (io_read.c) and the XDMF file (io_xdmf.c) ---- */
 ves_status io_read_header(ves_io *io);

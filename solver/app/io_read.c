@@ -62,8 +62,10 @@ ves_status io_read_header(ves_io *io) {
       io_attr_read_buf(f, "program", prog, sizeof prog) != VES_OK || strcmp(prog, "vesica"))
     return VES_ERR_CONFIG;
   if (in->format_version < 1 || in->format_version > VES_IO_FORMAT) return VES_ERR_CONFIG;
-  /* format 1 snapshots have no x: read-only (a restart would mix formats) */
-  if (io->writable && in->format_version != VES_IO_FORMAT) return VES_ERR_CONFIG;
+  /* format 1 snapshots have no x: read-only (a restart would mix formats); a
+   * format 2 file is continued as written (no initial state's row; its new
+   * snapshots get interface curves, which its readers pass by) */
+  if (io->writable && in->format_version < 2) return VES_ERR_CONFIG;
   VES_CALL(io_attr_read_buf(f, "version", in->version, sizeof in->version));
   VES_CALL(io_attr_read_buf(f, "backend", in->backend, sizeof in->backend));
   /* a salvage takes a file whose status (written last) was lost as killed */
@@ -97,6 +99,18 @@ ves_status io_read_header(ves_io *io) {
     io->series[i] = H5Dopen2(f, name, H5P_DEFAULT);
     if (io->series[i] < 0 || !io_numeric_type_ok(io->series[i], 0)) return VES_ERR_CONFIG;
   }
+  /* the row of the initial state: step 0 first (a step row holds step >= 1) */
+  long step0 = -1;
+  hsize_t zero = 0, one = 1;
+  const hid_t ds = io->series[IO_NSERIES - 1];
+  if (io_dset_len(ds) > 0) {
+    hid_t fs = H5Dget_space(ds), ms = H5Screate_simple(1, &one, NULL);
+    if (fs >= 0 && ms >= 0 && H5Sselect_hyperslab(fs, H5S_SELECT_SET, &zero, NULL, &one, NULL) >= 0)
+      H5Dread(ds, H5T_NATIVE_LONG, ms, fs, H5P_DEFAULT, &step0);
+    if (ms >= 0) H5Sclose(ms);
+    if (fs >= 0) H5Sclose(fs);
+  }
+  io->row0 = step0 == 0;
   return read_snapshot_times(io);
 }
 
@@ -188,6 +202,7 @@ static ves_status series_intact(ves_io *io, int k, long rows) {
     return VES_ERR_CONFIG;
   }
   if (!has) return VES_OK;
+  rows = io_rows_covered(io, rows); /* with the initial state's row */
   for (int i = 0; i < IO_NSERIES; i++)
     if (io->series[i] >= 0 && io_dset_len(io->series[i]) < (hsize_t)rows) {
       snprintf(io->corrupt, sizeof io->corrupt,
@@ -277,6 +292,7 @@ ves_status ves_io_open(const char *path, int writable, ves_io **out, char *err, 
   }
   ves_status st = io_read_header(io);
   if (st == VES_OK) st = open_verify(io, mode);
+  io->prov_pending = writable; /* a restart: its own provenance, at its first write */
   if (st != VES_OK) {
     if (st == VES_ERR_CONFIG && io->corrupt[0])
       ves_error_say(err, errlen, "%s: corrupt: %s", path, io->corrupt);
@@ -284,7 +300,7 @@ ves_status ves_io_open(const char *path, int writable, ves_io **out, char *err, 
       ves_error_say(err, errlen, "%s: format_version %d: this vesica reads format_version 1 to %d",
                     path, io->info.format_version, VES_IO_FORMAT);
     else if (st == VES_ERR_CONFIG && writable && io->info.format_version >= 1 &&
-             io->info.format_version < VES_IO_FORMAT)
+             io->info.format_version < 2)
       ves_error_say(err, errlen, "%s: format_version %d is read-only: it cannot be continued", path,
                     io->info.format_version);
     else if (st == VES_ERR_CONFIG)

@@ -152,9 +152,10 @@ static int object_readable(hid_t loc, const char *name, int depth) {
   return ok;
 }
 
-/* Object `name` of src copied to dst once it reads whole (object_readable). */
+/* Object `name` of src copied to dst once it reads whole (object_readable;
+ * two levels: a snapshot's interface group and its datasets). */
 static ves_status copy_object(hid_t src, hid_t dst, const char *name) {
-  if (!object_readable(src, name, 1)) return VES_ERR_IO;
+  if (!object_readable(src, name, 2)) return VES_ERR_IO;
   return H5Ocopy(src, name, dst, name, H5P_DEFAULT, H5P_DEFAULT) < 0 ? VES_ERR_IO : VES_OK;
 }
 
@@ -222,10 +223,12 @@ static int snapshot_intact(ves_io *src, int k, ves_io_snapinfo *si, void **col, 
   ok = ok && io_snap_sum((long)n, y, x, phi, yp, si) == want && si->rows >= 0;
   if (g >= 0) H5Gclose(g);
   free(y), free(x), free(phi), free(yp);
+  /* the rows the checksum covers: the initial state's too when the file has it */
+  const long rows = io_rows_covered(src, si->rows);
   for (int i = 0; i < IO_NSERIES && ok; i++)
-    ok = src->series[i] < 0 || io_dset_len(src->series[i]) >= (hsize_t)si->rows;
-  if (ok && io_cols_read(src->series, si->rows, col) != VES_OK) ok = 0;
-  if (ok) rows_sum_ = io_rows_sum(FNV_START, col, si->rows);
+    ok = src->series[i] < 0 || io_dset_len(src->series[i]) >= (hsize_t)rows;
+  if (ok && io_cols_read(src->series, rows, col) != VES_OK) ok = 0;
+  if (ok) rows_sum_ = io_rows_sum(FNV_START, col, rows);
   if (ok && rows_sum_ != want_rows) ok = 0;
   for (int r = 0; r < si->reconnections && ok; r++) ok = reference_intact(src, r);
   /* the remeshings made at or before its step, every one whole */
@@ -289,13 +292,23 @@ static ves_status salvage_write(ves_io *src, const char *path, const char *out, 
     step = "the remeshings";
     st = copy_counted(src->file, d, "remeshes", remeshes);
   }
+  int prov = 0; /* the runs' provenance, as far as it reads (not needed for a restart) */
+  hid_t pg = H5Lexists(src->file, "provenance", H5P_DEFAULT) > 0
+                 ? H5Gopen2(src->file, "provenance", H5P_DEFAULT)
+                 : -1;
+  if (pg >= 0 && (io_attr_read(pg, "count", H5T_NATIVE_INT, &prov) != VES_OK || prov < 0)) prov = 0;
+  if (pg >= 0) H5Gclose(pg);
+  if (st == VES_OK && prov > 0 && copy_counted(src->file, d, "provenance", prov) != VES_OK &&
+      H5Lexists(d, "provenance", H5P_DEFAULT) > 0)
+    H5Ldelete(d, "provenance", H5P_DEFAULT);
   if (st == VES_OK) {
     step = "the series";
     st = io_create_series(dst, src->series);
   }
-  for (int i = 0; i < IO_NSERIES && st == VES_OK && si->rows > 0; i++) {
+  const long rows = io_rows_covered(src, si->rows); /* with the initial state's row */
+  for (int i = 0; i < IO_NSERIES && st == VES_OK && rows > 0; i++) {
     if (dst->series[i] < 0) continue; /* as in src: an optional column it lacks */
-    hsize_t r = (hsize_t)si->rows;
+    hsize_t r = (hsize_t)rows;
     if (H5Dset_extent(dst->series[i], &r) < 0 ||
         H5Dwrite(dst->series[i], io_col_mem_type(io_series[i].type), H5S_ALL, H5S_ALL, H5P_DEFAULT,
                  col[i]) < 0)

@@ -38,7 +38,7 @@ const series_spec io_series[] = {
     {"status", COL_INT, ROW(status), "1", STATUS_DOC_, 0, TSV_NONE, NULL, NULL},
     {"reconnections", COL_INT, ROW(reconnections), "1", "resets of the reference configuration so far", 15, V_, "resets", "%d"},
     {"factorizations", COL_INT, ROW(factorizations), "1", "KKT factorizations of the accepted attempt, each rung of an inertia correction one (newton, euler; 0 for ipopt and nlopt, which do not report theirs); optional: a file without it reads as -1", 18, V_, "factorizations", "%d"},
-    {"step", COL_LONG, ROW(step), "1", "accepted step number (row i holds step i + 1; written last: a row is complete once its step is)", 1, V_, "step", "%ld"},
+    {"step", COL_LONG, ROW(step), "1", "accepted step number (row 0 holds step 0, the initial state at t = 0, and row i step i; written last: a row is complete once its step is)", 1, V_, "step", "%ld"},
     /* the text only */
     {"rejected_iterations", COL_INT, ROW(rejected_iterations), "1", "iterations of the attempts rejected before the accepted one", 16, V_, "rejected_iterations", "%d"},
     {"rejected_seconds", COL_DOUBLE, ROW(rejected_seconds), "s", "wall time of those attempts", 17, V_, "rejected_seconds", "%.3f"},
@@ -105,6 +105,7 @@ ves_status io_cols_read(hid_t const *series, long rows, void **col) {
 /* The checksum of the first `rows` rows of the series (extended over the
  * rows written since the last call; recomputed after a truncation). */
 ves_status io_series_sum(ves_io *io, long rows, uint64_t *out) {
+  rows = io_rows_covered(io, rows);
   if (io->summed_rows > rows) io->summed_rows = 0, io->series_sum = FNV_START;
   const long from = io->summed_rows, m = rows - from;
   void *col[IO_NSERIES];
@@ -164,14 +165,16 @@ ves_status io_create_series(ves_io *io, const hid_t *like) {
     if (st == VES_OK && !strcmp(io_series[i].name, "status")) st = status_codes(io->series[i]);
   }
   if (st == VES_OK)
-    st = io_describe(g, "per dataset", "one row per accepted step, flushed after every step");
+    st = io_describe(g, "per dataset",
+                     "row 0 the initial state (step 0, t = 0), then one row per accepted step, "
+                     "flushed after every step");
   if (dcpl >= 0) H5Pclose(dcpl);
   if (sp >= 0) H5Sclose(sp);
   H5Gclose(g);
   return st;
 }
 
-static ves_status append(ves_io *io, const ves_io_row *row) {
+ves_status io_append_row(ves_io *io, const ves_io_row *row) {
   for (int i = 0; i < IO_NSERIES; i++) {
     hid_t d = io->series[i];
     if (d < 0) continue; /* an optional column the file lacks */
@@ -193,8 +196,17 @@ static ves_status append(ves_io *io, const ves_io_row *row) {
 ves_status ves_io_append(ves_io *io, const ves_io_row *row) {
   VES_CHECK(io && row && io->writable, VES_ERR_ARG);
   errno = 0;
-  ves_status st = io_reserve(io, io_row_bytes(io)); /* before HDF5 writes anything */
-  return io_failed(io, st == VES_OK ? append(io, row) : st, errno);
+  ves_status st = io_provenance_pending(io);               /* a restart's, before its first row */
+  if (st == VES_OK) st = io_reserve(io, io_row_bytes(io)); /* before HDF5 writes anything */
+  if (st == VES_OK) st = io_row0_write(io);
+  return io_failed(io, st == VES_OK ? io_append_row(io, row) : st, errno);
+}
+
+ves_status io_row0_write(ves_io *io) {
+  if (!io->row0_pending) return VES_OK;
+  VES_CALL(io_append_row(io, &io->row0_row));
+  io->row0 = 1, io->row0_pending = 0;
+  return VES_OK;
 }
 
 void ves_io_row_from_step(const ves_step_report *rep, int reconnections, double wall_seconds,
@@ -284,13 +296,14 @@ long ves_io_rows(const ves_io *io) {
       H5Dread(d, H5T_NATIVE_LONG, ms, fs, H5P_DEFAULT, &step);
     if (ms >= 0) H5Sclose(ms);
     if (fs >= 0) H5Sclose(fs);
-    if (step != (long)rows) rows--;
+    if (step != (long)rows - io->row0) rows--;
   }
-  return (long)rows;
+  return (long)rows - (rows > 0 ? io->row0 : 0);
 }
 
 ves_status ves_io_truncate(ves_io *io, long rows) {
   VES_CHECK(io && io->writable && rows >= 0, VES_ERR_ARG);
+  rows += io->row0; /* the row of the initial state stays */
   hsize_t r = (hsize_t)rows;
   if (io->summed_rows > rows) io->summed_rows = 0, io->series_sum = FNV_START;
   for (int i = 0; i < IO_NSERIES; i++) {
@@ -305,12 +318,13 @@ const char *ves_io_series_name(int i) {
   return i >= 0 && i < IO_NSERIES ? io_series[i].name : NULL;
 }
 
-ves_status ves_io_read_series(ves_io *io, const char *name, double *out) {
+/* Series `name`: `rows` rows of its dataset from row `first` on. */
+static ves_status read_series_from(ves_io *io, const char *name, hsize_t first, hsize_t rows,
+                                   double *out) {
   VES_CHECK(io && name && out, VES_ERR_ARG);
   int i = 0;
   while (i < IO_NSERIES && strcmp(io_series[i].name, name)) i++;
   VES_CHECK(i < IO_NSERIES, VES_ERR_ARG);
-  hsize_t rows = (hsize_t)ves_io_rows(io), zero = 0;
   if (rows == 0) return VES_OK;
   if (io->series[i] < 0) { /* an optional column the file lacks */
     for (hsize_t r = 0; r < rows; r++) out[r] = -1;
@@ -318,11 +332,25 @@ ves_status ves_io_read_series(ves_io *io, const char *name, double *out) {
   }
   hid_t fs = H5Dget_space(io->series[i]), ms = H5Screate_simple(1, &rows, NULL);
   herr_t e =
-      fs < 0 || ms < 0 ? -1 : H5Sselect_hyperslab(fs, H5S_SELECT_SET, &zero, NULL, &rows, NULL);
+      fs < 0 || ms < 0 ? -1 : H5Sselect_hyperslab(fs, H5S_SELECT_SET, &first, NULL, &rows, NULL);
   if (e >= 0) e = H5Dread(io->series[i], H5T_NATIVE_DOUBLE, ms, fs, H5P_DEFAULT, out);
   if (ms >= 0) H5Sclose(ms);
   if (fs >= 0) H5Sclose(fs);
   return e < 0 ? VES_ERR_IO : VES_OK;
+}
+
+ves_status ves_io_read_series(ves_io *io, const char *name, double *out) {
+  VES_CHECK(io, VES_ERR_ARG);
+  return read_series_from(io, name, (hsize_t)io->row0, (hsize_t)ves_io_rows(io), out);
+}
+
+int ves_io_initial_row(const ves_io *io) {
+  return io && io->row0 && io_dset_len(io->series[0]) > 0;
+}
+
+ves_status ves_io_read_series_all(ves_io *io, const char *name, double *out) {
+  VES_CHECK(io, VES_ERR_ARG);
+  return read_series_from(io, name, 0, (hsize_t)(ves_io_rows(io) + ves_io_initial_row(io)), out);
 }
 
 /* The summary's columns, read by name (ves_io_summarize). */

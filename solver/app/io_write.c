@@ -3,6 +3,7 @@
  * and problem text; the room check before a step. Layout: app/io.h;
  * docs/design.md, "The program". */
 #include <errno.h>
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/resource.h>
@@ -10,13 +11,16 @@
 #include <sys/statvfs.h>
 
 #include "app/io_impl.h"
+#include "ves/level_set.h"
 
 /* The bytes `snapshots` snapshots write into the HDF5 file at most (y, x,
  * phi, y_prev, velocity: 9 values a node, and HDF5's metadata: IO_ROOM_MARGIN,
  * a bound measured with room to spare: a 64-snapshot file grows by < 8 KiB
  * a snapshot beyond its data). */
 static double snapshot_bytes(const ves_io *io, int snapshots) {
-  return IO_ROOM_MARGIN + snapshots * (9 * 8.0 * io_nodes_now(io) + 4096);
+  /* and the interface: twice the last one's (io->iface_bytes; a snapshot
+   * reserves its own, known then, before it writes) */
+  return IO_ROOM_MARGIN + snapshots * (9 * 8.0 * io_nodes_now(io) + 4096 + 2 * io->iface_bytes);
 }
 
 /* Every configuration key as a typed attribute of /parameters. */
@@ -59,8 +63,8 @@ static ves_status write_header(ves_io *io, const ves_io_header *h) {
   VES_CALL(io_attr_double(f, "setup_seconds", h->setup_seconds));
   VES_CALL(io_attr_status(f, "running"));
   VES_CALL(io_attr_str(f, "format_description",
-                       "vesica HDF5 output, layout format_version 2: solver/app/io.h and "
-                       "README.md (Output) of vesica"));
+                       "vesica HDF5 output, layout format_version 3: docs/manual.md (Output "
+                       "format) and solver/app/io.h of vesica"));
   VES_CALL(io_describe(f,
                        "lengths R0 = sqrt(A0/4 pi), time t* = t k/(mu R0^3), energy k (E* = E/k)",
                        "a vesica run: header attributes, parameters, mesh, series, snapshots"));
@@ -91,11 +95,19 @@ static ves_status write_header(ves_io *io, const ves_io_header *h) {
   st = io_attr_int(s, "count", 0);
   if (st == VES_OK)
     st = io_describe(s, "per member",
-                     "states of the run, groups 0..count-1 (the initial state, every [output] "
-                     "snapshot_every steps, the last)");
+                     "states of the run, groups 0..count-1 in time order (the initial state, "
+                     "every [output] snapshot_every steps, the last)");
   H5Gclose(s);
   VES_CALL(st);
   VES_CALL(io_create_series(io, NULL));
+  /* the series' first row, the initial state (step 0 at t = 0), is written
+   * with the first snapshot or row (io_row0_write): the series' chunks then
+   * come after snapshot 0 in the file, which a salvage of a file cut short
+   * keeps more often */
+  io->row0_row =
+      (ves_io_row){.E = h->E0, .A = h->A0, .V = h->V0, .V_target = h->V0, .c0 = h->cfg->c0};
+  io->row0_pending = 1;
+  VES_CALL(io_provenance_write(io));
   return H5Fflush(f, H5F_SCOPE_LOCAL) < 0 ? VES_ERR_IO : VES_OK;
 }
 
@@ -190,6 +202,89 @@ static ves_status snapshot_attrs(hid_t g, const ves_io_snapinfo *si) {
   return io_attr_int(g, "reconnections", si->reconnections);
 }
 
+/* The triangles of the node set in use (the last remeshing's, or the
+ * mesh's): read once, again after a remeshing is written or dropped. */
+static ves_status triangles_now(ves_io *io) {
+  if (io->ntri_now > 0) return VES_OK;
+  const int R = ves_io_remeshes(io);
+  int nt = io->info.ntri;
+  if (R > 0) VES_CALL(ves_io_remesh_size(io, R - 1, NULL, NULL, &nt));
+  int *t = malloc(3 * (size_t)nt * sizeof *t);
+  if (!t) return VES_ERR_ALLOC;
+  ves_status st =
+      R > 0 ? ves_io_read_remesh_triangles(io, R - 1, t) : ves_io_read_mesh(io, NULL, t);
+  if (st != VES_OK) {
+    free(t);
+    return st;
+  }
+  free(io->tri_now);
+  io->tri_now = t, io->ntri_now = nt;
+  return VES_OK;
+}
+
+/* The sharp interface {phi = 0} of the piecewise-linear phi on the
+ * triangles in use moved to x (level_set.h): *have 0 when the level set
+ * refuses the state (a non-finite x or phi), which then gets no group;
+ * io->iface_bytes what the group takes in the file at most. */
+static ves_status interface_of(ves_io *io, int n, const double *x, const double *phi,
+                               ves_level_set *ls, ves_level_set_curves *c, int *have) {
+  *have = 0;
+  VES_CALL(triangles_now(io));
+  if (ves_level_set_eval(n, io->ntri_now, io->tri_now, x, phi, ls) != VES_OK) return VES_OK;
+  const ves_status cs = ves_level_set_curves_eval(n, io->ntri_now, io->tri_now, x, phi, c);
+  if (cs != VES_OK) return cs == VES_ERR_ALLOC ? cs : VES_OK;
+  *have = 1;
+  /* 16 bytes a point, a dataset's object header and attributes a piece, the group's */
+  io->iface_bytes = 16.0 * c->start[c->npieces] + 1024.0 * c->npieces + 2048;
+  return VES_OK;
+}
+
+/* Group `interface` of snapshot g (interface_of): one dataset per piece
+ * ("0", "1", ...: m x 2, r z in R0, attribute closed) and the measures as
+ * attributes. Derived data (recomputable from x, phi and the triangles):
+ * outside the snapshot's checksum, read by no restart. */
+static ves_status write_interface(hid_t g, const ves_level_set *pls,
+                                  const ves_level_set_curves *pc) {
+  const ves_level_set ls = *pls;
+  const ves_level_set_curves c = *pc;
+  hid_t ig = H5Gcreate2(g, "interface", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+  ves_status st = ig < 0 ? VES_ERR_IO : VES_OK;
+  for (int i = 0; i < c.npieces && st == VES_OK; i++) {
+    char name[32];
+    snprintf(name, sizeof name, "%d", i);
+    st = io_dset_write(ig, name, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE,
+                       (hsize_t)(c.start[i + 1] - c.start[i]), 2, c.rz + 2 * c.start[i]);
+    hid_t d = st == VES_OK ? H5Dopen2(ig, name, H5P_DEFAULT) : -1;
+    if (st == VES_OK && d < 0) st = VES_ERR_IO;
+    if (st == VES_OK) st = io_attr_int(d, "closed", c.closed[i]);
+    if (st == VES_OK)
+      st =
+          io_describe(d, "R0",
+                      c.closed[i] ? "m x 2 points (r, z) of a closed loop, clockwise from its top, "
+                                    "the first point repeated at the end"
+                                  : "m x 2 points (r, z) of an open piece, from its end of larger "
+                                    "z (north pole) to the other");
+    if (d >= 0) H5Dclose(d);
+  }
+  const double R0 = sqrt(ls.area / (4 * M_PI));
+  if (st == VES_OK) st = io_attr_int(ig, "pieces", c.npieces);
+  if (st == VES_OK) st = io_attr_double(ig, "area", ls.area);
+  if (st == VES_OK) st = io_attr_double(ig, "volume", ls.volume);
+  if (st == VES_OK)
+    st = io_attr_double(ig, "reduced_volume",
+                        ls.area > 0 ? ls.volume / (4.0 / 3.0 * M_PI * R0 * R0 * R0) : 0.0);
+  if (st == VES_OK) st = io_attr_int(ig, "inverted", ls.inverted);
+  if (st == VES_OK)
+    st = io_describe(
+        ig, "area R0^2, volume R0^3, reduced_volume 1, points R0",
+        "the sharp interface phi = 0 of the piecewise-linear phi on the triangles in use moved to "
+        "x: datasets 0..pieces-1 its pieces (sorted by their largest z), attributes area "
+        "(2 pi int r ds), volume (2 pi int r dA over phi > 0), reduced_volume (V / (4 pi/3 "
+        "(A/4 pi)^(3/2))), inverted (triangles of non-positive image area)");
+  if (ig >= 0) H5Gclose(ig);
+  return st;
+}
+
 static ves_status snapshot(ves_io *io, const double *y, const double *x, const double *phi,
                            const ves_io_snapinfo *si) {
   if (io->nsnap == io->snap_cap) {
@@ -199,17 +294,28 @@ static ves_status snapshot(ves_io *io, const double *y, const double *x, const d
     io->snap_t = t, io->snap_cap = cap;
   }
   const hsize_t n = (hsize_t)io_nodes_now(io); /* the last remeshing's node set */
-  VES_CALL(io_reserve(io, snapshot_bytes(io, 1)));
+  ves_level_set ls;
+  ves_level_set_curves c = {0};
+  int have = 0;
+  ves_status st = interface_of(io, (int)n, x, phi, &ls, &c, &have);
+  if (st == VES_OK)
+    st = io_reserve(io, snapshot_bytes(io, 1) + (io->row0_pending ? io_row_bytes(io) : 0));
   hid_t s, g;
-  VES_CALL(io_counted_open(io->file, "snapshots", io->nsnap, &s, &g));
+  if (st == VES_OK) st = io_counted_open(io->file, "snapshots", io->nsnap, &s, &g);
+  if (st != VES_OK) {
+    ves_level_set_curves_free(&c);
+    return st;
+  }
   const hid_t F = H5T_IEEE_F64LE, M = H5T_NATIVE_DOUBLE;
-  ves_status st = io_dset_write(g, "y", F, M, n, 2, y);
+  st = io_dset_write(g, "y", F, M, n, 2, y);
   if (st == VES_OK) st = io_dset_write(g, "x", F, M, n, 2, x);
   if (st == VES_OK) st = io_dset_write(g, "phi", F, M, n, 0, phi);
   if (st == VES_OK && si->state.dt_prev > 0)
     st = io_dset_write(g, "y_prev", F, M, n, 2, si->y_prev);
   if (st == VES_OK && si->velocity) st = io_dset_write(g, "velocity", F, M, n, 2, si->velocity);
   if (st == VES_OK) st = snapshot_attrs(g, si);
+  if (st == VES_OK && have) st = write_interface(g, &ls, &c);
+  ves_level_set_curves_free(&c);
   /* checksums for a salvage: of the snapshot, and of the series rows up to
    * it (when the file holds them: always in a run) */
   uint64_t rows_checksum = 0;
@@ -235,6 +341,10 @@ static ves_status snapshot(ves_io *io, const double *y, const double *x, const d
                         "n x 2 flow at the nodes (r, z): the material's velocity over the last "
                         "step, (y^n(X_a) - y^{n-1}(X_a)) / dt_prev, at x");
   VES_CALL(io_counted_close(io->file, s, g, io->nsnap, st));
+  /* the initial state's row after the snapshot whole (its series_checksum
+   * already covers it): the snapshot's object headers and their
+   * continuations stay together, before the series' first chunks */
+  VES_CALL(io_row0_write(io));
   io->snap_t[io->nsnap++] = si->state.t;
   io->last_step = si->state.nstep;
   errno = 0;
@@ -252,7 +362,8 @@ ves_status ves_io_snapshot(ves_io *io, const double *y, const double *x, const d
   VES_CHECK(io && y && x && phi && si && io->writable, VES_ERR_ARG);
   VES_CHECK(si->state.dt_prev >= 0 && (si->state.dt_prev == 0 || si->y_prev), VES_ERR_ARG);
   errno = 0;
-  return io_failed(io, snapshot(io, y, x, phi, si), errno);
+  ves_status st = io_provenance_pending(io); /* a restart's, before its first snapshot */
+  return io_failed(io, st == VES_OK ? snapshot(io, y, x, phi, si) : st, errno);
 }
 
 static ves_status write_reference(ves_io *io, const ves_io_reference *ref) {
@@ -510,6 +621,7 @@ static ves_status remesh_describe(hid_t s, hid_t g) {
 
 static ves_status write_remesh(ves_io *io, const ves_io_remesh *rm) {
   const int k = ves_io_remeshes(io);
+  io->ntri_now = 0; /* the interface's triangles: this remeshing's from now */
   VES_CALL(io_reserve(io, IO_ROOM_MARGIN + 40.0 * rm->n + 12.0 * rm->ntri));
   hid_t s, g;
   VES_CALL(io_counted_open(io->file, "remeshes", k, &s, &g));
@@ -545,5 +657,6 @@ ves_status ves_io_write_remesh(ves_io *io, const ves_io_remesh *rm) {
 
 ves_status ves_io_truncate_remeshes(ves_io *io, int count) {
   VES_CHECK(io, VES_ERR_ARG);
+  io->ntri_now = 0;
   return io_failed(io, truncate_counted(io, "remeshes", ves_io_remeshes(io), count), 0);
 }
