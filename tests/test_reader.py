@@ -18,13 +18,14 @@ import shutil
 import subprocess
 import sys
 import tempfile
-import traceback
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.join(ROOT, "python"))
 
 import h5py  # noqa: E402
 import numpy as np  # noqa: E402
+
+import py_test_impl  # noqa: E402  (tests/, beside this file)
 
 import vesica  # noqa: E402
 
@@ -245,32 +246,5 @@ TESTS = [test_series_from_t0, test_snapshots_in_time_order, test_interface_match
          test_meshio_reads_last_xmf, test_interface_synthetic]
 
 
-def main():
-    failed = []
-    print(f"[==========] Running {len(TESTS)} test(s).")
-    try:
-        setup()
-    except Exception:
-        traceback.print_exc(file=sys.stdout)
-        failed = [t.__name__ for t in TESTS]
-    for t in TESTS if not failed else []:
-        print(f"[ RUN      ] {t.__name__}")
-        sys.stdout.flush()
-        try:
-            t()
-            print(f"[       OK ] {t.__name__}")
-        except Exception:
-            traceback.print_exc(file=sys.stdout)
-            print(f"[  ERROR   ] --- {t.__name__}")
-            failed.append(t.__name__)
-    shutil.rmtree(TMP, ignore_errors=True)
-    print(f"[==========] {len(TESTS)} test(s) run.")
-    print(f"[  PASSED  ] {len(TESTS) - len(failed)} test(s).")
-    if failed:
-        print(f"[  FAILED  ] {len(failed)} test(s), listed below:")
-        for name in failed:
-            print(f"[  FAILED  ] {name}")
-    return 1 if failed else 0
 
-
-sys.exit(main())
+sys.exit(py_test_impl.run(TESTS, setup, TMP))

@@ -11,14 +11,14 @@ cmocka's summary lines for tests/run.sh; exit 1 when a check fails. VESICA names
 (default build/vesica, else build-san/vesica)."""
 import os
 import re
-import shutil
 import subprocess
 import sys
 import tempfile
-import traceback
 
 import h5py
 import numpy as np
+
+import py_test_impl  # tests/, beside this file
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 VESICA = os.environ.get("VESICA", os.path.join(ROOT, "build", "vesica"))
@@ -116,32 +116,5 @@ TESTS = [test_genfromtxt_reads_every_column, test_first_row_is_t0, test_rows_equ
          test_manual_table_names_and_units]
 
 
-def main():
-    failed = []
-    print(f"[==========] Running {len(TESTS)} test(s).")
-    try:
-        setup()
-    except Exception:
-        traceback.print_exc(file=sys.stdout)
-        failed = [t.__name__ for t in TESTS]
-    for t in TESTS if not failed else []:
-        print(f"[ RUN      ] {t.__name__}")
-        sys.stdout.flush()
-        try:
-            t()
-            print(f"[       OK ] {t.__name__}")
-        except Exception:
-            traceback.print_exc(file=sys.stdout)
-            print(f"[  ERROR   ] --- {t.__name__}")
-            failed.append(t.__name__)
-    shutil.rmtree(TMP, ignore_errors=True)
-    print(f"[==========] {len(TESTS)} test(s) run.")
-    print(f"[  PASSED  ] {len(TESTS) - len(failed)} test(s).")
-    if failed:
-        print(f"[  FAILED  ] {len(failed)} test(s), listed below:")
-        for name in failed:
-            print(f"[  FAILED  ] {name}")
-    return 1 if failed else 0
 
-
-sys.exit(main())
+sys.exit(py_test_impl.run(TESTS, setup, TMP))
