@@ -78,4 +78,14 @@ void ves_setup_destroy(ves_setup **s);
 ves_status ves_setup_nodes(const ves_discret_params *d, const ves_shape *shape, ves_sizing **sizing,
                            ves_nodes **nodes, char *err, size_t errlen);
 
+/* The checks of ves_setup_nodes that need no node, with its messages: the
+ * shape with its band of (band + 1) eps inside the box, and with band_layers
+ * the band's offset curves within the shape's radii of curvature (d and
+ * shape borrowed). VES_ERR_CONFIG and one line in err when one fails (bad
+ * input although every key is in range); VES_OK otherwise, also when the
+ * offset curves fail for another reason (the setup reports that). Costs
+ * milliseconds: a study checks its cells with it before running any. */
+ves_status ves_setup_check_geometry(const ves_discret_params *d, const ves_shape *shape, char *err,
+                                    size_t errlen);
+
 #endif

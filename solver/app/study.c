@@ -417,10 +417,8 @@ static void geometry_key(const ves_config *c, char *buf, size_t len) {
            c->delta, c->epsilon, c->box_r, c->box_z, c->band, c->h_band, c->band_layers);
 }
 
-/* The checks of ves_setup_nodes (model/setup.c) that come before any node
- * is made, with its messages: the shape with its band of (band + 1) eps in
- * the box, and with band_layers the band's offset curves within the
- * shape's radii of curvature. What vesica check refuses with exit 2 as
+/* The checks of ves_setup_nodes that come before any node is made
+ * (ves_setup_check_geometry): what vesica check refuses with exit 2 as
  * "bad input" although every key is in range; milliseconds, not a setup. */
 static ves_status geometry_check(const ves_config *c, char *err, size_t errlen) {
   ves_shape *shape = NULL;
@@ -428,32 +426,7 @@ static ves_status geometry_check(const ves_config *c, char *err, size_t errlen) 
   char msg[1024] = "";
   ves_status st = ves_problem_shape(c, &shape, msg, sizeof msg);
   if (st == VES_OK) st = ves_problem_discret(c, &d, msg, sizeof msg);
-  if (st == VES_OK) {
-    double rmax, zmax;
-    const double margin = (d.band + 1) * d.eps;
-    ves_shape_extent(shape, &rmax, &zmax);
-    if (rmax + margin >= d.box_r || zmax + margin >= d.box_z) {
-      snprintf(msg, sizeof msg,
-               "[geometry] box_r = %g, box_z = %g: the shape (R up to %.3f, |Z| up to %.3f) with "
-               "its band of (band + 1) eps = %.3f does not fit",
-               d.box_r, d.box_z, rmax, zmax, margin);
-      st = VES_ERR_CONFIG;
-    }
-  }
-  if (st == VES_OK && d.band_layers) {
-    int n = 0, *flag = NULL;
-    double *x = NULL;
-    st = ves_shape_band_nodes(shape, d.h_band * d.eps, d.band * d.eps, &n, &x, &flag);
-    free(x), free(flag);
-    if (st == VES_ERR_GEOM) {
-      snprintf(msg, sizeof msg,
-               "band layers: %s: band*epsilon = %g exceeds a radius of curvature of the shape "
-               "(set a smaller [geometry] band, or band_layers = 0)",
-               ves_error_text(VES_ERR_CONFIG), d.band * d.eps); /* as setup.c words it */
-      st = VES_ERR_CONFIG;
-    } else
-      st = VES_OK; /* another failure is the run's to report */
-  }
+  if (st == VES_OK) st = ves_setup_check_geometry(&d, shape, msg, sizeof msg);
   ves_shape_destroy(&shape);
   if (st == VES_ERR_CONFIG) {
     ves_error_say(err, errlen, "%s", msg);

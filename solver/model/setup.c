@@ -30,6 +30,42 @@ void ves_setup_destroy(ves_setup **s) {
     goto fail;                                                                                     \
   } while (0)
 
+/* The refined band (and its layers) must fit in the box with a spacing to
+ * spare. */
+static ves_status box_check(const ves_discret_params *d, const ves_shape *shape, char *err,
+                            size_t errlen) {
+  double rmax, zmax, margin = (d->band + 1) * d->eps;
+  ves_shape_extent(shape, &rmax, &zmax);
+  if (rmax + margin < d->box_r && zmax + margin < d->box_z) return VES_OK;
+  snprintf(err, errlen,
+           "[geometry] box_r = %g, box_z = %g: the shape (R up to %.3f, |Z| up to %.3f) with its "
+           "band of (band + 1) eps = %.3f does not fit",
+           d->box_r, d->box_z, rmax, zmax, margin);
+  return VES_ERR_CONFIG;
+}
+
+/* A fold of the band's offset curves is bad input (the band is too wide for
+ * the shape), not a failure of the numerics: exit code 2. */
+static ves_status fold_refused(double halfwidth, char *err, size_t errlen) {
+  snprintf(err, errlen,
+           "band layers: %s: band*epsilon = %g exceeds a radius of curvature of the shape "
+           "(set a smaller [geometry] band, or band_layers = 0)",
+           ves_error_text(VES_ERR_CONFIG), halfwidth);
+  return VES_ERR_CONFIG;
+}
+
+ves_status ves_setup_check_geometry(const ves_discret_params *d, const ves_shape *shape, char *err,
+                                    size_t errlen) {
+  VES_CHECK(d && shape && err && errlen, VES_ERR_ARG);
+  ves_status st = box_check(d, shape, err, errlen);
+  if (st != VES_OK || !d->band_layers) return st;
+  int n = 0, *flag = NULL;
+  double *x = NULL;
+  st = ves_shape_band_nodes(shape, d->h_band * d->eps, d->band * d->eps, &n, &x, &flag);
+  free(x), free(flag);
+  return st == VES_ERR_GEOM ? fold_refused(d->band * d->eps, err, errlen) : VES_OK;
+}
+
 /* The node set of the discretization d adapted to a shape: the band and
  * box check, the sizing field, the interface-aligned band layers and
  * ves_nodes_generate (used by the setup and by a remeshing, remesh.h). */
@@ -40,15 +76,7 @@ ves_status ves_setup_nodes(const ves_discret_params *d, const ves_shape *shape, 
   ves_status st;
   double *bx = NULL;
   int *bflag = NULL;
-  /* the refined band (and its layers) must fit in the box with a spacing to spare */
-  double rmax, zmax, margin = (d->band + 1) * d->eps;
-  ves_shape_extent(shape, &rmax, &zmax);
-  if (rmax + margin >= d->box_r || zmax + margin >= d->box_z)
-    FAIL(
-        VES_ERR_CONFIG,
-        "[geometry] box_r = %g, box_z = %g: the shape (R up to %.3f, |Z| up to %.3f) with its band "
-        "of (band + 1) eps = %.3f does not fit",
-        d->box_r, d->box_z, rmax, zmax, margin);
+  if ((st = box_check(d, shape, err, errlen)) != VES_OK) goto fail;
 
   /* band layers: lattice layers up to band*eps; strip and CVT nodes keep half
    * a layer spacing beyond the last layer */
@@ -71,10 +99,13 @@ ves_status ves_setup_nodes(const ves_discret_params *d, const ves_shape *shape, 
   np.lloyd_iter = d->lloyd_iterations;
   np.seed = (unsigned)d->seed;
   if (d->band_layers) {
-    if ((st = ves_shape_band_nodes(shape, hb, halfwidth, &np.nfixed, &bx, &bflag)) != VES_OK)
-      /* a fold of the offset curves is bad input (the band is too wide for
-       * the shape), not a failure of the numerics: exit code 2 */
-      FAIL(st == VES_ERR_GEOM ? VES_ERR_CONFIG : st,
+    st = ves_shape_band_nodes(shape, hb, halfwidth, &np.nfixed, &bx, &bflag);
+    if (st == VES_ERR_GEOM) {
+      st = fold_refused(halfwidth, err, errlen);
+      goto fail;
+    }
+    if (st != VES_OK)
+      FAIL(st,
            "band layers: %s: band*epsilon = %g exceeds a radius of curvature of the shape "
            "(set a smaller [geometry] band, or band_layers = 0)",
            ves_error_text(st), halfwidth);
