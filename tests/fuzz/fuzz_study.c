@@ -5,14 +5,22 @@
  * contract aborts. The contract of an accepted study: at least one axis,
  * every axis with 1 to VES_STUDY_MAX_VALUES distinct non-empty values, the
  * cell count the product of the axes' sizes and within the limit, every
- * cell's name distinct, at most 200 characters of letters, digits and
- * . + - _, its command and signature built; its Slurm script written, one
+ * cell's name distinct, at most 200 characters of letters, digits,
+ * . + - _ = , and %XX escapes (two upper-case hex digits), its command and
+ * signature built; its Slurm script written, one
  * line per option (a value of the study file cannot add a line). A refused
  * input: a status < 0 and a one-line message naming the file. The quoting:
  * the input as a bash word (sh_word) stays on one line and reads back (by
  * bash's rules for '...' and $'...') as the input up to its first NUL.
- * study_output.c is compiled in for its static sh_word. */
+ * study_output.c is compiled in for its static sh_word. The geometric
+ * checks of a study's cells (ves_setup_check_geometry through the problem's
+ * shape) build shapes from the setup's code, which this target does not
+ * link: they are stubbed to pass here (fuzz_points covers the shape input,
+ * tests/test_study_script.c the checks). */
 #include "../../solver/app/study_output.c"
+
+#include "app/problem.h"
+#include "ves/setup.h"
 
 #include <stdint.h>
 #include <stdio.h>
@@ -23,6 +31,26 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 #define FUZZ_MAX_CELLS 64 /* larger grids are refused: each cell's problem is loaded */
 
 static char root[64], study_path[128], out_dir[128];
+
+ves_status ves_problem_shape(const ves_config *c, ves_shape **out, char *err, size_t errlen) {
+  (void)c, (void)err, (void)errlen;
+  *out = NULL;
+  return VES_OK;
+}
+ves_status ves_problem_discret(const ves_config *c, ves_discret_params *d, char *err,
+                               size_t errlen) {
+  (void)c, (void)err, (void)errlen;
+  memset(d, 0, sizeof *d);
+  return VES_OK;
+}
+ves_status ves_setup_check_geometry(const ves_discret_params *d, const ves_shape *shape, char *err,
+                                    size_t errlen) {
+  (void)d, (void)shape, (void)err, (void)errlen;
+  return VES_OK;
+}
+void ves_shape_destroy(ves_shape **s) {
+  if (s) *s = NULL;
+}
 
 static void die(const char *what, const char *detail) {
   fprintf(stderr, "fuzz_study: contract broken: %s: %s\n", what, detail);
@@ -135,7 +163,12 @@ static void check_accepted(const ves_study *s) {
     ves_study_cell_name(s, k, name, sizeof name);
     if (!name[0] || strlen(name) > 200) die("cell name length", name);
     for (const char *c = name; *c; c++)
-      if (!isalnum((unsigned char)*c) && !strchr(".+-_", *c)) die("cell name character", name);
+      if (*c == '%') {
+        if (!strchr("0123456789ABCDEF", c[1]) || !c[1] || !strchr("0123456789ABCDEF", c[2]) ||
+            !c[2])
+          die("cell name escape", name);
+      } else if (!isalnum((unsigned char)*c) && !strchr(".+-_=,", *c))
+        die("cell name character", name);
     for (long j = 0; j < k; j++)
       if (!strcmp(names[j], name)) die("two cells of one name", name);
     names[k] = strdup(name);
