@@ -149,7 +149,42 @@ static void power_table(const ves_setup *s, const ves_model_params *mp, double k
            co[i], (sh[i] + co[i]) / P, sh[i] / P, co[i] / P);
 }
 
-/* Kept whole (97 lines): the option parsing, the runs and the table they print, in order. */
+/* --power: the step's start: y^n, its phi and E*^n (after a restoration). */
+static void power_start(ves_sim *sim, double *yn, double *pdn, double *En) {
+  ves_sim_state ss;
+  ves_sim_get_state(sim, &ss, yn);
+  ves_model_point_data(ves_sim_model(sim), pdn);
+  *En = ss.E;
+}
+
+/* --power: the step from y^n (yn, phi pdn, E*^n En, t* tn) just taken: the
+ * model's d^T K(y^n) d as the check, then power_table. */
+static ves_status power_step(const ves_setup *s, ves_sim *sim, const double *yn, const double *pdn,
+                             double En, double tn, const ves_step_report *rep) {
+  ves_model *m = ves_sim_model(sim);
+  ves_model_params mp;
+  ves_model_get_params(m, &mp);
+  const int n2 = 2 * s->nodes->n;
+  const double *y1 = ves_sim_y(sim), dt = rep->t - tn;
+  double *d = malloc(2 * (size_t)n2 * sizeof *d), Ek = 0, Dv = 0;
+  double *qn = malloc(ves_model_dissipation_ref_size(m) * sizeof *qn);
+  ves_status st = d && qn ? VES_OK : VES_ERR_ALLOC;
+  if (st == VES_OK) {
+    for (int i = 0; i < n2; i++) d[i] = y1[i] - yn[i];
+    st = ves_model_dissipation_ref(m, yn, qn);
+  }
+  if (st == VES_OK)
+    st = ves_model_eval_step(m, y1, VES_F_E, qn, 1.0, &Ek, NULL, NULL, &Dv, d + n2, NULL, NULL);
+  if (st == VES_OK) {
+    if (mp.drift > 0) printf("# --power: the drift damping's share is not in the table\n");
+    power_table(s, &mp, ves_model_get_k(m), pdn, yn, d, dt, tn, rep->E - En, 2 * Dv / (dt * dt));
+  }
+  free(d);
+  free(qn);
+  return st;
+}
+
+/* Kept whole (134 lines): the option parsing, the runs and the table they print, in order. */
 int main(int argc, char **argv) {
   ves_blas_core_fix(argv); /* OpenBLAS's kernels (blas_core_impl.h) */
   setvbuf(stdout, NULL, _IOLBF, 0);
@@ -231,35 +266,14 @@ int main(int argc, char **argv) {
   ves_profile *prof = NULL;
   if (split && ves_profile_create(&prof) != VES_OK) return 3;
   const int n2 = 2 * s->nodes->n;
-  double *yn = tpow >= 0 ? malloc(3 * (size_t)n2 * sizeof *yn) : NULL, *pdn = NULL, En = 0;
+  double *yn = tpow >= 0 ? malloc((size_t)n2 * sizeof *yn) : NULL, *pdn = NULL, En = 0;
   if (tpow >= 0 && (!yn || !(pdn = malloc(6 * (size_t)nq * sizeof *pdn)))) return 3;
   for (;;) {
     const double tn = ves_sim_time(sim);
     const int pstep = tpow >= 0 && tn <= tpow + 0.5 * dt && tn + 0.5 * dt > tpow;
-    if (pstep) { /* the step's start: y^n, its phi and E*^n (after a restoration) */
-      ves_sim_state ss;
-      ves_sim_get_state(sim, &ss, yn);
-      ves_model_point_data(ves_sim_model(sim), pdn);
-      En = ss.E;
-    }
+    if (pstep) power_start(sim, yn, pdn, &En);
     if ((st = ves_sim_step(sim, &rep)) != VES_OK) break;
-    if (pstep) {
-      ves_model *m = ves_sim_model(sim);
-      ves_model_params mp;
-      ves_model_get_params(m, &mp);
-      double *d = yn + n2, *g = yn + 2 * n2, Ek = 0, Dv = 0;
-      const double *y1 = ves_sim_y(sim);
-      for (int i = 0; i < n2; i++) d[i] = y1[i] - yn[i];
-      double *qn = malloc(ves_model_dissipation_ref_size(m) * sizeof *qn);
-      if (!qn || ves_model_dissipation_ref(m, yn, qn) != VES_OK ||
-          ves_model_eval_step(m, y1, VES_F_E, qn, 1.0, &Ek, NULL, NULL, &Dv, g, NULL, NULL) !=
-              VES_OK)
-        return 3;
-      free(qn);
-      if (mp.drift > 0) printf("# --power: the drift damping's share is not in the table\n");
-      power_table(s, &mp, ves_model_get_k(m), pdn, yn, d, rep.t - tn, tn, rep.E - En,
-                  2 * Dv / ((rep.t - tn) * (rep.t - tn)));
-    }
+    if (pstep && power_step(s, sim, yn, pdn, En, tn, &rep) != VES_OK) return 3;
     ves_model_point_data(ves_sim_model(sim), phi); /* the restored phi0 too */
     point_state(s, phi, ves_sim_y(sim), ps);
     const double Q = moment(s, ps, l);
