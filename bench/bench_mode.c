@@ -24,7 +24,8 @@
  * profile's stretch.
  * --power T prints, for the step starting at t* T (within dt/2), the power
  * d^T K(y^n) d / dt^2 it dissipates split into shear 2 mu |D|^2 and
- * compression lambda (div v)^2, over the band |phi| < 0.9, the rest and with
+ * compression lambda (div v)^2, over the band |phi| < 0.9, the shell
+ * 0.9 <= |phi| < 0.99, the rest and with
  * the weight 1 - phi^2 (phi the step's), beside -d(E*)/dt over the step and the
  * model's own d^T K d (power_table).
  * Usage: bench_mode [CONFIG] [--set section.key=value]... [--dt DT]
@@ -102,13 +103,15 @@ static double moment(const ves_setup *s, const double *ps, int l) {
  * point, split into shear 2 mu |D|^2 and compression lambda (div v)^2 (the
  * terms of ves_model_local_dissip, v = d / dt, L = Fdot F^-1 at y^n, hoop
  * rate rdot/r), and by phi (point data of the step, pd): the band |phi| < 0.9,
- * the rest, and the weight 1 - phi^2. Prints one table; dE (E*^{n+1} - E*^n)
- * for the energy released, Pm the model's d^T K d / dt^2 (the check). */
+ * the shell 0.9 <= |phi| < 0.99 beside it, the rest, and the weight 1 - phi^2;
+ * density: a region's share of the power over its share of the volume.
+ * Prints one table; dE (E*^{n+1} - E*^n) for the energy released, Pm the
+ * model's d^T K d / dt^2 (the check). */
 static void power_table(const ves_setup *s, const ves_model_params *mp, double k, const double *pd,
                         const double *yn, const double *d, double dt, double t0, double dE,
                         double Pm) {
   const ves_quad *q = s->quad;
-  double vol[4] = {0}, sh[4] = {0}, co[4] = {0}; /* band, rest, weighted, all */
+  double vol[5] = {0}, sh[5] = {0}, co[5] = {0}; /* band, shell, rest, weighted, all */
   for (int al = 0; al < q->nq; al++) {
     double r = 0, rR = 0, rZ = 0, zR = 0, zZ = 0, v = 0, vR = 0, vZ = 0, wR = 0, wZ = 0;
     const int m = q->ptr[al + 1] - q->ptr[al];
@@ -132,21 +135,22 @@ static void power_table(const ves_setup *s, const ves_model_params *mp, double k
     const double pS =
         dv * 2 * mp->mu * (Lrr * Lrr + Lzz * Lzz + hs * hs + 0.5 * (Lrz + Lzr) * (Lrz + Lzr)) / k;
     const double dvg = Lrr + Lzz + hs, pC = dv * mp->lambda * dvg * dvg / k;
-    const int b = fabs(ph) < 0.9 ? 0 : 1;
+    const int b = fabs(ph) < 0.9 ? 0 : (fabs(ph) < 0.99 ? 1 : 2);
     const double wt = 1 - ph * ph;
     vol[b] += dv, sh[b] += pS, co[b] += pC;
-    vol[2] += wt * dv, sh[2] += wt * pS, co[2] += wt * pC;
-    vol[3] += dv, sh[3] += pS, co[3] += pC;
+    vol[3] += wt * dv, sh[3] += wt * pS, co[3] += wt * pC;
+    vol[4] += dv, sh[4] += pS, co[4] += pC;
   }
   printf("# power over the step t* %.4f -> %.4f (units k/t*; volume R0^3): -dE*/dt %.6e, "
          "model d^T K d/dt^2 %.6e, sum of points %.6e\n",
-         t0, t0 + dt, -dE / dt, Pm / k, sh[3] + co[3]);
-  printf("# region volume vol_share shear compression power_share shear_share comp_share\n");
-  const char *name[4] = {"band|phi|<0.9", "rest", "weight(1-phi^2)", "all"};
-  const double P = sh[3] + co[3];
-  for (int i = 0; i < 4; i++)
-    printf("%s %.6e %.4f %.6e %.6e %.4f %.4f %.4f\n", name[i], vol[i], vol[i] / vol[3], sh[i],
-           co[i], (sh[i] + co[i]) / P, sh[i] / P, co[i] / P);
+         t0, t0 + dt, -dE / dt, Pm / k, sh[4] + co[4]);
+  printf("# region volume vol_share shear compression power_share shear_share comp_share "
+         "density (power_share / vol_share)\n");
+  const char *name[5] = {"band|phi|<0.9", "shell0.9<=|phi|<0.99", "rest", "weight(1-phi^2)", "all"};
+  const double P = sh[4] + co[4];
+  for (int i = 0; i < 5; i++)
+    printf("%s %.6e %.4f %.6e %.6e %.4f %.4f %.4f %.3f\n", name[i], vol[i], vol[i] / vol[4], sh[i],
+           co[i], (sh[i] + co[i]) / P, sh[i] / P, co[i] / P, (sh[i] + co[i]) / P * vol[4] / vol[i]);
 }
 
 /* --power: the step's start: y^n, its phi and E*^n (after a restoration). */
