@@ -13,7 +13,7 @@
  * frozen at y^n: the amplitude shrinks by 1/(1 + s dt) a step, so the
  * continuous rate is s = (exp(r dt) - 1) / dt with r the fitted slope.
  *
- * Prints a header, then "t E* Q_l" per step (with --print), then one line
+ * Prints a header (with E*(0)), then "t E* Q_l" per step (with --print), then one line
  *   l eps h_band lambda_ratio dt nodes s_raw s 2s
  * fitted over [--from, --to]. Threads: OMP_NUM_THREADS.
  * --restore M restores phi's tanh profile after every M steps (profile.h,
@@ -22,8 +22,14 @@
  * (without --restore) adds per step E* of the restored profile at the same
  * positions, the model put back after: E* - E*(restored) is the energy of the
  * profile's stretch.
+ * --power T prints, for the step starting at t* T (within dt/2), the power
+ * d^T K(y^n) d / dt^2 it dissipates split into shear 2 mu |D|^2 and
+ * compression lambda (div v)^2, over the band |phi| < 0.9, the shell
+ * 0.9 <= |phi| < 0.99, the rest and with
+ * the weight 1 - phi^2 (phi the step's), beside -d(E*)/dt over the step and the
+ * model's own d^T K d (power_table).
  * Usage: bench_mode [CONFIG] [--set section.key=value]... [--dt DT]
- *        [--from T] [--to T] [--print] [--restore M] [--split]
+ *        [--from T] [--to T] [--print] [--restore M] [--split] [--power T]
  * (default: problems/mode2.ini, dt 0.04, window [0.4, 1.6]). */
 #include <math.h>
 #include <stdio.h>
@@ -93,13 +99,102 @@ static double moment(const ves_setup *s, const double *ps, int l) {
   return Q;
 }
 
-/* Kept whole (97 lines): the option parsing, the runs and the table they print, in order. */
+/* --power: the step y^n -> y^n + d's dissipated power d^T K(y^n) d / dt^2 per
+ * point, split into shear 2 mu |D|^2 and compression lambda (div v)^2 (the
+ * terms of ves_model_local_dissip, v = d / dt, L = Fdot F^-1 at y^n, hoop
+ * rate rdot/r), and by phi (point data of the step, pd): the band |phi| < 0.9,
+ * the shell 0.9 <= |phi| < 0.99 beside it, the rest, and the weight 1 - phi^2;
+ * density: a region's share of the power over its share of the volume.
+ * Prints one table; dE (E*^{n+1} - E*^n) for the energy released, Pm the
+ * model's d^T K d / dt^2 (the check). */
+static void power_table(const ves_setup *s, const ves_model_params *mp, double k, const double *pd,
+                        const double *yn, const double *d, double dt, double t0, double dE,
+                        double Pm) {
+  const ves_quad *q = s->quad;
+  double vol[5] = {0}, sh[5] = {0}, co[5] = {0}; /* band, shell, rest, weighted, all */
+  for (int al = 0; al < q->nq; al++) {
+    double r = 0, rR = 0, rZ = 0, zR = 0, zZ = 0, v = 0, vR = 0, vZ = 0, wR = 0, wZ = 0;
+    const int m = q->ptr[al + 1] - q->ptr[al];
+    const double *T = q->tab + 6 * (size_t)q->ptr[al];
+    for (int j = 0; j < m; j++) {
+      const int a = q->nbr[q->ptr[al] + j];
+      const double sr = q->mirror[q->ptr[al] + j] ? -1.0 : 1.0; /* ghost: (-r, z) */
+      const double ya = sr * yn[2 * a], za = yn[2 * a + 1];
+      const double ua = sr * d[2 * a] / dt, wa = d[2 * a + 1] / dt;
+      r += T[j] * ya, rR += T[m + j] * ya, rZ += T[2 * m + j] * ya;
+      zR += T[m + j] * za, zZ += T[2 * m + j] * za;
+      v += T[j] * ua, vR += T[m + j] * ua, vZ += T[2 * m + j] * ua;
+      wR += T[m + j] * wa, wZ += T[2 * m + j] * wa;
+    }
+    const double J = rR * zZ - rZ * zR;
+    /* H = F^-1 (material x spatial); L_ij = Fdot_iI H_Ij */
+    const double HRr = zZ / J, HRz = -rZ / J, HZr = -zR / J, HZz = rR / J;
+    const double Lrr = vR * HRr + vZ * HZr, Lrz = vR * HRz + vZ * HZz;
+    const double Lzr = wR * HRr + wZ * HZr, Lzz = wR * HRz + wZ * HZz, hs = v / r;
+    const double dv = 2 * M_PI * q->w[al] * r * J, ph = pd[6 * al];
+    const double pS =
+        dv * 2 * mp->mu * (Lrr * Lrr + Lzz * Lzz + hs * hs + 0.5 * (Lrz + Lzr) * (Lrz + Lzr)) / k;
+    const double dvg = Lrr + Lzz + hs, pC = dv * mp->lambda * dvg * dvg / k;
+    const int b = fabs(ph) < 0.9 ? 0 : (fabs(ph) < 0.99 ? 1 : 2);
+    const double wt = 1 - ph * ph;
+    vol[b] += dv, sh[b] += pS, co[b] += pC;
+    vol[3] += wt * dv, sh[3] += wt * pS, co[3] += wt * pC;
+    vol[4] += dv, sh[4] += pS, co[4] += pC;
+  }
+  printf("# power over the step t* %.4f -> %.4f (units k/t*; volume R0^3): -dE*/dt %.6e, "
+         "model d^T K d/dt^2 %.6e, sum of points %.6e\n",
+         t0, t0 + dt, -dE / dt, Pm / k, sh[4] + co[4]);
+  printf("# region volume vol_share shear compression power_share shear_share comp_share "
+         "density (power_share / vol_share)\n");
+  const char *name[5] = {"band|phi|<0.9", "shell0.9<=|phi|<0.99", "rest", "weight(1-phi^2)", "all"};
+  const double P = sh[4] + co[4];
+  for (int i = 0; i < 5; i++)
+    printf("%s %.6e %.4f %.6e %.6e %.4f %.4f %.4f %.3f\n", name[i], vol[i], vol[i] / vol[4], sh[i],
+           co[i], (sh[i] + co[i]) / P, sh[i] / P, co[i] / P, (sh[i] + co[i]) / P * vol[4] / vol[i]);
+}
+
+/* --power: the step's start: y^n, its phi and E*^n (after a restoration). */
+static void power_start(ves_sim *sim, double *yn, double *pdn, double *En) {
+  ves_sim_state ss;
+  ves_sim_get_state(sim, &ss, yn);
+  ves_model_point_data(ves_sim_model(sim), pdn);
+  *En = ss.E;
+}
+
+/* --power: the step from y^n (yn, phi pdn, E*^n En, t* tn) just taken: the
+ * model's d^T K(y^n) d as the check, then power_table. */
+static ves_status power_step(const ves_setup *s, ves_sim *sim, const double *yn, const double *pdn,
+                             double En, double tn, const ves_step_report *rep) {
+  ves_model *m = ves_sim_model(sim);
+  ves_model_params mp;
+  ves_model_get_params(m, &mp);
+  const int n2 = 2 * s->nodes->n;
+  const double *y1 = ves_sim_y(sim), dt = rep->t - tn;
+  double *d = malloc(2 * (size_t)n2 * sizeof *d), Ek = 0, Dv = 0;
+  double *qn = malloc(ves_model_dissipation_ref_size(m) * sizeof *qn);
+  ves_status st = d && qn ? VES_OK : VES_ERR_ALLOC;
+  if (st == VES_OK) {
+    for (int i = 0; i < n2; i++) d[i] = y1[i] - yn[i];
+    st = ves_model_dissipation_ref(m, yn, qn);
+  }
+  if (st == VES_OK)
+    st = ves_model_eval_step(m, y1, VES_F_E, qn, 1.0, &Ek, NULL, NULL, &Dv, d + n2, NULL, NULL);
+  if (st == VES_OK) {
+    if (mp.drift > 0) printf("# --power: the drift damping's share is not in the table\n");
+    power_table(s, &mp, ves_model_get_k(m), pdn, yn, d, dt, tn, rep->E - En, 2 * Dv / (dt * dt));
+  }
+  free(d);
+  free(qn);
+  return st;
+}
+
+/* Kept whole (134 lines): the option parsing, the runs and the table they print, in order. */
 int main(int argc, char **argv) {
   ves_blas_core_fix(argv); /* OpenBLAS's kernels (blas_core_impl.h) */
   setvbuf(stdout, NULL, _IOLBF, 0);
   const char *path = "problems/mode2.ini", *set[MAX_SET];
   int nset = 0, print = 0, restore = 0, split = 0;
-  double dt = 0.04, from = 0.4, to = 1.6;
+  double dt = 0.04, from = 0.4, to = 1.6, tpow = -1;
   for (int i = 1; i < argc; i++) {
     const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
     if (!strcmp(a, "--set") && v && nset < MAX_SET)
@@ -116,6 +211,8 @@ int main(int argc, char **argv) {
       restore = atoi(v), i++;
     else if (!strcmp(a, "--split"))
       split = 1;
+    else if (!strcmp(a, "--power") && v)
+      tpow = atof(v), i++;
     else if (a[0] != '-')
       path = a;
     else {
@@ -163,16 +260,24 @@ int main(int argc, char **argv) {
   point_state(s, phi, ves_sim_y(sim), ps);
   const double Q0 = moment(s, ps, l);
   printf("# %s l %d eps %g h_band %g lambda/mu %g dt %g: %d nodes; Q_l(0) = %.6e "
-         "(sharp 4 pi delta/(2l+1) = %.6e)\n",
+         "(sharp 4 pi delta/(2l+1) = %.6e); E*(0) %.9f\n",
          path, l, cfg.epsilon, cfg.h_band, cfg.lambda_ratio, dt, s->nodes->n, Q0,
-         4 * M_PI * cfg.delta / (2 * l + 1));
+         4 * M_PI * cfg.delta / (2 * l + 1), E0);
   if (print) printf("%.6f %.12f %.9e\n", 0.0, E0, Q0);
   /* least squares of log|Q| against t over the window */
   double n = 0, sx = 0, sy = 0, sxx = 0, sxy = 0;
   ves_step_report rep;
   ves_profile *prof = NULL;
   if (split && ves_profile_create(&prof) != VES_OK) return 3;
-  while ((st = ves_sim_step(sim, &rep)) == VES_OK) {
+  const int n2 = 2 * s->nodes->n;
+  double *yn = tpow >= 0 ? malloc((size_t)n2 * sizeof *yn) : NULL, *pdn = NULL, En = 0;
+  if (tpow >= 0 && (!yn || !(pdn = malloc(6 * (size_t)nq * sizeof *pdn)))) return 3;
+  for (;;) {
+    const double tn = ves_sim_time(sim);
+    const int pstep = tpow >= 0 && tn <= tpow + 0.5 * dt && tn + 0.5 * dt > tpow;
+    if (pstep) power_start(sim, yn, pdn, &En);
+    if ((st = ves_sim_step(sim, &rep)) != VES_OK) break;
+    if (pstep && power_step(s, sim, yn, pdn, En, tn, &rep) != VES_OK) return 3;
     ves_model_point_data(ves_sim_model(sim), phi); /* the restored phi0 too */
     point_state(s, phi, ves_sim_y(sim), ps);
     const double Q = moment(s, ps, l);
@@ -211,6 +316,8 @@ int main(int argc, char **argv) {
          cfg.epsilon, cfg.h_band, cfg.lambda_ratio, dt, s->nodes->n, r, sl, 2 * sl);
   ves_sim_destroy(&sim);
   ves_profile_destroy(&prof);
+  free(yn);
+  free(pdn);
   free(phi);
   free(ps);
   ves_setup_destroy(&s);
