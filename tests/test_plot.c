@@ -147,7 +147,10 @@ static char *figure_section(const char *text, const char *fig) {
   char key[64];
   snprintf(key, sizeof key, "_%s.png' . part", fig);
   const char *a = strstr(text, key);
-  if (!a) fail_msg("the script has no figure %s", fig);
+  if (!a) {
+    fail_msg("the script has no figure %s", fig);
+    return NULL; /* not reached; tells the compiler a is not NULL below */
+  }
   const char *b = strstr(a + 1, "set output");
   size_t n = b ? (size_t)(b - a) : strlen(a);
   char *s = malloc(n + 1);
