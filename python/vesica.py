@@ -196,18 +196,8 @@ class Snapshot:
     def interface_area(self):
         """2 pi int r ds over the phi = 0 segments (R0^2): `vesica info`'s
         interface_area (the file's attribute when it stores the interface)."""
-        stored = self._stored_interface()
-        if stored is not None:  # written only for a finite state
-            return float(stored[1]["area"])
-        seg = self._interface()[1]
-        if seg is None:
-            return math.nan
-        if len(seg) == 0:
-            return 0.0
-        a, b = seg[:, 0], seg[:, 1]
-        return 2 * math.pi * float(
-            np.sum(0.5 * (a[:, 0] + b[:, 0]) * np.hypot(b[:, 0] - a[:, 0], b[:, 1] - a[:, 1]))
-        )
+        return self._measure("area", lambda a, b: 2 * math.pi * float(
+            np.sum(0.5 * (a[:, 0] + b[:, 0]) * np.hypot(b[:, 0] - a[:, 0], b[:, 1] - a[:, 1]))))
 
     def interface_volume(self):
         """The volume where phi > 0 (R0^3), pi int r^2 dz along the phi = 0
@@ -216,17 +206,22 @@ class Snapshot:
         interface_volume, the same sum the C code (solver/analysis/level_set.c)
         takes over the clipped triangles (the file's attribute when it
         stores the interface)."""
+        return self._measure("volume", lambda a, b: math.pi * float(np.sum(
+            (b[:, 1] - a[:, 1]) * (a[:, 0] ** 2 + a[:, 0] * b[:, 0] + b[:, 0] ** 2) / 3)))
+
+    def _measure(self, name, over_segments):
+        """The stored interface's attribute name (written only for a finite
+        state), else over_segments(a, b) of the segments' ends from marching
+        triangles: NaN without segments data, 0 for an empty zero set."""
         stored = self._stored_interface()
         if stored is not None:
-            return float(stored[1]["volume"])
+            return float(stored[1][name])
         seg = self._interface()[1]
         if seg is None:
             return math.nan
         if len(seg) == 0:
             return 0.0
-        a, b = seg[:, 0], seg[:, 1]
-        ra, rb = a[:, 0], b[:, 0]
-        return math.pi * float(np.sum((b[:, 1] - a[:, 1]) * (ra * ra + ra * rb + rb * rb) / 3))
+        return over_segments(seg[:, 0], seg[:, 1])
 
 
 def interface_curves(x, phi, triangles):
