@@ -135,6 +135,25 @@ static inline int exists(const char *path) {
   return stat(path, &sb) == 0;
 }
 
+/* Remove path and everything below it (lstat: a link is removed, not
+ * followed); what is missing is skipped. */
+static inline void rm_tree(const char *path) {
+  DIR *d = opendir(path);
+  struct dirent *e;
+  while (d && (e = readdir(d))) {
+    if (!strcmp(e->d_name, ".") || !strcmp(e->d_name, "..")) continue;
+    char p[PATH_MAX];
+    if (snprintf(p, sizeof p, "%s/%s", path, e->d_name) >= (int)sizeof p) continue;
+    struct stat sb;
+    if (lstat(p, &sb) == 0 && S_ISDIR(sb.st_mode))
+      rm_tree(p);
+    else
+      unlink(p);
+  }
+  if (d) closedir(d);
+  if (rmdir(path) != 0) unlink(path);
+}
+
 static inline int setup_all(void **state) {
   (void)state;
   snprintf(tmpdir, sizeof tmpdir, "/tmp/vesica_cli_XXXXXX");

@@ -23,23 +23,6 @@ static const char TINY_SET[] = "geometry.epsilon = 0.2\ngeometry.box_r = 2\ngeom
 
 static char base_ini[PATH_MAX]; /* the base problem (absolute) */
 
-static void rm_tree(const char *path) {
-  DIR *d = opendir(path);
-  struct dirent *e;
-  while (d && (e = readdir(d))) {
-    if (!strcmp(e->d_name, ".") || !strcmp(e->d_name, "..")) continue;
-    char p[PATH_MAX];
-    snprintf(p, sizeof p, "%s/%s", path, e->d_name);
-    struct stat sb;
-    if (lstat(p, &sb) == 0 && S_ISDIR(sb.st_mode))
-      rm_tree(p);
-    else
-      unlink(p);
-  }
-  if (d) closedir(d);
-  rmdir(path);
-}
-
 /* Whether a file named `name` lies anywhere under path. */
 static int find_name(const char *path, const char *name) {
   DIR *d = opendir(path);

@@ -21,12 +21,6 @@ static const char BASE[] = "[geometry]\nepsilon = 0.2\nbox_r = 2\nbox_z = 2\nban
                            "[output]\nsnapshot_every = 3\n";
 static const char STUDY[] = "[study]\nproblem = base.ini\nrun = t_end\n[axes]\nmaterial.c0 = 0\n";
 
-static void rm_tree(const char *path) {
-  char cmd[PATH_MAX + 16];
-  snprintf(cmd, sizeof cmd, "rm -rf '%s'", path);
-  assert_int_equal(system(cmd), 0);
-}
-
 /* Wait until no process holds the HDF5 lock of path (a killed cell is
  * reaped by the kernel shortly after its study). */
 static void wait_unlocked(const char *path) {

@@ -14,12 +14,6 @@ static const char BASE[] = "[geometry]\nepsilon = 0.2\nbox_r = 2\nbox_z = 2\nban
                            "h_band = 0.7\nh_far = 0.3\n[shape]\nmode = 2\ndelta = 0.15\n"
                            "[time]\ndt_initial = 5e-3\ndE_target = 0.05\n";
 
-static void rm_tree(const char *path) {
-  char cmd[PATH_MAX + 16];
-  snprintf(cmd, sizeof cmd, "rm -rf '%s'", path);
-  assert_int_equal(system(cmd), 0);
-}
-
 /* The study file name (its text) beside the base problem, in tmpdir. */
 static void write_study(char *path, size_t len, const char *name, const char *text) {
   char base[128];
