@@ -156,6 +156,50 @@ static inline void check_rows(ves_io *io, long R) {
   }
 }
 
+/* The snapshot index of the file at path: `count` rows, row i naming
+ * /snapshots/i with that group's own step and t, bit for bit. */
+static inline void check_index(const char *path, int count) {
+  typedef struct {
+    int32_t k;
+    int64_t step;
+    double t;
+  } row;
+  hid_t f = H5Fopen(path, H5F_ACC_RDONLY, H5P_DEFAULT);
+  assert_true(f >= 0);
+  hid_t d = H5Dopen2(f, "snapshot_index", H5P_DEFAULT);
+  if (d < 0) fail_msg("%s: no /snapshot_index", path);
+  hid_t sp = H5Dget_space(d);
+  hsize_t n = 0;
+  assert_int_equal(H5Sget_simple_extent_ndims(sp), 1);
+  H5Sget_simple_extent_dims(sp, &n, NULL);
+  if (n != (hsize_t)count)
+    fail_msg("%s: %llu index rows, want %d", path, (unsigned long long)n, count);
+  hid_t mt = H5Tcreate(H5T_COMPOUND, sizeof(row));
+  H5Tinsert(mt, "k", HOFFSET(row, k), H5T_NATIVE_INT32);
+  H5Tinsert(mt, "step", HOFFSET(row, step), H5T_NATIVE_INT64);
+  H5Tinsert(mt, "t", HOFFSET(row, t), H5T_NATIVE_DOUBLE);
+  row r[64];
+  assert_true(count <= 64);
+  if (count > 0) assert_true(H5Dread(d, mt, H5S_ALL, H5S_ALL, H5P_DEFAULT, r) >= 0);
+  for (int i = 0; i < count; i++) {
+    char name[32];
+    snprintf(name, sizeof name, "snapshots/%d", i);
+    hid_t g = H5Gopen2(f, name, H5P_DEFAULT);
+    assert_true(g >= 0);
+    long step = -1;
+    double t = -1;
+    hid_t a = H5Aopen(g, "step", H5P_DEFAULT);
+    H5Aread(a, H5T_NATIVE_LONG, &step), H5Aclose(a);
+    a = H5Aopen(g, "t", H5P_DEFAULT);
+    H5Aread(a, H5T_NATIVE_DOUBLE, &t), H5Aclose(a);
+    H5Gclose(g);
+    if (r[i].k != i || r[i].step != step || r[i].t != t)
+      fail_msg("%s: index row %d is (%d, %lld, %.17g), snapshot %d has step %ld t %.17g", path, i,
+               (int)r[i].k, (long long)r[i].step, r[i].t, i, step, t);
+  }
+  H5Tclose(mt), H5Sclose(sp), H5Dclose(d), H5Fclose(f);
+}
+
 /* A fake header, and a new file named name in the test folder (path out). */
 static inline ves_io *fake_file(fake *f, const char *name, char *path, size_t len) {
   char err[512] = "";

@@ -3,7 +3,8 @@
  * in the middle of an append or a snapshot, every refusal of a foreign file,
  * phi at the nodes against the exact profile, the restart chain at the
  * library level (state -> snapshot -> file -> state -> the same steps), the
- * self-describing attributes, the TSV row and a file of the previous layout. */
+ * self-describing attributes, a file of the previous layout and the snapshot
+ * index. */
 #include "io_test_impl.h"
 
 /* Kept whole (110 lines): one scenario whose checks build on each other. */
@@ -25,6 +26,7 @@ static void test_roundtrip(void **state) {
   assert_int_equal(ves_io_set_status(io, "finished"), VES_OK);
   ves_io_close(&io);
   assert_null(io);
+  check_index(path, 2);
 
   assert_int_equal(ves_io_open(path, 0, &io, err, sizeof err), VES_OK);
   const ves_io_info *in = ves_io_get_info(io);
@@ -144,6 +146,7 @@ static void test_truncate_continue(void **state) {
   assert_int_equal(ves_io_snapshot(io, y, y, phi, &s3), VES_OK);
   assert_int_equal(ves_io_snapshots(io), 2);
   ves_io_close(&io);
+  check_index(path, 2);
   assert_int_equal(ves_io_open(path, 0, &io, err, sizeof err), VES_OK);
   check_rows(io, 3);
   ves_io_snapinfo si;
@@ -582,8 +585,8 @@ static void test_self_describing(void **state) {
   int count = 0;
   assert_true(H5Ovisit(h5, H5_INDEX_NAME, H5_ITER_INC, described, &count) >= 0);
   /* root, parameters, mesh + 3, series + 21, snapshots + 0 + 3 + interface + its one piece,
-   * references + 0 + 5, provenance + 0 */
-  assert_int_equal(count, 1 + 1 + 4 + 22 + 7 + 7 + 2);
+   * snapshot_index, references + 0 + 5, provenance + 0 */
+  assert_int_equal(count, 1 + 1 + 4 + 22 + 7 + 1 + 7 + 2);
   const char *root[] = {"program", "version",        "problem",
                         "source",  "format_version", "format_description"};
   for (size_t i = 0; i < sizeof root / sizeof root[0]; i++)
@@ -610,46 +613,6 @@ static void test_self_describing(void **state) {
   ves_io_close(&io);
   unlink(path);
   free(f.problem);
-}
-
-/* The --series text from the table of columns: the header the program
- * wrote before the table (17 names, in its order) and a row whose values
- * print in their formats, the drifts against A0 and V_target. */
-static void test_tsv_row(void **state) {
-  (void)state;
-  char buf[1024] = "";
-  FILE *f = fmemopen(buf, sizeof buf, "w");
-  assert_non_null(f);
-  assert_int_equal(ves_io_tsv_header(f), VES_OK);
-  ves_io_row row = {.step = 7,
-                    .t = 0.125,
-                    .dt = 0.5,
-                    .E = 6.25,
-                    .A = 12.6,
-                    .V = 4.2,
-                    .V_target = 4.0,
-                    .lambda_A = -1.5,
-                    .lambda_V = 2.5,
-                    .iterations = 3,
-                    .f_evals = 4,
-                    .g_evals = 5,
-                    .h_evals = 6,
-                    .solve_seconds = 1.25,
-                    .retries = 1,
-                    .reconnections = 2,
-                    .rejected_iterations = 9,
-                    .rejected_seconds = 0.5,
-                    .factorizations = 8,
-                    .c0 = 3,
-                    .violation = 1e-12,
-                    .status = 0};
-  assert_int_equal(ves_io_tsv_row(f, &row, 12.0), VES_OK);
-  fclose(f);
-  assert_string_equal(buf, "# step\tt\tdt\tE\tA/A0-1\tV/Vt-1\tlambda_A\tlambda_V\titer\tf\tg\th\t"
-                           "seconds\tretries\tresets\trejected_iterations\trejected_seconds\t"
-                           "factorizations\n"
-                           "7\t0.125\t0.5\t6.25\t5.000e-02\t5.000e-02\t-1.5\t2.5\t3\t4\t5\t6\t1.250"
-                           "\t1\t2\t9\t0.500\t8\n");
 }
 
 /* A file of an older writer, without the series column "factorizations"
@@ -725,6 +688,54 @@ static void test_older_file(void **state) {
   free(f.problem);
 }
 
+/* The snapshot index kept equal to the snapshots: rebuilt at the next
+ * snapshot of a file without one (an older writer's) or with a row missing
+ * (cut between a snapshot and its row), and shortened with the snapshots
+ * (a restart from an earlier one). */
+static void test_snapshot_index(void **state) {
+  (void)state;
+  fake f;
+  char path[128], err[512] = "";
+  ves_io *io = fake_file(&f, "index.h5", path, sizeof path);
+  double y[8] = {0}, phi[4] = {0};
+  int k = 0;
+  for (; k < 3; k++) {
+    ves_io_snapinfo si = snap_of(2 * k);
+    assert_int_equal(ves_io_snapshot(io, y, y, phi, &si), VES_OK);
+  }
+  ves_io_close(&io);
+  check_index(path, 3);
+  for (int damage = 0; damage < 2; damage++) {
+    hid_t h = H5Fopen(path, H5F_ACC_RDWR, H5P_DEFAULT);
+    assert_true(h >= 0);
+    if (damage == 0) { /* no index at all */
+      assert_true(H5Ldelete(h, "snapshot_index", H5P_DEFAULT) >= 0);
+    } else { /* the last row missing */
+      hid_t d = H5Dopen2(h, "snapshot_index", H5P_DEFAULT);
+      hsize_t one = 1;
+      assert_true(d >= 0 && H5Dset_extent(d, &one) >= 0);
+      H5Dclose(d);
+    }
+    H5Fclose(h);
+    assert_int_equal(ves_io_open(path, 1, &io, err, sizeof err), VES_OK);
+    ves_io_snapinfo si = snap_of(2 * k++);
+    assert_int_equal(ves_io_snapshot(io, y, y, phi, &si), VES_OK);
+    ves_io_close(&io);
+    check_index(path, k);
+  }
+  assert_int_equal(ves_io_open(path, 1, &io, err, sizeof err), VES_OK);
+  assert_int_equal(ves_io_truncate_snapshots(io, 2), VES_OK);
+  ves_io_close(&io);
+  check_index(path, 2);
+  assert_int_equal(ves_io_open(path, 1, &io, err, sizeof err), VES_OK);
+  ves_io_snapinfo si = snap_of(7); /* a later state in place of snapshot 2 */
+  assert_int_equal(ves_io_snapshot(io, y, y, phi, &si), VES_OK);
+  ves_io_close(&io);
+  check_index(path, 3);
+  remove(path);
+  free(f.problem);
+}
+
 int main(int argc, char **argv) {
   (void)argc, (void)argv;
   setvbuf(stdout, NULL, _IOLBF, 0); /* keep output in order with cmocka's stderr */
@@ -738,8 +749,8 @@ int main(int argc, char **argv) {
       cmocka_unit_test(test_node_material),
       cmocka_unit_test(test_restart_chain),
       cmocka_unit_test(test_self_describing),
-      cmocka_unit_test(test_tsv_row),
       cmocka_unit_test(test_older_file),
+      cmocka_unit_test(test_snapshot_index),
   };
   // clang-format on
   return cmocka_run_group_tests_name("io", tests, setup_all, teardown_all);

@@ -104,6 +104,7 @@ static void test_salvage(void **state) {
     assert_true(s.snapshot >= 0 && s.snapshot <= 2 && s.snapshots == 3);
     assert_int_equal(s.rows, 3 * s.snapshot);
     kept[s.snapshot]++;
+    check_index(out, s.snapshot + 1); /* the index of the snapshots kept */
     assert_int_equal(ves_io_open(out, 1, &io, err, sizeof err), VES_OK);
     assert_int_equal(ves_io_snapshots(io), s.snapshot + 1);
     check_rows(io, s.rows);

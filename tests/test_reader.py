@@ -4,7 +4,7 @@ TINY settings of tests/cli_test_impl.h): one of 11 steps with a snapshot at
 every step (12 snapshots, so HDF5's listing '0', '1', '10', '11', '2', ... is
 not their order), one remeshing every 2 steps. Checks the series from
 t = 0 (stored, and built for a file without that row), the snapshots'
-order, the stored interface curves (their area and volume against `vesica
+order and /snapshot_index, the stored interface curves (their area and volume against `vesica
 info`, against marching triangles here), the provenance (a restart's too,
 and its rows once), the triangles of
 a remeshed snapshot, and that meshio.read opens FILE_last.xmf
@@ -122,6 +122,26 @@ def test_snapshots_in_time_order():
     assert last.velocity.shape == last.x.shape == (len(last.phi), 2)
 
 
+def index_of(path):
+    # /snapshot_index iterated as h5py lists it, and the groups it names in
+    # time order, each with its own step and t
+    with h5py.File(path, "r") as f:
+        count = int(f["snapshots"].attrs["count"])
+        rows = [(int(k), int(step), float(t)) for k, step, t in f["snapshot_index"]]
+        groups = [(k, int(f["snapshots"][str(k)].attrs["step"]), float(f["snapshots"][str(k)].attrs["t"]))
+                  for k in range(count)]
+    return rows, groups
+
+
+def test_snapshot_index():
+    # the index lists every snapshot, in time order, for a plain and a
+    # remeshed run (its continuation by a restart: test_restart_adds_a_run)
+    for path in (PLAIN, REMESH):
+        rows, groups = index_of(path)
+        assert rows == groups, (path, rows, groups)
+        assert all(b[2] > a[2] for a, b in zip(rows, rows[1:])), rows
+
+
 def test_interface_matches_info():
     # info prints 9 significant digits (agreement at full precision: the
     # same sums, ~1e-15 relative); 1e-6 relative leaves room for that rounding
@@ -181,6 +201,8 @@ def test_restart_adds_a_run():
     step = r.series["step"]
     assert np.array_equal(step, np.arange(len(step))) and len(step) == 14, step
     assert np.all(np.diff(r.series["t"]) > 0)
+    rows, groups = index_of(again)  # the index continued after the restart's snapshot
+    assert rows == groups and len(rows) == len(r.snapshots) > 12, (rows, groups)
 
 
 def test_remeshed_triangles():
@@ -242,7 +264,7 @@ def test_interface_synthetic():
 
 
 TESTS = [test_series_from_t0, test_snapshots_in_time_order, test_interface_matches_info,
-         test_provenance, test_restart_adds_a_run, test_remeshed_triangles,
+         test_snapshot_index, test_provenance, test_restart_adds_a_run, test_remeshed_triangles,
          test_meshio_reads_last_xmf, test_interface_synthetic]
 
 

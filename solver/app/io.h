@@ -69,6 +69,11 @@
  *                        2, r z, attribute closed), attributes pieces, area,
  *                        volume, reduced_volume, inverted; outside the
  *                        checksum (derived data)
+ *   /snapshot_index      the snapshots in time order (io_index.c): row i the
+ *                        compound (k int32, step int64, t float64) of
+ *                        /snapshots/<k>, k = i; as many rows as the count
+ *                        (a file cut right after a snapshot, or continued
+ *                        by an older writer, may hold fewer: the count rules)
  *   /references          (runs with resets) attribute count; groups "0", "1",
  *                        ... one per reset of the reference configuration,
  *                        what ves_reconnect_restore rebuilds it from:
@@ -145,23 +150,12 @@ typedef struct {
   int status;                    /* ves_status of the accepted solve */
   int reconnections;             /* reference-configuration resets so far */
   int factorizations;            /* KKT factorizations of the accepted solve (newton, euler) */
-  int rejected_iterations;       /* iterations of the attempts rejected before (text only) */
-  double rejected_seconds;       /* their wall time (text only: not in the file) */
 } ves_io_row;
 
 /* The row of an accepted step: the report rep, the resets so far, the wall
  * time of the time loop. */
 void ves_io_row_from_step(const ves_step_report *rep, int reconnections, double wall_seconds,
                           ves_io_row *row);
-
-/* The series as tab-separated text in columns of its own (the table's tsv
- * fields: A and V as drifts, two columns the file lacks), from the same
- * table of columns as the file's series: the header line naming the columns
- * ("# step<TAB>t<TAB>dt<TAB>E<TAB>A/A0-1 ..."), and one line a row (A0: the
- * run's initial area). VES_ERR_IO when a write fails. The program writes
- * ves_io_text_* below instead. */
-ves_status ves_io_tsv_header(FILE *f);
-ves_status ves_io_tsv_row(FILE *f, const ves_io_row *row, double A0);
 
 /* The series as tab-separated text in the columns of vesica info --series
  * (vesica run --series; docs/manual.md, "The series"): every column of the

@@ -457,6 +457,7 @@ ves_status ves_io_truncate_snapshots(ves_io *io, int keep) {
   if (s < 0) return io_failed(io, VES_ERR_IO, 0);
   ves_status st = io_attr_int(s, "count", keep);
   H5Gclose(s);
+  if (st == VES_OK) st = io_index_truncate(io, keep);
   if (st == VES_OK && H5Fflush(io->file, H5F_SCOPE_LOCAL) < 0) st = VES_ERR_IO;
   if (st == VES_OK) io->nsnap = keep;
   if (st == VES_OK) st = io_xdmf_write(io);

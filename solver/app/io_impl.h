@@ -17,31 +17,18 @@
 
 typedef enum { COL_LONG, COL_INT, COL_DOUBLE } col_type;
 
-/* How a column of the --series text shows its field (ves_io_tsv_row). */
-typedef enum {
-  TSV_NONE,  /* not in the text */
-  TSV_VALUE, /* the field */
-  TSV_OF_A0, /* field / A0 - 1 (the area's drift) */
-  TSV_OF_VT, /* field / V_target - 1 (the volume's drift) */
-} tsv_kind;
-
-/* The per-step row, one table of columns for the file's series (create,
- * append, truncate, read, checksum: in this order) and the --series text
- * (its own order, tsv = 1, 2, ...; its header names and formats). The last
- * IO_NCOLS - IO_NSERIES columns are in the text only. */
+/* The per-step row as one table of columns, in the file's order: the
+ * file's series (create, append, truncate, read, checksum) and the --series
+ * text (ves_io_text_*) read it. */
 typedef struct {
   const char *name;
   col_type type;
   size_t offset;                   /* into ves_io_row */
   const char *units, *description; /* the dataset's attributes */
-  int tsv;                         /* column of the text (1-based; 0: not in it) */
-  tsv_kind how;                    /* how the text shows it */
-  const char *tsv_name, *tsv_fmt;  /* the text's header name and printf format */
 } series_spec;
 
-#define IO_NCOLS 23   /* columns of io_series */
-#define IO_NSERIES 21 /* of them in the file (the first IO_NSERIES) */
-extern const series_spec io_series[IO_NCOLS];
+#define IO_NSERIES 21 /* columns of io_series */
+extern const series_spec io_series[IO_NSERIES];
 
 struct ves_io {
   hid_t file;               /* the HDF5 file */
@@ -141,6 +128,13 @@ ves_status io_series_sum(ves_io *io, long rows, uint64_t *out);
 ves_status io_create_series(ves_io *io, const hid_t *like);
 ves_status io_append_row(ves_io *io, const ves_io_row *row); /* no reservation, no provenance */
 ves_status io_row0_write(ves_io *io); /* the initial state's row when pending */
+
+/* ---- the snapshot index /snapshot_index (io_index.c) ---- */
+/* Row k (snapshot k, its step and t) written, the index k + 1 rows long;
+ * rows 0..k-1 rebuilt from the snapshots when its length was not k. */
+ves_status io_index_put(ves_io *io, int k, long step, double t);
+ves_status io_index_rebuild(ves_io *io, int count); /* rows 0..count-1 from the snapshots */
+ves_status io_index_truncate(ves_io *io, int keep); /* at most keep rows */
 
 /* ---- provenance (io_provenance.c) ---- */
 void io_utc_now(char *buf, size_t len); /* UTC ISO 8601, seconds */

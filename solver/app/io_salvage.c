@@ -284,6 +284,10 @@ static ves_status salvage_write(ves_io *src, const char *path, const char *out, 
     step = "the snapshots";
     st = copy_counted(src->file, d, "snapshots", K + 1);
   }
+  if (st == VES_OK) { /* the index of the snapshots kept, from their attributes */
+    step = "the snapshot index";
+    st = io_index_rebuild(dst, K + 1);
+  }
   if (st == VES_OK && si->reconnections > 0) {
     step = "the references";
     st = copy_counted(src->file, d, "references", si->reconnections);

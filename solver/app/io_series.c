@@ -11,40 +11,35 @@
 
 #define ROW(f) offsetof(ves_io_row, f)
 /* "step" comes last in the file: a row is complete once its step is written
- * (rows i holds step i + 1; ves_io_rows checks it). */
+ * (ves_io_rows checks it). */
 #define STATUS_DOC_ "ves_status of the accepted solve: " VES_STATUS_LIST(STATUS_DOC_ITEM_)
 #define STATUS_DOC_ITEM_(name, value, msg) #value " " msg "; "
-#define V_ TSV_VALUE
 /* one column a line, a table to read across (clang-format would break the lines) */
 // clang-format off
 const series_spec io_series[] = {
-    {"t", COL_DOUBLE, ROW(t), "t*", "time at the end of the step, t* = t k/(mu R0^3)", 2, V_, "t", "%.9g"},
-    {"dt", COL_DOUBLE, ROW(dt), "t*", "accepted time step", 3, V_, "dt", "%.6g"},
-    {"E", COL_DOUBLE, ROW(E), "k", "energy the steps minimize, in model units (E* = E/k with [material] k): bending energy plus the stabilization E_s ([geometry] stabilization; 0 after a reset)", 4, V_, "E", "%.12g"},
-    {"A", COL_DOUBLE, ROW(A), "R0^2", "area of the phase-field vesicle", 5, TSV_OF_A0, "A/A0-1", "%.3e"},
-    {"V", COL_DOUBLE, ROW(V), "R0^3", "enclosed volume of the phase-field vesicle", 6, TSV_OF_VT, "V/Vt-1", "%.3e"},
-    {"V_target", COL_DOUBLE, ROW(V_target), "R0^3", "volume the step held (V0, or the protocol's ramp)", 0, TSV_NONE, NULL, NULL},
-    {"lambda_A", COL_DOUBLE, ROW(lambda_A), "k/R0^2", "multiplier of the area constraint (tension)", 7, V_, "lambda_A", "%.9g"},
-    {"lambda_V", COL_DOUBLE, ROW(lambda_V), "k/R0^3", "multiplier of the volume constraint (pressure)", 8, V_, "lambda_V", "%.9g"},
-    {"c0", COL_DOUBLE, ROW(c0), "1/R0", "spontaneous curvature C0 in force during the step", 0, TSV_NONE, NULL, NULL},
-    {"iterations", COL_INT, ROW(iterations), "1", "solver iterations of the accepted attempt", 9, V_, "iter", "%d"},
-    {"f_evals", COL_INT, ROW(f_evals), "1", "energy evaluations of the accepted attempt", 10, V_, "f", "%d"},
-    {"g_evals", COL_INT, ROW(g_evals), "1", "gradient evaluations of the accepted attempt", 11, V_, "g", "%d"},
-    {"h_evals", COL_INT, ROW(h_evals), "1", "Hessian evaluations of the accepted attempt", 12, V_, "h", "%d"},
-    {"violation", COL_DOUBLE, ROW(violation), "1", "constraint violation, relative to A0 and V", 0, TSV_NONE, NULL, NULL},
-    {"solve_seconds", COL_DOUBLE, ROW(solve_seconds), "s", "wall time of the accepted solve", 13, V_, "seconds", "%.3f"},
-    {"wall_seconds", COL_DOUBLE, ROW(wall_seconds), "s", "wall time of the run's time loop so far", 0, TSV_NONE, NULL, NULL},
-    {"retries", COL_INT, ROW(retries), "1", "rejected attempts before the accepted one (each at dt/2)", 14, V_, "retries", "%d"},
-    {"status", COL_INT, ROW(status), "1", STATUS_DOC_, 0, TSV_NONE, NULL, NULL},
-    {"reconnections", COL_INT, ROW(reconnections), "1", "resets of the reference configuration so far", 15, V_, "resets", "%d"},
-    {"factorizations", COL_INT, ROW(factorizations), "1", "KKT factorizations of the accepted attempt, each rung of an inertia correction one (newton, euler; 0 for ipopt and nlopt, which do not report theirs); optional: a file without it reads as -1", 18, V_, "factorizations", "%d"},
-    {"step", COL_LONG, ROW(step), "1", "accepted step number (row 0 holds step 0, the initial state at t = 0, and row i step i; written last: a row is complete once its step is)", 1, V_, "step", "%ld"},
-    /* the text only */
-    {"rejected_iterations", COL_INT, ROW(rejected_iterations), "1", "iterations of the attempts rejected before the accepted one", 16, V_, "rejected_iterations", "%d"},
-    {"rejected_seconds", COL_DOUBLE, ROW(rejected_seconds), "s", "wall time of those attempts", 17, V_, "rejected_seconds", "%.3f"},
+    {"t", COL_DOUBLE, ROW(t), "t*", "time at the end of the step, t* = t k/(mu R0^3)"},
+    {"dt", COL_DOUBLE, ROW(dt), "t*", "accepted time step"},
+    {"E", COL_DOUBLE, ROW(E), "k", "energy the steps minimize, in model units (E* = E/k with [material] k): bending energy plus the stabilization E_s ([geometry] stabilization; 0 after a reset)"},
+    {"A", COL_DOUBLE, ROW(A), "R0^2", "area of the phase-field vesicle"},
+    {"V", COL_DOUBLE, ROW(V), "R0^3", "enclosed volume of the phase-field vesicle"},
+    {"V_target", COL_DOUBLE, ROW(V_target), "R0^3", "volume the step held (V0, or the protocol's ramp)"},
+    {"lambda_A", COL_DOUBLE, ROW(lambda_A), "k/R0^2", "multiplier of the area constraint (tension)"},
+    {"lambda_V", COL_DOUBLE, ROW(lambda_V), "k/R0^3", "multiplier of the volume constraint (pressure)"},
+    {"c0", COL_DOUBLE, ROW(c0), "1/R0", "spontaneous curvature C0 in force during the step"},
+    {"iterations", COL_INT, ROW(iterations), "1", "solver iterations of the accepted attempt"},
+    {"f_evals", COL_INT, ROW(f_evals), "1", "energy evaluations of the accepted attempt"},
+    {"g_evals", COL_INT, ROW(g_evals), "1", "gradient evaluations of the accepted attempt"},
+    {"h_evals", COL_INT, ROW(h_evals), "1", "Hessian evaluations of the accepted attempt"},
+    {"violation", COL_DOUBLE, ROW(violation), "1", "constraint violation, relative to A0 and V"},
+    {"solve_seconds", COL_DOUBLE, ROW(solve_seconds), "s", "wall time of the accepted solve"},
+    {"wall_seconds", COL_DOUBLE, ROW(wall_seconds), "s", "wall time of the run's time loop so far"},
+    {"retries", COL_INT, ROW(retries), "1", "rejected attempts before the accepted one (each at dt/2)"},
+    {"status", COL_INT, ROW(status), "1", STATUS_DOC_},
+    {"reconnections", COL_INT, ROW(reconnections), "1", "resets of the reference configuration so far"},
+    {"factorizations", COL_INT, ROW(factorizations), "1", "KKT factorizations of the accepted attempt, each rung of an inertia correction one (newton, euler; 0 for ipopt and nlopt, which do not report theirs); optional: a file without it reads as -1"},
+    {"step", COL_LONG, ROW(step), "1", "accepted step number (row 0 holds step 0, the initial state at t = 0, and row i step i; written last: a row is complete once its step is)"},
 };
 // clang-format on
-#undef V_
 
 /* An optional column of format_version 2: a file may lack it (its handle
  * -1 once opened), and appends, truncations, checksums and salvaged copies
@@ -231,51 +226,7 @@ void ves_io_row_from_step(const ves_step_report *rep, int reconnections, double 
                       .retries = rep->retries,
                       .status = rep->solve_status,
                       .reconnections = reconnections,
-                      .factorizations = rep->stats.factorizations,
-                      .rejected_iterations = rep->rejected.iterations,
-                      .rejected_seconds = rep->rejected.seconds};
-}
-
-/* The column of the text at position k (1-based), or NULL. */
-static const series_spec *tsv_column(int k) {
-  for (int i = 0; i < IO_NCOLS; i++)
-    if (io_series[i].tsv == k) return io_series + i;
-  return NULL;
-}
-
-ves_status ves_io_tsv_header(FILE *f) {
-  VES_CHECK(f, VES_ERR_ARG);
-  int e = fputs("# ", f) < 0;
-  for (int k = 1; tsv_column(k); k++)
-    e |= fprintf(f, "%s%s", k > 1 ? "\t" : "", tsv_column(k)->tsv_name) < 0;
-  e |= fputc('\n', f) == EOF;
-  return e ? VES_ERR_IO : VES_OK;
-}
-
-ves_status ves_io_tsv_row(FILE *f, const ves_io_row *row, double A0) {
-  VES_CHECK(f && row, VES_ERR_ARG);
-  int e = 0;
-  for (int k = 1; tsv_column(k); k++) {
-    const series_spec *c = tsv_column(k);
-    const char *p = (const char *)row + c->offset;
-    if (k > 1) e |= fputc('\t', f) == EOF;
-    if (c->type == COL_LONG) {
-      long v;
-      memcpy(&v, p, sizeof v);
-      e |= fprintf(f, c->tsv_fmt, v) < 0;
-    } else if (c->type == COL_INT) {
-      int v;
-      memcpy(&v, p, sizeof v);
-      e |= fprintf(f, c->tsv_fmt, v) < 0;
-    } else {
-      double v;
-      memcpy(&v, p, sizeof v);
-      v = c->how == TSV_OF_A0 ? v / A0 - 1 : c->how == TSV_OF_VT ? v / row->V_target - 1 : v;
-      e |= fprintf(f, c->tsv_fmt, v) < 0;
-    }
-  }
-  e |= fputc('\n', f) == EOF;
-  return e ? VES_ERR_IO : VES_OK;
+                      .factorizations = rep->stats.factorizations};
 }
 
 long ves_io_rows(const ves_io *io) {

@@ -347,6 +347,10 @@ static ves_status snapshot(ves_io *io, const double *y, const double *x, const d
   VES_CALL(io_row0_write(io));
   io->snap_t[io->nsnap++] = si->state.t;
   io->last_step = si->state.nstep;
+  /* its row of the index once it is counted: a file cut in between has
+   * one row fewer, which the next snapshot's put rebuilds */
+  VES_CALL(io_index_put(io, io->nsnap - 1, si->state.nstep, si->state.t));
+  if (H5Fflush(io->file, H5F_SCOPE_LOCAL) < 0) return VES_ERR_IO;
   errno = 0;
   st = io_xdmf_write(io);
   if (st == VES_ERR_IO) { /* the HDF5 file is complete: the XDMF file is rewritten at the next */
