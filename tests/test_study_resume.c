@@ -4,9 +4,10 @@
  * at the end of a job) continues that cell at
  * the next call from its last snapshot with vesica run --restart, and the
  * cell ends in the state of an uninterrupted study bit for bit (restarts
- * are bit for bit: docs/manual.md, "Continuing a run"); a cell file that
- * cannot be continued is moved aside, never deleted, and the cell starts
- * over. Run from the repository root. */
+ * are bit for bit: docs/manual.md, "Continuing a run"); so does a cell its
+ * time limit stopped, when retried; a cell file that cannot be continued is
+ * moved aside, never deleted, and the cell starts over. Run from the
+ * repository root. */
 #include <sys/file.h>
 
 #include "cli_test_impl.h"
@@ -65,6 +66,37 @@ static double *final_state(const char *h5, int *n, long *rows, double **t, doubl
   return y;
 }
 
+/* The uninterrupted study in folder ref (run once for the tests that
+ * compare with it); its cell's .result read into *rr. */
+static void reference_cell(const char *study, const char *ref, ves_study_result *rr) {
+  char res[PATH_MAX];
+  result r;
+  snprintf(res, sizeof res, "%s/cells/c0=0.result", ref);
+  if (!exists(res)) {
+    rm_tree(ref);
+    run(&r, "study", study, "--out", ref, "--jobs", "1", "--quiet", NULL);
+    if (r.code) fail_msg("study: exit %d: %s", r.code, r.err);
+  }
+  assert_int_equal(ves_study_result_read(res, rr), VES_OK);
+  assert_string_equal(rr->outcome, "converged");
+}
+
+/* The final states of two ended cells' files, every row and the last y bit
+ * for bit (a restart repeats the trajectory exactly), 12 steps each. */
+static void same_final_state(const char *h5a, const char *h5b) {
+  int na, nb;
+  long ra, rb;
+  double *ta, *Ea, *tb, *Eb;
+  double *ya = final_state(h5a, &na, &ra, &ta, &Ea), *yb = final_state(h5b, &nb, &rb, &tb, &Eb);
+  assert_int_equal(na, nb);
+  assert_int_equal(ra, rb);
+  assert_int_equal(ra, 12);
+  assert_memory_equal(ta, tb, (size_t)ra * sizeof *ta);
+  assert_memory_equal(Ea, Eb, (size_t)ra * sizeof *Ea);
+  assert_memory_equal(ya, yb, 2 * (size_t)na * sizeof *ya);
+  free(ya), free(yb), free(ta), free(tb), free(Ea), free(Eb);
+}
+
 /* A study interrupted by sig in the middle of its cell, then rerun: the
  * cell's log says it continues from a snapshot after step 0, and its file
  * ends as the uninterrupted study's, bit for bit. */
@@ -75,15 +107,8 @@ static void interrupted_cell(int sig, int cell_too) {
   tmp_path(cut, sizeof cut, sig == SIGKILL ? "killed" : cell_too ? "termed_both" : "termed");
   rm_tree(cut);
   result r;
-  snprintf(res, sizeof res, "%s/cells/c0=0.result", ref);
-  if (!exists(res)) { /* the uninterrupted study, once for the tests that compare with it */
-    rm_tree(ref);
-    run(&r, "study", study, "--out", ref, "--jobs", "1", "--quiet", NULL);
-    if (r.code) fail_msg("study: exit %d: %s", r.code, r.err);
-  }
   ves_study_result rr;
-  assert_int_equal(ves_study_result_read(res, &rr), VES_OK);
-  assert_string_equal(rr.outcome, "converged");
+  reference_cell(study, ref, &rr);
   /* the same study, interrupted in its time loop once the cell has written
    * snapshot 2 (step 6 of 12: the XDMF file beside the cell's file is
    * rewritten with every snapshot) */
@@ -134,21 +159,64 @@ static void interrupted_cell(int sig, int cell_too) {
   snprintf(want, sizeof want, "from snapshot %d (step %ld,", S - 1, si.state.nstep);
   assert_non_null(strstr(text, "vesica study: continuing the interrupted cell from"));
   assert_non_null(strstr(text, want));
-  /* the continued file against the uninterrupted one: every row and the
-   * last state bit for bit (a restart repeats the trajectory exactly) */
-  int na, nb;
-  long ra, rb;
-  double *ta, *Ea, *tb, *Eb;
+  /* the continued file against the uninterrupted one */
   char h5ref[PATH_MAX];
   snprintf(h5ref, sizeof h5ref, "%s/cells/c0=0.h5", ref);
-  double *ya = final_state(h5ref, &na, &ra, &ta, &Ea), *yb = final_state(h5, &nb, &rb, &tb, &Eb);
-  assert_int_equal(na, nb);
-  assert_int_equal(ra, rb);
-  assert_int_equal(ra, 12);
-  assert_memory_equal(ta, tb, (size_t)ra * sizeof *ta);
-  assert_memory_equal(Ea, Eb, (size_t)ra * sizeof *Ea);
-  assert_memory_equal(ya, yb, 2 * (size_t)na * sizeof *ya);
-  free(ya), free(yb), free(ta), free(tb), free(Ea), free(Eb);
+  same_final_state(h5ref, h5);
+  rm_tree(cut);
+}
+
+/* A cell its time limit stops in the middle (half the uninterrupted cell's
+ * wall time), then retried with --retry-failed and no limit: continued from
+ * the snapshot its SIGTERM saved, not from its problem, and ended as the
+ * uninterrupted cell bit for bit. */
+static void test_timeout_continued(void **state) {
+  (void)state;
+  char study[128], ref[128], cut[128], limited[128], text[8192], h5[PATH_MAX], res[PATH_MAX];
+  write_study(study, sizeof study);
+  tmp_path(ref, sizeof ref, "ref");
+  tmp_path(cut, sizeof cut, "timed");
+  rm_tree(cut);
+  ves_study_result rr;
+  reference_cell(study, ref, &rr);
+  const double limit = rr.wall_seconds / 2;
+  snprintf(text, sizeof text,
+           "[study]\nproblem = base.ini\nrun = t_end\ntime_limit = %.3f\n[axes]\nmaterial.c0 = 0\n",
+           limit);
+  write_file(tmp_path(limited, sizeof limited, "limited.ini"), text);
+  result r;
+  run(&r, "study", limited, "--out", cut, "--jobs", "1", "--quiet", NULL);
+  if (r.code) fail_msg("study with time_limit %.3f s: exit %d: %s", limit, r.code, r.err);
+  snprintf(h5, sizeof h5, "%s/cells/c0=0.h5", cut);
+  snprintf(res, sizeof res, "%s/cells/c0=0.result", cut);
+  ves_study_result tr;
+  assert_int_equal(ves_study_result_read(res, &tr), VES_OK);
+  if (strcmp(tr.outcome, "timeout"))
+    fail_msg("time_limit %.3f s (half of the cell's %.3f s): outcome %s", limit, rr.wall_seconds,
+             tr.outcome);
+  assert_true(exists(h5));
+  ves_io *io = open_ro(h5);
+  ves_io_snapinfo si;
+  assert_int_equal(ves_io_read_snapshot(io, ves_io_snapshots(io) - 1, NULL, NULL, NULL, &si),
+                   VES_OK);
+  ves_io_close(&io);
+  printf("# time_limit %.3f s: the cell stopped with its last snapshot at step %ld\n", limit,
+         si.state.nstep);
+  /* the limit raised: the cell is the same cell (the limit is not in its command) */
+  write_file(limited, STUDY);
+  run(&r, "study", limited, "--out", cut, "--jobs", "1", "--retry-failed", NULL);
+  if (r.code) fail_msg("retry: exit %d: %s", r.code, r.err);
+  assert_non_null(strstr(r.out, "1 of 1 cells, 1 converged"));
+  assert_non_null(strstr(r.err, "cell c0=0: continues from its last snapshot"));
+  char log[PATH_MAX], want[128];
+  snprintf(log, sizeof log, "%s/cells/c0=0.log", cut);
+  slurp(log, text, sizeof text);
+  assert_non_null(strstr(text, "vesica study: continuing the timed-out cell from"));
+  snprintf(want, sizeof want, "(step %ld,", si.state.nstep);
+  assert_non_null(strstr(text, want));
+  char h5ref[PATH_MAX];
+  snprintf(h5ref, sizeof h5ref, "%s/cells/c0=0.h5", ref);
+  same_final_state(h5ref, h5);
   rm_tree(cut);
 }
 
@@ -241,6 +309,7 @@ int main(int argc, char **argv) {
       cmocka_unit_test(test_resume_after_sigterm),
       cmocka_unit_test(test_resume_after_sigterm_to_all),
       cmocka_unit_test(test_unusable_file_moved_aside),
+      cmocka_unit_test(test_timeout_continued),
   };
   return cmocka_run_group_tests_name("study_resume", tests, setup_all, teardown_resume);
 }

@@ -4,7 +4,8 @@
  * process has ended, so a study stopped or killed at any point loses no
  * ended cell; those that were running continue from their last snapshot
  * at the next call (vesica run --restart; a file that cannot be continued
- * is moved aside and the cell starts over). A cell whose problem fails the
+ * is moved aside and the cell starts over), and so do cells stopped by their
+ * time limit when failed cells are retried. A cell whose problem fails the
  * setup's geometric checks is recorded bad_input without a process
  * (study.h; docs/design.md, "The program"). */
 /* wait4 (one child's own CPU time and peak memory) is a BSD call */
@@ -66,6 +67,12 @@ static void write_cmd(const ves_study *s, const ves_study_run_opts *o, long k) {
   if (f) fprintf(f, "%s\n", sig), fclose(f);
 }
 
+/* Whether the cell's .result (path) says its time limit stopped it. */
+static int ended_by_time_limit(const char *path) {
+  ves_study_result r;
+  return ves_study_result_read(path, &r) == VES_OK && !strcmp(r.outcome, "timeout");
+}
+
 /* How an interrupted cell's .h5 (path) is continued: -1 from its last
  * snapshot, K >= 0 from snapshot K (its last one does not verify, K is the
  * last intact one before it; -2: none is), as its read-only check says. A
@@ -102,8 +109,9 @@ static void move_aside(const char *h5, int log_fd, const char *why, char *note, 
 }
 
 /* Start cell k in sl. An interrupted cell of this study (its .h5 and the
- * record of its command, no .result) continues from its last intact
- * snapshot with `program run --restart` (resume, the log appended to);
+ * record of its command, no .result, or a .result of a timeout when it is
+ * retried) continues from its last intact snapshot with `program run
+ * --restart` (resume, the log appended to);
  * otherwise its old files are removed and it starts from its problem
  * (with resume -1: after a restart that failed, its log kept). 0 or -1. */
 static int start_cell(const ves_study *s, const ves_study_run_opts *o, long k, int threads,
@@ -117,8 +125,15 @@ static int start_cell(const ves_study *s, const ves_study_run_opts *o, long k, i
   int from = -1;
   const int foreign = /* interrupted, but started by another version of the study */
       resume > 0 && stat(res, &sb) != 0 && stat(h5, &sb) == 0 && !cmd_matches(s, o, k);
-  if (resume < 0 || (resume && (stat(res, &sb) == 0 || stat(h5, &sb) != 0 || foreign)))
-    resume = 0; /* ended (a retry starts over), not begun, or another study's */
+  /* stopped by its time limit (rerun by --retry-failed): continued as an
+   * interrupted cell, its .result dropped so that an interruption of the
+   * continuation is continued in turn */
+  const int timed_out =
+      resume > 0 && stat(h5, &sb) == 0 && ended_by_time_limit(res) && cmd_matches(s, o, k);
+  if (resume < 0 ||
+      (resume && ((stat(res, &sb) == 0 && !timed_out) || stat(h5, &sb) != 0 || foreign)))
+    resume = 0; /* ended otherwise (a retry starts over), not begun, or another study's */
+  if (resume && timed_out) remove(res);
   int fd = open(log, O_WRONLY | O_CREAT | (resume || append ? O_APPEND : O_TRUNC), 0644);
   if (fd < 0) {
     ves_error_say(err, errlen, "%s: cannot write: %s", log, strerror(errno));
@@ -151,8 +166,8 @@ static int start_cell(const ves_study *s, const ves_study_run_opts *o, long k, i
     if (max_steps) rargv[ra++] = "--max-steps", rargv[ra++] = steps;
     if (from >= 0) rargv[ra++] = "--from-snapshot", rargv[ra++] = snap;
     rargv[ra] = NULL;
-    dprintf(fd, "vesica study: continuing the interrupted cell from %s (vesica run --restart)\n",
-            h5);
+    dprintf(fd, "vesica study: continuing the %s cell from %s (vesica run --restart)\n",
+            timed_out ? "timed-out" : "interrupted", h5);
     snprintf(note, notelen, "continues from its last snapshot (vesica run --restart)");
   } else if (ves_study_cell_argv(s, k, o->program, o->dir, &argc, &argv, msg, sizeof msg) !=
              VES_OK) {
