@@ -4,8 +4,9 @@
 # row on stdout:
 #   eps  settings  nodes  cpu_s  peak_MB  E_final  E_final-E_sharp  steps
 # A setting is a space-separated list of geometry KEY=V overrides ("default":
-# none beyond the problem file). Runs go one at a time, single-threaded, under
-# nice, so that CPU seconds compare across settings on a shared machine.
+# none beyond the problem file). Runs go one at a time, single-threaded, at
+# nice 5 above the caller's, so that CPU seconds compare across settings on a
+# shared machine.
 # Results and their reading: docs/results.md, "Convergence in ε and h".
 # Needs /usr/bin/time (Debian package time).
 #
@@ -37,10 +38,17 @@ for setting in "$@"; do
   fi
   out=$outdir/$(basename "$problem" .ini)_$tag.h5
   tfile=$outdir/$(basename "$out" .h5).time
+  # a run that does not finish (exit != 0: failed, refused, its file in use
+  # by another run) gives no row: its file may not be its own
+  rc=0
   # shellcheck disable=SC2086
   nice -n 5 "$timebin" -o "$tfile" -f '%U %S %M' "$vesica" run "$problem" \
     --set geometry.epsilon="$eps" "${args[@]}" ${EXTRA:-} \
-    --out "$out" --force --quiet || true
+    --out "$out" --force --quiet || rc=$?
+  if [ "$rc" != 0 ]; then
+    echo "pareto.sh: $setting: vesica run exit $rc: no row (run it alone to see why)" >&2
+    continue
+  fi
   read -r usr sys rss < <(tail -n 1 "$tfile")
   "$vesica" info "$out" | awk -v eps="$eps" -v set="$setting" -v es="$esharp" \
     -v usr="$usr" -v sys="$sys" -v rss="$rss" -F ' = ' '
