@@ -113,10 +113,11 @@ def main():
     nshot = int(sys.argv[3]) if len(sys.argv) > 3 else 6
     f = vesica._open(path)  # with the reader's flags: vesica.load opens it again
     eps = float(f["parameters"].attrs["geometry.epsilon"])
-    ser = f["series"]
-    t, E, V, c0 = (ser[k][()] for k in ("t", "E", "V", "c0"))
-    A = ser["A"][()]
-    recon = ser["reconnections"][()]
+    run = vesica.load(path)
+    ser = run.series  # row i holds step i, row 0 the initial state (either format)
+    t, E, V, c0 = (np.asarray(ser[k]) for k in ("t", "E", "V", "c0"))
+    A = np.asarray(ser["A"])
+    recon = np.asarray(ser["reconnections"])
     v = V / (4 * np.pi / 3 * (A / (4 * np.pi)) ** 1.5)
     nsnap = int(f["snapshots"].attrs["count"])
     st = [f[f"snapshots/{k}"].attrs for k in range(nsnap)]
@@ -124,7 +125,7 @@ def main():
     steps = np.array([int(a["step"]) for a in st])
     tmp = os.path.splitext(path)[0] + ".fig6"
     os.makedirs(tmp, exist_ok=True)
-    print(f"eps {eps}; {len(t)} steps to t* {t[-1]:.4g}; {nsnap} snapshots; "
+    print(f"eps {eps}; {len(t) - 1} steps to t* {t[-1]:.4g}; {nsnap} snapshots; "
           f"{int(recon[-1]) if len(recon) else 0} resets")
     print()
     print("| t* | step | nodes | E* | C0 R0 | v | length (z extent) | pieces on the axis | pearls | "
@@ -160,7 +161,7 @@ def main():
         for k in range(int(f["remeshes"].attrs["count"])):
             a = f[f"remeshes/{k}"].attrs
             s = int(a["step"])
-            print(f"| {k + 1} | {s} | {t[s - 1]:.4g} | {int(a['n_old'])} -> {int(a['n_new'])} | "
+            print(f"| {k + 1} | {s} | {t[s]:.4g} | {int(a['n_old'])} -> {int(a['n_new'])} | "
                   f"{a['E_old']:.4f} -> {a['E_proj']:.4f} -> {a['E']:.4f} | {a['dA']:.1e} | {a['dV']:.1e} | "
                   f"{a['corr_max']:.1e} ({int(a['corr_iter'])}) | {a['res_A']:.0e}, {a['res_V']:.0e} | "
                   f"{a['disp_max']:.1e} / {a['disp_mean']:.1e} | {a['seconds']:.1f} |")
@@ -173,7 +174,6 @@ def main():
     else:
         want = np.linspace(ts[0], ts[-1], nshot)
     pick = sorted(set(int(np.argmin(np.abs(ts - w))) for w in want))
-    run = vesica.load(path)
     rlim, zlim = 0.0, 0.0
     for k in pick:
         g = f[f"snapshots/{k}"]
@@ -199,7 +199,7 @@ def main():
     if "remeshes" in f:
         for k in range(int(f["remeshes"].attrs["count"])):
             s = int(f[f"remeshes/{k}"].attrs["step"])
-            marks.append(f"set arrow from {t[s - 1]},graph 0 to {t[s - 1]},graph 1 nohead dt 2 lc rgb '#d62728'")
+            marks.append(f"set arrow from {t[s]},graph 0 to {t[s]},graph 1 nohead dt 2 lc rgb '#d62728'")
     os.makedirs(figdir, exist_ok=True)
     if ramp > 0:  # the C0 ramp of problems/pearling.ini: Fig. 6
         png = os.path.join(figdir, f"fig6_eps{eps:g}.png")
