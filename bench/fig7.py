@@ -302,7 +302,7 @@ def main():
     # the axes fitted to the data: time from the first step to the last, the shapes' box from
     # their curves (and D's) with 0.05 R0 around
     tmax = max(ser[n][-1, 1] for n in runs)
-    tmin = min(ser[n][0, 1] for n in runs)
+    tmin = min(ser[n][ser[n][:, 1] > 0, 1][0] for n in runs)  # the first step (log axis: not t = 0)
     pts = np.concatenate([dense(rampend[n][2]) for n in runs] + [dense(final[n]) for n in runs]
                          + [np.column_stack([eq["r"], eq["z"]])])
     rmax = np.ceil((pts[:, 0].max() + 0.05) * 10) / 10
