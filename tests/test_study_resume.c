@@ -97,11 +97,28 @@ static void same_final_state(const char *h5a, const char *h5b) {
   free(ya), free(yb), free(ta), free(tb), free(Ea), free(Eb);
 }
 
+/* After a rerun that continued the cell of folder cut: its log says it
+ * continued the `how` cell and names `from` (where the restart took up),
+ * and its file ends as the uninterrupted one of folder ref; cut removed. */
+static void check_continued(const char *cut, const char *ref, const char *how, const char *from) {
+  char log[PATH_MAX], h5[PATH_MAX], h5ref[PATH_MAX], text[8192], line[128];
+  snprintf(log, sizeof log, "%s/cells/c0=0.log", cut);
+  slurp(log, text, sizeof text);
+  printf("# the cell's log:\n%s", text);
+  snprintf(line, sizeof line, "vesica study: continuing the %s cell from", how);
+  assert_non_null(strstr(text, line));
+  assert_non_null(strstr(text, from));
+  snprintf(h5, sizeof h5, "%s/cells/c0=0.h5", cut);
+  snprintf(h5ref, sizeof h5ref, "%s/cells/c0=0.h5", ref);
+  same_final_state(h5ref, h5);
+  rm_tree(cut);
+}
+
 /* A study interrupted by sig in the middle of its cell, then rerun: the
  * cell's log says it continues from a snapshot after step 0, and its file
  * ends as the uninterrupted study's, bit for bit. */
 static void interrupted_cell(int sig, int cell_too) {
-  char study[128], ref[128], cut[128], h5[PATH_MAX], log[PATH_MAX], res[PATH_MAX];
+  char study[128], ref[128], cut[128], h5[PATH_MAX], res[PATH_MAX];
   write_study(study, sizeof study);
   tmp_path(ref, sizeof ref, "ref");
   tmp_path(cut, sizeof cut, sig == SIGKILL ? "killed" : cell_too ? "termed_both" : "termed");
@@ -152,18 +169,9 @@ static void interrupted_cell(int sig, int cell_too) {
   if (r.code) fail_msg("rerun: exit %d: %s", r.code, r.err);
   assert_non_null(strstr(r.out, "1 of 1 cells, 1 converged"));
   assert_non_null(strstr(r.err, "cell c0=0: continues from its last snapshot"));
-  snprintf(log, sizeof log, "%s/cells/c0=0.log", cut);
   char want[256];
-  slurp(log, text, sizeof text);
-  printf("# the cell's log:\n%s", text);
   snprintf(want, sizeof want, "from snapshot %d (step %ld,", S - 1, si.state.nstep);
-  assert_non_null(strstr(text, "vesica study: continuing the interrupted cell from"));
-  assert_non_null(strstr(text, want));
-  /* the continued file against the uninterrupted one */
-  char h5ref[PATH_MAX];
-  snprintf(h5ref, sizeof h5ref, "%s/cells/c0=0.h5", ref);
-  same_final_state(h5ref, h5);
-  rm_tree(cut);
+  check_continued(cut, ref, "interrupted", want);
 }
 
 /* A cell its time limit stops in the middle (half the uninterrupted cell's
@@ -222,16 +230,9 @@ static void test_timeout_continued(void **state) {
   if (r.code) fail_msg("retry: exit %d: %s", r.code, r.err);
   assert_non_null(strstr(r.out, "1 of 1 cells, 1 converged"));
   assert_non_null(strstr(r.err, "cell c0=0: continues from its last snapshot"));
-  char log[PATH_MAX], want[128];
-  snprintf(log, sizeof log, "%s/cells/c0=0.log", cut);
-  slurp(log, text, sizeof text);
-  assert_non_null(strstr(text, "vesica study: continuing the timed-out cell from"));
+  char want[128];
   snprintf(want, sizeof want, "(step %ld,", si.state.nstep);
-  assert_non_null(strstr(text, want));
-  char h5ref[PATH_MAX];
-  snprintf(h5ref, sizeof h5ref, "%s/cells/c0=0.h5", ref);
-  same_final_state(h5ref, h5);
-  rm_tree(cut);
+  check_continued(cut, ref, "timed-out", want);
 }
 
 /* SIGKILL: the study and its cell die at once (the cell by its parent-death
