@@ -1,11 +1,38 @@
-"""The runner shared by the Python test programs (tests/test_*.py): runs
-setup() once, then each test, printing cmocka's summary lines so that
-tests/run.sh counts them like a C test program's; a failing setup fails
-every test. Not a test program itself (its name does not start with
+"""What the Python test programs (tests/test_*.py) share: the program
+under test (VESICA), the small problem they run it on (TINY, the settings
+of tests/cli_test_impl.h), a run of it that must succeed (tiny_run), and
+the runner: setup() once, then each test, printing cmocka's summary lines
+so that tests/run.sh counts them like a C test program's; a failing setup
+fails every test. Not a test program itself (its name does not start with
 test_)."""
+import os
 import shutil
+import subprocess
 import sys
 import traceback
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+VESICA = os.environ.get("VESICA", os.path.join(ROOT, "build", "vesica"))
+if "VESICA" not in os.environ and not os.path.exists(VESICA):  # a SAN=1 build alone
+    VESICA = os.path.join(ROOT, "build-san", "vesica")
+TINY = ["geometry.epsilon=0.2", "geometry.box_r=2", "geometry.box_z=2", "geometry.band=2",
+        "geometry.h_band=0.7", "geometry.h_far=0.3", "shape.mode=2", "shape.delta=0.15",
+        "time.dt_initial=5e-3", "time.dE_target=0.05"]
+
+
+def tiny_run(ini_text, out, *args):
+    """vesica run of the problem text ini_text (written beside out) with the
+    TINY settings, its output out, and args; raises when it fails."""
+    ini = os.path.splitext(out)[0] + ".ini"
+    with open(ini, "w") as f:
+        f.write(ini_text)
+    cmd = [VESICA, "run", ini, "--out", out, "--quiet", *args]
+    for s in TINY:
+        cmd += ["--set", s]
+    p = subprocess.run(cmd, capture_output=True, text=True,
+                       env=dict(os.environ, OPENBLAS_NUM_THREADS="1"))
+    if p.returncode != 0:
+        raise AssertionError(f"{' '.join(cmd)}: exit {p.returncode}: {p.stderr}")
 
 
 def run(tests, setup, tmp):

@@ -28,29 +28,11 @@ import numpy as np  # noqa: E402
 import py_test_impl  # noqa: E402  (tests/, beside this file)
 
 import vesica  # noqa: E402
+from py_test_impl import VESICA  # noqa: E402
 
-VESICA = os.environ.get("VESICA", os.path.join(ROOT, "build", "vesica"))
-if "VESICA" not in os.environ and not os.path.exists(VESICA):  # a SAN=1 build alone
-    VESICA = os.path.join(ROOT, "build-san", "vesica")
-TINY = ["geometry.epsilon=0.2", "geometry.box_r=2", "geometry.box_z=2", "geometry.band=2",
-        "geometry.h_band=0.7", "geometry.h_far=0.3", "shape.mode=2", "shape.delta=0.15",
-        "time.dt_initial=5e-3", "time.dE_target=0.05"]
 TMP = tempfile.mkdtemp(prefix="vesica_reader_")
 PLAIN = os.path.join(TMP, "plain.h5")
 REMESH = os.path.join(TMP, "remesh.h5")
-
-
-def run(ini_text, out):
-    ini = out[:-3] + ".ini"
-    with open(ini, "w") as f:
-        f.write(ini_text)
-    cmd = [VESICA, "run", ini, "--out", out, "--quiet"]
-    for s in TINY:
-        cmd += ["--set", s]
-    p = subprocess.run(cmd, capture_output=True, text=True,
-                       env=dict(os.environ, OPENBLAS_NUM_THREADS="1"))
-    if p.returncode != 0:
-        raise AssertionError(f"{' '.join(cmd)}: exit {p.returncode}: {p.stderr}")
 
 
 def info(path):
@@ -61,9 +43,9 @@ def info(path):
 
 def setup():
     # 11 steps of 5e-3 at a fixed dt, a snapshot after each
-    run("[time]\nt_end = 0.055\nadaptive = 0\n[output]\nsnapshot_every = 1\n", PLAIN)
-    run("[time]\nt_end = 0.03\nadaptive = 0\n[output]\nsnapshot_every = 2\n"
-        "[remesh]\nevery = 2\n", REMESH)
+    py_test_impl.tiny_run("[time]\nt_end = 0.055\nadaptive = 0\n[output]\nsnapshot_every = 1\n", PLAIN)
+    py_test_impl.tiny_run("[time]\nt_end = 0.03\nadaptive = 0\n[output]\nsnapshot_every = 2\n"
+                          "[remesh]\nevery = 2\n", REMESH)
 
 
 def test_series_from_t0():

@@ -19,14 +19,8 @@ import h5py
 import numpy as np
 
 import py_test_impl  # tests/, beside this file
+from py_test_impl import ROOT, VESICA
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-VESICA = os.environ.get("VESICA", os.path.join(ROOT, "build", "vesica"))
-if "VESICA" not in os.environ and not os.path.exists(VESICA):  # a SAN=1 build alone
-    VESICA = os.path.join(ROOT, "build-san", "vesica")
-TINY = ["geometry.epsilon=0.2", "geometry.box_r=2", "geometry.box_z=2", "geometry.band=2",
-        "geometry.h_band=0.7", "geometry.h_far=0.3", "shape.mode=2", "shape.delta=0.15",
-        "time.dt_initial=5e-3", "time.dE_target=0.05"]
 STEPS = 6
 TMP = tempfile.mkdtemp(prefix="vesica_series_tsv_")
 OUT = os.path.join(TMP, "s.h5")
@@ -34,17 +28,8 @@ TSV = os.path.join(TMP, "s.tsv")
 
 
 def setup():
-    ini = os.path.join(TMP, "s.ini")
-    with open(ini, "w") as f:
-        f.write("[time]\nt_end = 1\n")  # adaptive steps, stopped by --max-steps
-    cmd = [VESICA, "run", ini, "--out", OUT, "--series", TSV, "--quiet",
-           "--max-steps", str(STEPS)]
-    for s in TINY:
-        cmd += ["--set", s]
-    p = subprocess.run(cmd, capture_output=True, text=True,
-                       env=dict(os.environ, OPENBLAS_NUM_THREADS="1"))
-    if p.returncode != 0:
-        raise AssertionError(f"{' '.join(cmd)}: exit {p.returncode}: {p.stderr}")
+    # adaptive steps, stopped by --max-steps
+    py_test_impl.tiny_run("[time]\nt_end = 1\n", OUT, "--series", TSV, "--max-steps", str(STEPS))
 
 
 def info_series():
