@@ -159,6 +159,16 @@ static char *figure_section(const char *text, const char *fig) {
   return s;
 }
 
+/* `vesica plot FILE --script gp --force` into the test folder: the kept
+ * gnuplot script, read whole. */
+static char *plot_script(const char *file, const char *gp) {
+  result r;
+  run(&r, "plot", file, "--outdir", tmpdir, "--script", gp, "--force", NULL);
+  if (r.code) fail_msg("plot %s --script: exit %d: %s", file, r.code, r.err);
+  long n;
+  return read_all(gp, &n);
+}
+
 /* Every shape panel (snapshots and flow) draws its phi = 0 curve and its
  * mirror; the first and the last panel's curves (the last after a
  * remeshing, on its triangles) enclose the volume and area `vesica info`
@@ -168,12 +178,9 @@ static void test_plot_outline(void **state) {
   (void)state;
   char gp[128];
   tmp_path(gp, sizeof gp, "rm.gp");
-  result r;
-  run(&r, "plot", h5, "--outdir", tmpdir, "--script", gp, NULL);
-  if (r.code) fail_msg("plot --script: exit %d: %s", r.code, r.err);
-  long n;
-  char *text = read_all(gp, &n);
+  char *text = plot_script(h5, gp);
   assert_memory_equal(text, "part = ''\n", 10);
+  result r;
   run(&r, "info", h5, NULL);
   assert_int_equal(r.code, 0);
   static double p[2 * 20000];
@@ -266,11 +273,7 @@ static void test_plot_flow_scale(void **state) {
   (void)state;
   char gp[128];
   tmp_path(gp, sizeof gp, "flow.gp");
-  result r;
-  run(&r, "plot", h5, "--outdir", tmpdir, "--script", gp, NULL);
-  if (r.code) fail_msg("plot --script: exit %d: %s", r.code, r.err);
-  long n;
-  char *text = read_all(gp, &n);
+  char *text = plot_script(h5, gp);
   char *sec = figure_section(text, "flow");
   const char *s = strstr(sec, "length 0.1 R_0 = speed ");
   assert_non_null(s);
@@ -330,10 +333,7 @@ static void test_plot_volume_panel(void **state) {
   if (r.code) fail_msg("run: exit %d: %s", r.code, r.err);
   const char *files[2] = {h5, dv};
   for (int c = 0; c < 2; c++) {
-    run(&r, "plot", files[c], "--outdir", tmpdir, "--script", gp, "--force", NULL);
-    if (r.code) fail_msg("plot: exit %d: %s", r.code, r.err);
-    long n;
-    char *text = read_all(gp, &n);
+    char *text = plot_script(files[c], gp);
     char *sec = figure_section(text, "constraints");
     const int panel = strstr(sec, "set ylabel 'V / V_0'") != NULL;
     const int said = strstr(sec, "V_{target} = V_0 at every step") != NULL;
