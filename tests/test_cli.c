@@ -33,7 +33,11 @@ static void test_problem_files_check(void **state) {
       snprintf(paths[count], sizeof paths[0], "problems/%.*s", (int)(PATH_MAX - 16), e->d_name);
       char text[4096] = ""; /* study files (a [study] section) are for vesica study */
       slurp(paths[count], text, sizeof text);
-      if (!strstr(text, "\n[study]") && strncmp(text, "[study]", 7)) count++;
+      if (!strstr(text, "\n[study]") && strncmp(text, "[study]", 7)) {
+        /* each problem file states its resolution (docs/manual.md, [geometry]) */
+        if (!strstr(text, "\nresolution = ")) fail_msg("%s: no resolution line", paths[count]);
+        count++;
+      }
     }
   }
   closedir(d);

@@ -318,6 +318,48 @@ static void test_fuzz_regressions(void **state) {
   unlink(pts);
 }
 
+/* geometry.resolution names h_band (0.6, 0.5, 0.4), the last of the two
+ * keys wins, the name follows a given h_band (custom for any other), custom
+ * alone is refused, and the stored text reads back to the same pair. */
+static void test_resolution(void **state) {
+  (void)state;
+  char err[512] = "", *text = NULL;
+  ves_config c, d;
+  ves_config_default(&c);
+  assert_true(c.h_band == 0.5);
+  assert_string_equal(c.resolution, "standard");
+  const struct {
+    const char *set[2];
+    double h_band;
+    const char *name;
+  } cases[] = {
+      {{"geometry.resolution=coarse", NULL}, 0.6, "coarse"},
+      {{"geometry.resolution=FINE", NULL}, 0.4, "fine"},
+      {{"geometry.resolution=coarse", "geometry.h_band=0.45"}, 0.45, "custom"},
+      {{"geometry.h_band=0.45", "geometry.resolution=coarse"}, 0.6, "coarse"},
+      {{"geometry.h_band=0.4", NULL}, 0.4, "fine"},
+      {{"geometry.resolution=custom", "geometry.h_band=0.7"}, 0.7, "custom"},
+      {{"geometry.h_band=0.7", "geometry.resolution=custom"}, 0.7, "custom"},
+  };
+  for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+    const int n = cases[i].set[1] ? 2 : 1;
+    assert_int_equal(ves_config_load(NULL, n, cases[i].set, &c, err, sizeof err), VES_OK);
+    assert_true(c.h_band == cases[i].h_band);
+    assert_string_equal(c.resolution, cases[i].name);
+    assert_int_equal(ves_config_to_text(&c, &text), VES_OK);
+    assert_int_equal(ves_config_load_text(text, "stored", &d, err, sizeof err), VES_OK);
+    assert_true(d.h_band == c.h_band);
+    assert_string_equal(d.resolution, c.resolution);
+    free(text), text = NULL;
+  }
+  const char *custom[] = {"geometry.resolution=custom"};
+  assert_int_equal(ves_config_load(NULL, 1, custom, &c, err, sizeof err), VES_ERR_CONFIG);
+  assert_non_null(strstr(err, "resolution = custom"));
+  const char *bad[] = {"geometry.resolution=medium"};
+  assert_int_equal(ves_config_load(NULL, 1, bad, &c, err, sizeof err), VES_ERR_CONFIG);
+  assert_non_null(strstr(err, "coarse|standard|fine|custom"));
+}
+
 /* Text round trip: every key back bit for bit (reals in their shortest
  * exact form), strings with ';' and '#' intact; the name stands for the file
  * in messages and points files. */
@@ -442,7 +484,7 @@ int main(void) {
       cmocka_unit_test(test_syntax),
       cmocka_unit_test(test_points_file),
       cmocka_unit_test(test_fuzz_regressions),
-      cmocka_unit_test(test_text_roundtrip),
+      cmocka_unit_test(test_text_roundtrip), cmocka_unit_test(test_resolution),
       cmocka_unit_test(test_key_listing),
       cmocka_unit_test(test_defaults_agree),
   };

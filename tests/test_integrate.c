@@ -534,6 +534,45 @@ static void test_reconnect_stabilized(void **state) {
   ves_setup_destroy(&s);
 }
 
+/* time.event_cut: the dt after a reset is event_cut times the controller's.
+ * Two runs with resets after steps 2 and 4, one with cut 1 and one with
+ * 0.25, take the same steps bit for bit until the first reset; there the
+ * cut run's next dt is exactly 0.25 of the other's (a product by 0.25 is
+ * exact in binary floating point). Out-of-range cuts are refused. */
+static void test_event_cut(void **state) {
+  (void)state;
+  ves_setup *s = small_setup();
+  ves_integrate_params ip;
+  relax_params(&ip, 2, 0, 0);
+  ves_sim *a = make_sim(s, "newton", &ip);
+  ip.event_cut = 0.25;
+  ves_sim *b = make_sim(s, "newton", &ip);
+  ves_step_report ra, rb;
+  for (int n = 1; n <= 2; n++) {
+    assert_int_equal(ves_sim_step(a, &ra), VES_OK);
+    assert_int_equal(ves_sim_step(b, &rb), VES_OK);
+    assert_true(ra.E == rb.E && ra.dt == rb.dt); /* the cut acts after a reset only */
+    assert_int_equal(rb.reconnected, n == 2);
+  }
+  printf("# event_cut: dt after the reset %.6e (cut 1) %.6e (cut 0.25)\n", ves_sim_dt(a),
+         ves_sim_dt(b));
+  assert_true(ves_sim_dt(b) == 0.25 * ves_sim_dt(a) && ves_sim_dt(b) >= ip.dt_min);
+  assert_int_equal(ves_sim_step(b, &rb), VES_OK);
+  assert_true(rb.dt == 0.25 * ves_sim_dt(a)); /* the next step is taken at the cut dt */
+  ves_sim_destroy(&a), ves_sim_destroy(&b);
+  const double bad[] = {0, -0.5, 1.5, NAN};
+  for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+    ip.event_cut = bad[i];
+    ves_sim *c = NULL;
+    ves_backend_options bo;
+    ves_backend_options_default(&bo);
+    assert_int_equal(ves_sim_create(s->model, ves_backend_find("newton"), &bo, &ip, &c),
+                     VES_ERR_ARG);
+    assert_null(c);
+  }
+  ves_setup_destroy(&s);
+}
+
 /* Periodic resets (every 2 steps, 6 steps): constraints and energy stability
  * hold across them, the reset itself preserves E, and the counter counts. */
 static void test_reconnect_every(void **state) {
@@ -740,6 +779,7 @@ int main(void) {
       cmocka_unit_test(test_protocols),
       cmocka_unit_test(test_c0_ramp), cmocka_unit_test(test_volume_ramp_end),             cmocka_unit_test(test_c0_switch_restarts_dt),
       cmocka_unit_test(test_failure_keeps_state), cmocka_unit_test(test_reconnect_every),
+      cmocka_unit_test(test_event_cut),
       cmocka_unit_test(test_reconnect_stabilized),
       cmocka_unit_test(test_reconnect_threshold), cmocka_unit_test(test_reconnect_failure),
   };

@@ -19,7 +19,8 @@
  * halving after a hard step (time.factor_shrink), its largest growth
  * between steps (time.growth_max) and its rules that hold dt after a step
  * of many iterations or factorizations (time.iter_target,
- * time.factor_target) — cost knobs for the bud phase of a long run
+ * time.factor_target), its cut after a reset or a remeshing
+ * (time.event_cut) — cost knobs for the bud phase of a long run
  * (docs/results.md, "Long runs at ε = 0.01") — and where the run ends; the
  * rest defines the setup, the physics or the protocol the stored steps
  * followed. */
@@ -34,6 +35,7 @@ static const char *const RESTART_KEYS[] = {"solver.tol",
                                            "time.growth_max",
                                            "time.iter_target",
                                            "time.factor_target",
+                                           "time.event_cut",
                                            "time.t_end"};
 
 void cli_restart_keys_print(FILE *f, int col, int indent, int width, const char *tail) {

@@ -33,8 +33,14 @@ static const key_spec KEYS[] = {
      "meridian box extent in R (units R0)"},
     {"geometry", "box_z", KEY_DOUBLE, OFF(box_z), "2.0", 0.1, 100, NULL,
      "meridian box half-extent in Z (units R0)"},
+    {"geometry", "resolution", KEY_STRING, OFF(resolution), "standard", 0, 0,
+     "coarse|standard|fine|custom",
+     "the band's node spacing by name: sets h_band to 0.6 (coarse), 0.5 (standard) or 0.4 (fine); "
+     "an h_band given after it wins, and names itself (custom when it is none of these); errors "
+     "and costs of each: docs/results.md, \"Cost against accuracy of the resolution\""},
     {"geometry", "h_band", KEY_DOUBLE, OFF(h_band), "0.5", 0.05, 2.0, NULL,
-     "node spacing in the band, units of eps (<= 0.5 recommended)"},
+     "node spacing in the band, units of eps (<= 0.5 recommended; geometry.resolution names the "
+     "measured choices)"},
     {"geometry", "band", KEY_DOUBLE, OFF(band), "5.5", 0.0, 20.0, NULL,
      "half-width of the refined band |d| < band*eps, units of eps"},
     {"geometry", "band_layers", KEY_INT, OFF(band_layers), "1", 0, 1, NULL,
@@ -111,6 +117,9 @@ static const key_spec KEYS[] = {
      "after a rejected attempt at dt_r, this many accepted steps keep dt <= retry_cap dt_r"},
     {"time", "retry_cap", KEY_DOUBLE, OFF(retry_cap), "0.7", 0.01, 1, NULL,
      "factor of that cap (1: up to the rejected dt)"},
+    {"time", "event_cut", KEY_DOUBLE, OFF(event_cut), "1", 0.01, 1, NULL,
+     "after a reset of the reference or a remeshing the next dt is at most this factor times "
+     "the controller's (1: no cut)"},
     {"constraints", "area", KEY_INT, OFF(area), "1", 0, 1, NULL, "1: hold the area at A0"},
     {"constraints", "volume", KEY_INT, OFF(volume), "1", 0, 1, NULL,
      "1: hold the volume at its target (V0, or the protocol's ramp)"},
@@ -189,6 +198,41 @@ static const key_spec KEYS[] = {
 };
 #define NKEYS ((int)(sizeof KEYS / sizeof KEYS[0]))
 
+/* geometry.resolution's names for h_band (units eps); the choice of the
+ * default and the measured cost and error of each: docs/results.md, "Cost
+ * against accuracy of the resolution". */
+static const struct {
+  const char *name;
+  double h_band;
+} RESOLUTIONS[] = {{"coarse", 0.6}, {"standard", 0.5}, {"fine", 0.4}};
+#define NRES ((int)(sizeof RESOLUTIONS / sizeof RESOLUTIONS[0]))
+
+/* The name of a named h_band, NULL for any other. */
+static const char *resolution_name(double h_band) {
+  for (int i = 0; i < NRES; i++)
+    if (h_band == RESOLUTIONS[i].h_band) return RESOLUTIONS[i].name;
+  return NULL;
+}
+
+/* The two keys of one setting stay in step, whichever comes last wins: a
+ * resolution's name sets h_band, an h_band sets the name it has (custom for
+ * any other value); custom itself leaves h_band as it is (the stored problem
+ * text writes it with its h_band, and reads back to the same run; a custom
+ * with a named h_band is refused by validate_setup). */
+static void couple_resolution(ves_config *cfg, size_t offset) {
+  if (offset == OFF(resolution)) {
+    for (int i = 0; i < NRES; i++)
+      if (!strcasecmp(cfg->resolution, RESOLUTIONS[i].name)) {
+        snprintf(cfg->resolution, sizeof cfg->resolution, "%s", RESOLUTIONS[i].name);
+        cfg->h_band = RESOLUTIONS[i].h_band;
+      }
+    if (!strcasecmp(cfg->resolution, "custom")) snprintf(cfg->resolution, 7, "custom");
+  } else if (offset == OFF(h_band)) {
+    const char *name = resolution_name(cfg->h_band);
+    snprintf(cfg->resolution, sizeof cfg->resolution, "%s", name ? name : "custom");
+  }
+}
+
 /* Parse text into the field of spec k; 0 on success, -1 with a reason. */
 static int set_value(ves_config *cfg, const key_spec *k, const char *text, const char **why) {
   char *end;
@@ -206,6 +250,7 @@ static int set_value(ves_config *cfg, const key_spec *k, const char *text, const
     }
     if (!ok) return *why = "not one of the allowed values", -1;
     memcpy(field, text, len + 1);
+    couple_resolution(cfg, k->offset);
     return 0;
   }
   errno = 0;
@@ -218,6 +263,7 @@ static int set_value(ves_config *cfg, const key_spec *k, const char *text, const
     *(int *)field = (int)v;
   else
     *(double *)field = v;
+  couple_resolution(cfg, k->offset);
   return 0;
 }
 
@@ -587,6 +633,13 @@ static ves_status validate_setup(const ves_config *cfg, const char *src, char *e
                   "%s: [geometry] box_r/box_z = %g/%g: the sphere (radius %g) and its band of "
                   "(band + 1) eps = %g do not fit in the box",
                   src, cfg->box_r, cfg->box_z, size, (cfg->band + 1) * cfg->epsilon);
+    return VES_ERR_CONFIG;
+  }
+  if (!strcmp(cfg->resolution, "custom") && resolution_name(cfg->h_band)) {
+    ves_error_say(err, errlen,
+                  "%s: [geometry] resolution = custom: names an h_band given by value, and h_band "
+                  "= %g is '%s' (set geometry.h_band, or resolution to a name)",
+                  src, cfg->h_band, resolution_name(cfg->h_band));
     return VES_ERR_CONFIG;
   }
   if (cfg->h_far < cfg->h_band * cfg->epsilon) {

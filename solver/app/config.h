@@ -18,18 +18,20 @@
 typedef struct {
   char source[512]; /* the file it came from */
   /* [geometry] */
-  double epsilon;       /* interface width eps / R0 */
-  double box_r, box_z;  /* meridian box [0, box_r] x [-box_z, box_z] */
-  double h_band;        /* node spacing in the band, in units of eps */
-  double band;          /* half-width of the refined band, units of eps */
-  double slope;         /* growth of the spacing away from the band */
-  double h_far;         /* largest spacing */
-  double gamma;         /* LME aspect ratio */
-  double support_tol;   /* LME support truncation tol0 */
-  double axis_spacings; /* width of the regular axis strip (spacings) */
-  int lloyd_iterations; /* CVT smoothing iterations */
-  int band_layers;      /* 1: interface-aligned layers in the band */
-  int seed;             /* seed of the node sampling */
+  double epsilon;                  /* interface width eps / R0 */
+  double box_r, box_z;             /* meridian box [0, box_r] x [-box_z, box_z] */
+  double h_band;                   /* node spacing in the band, in units of eps */
+  char resolution[VES_CONFIG_STR]; /* h_band's name: coarse | standard | fine (0.6, 0.5, 0.4), or
+                                      custom for any other h_band (config.c, set_value) */
+  double band;                     /* half-width of the refined band, units of eps */
+  double slope;                    /* growth of the spacing away from the band */
+  double h_far;                    /* largest spacing */
+  double gamma;                    /* LME aspect ratio */
+  double support_tol;              /* LME support truncation tol0 */
+  double axis_spacings;            /* width of the regular axis strip (spacings) */
+  int lloyd_iterations;            /* CVT smoothing iterations */
+  int band_layers;                 /* 1: interface-aligned layers in the band */
+  int seed;                        /* seed of the node sampling */
   /* the discrete energy */
   char quadrature[VES_CONFIG_STR]; /* rule per triangle (ves_quad_rule_parse) */
   double stabilization;            /* kappa of ves_model_params.stab */
@@ -57,6 +59,7 @@ typedef struct {
   int predictor;                            /* 1: steps start from the extrapolation */
   int retry_memory;                         /* accepted steps a rejected dt is remembered */
   double retry_cap;                         /* dt <= retry_cap x that dt meanwhile */
+  double event_cut;                         /* next dt x this after a reset or remeshing */
   /* [constraints] */
   int area, volume; /* 1: hold A = A0, V = V_target */
   /* [protocol] */

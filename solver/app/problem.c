@@ -19,6 +19,7 @@ static void integrate_params(const ves_config *c, ves_integrate_params *ip) {
   ip->factor_shrink = c->factor_shrink;
   ip->predictor = c->predictor;
   ip->retry_memory = c->retry_memory, ip->retry_cap = c->retry_cap;
+  ip->event_cut = c->event_cut;
   ip->hold_area = c->area, ip->hold_volume = c->volume;
   ip->volume_rate = c->volume_rate, ip->volume_final = c->volume_final;
   ip->c0_time = c->c0_time, ip->c0_after = c->c0_after, ip->c0_until = c->c0_until;

@@ -96,6 +96,7 @@ void ves_integrate_params_default(ves_integrate_params *p) {
   p->predictor = 1;
   p->retry_memory = 10;
   p->retry_cap = 0.7;
+  p->event_cut = 1;
   p->hold_area = 1;
   p->hold_volume = 1;
   p->volume_rate = 0.0;
@@ -148,6 +149,7 @@ ves_status ves_sim_create(ves_model *model, const ves_backend_type *backend,
   VES_CHECK(ip->volume_final > 0, VES_ERR_ARG);
   VES_CHECK(ip->retry_memory >= 0, VES_ERR_ARG);
   VES_CHECK(ip->retry_cap > 0 && ip->retry_cap <= 1, VES_ERR_ARG);
+  VES_CHECK(ip->event_cut > 0 && ip->event_cut <= 1, VES_ERR_ARG);
   VES_CHECK(ip->reconnect_every >= 0, VES_ERR_ARG);
   VES_CHECK(ip->profile_every >= 0, VES_ERR_ARG);
   VES_CHECK(ip->reconnect_cond_max == 0 || ip->reconnect_cond_max > 1, VES_ERR_ARG);
@@ -654,8 +656,16 @@ static void restore_profile(ves_sim *s, ves_step_report *rep) {
                                        &s->V, NULL, NULL, NULL);
 }
 
+/* After a reset or a remeshing the next dt is cut to event_cut of the
+ * controller's (within dt_min): the new reference's linearized flow is
+ * 2-10x stiffer for 5-10 steps, and a full-size first step there takes
+ * 3-5x the Newton work of an ordinary one (docs/results.md, "Why the steps
+ * after a reset or a remeshing are hard"). The cut dt is the state's dt, so
+ * a restart from the snapshot of that step continues bit for bit. */
 static void after_step(ves_sim *s, const ves_step_params *sp, ves_step_report *rep) {
   after_step_reference(s, sp, rep);
+  if (s->ip.adaptive && (rep->reconnected || rep->remeshed))
+    s->dt = fmax(s->ip.event_cut * s->dt, s->ip.dt_min);
   restore_profile(s, rep);
 }
 
