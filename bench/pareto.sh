@@ -2,7 +2,9 @@
 # Cost per accuracy of the discretization settings on a relaxation run: for each
 # setting, one `vesica run` of PROBLEM at EPS, timed in CPU seconds, and one TSV
 # row on stdout:
-#   eps  settings  nodes  cpu_s  peak_MB  E_final  E_final-E_sharp  steps
+#   problem  eps  settings  nodes  cpu_s  peak_MB  E_final  E_final-E_sharp  steps
+# (problem: the file's name without .ini, so that rows of several problems
+# share one table).
 # A setting is a space-separated list of geometry KEY=V overrides ("default":
 # none beyond the problem file). Runs go one at a time, single-threaded, at
 # nice 5 above the caller's, so that CPU seconds compare across settings on a
@@ -26,7 +28,8 @@ timebin=/usr/bin/time
 mkdir -p "$outdir"
 export OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1
 
-printf 'eps\tsettings\tnodes\tcpu_s\tpeak_MB\tE_final\tE_minus_sharp\tsteps\n'
+pname=$(basename "$problem" .ini)
+printf 'problem\teps\tsettings\tnodes\tcpu_s\tpeak_MB\tE_final\tE_minus_sharp\tsteps\n'
 for setting in "$@"; do
   args=()
   tag=eps${eps}
@@ -36,7 +39,7 @@ for setting in "$@"; do
       tag+="_${kv//=/}"
     done
   fi
-  out=$outdir/$(basename "$problem" .ini)_$tag.h5
+  out=$outdir/${pname}_$tag.h5
   tfile=$outdir/$(basename "$out" .h5).time
   # a run that does not finish (exit != 0: failed, refused, its file in use
   # by another run) gives no row: its file may not be its own
@@ -50,12 +53,12 @@ for setting in "$@"; do
     continue
   fi
   read -r usr sys rss < <(tail -n 1 "$tfile")
-  "$vesica" info "$out" | awk -v eps="$eps" -v set="$setting" -v es="$esharp" \
+  "$vesica" info "$out" | awk -v prob="$pname" -v eps="$eps" -v set="$setting" -v es="$esharp" \
     -v usr="$usr" -v sys="$sys" -v rss="$rss" -F ' = ' '
     { v[$1] = $2 }
     END {
       st = (v["status"] == "finished") ? "" : " [" v["status"] "]"
-      printf "%s\t%s%s\t%d\t%.1f\t%.0f\t%.6f\t%+.2e\t%d\n", eps, set, st, v["nodes"],
+      printf "%s\t%s\t%s%s\t%d\t%.1f\t%.0f\t%.6f\t%+.2e\t%d\n", prob, eps, set, st, v["nodes"],
         usr + sys, rss / 1024, v["energy_final"], v["energy_final"] - es, v["steps"]
     }'
 done
