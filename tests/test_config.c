@@ -438,6 +438,7 @@ static void test_defaults_agree(void **state) {
   assert_true(ip.t_end == c.t_end && ip.dt_initial == c.dt_initial && ip.dt_max == c.dt_max);
   assert_true(ip.dt_min == c.dt_min && ip.dE_target == c.dE_target);
   assert_true(ip.growth_max == c.growth_max && ip.retry_cap == c.retry_cap);
+  assert_true(ip.event_cut == c.event_cut);
   assert_int_equal(ip.adaptive, c.adaptive);
   assert_int_equal(ip.iter_target, c.iter_target);
   assert_int_equal(ip.predictor, c.predictor);

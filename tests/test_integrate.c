@@ -535,8 +535,8 @@ static void test_reconnect_stabilized(void **state) {
 }
 
 /* time.event_cut: the dt after a reset is event_cut times the controller's.
- * Two runs with resets after steps 2 and 4, one with cut 1 and one with
- * 0.25, take the same steps bit for bit until the first reset; there the
+ * Two runs with resets after steps 2 and 4, one with cut 1 (none) and one
+ * with 0.25, take the same steps bit for bit until the first reset; there the
  * cut run's next dt is exactly 0.25 of the other's (a product by 0.25 is
  * exact in binary floating point). Out-of-range cuts are refused. */
 static void test_event_cut(void **state) {
@@ -544,6 +544,7 @@ static void test_event_cut(void **state) {
   ves_setup *s = small_setup();
   ves_integrate_params ip;
   relax_params(&ip, 2, 0, 0);
+  ip.event_cut = 1;
   ves_sim *a = make_sim(s, "newton", &ip);
   ip.event_cut = 0.25;
   ves_sim *b = make_sim(s, "newton", &ip);

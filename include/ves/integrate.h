@@ -41,8 +41,8 @@ typedef struct {
                            steps keep dt <= retry_cap dt_r (0: only the next step is held) */
   double retry_cap;     /* adaptive: that cap's factor, in (0, 1] */
   double event_cut;     /* adaptive: after a reset of the reference or a remeshing the
-                           next dt is at most event_cut times the controller's, in (0, 1]
-                           (1: no such rule): the new reference's fastest mode is 2-10x
+                           next dt is event_cut times the controller's, in (0, 1] (default
+                           0.5; 1: no such rule): the new reference's fastest mode is 2-10x
                            stiffer for a few steps */
   int hold_area;        /* 1: A(y) = A0 at every step */
   int hold_volume;      /* 1: V(y) = V_target(t) at every step */

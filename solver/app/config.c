@@ -117,7 +117,7 @@ static const key_spec KEYS[] = {
      "after a rejected attempt at dt_r, this many accepted steps keep dt <= retry_cap dt_r"},
     {"time", "retry_cap", KEY_DOUBLE, OFF(retry_cap), "0.7", 0.01, 1, NULL,
      "factor of that cap (1: up to the rejected dt)"},
-    {"time", "event_cut", KEY_DOUBLE, OFF(event_cut), "1", 0.01, 1, NULL,
+    {"time", "event_cut", KEY_DOUBLE, OFF(event_cut), "0.5", 0.01, 1, NULL,
      "after a reset of the reference or a remeshing the next dt is at most this factor times "
      "the controller's (1: no cut)"},
     {"constraints", "area", KEY_INT, OFF(area), "1", 0, 1, NULL, "1: hold the area at A0"},

@@ -15,7 +15,8 @@
  * event and, for retry_memory accepted steps after a rejection at dt_r, by
  * retry_cap dt_r; a switch of C0 starts again from dt_initial. After an
  * accepted step a reset of the reference (paper Sec. 3.3, reconnect.h) or a
- * remeshing (remesh.h) runs when due; the step problem and the backend are
+ * remeshing (remesh.h) runs when due, and the next dt is event_cut of the
+ * controller's; the step problem and the backend are
  * built on the new model before the old ones are freed, so a failure leaves
  * the simulation on its old reference. Design: docs/design.md, "The time
  * loop"; the measured reason for each rule: docs/results.md, "Robustness at
@@ -96,7 +97,7 @@ void ves_integrate_params_default(ves_integrate_params *p) {
   p->predictor = 1;
   p->retry_memory = 10;
   p->retry_cap = 0.7;
-  p->event_cut = 1;
+  p->event_cut = 0.5;
   p->hold_area = 1;
   p->hold_volume = 1;
   p->volume_rate = 0.0;
