@@ -536,7 +536,7 @@ static void test_reconnect_stabilized(void **state) {
 
 /* time.event_cut: the dt after a reset is event_cut times the controller's.
  * Two runs with resets after steps 2 and 4, one with cut 1 (none) and one
- * with 0.25, take the same steps bit for bit until the first reset; there the
+ * with 0.25, take the same steps bit for bit up to the first reset; there the
  * cut run's next dt is exactly 0.25 of the other's (a product by 0.25 is
  * exact in binary floating point). Out-of-range cuts are refused. */
 static void test_event_cut(void **state) {
