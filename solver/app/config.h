@@ -22,7 +22,7 @@ typedef struct {
   double box_r, box_z;             /* meridian box [0, box_r] x [-box_z, box_z] */
   double h_band;                   /* node spacing in the band, in units of eps */
   char resolution[VES_CONFIG_STR]; /* h_band's name: coarse | standard | fine (0.6, 0.5, 0.4), or
-                                      custom for any other h_band (config.c, set_value) */
+                                      custom for any other h_band (config.c, couple_resolution) */
   double band;                     /* half-width of the refined band, units of eps */
   double slope;                    /* growth of the spacing away from the band */
   double h_far;                    /* largest spacing */

@@ -660,7 +660,7 @@ static void restore_profile(ves_sim *s, ves_step_report *rep) {
 /* After a reset or a remeshing the next dt is cut to event_cut of the
  * controller's (within dt_min): the new reference's linearized flow is
  * 2-10x stiffer for 5-10 steps, and a full-size first step there takes
- * 3-5x the Newton work of an ordinary one (docs/results.md, "Why the steps
+ * 2-5x the factorizations of an ordinary one (docs/results.md, "Why the steps
  * after a reset or a remeshing are hard"). The cut dt is the state's dt, so
  * a restart from the snapshot of that step continues bit for bit. */
 static void after_step(ves_sim *s, const ves_step_params *sp, ves_step_report *rep) {
