@@ -562,11 +562,11 @@ static void test_event_cut(void **state) {
   assert_true(rb.dt == 0.25 * ves_sim_dt(a)); /* the next step is taken at the cut dt */
   ves_sim_destroy(&a), ves_sim_destroy(&b);
   const double bad[] = {0, -0.5, 1.5, NAN};
+  ves_backend_options bo;
+  ves_backend_options_default(&bo);
   for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
     ip.event_cut = bad[i];
     ves_sim *c = NULL;
-    ves_backend_options bo;
-    ves_backend_options_default(&bo);
     assert_int_equal(ves_sim_create(s->model, ves_backend_find("newton"), &bo, &ip, &c),
                      VES_ERR_ARG);
     assert_null(c);

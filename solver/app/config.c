@@ -215,22 +215,23 @@ static const char *resolution_name(double h_band) {
 }
 
 /* The two keys of one setting stay in step, whichever comes last wins: a
- * resolution's name sets h_band, an h_band sets the name it has (custom for
- * any other value); custom itself leaves h_band as it is (the stored problem
- * text writes it with its h_band, and reads back to the same run; a custom
- * with a named h_band is refused by validate_setup). */
+ * resolution's name sets h_band, and the name always follows h_band
+ * (custom for a value without one); custom itself leaves h_band as it is
+ * (the stored problem text writes it with its h_band, and reads back to the
+ * same run; a custom with a named h_band is refused by validate_setup). */
 static void couple_resolution(ves_config *cfg, size_t offset) {
   if (offset == OFF(resolution)) {
+    if (!strcasecmp(cfg->resolution, "custom")) {
+      snprintf(cfg->resolution, sizeof cfg->resolution, "custom");
+      return;
+    }
     for (int i = 0; i < NRES; i++)
-      if (!strcasecmp(cfg->resolution, RESOLUTIONS[i].name)) {
-        snprintf(cfg->resolution, sizeof cfg->resolution, "%s", RESOLUTIONS[i].name);
-        cfg->h_band = RESOLUTIONS[i].h_band;
-      }
-    if (!strcasecmp(cfg->resolution, "custom")) snprintf(cfg->resolution, 7, "custom");
-  } else if (offset == OFF(h_band)) {
-    const char *name = resolution_name(cfg->h_band);
-    snprintf(cfg->resolution, sizeof cfg->resolution, "%s", name ? name : "custom");
+      if (!strcasecmp(cfg->resolution, RESOLUTIONS[i].name)) cfg->h_band = RESOLUTIONS[i].h_band;
+  } else if (offset != OFF(h_band)) {
+    return;
   }
+  const char *name = resolution_name(cfg->h_band);
+  snprintf(cfg->resolution, sizeof cfg->resolution, "%s", name ? name : "custom");
 }
 
 /* Parse text into the field of spec k; 0 on success, -1 with a reason. */
