@@ -242,8 +242,10 @@ run: deps
 # The paper's results (bench/paper.sh): every finished run kept in
 # results/paper/ and skipped next time, an interrupted one continued;
 # figures in bench/figures/paper/, the table in bench/PAPER.md. PAPER_EPS
-# sets eps/R0 of every run (0.01: the paper's scale), PAPER_ONLY a subset,
-# PAPER_JOBS the runs at a time (default 2, one thread each).
+# sets eps/R0 of every run (0.01: the paper's scale) and gives the scale
+# files of its own (results/paper_eps0.01/, bench/figures/paper_eps0.01/,
+# bench/PAPER_eps0.01.md), PAPER_ONLY a subset, PAPER_JOBS the runs at a
+# time (default 2, one thread each).
 PAPER_EPS ?=
 PAPER_ONLY ?=
 PAPER_JOBS ?= 2

@@ -5,24 +5,29 @@
 #               0.01 is the paper's)
 #   PAPER_ONLY  run only the results whose name contains it (fig34, table1,
 #               fig5left, fig5right, fig6, fig7; fig34 includes fig34_eps001)
-#   PAPER_OUT   where the runs go (default results/paper; not in git)
+#   PAPER_OUT   where the runs go (default results/paper, at a PAPER_EPS
+#               results/paper_epsE; not in git)
 #   PAPER_JOBS  runs at a time (default 2: two lanes of one thread each, on
 #               the two cores; 1: one after the other). Lane 1: fig6, fig34,
 #               fig34_eps001, fig5left, table1; lane 2: fig5right, fig7 (balanced by their
 #               measured times at the default scale); each lane's output in
 #               OUT/laneN.log, then one sequential pass (every run done)
-#               draws the figures and writes bench/PAPER.md
+#               draws the figures and writes the table (below)
 #   VESICA, TABLE1  the programs (make paper passes build/vesica and
 #               build/bench/bench_table1)
 #
 # Every run writes OUT/NAME.h5; NAME.done marks a finished one, which the
 # next call skips; a run interrupted (killed, a full disk, the machine
 # lost) is continued with `vesica run --restart` from its last snapshot.
-# Figures: `vesica plot` into bench/figures/paper/ (E* and dt* against t*,
+# Each scale has its own files, so a PAPER_EPS call leaves the default
+# scale's record alone: with PAPER_EPS empty the figures go to
+# bench/figures/paper/ and the table to bench/PAPER.md, with PAPER_EPS=E to
+# bench/figures/paper_epsE/ and bench/PAPER_epsE.md.
+# Figures: `vesica plot` (E* and dt* against t*,
 # the nodes coloured by phi with the phi = 0 curve, the constraints and the
 # volume protocol, the flow on one arrow scale);
 # the table of each result next to the paper's statement:
-# bench/PAPER.md, rewritten from whatever has finished at every call.
+# the table rewritten from whatever has finished at every call.
 # Fig. 6 (pearling, problems/pearling.ini) and Fig. 7 also get their own
 # figure and tables in the paper's layout (bench/fig6.py, bench/fig7.py).
 set -u
@@ -30,9 +35,11 @@ VESICA=${VESICA:-build/vesica}
 TABLE1=${TABLE1:-build/bench/bench_table1}
 PAPER_EPS=${PAPER_EPS:-}
 PAPER_ONLY=${PAPER_ONLY:-}
-OUT=${PAPER_OUT:-results/paper}
-FIG=bench/figures/paper
-MD=bench/PAPER.md
+scale=""
+[ -n "$PAPER_EPS" ] && scale="_eps$PAPER_EPS"
+OUT=${PAPER_OUT:-results/paper$scale}
+FIG=bench/figures/paper$scale
+MD=bench/PAPER$scale.md
 export OMP_NUM_THREADS="${OMP_NUM_THREADS:-1}" OPENBLAS_NUM_THREADS=1
 PAPER_JOBS=${PAPER_JOBS:-2}
 LANE=${PAPER_LANE:-}
@@ -197,7 +204,7 @@ if want table1; then
   fi
 fi
 
-# ---- bench/PAPER.md from what has finished --------------------------------
+# ---- the table (MD) from what has finished --------------------------------
 [ -n "$LANE" ] && exit $failed
 wall=$(( $(date +%s) - start ))
 key() { sed -n "s/^$1 = //p" "$OUT/$2.info" 2>/dev/null | head -1; }
@@ -225,7 +232,7 @@ lane_wall() { # the sum of the wall seconds of lane $1's finished runs
   echo "# The paper's results by \`make paper\`"
   echo
   echo "Written by bench/paper.sh (\`make paper\`) from its runs (PAPER_OUT; PAPER_EPS=${PAPER_EPS:-per result})."
-  echo "Figures: bench/figures/paper/NAME_{energy,snapshots,constraints,flow}.png. The"
+  echo "Figures: $FIG/NAME_{energy,snapshots,constraints,flow}.png. The"
   echo "columns are \`vesica info\` keys (dt growth: dt_largest / dt_first; wall s over"
   echo "restarts). What each result shows against the paper, why ours differs where it"
   echo "does, and the runs at the paper's eps 0.01 made by hand (Fig. 5 right, Fig. 6):"
@@ -244,12 +251,12 @@ lane_wall() { # the sum of the wall seconds of lane $1's finished runs
   echo "|---|---|---|---|---|---|---|---|---|---|---|---|---|"
   for n in $RUNS; do row $n; done
   echo
-  echo "Fig. 5 right (bench/fig6.py; figures bench/figures/paper/fig5right_pearls.png, the"
+  echo "Fig. 5 right (bench/fig6.py; figures $FIG/fig5right_pearls.png, the"
   echo "flow: fig5right_flow.png):"
   echo
   if [ -n "$fig5md" ]; then grep -v '^figure: ' "$fig5md"; else echo "not run"; fi
   echo
-  echo "Fig. 6 (bench/fig6.py; figure bench/figures/paper/fig6_eps$(key geometry.epsilon fig6).png):"
+  echo "Fig. 6 (bench/fig6.py; figure $FIG/fig6_eps$(key geometry.epsilon fig6).png):"
   echo
   if [ -n "$fig6md" ]; then grep -v '^figure: ' "$fig6md"; else echo "not run"; fi
   echo
@@ -261,7 +268,7 @@ lane_wall() { # the sum of the wall seconds of lane $1's finished runs
   echo "| remeshings | four, at later stages | $(key remeshings fig6) |"
   echo "| outcome | elongation and pearling | the table above: pearls and necks against t* |"
   echo
-  echo "Fig. 7 (bench/fig7.py; figure bench/figures/paper/fig7_eps$(key geometry.epsilon fig7_fast).png):"
+  echo "Fig. 7 (bench/fig7.py; figure $FIG/fig7_eps$(key geometry.epsilon fig7_fast).png):"
   echo
   if [ -n "$fig7md" ]; then grep -v '^figure: ' "$fig7md"; else echo "not run"; fi
   echo
