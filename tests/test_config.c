@@ -121,6 +121,9 @@ static void test_errors(void **state) {
                "nothing to do");
   expect_error("[protocol]\nc0_ramp_start = 1\nc0_ramp_end = 2\nc0_ramp_to = 2\n", 0, NULL,
                VES_ERR_CONFIG, "before [time] t_end");
+  /* k and mu are the units (E* = E/k, t* = t k/(mu R0^3)): any other value is refused, with why */
+  expect_error("[material]\nk = 2\n", 0, NULL, VES_ERR_CONFIG, "the energy unit (E* = E/k), so 1 only");
+  expect_error("[material]\nmu = 0.5\n", 0, NULL, VES_ERR_CONFIG, "the time unit");
   expect_error("[reconnect]\ncond_max = 1\n", 0, NULL, VES_ERR_CONFIG, "above 1");
   expect_error("[reconnect]\ndet_min = 1\n", 0, NULL, VES_ERR_CONFIG, "below 1");
   expect_error("[reconnect]\nevery = -1\n", 0, NULL, VES_ERR_CONFIG, "out of range");

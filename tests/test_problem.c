@@ -103,7 +103,7 @@ static void test_discretization(void **state) {
                        "geometry.quadrature=d6x4",
                        "geometry.axis_spacings=12",
                        "geometry.lloyd_iterations=5",
-                       "material.mu=2",
+                       "material.mu=1",
                        "material.lambda_ratio=20"};
   ves_config c;
   load(16, set, &c);
@@ -122,7 +122,7 @@ static void test_discretization(void **state) {
   assert_true(p.discret.eps == d.eps && p.discret.seed == d.seed);
   ves_model_params mp;
   ves_problem_model_params(&c, &mp);
-  assert_true(mp.eps == 0.1 && mp.mu == 2 && mp.lambda == 40 && mp.stab == c.stabilization);
+  assert_true(mp.eps == 0.1 && mp.mu == 1 && mp.lambda == 20 && mp.stab == c.stabilization);
   snprintf(c.quadrature, sizeof c.quadrature, "d5");
   assert_int_equal(ves_problem_discret(&c, &d, err, sizeof err), VES_ERR_CONFIG);
   assert_non_null(strstr(err, "quadrature = d5"));

@@ -342,7 +342,7 @@ static int finish(run_ctx *r, const loop_ctx *L, ves_status st, ves_status wst, 
     fprintf(stderr,
             "vesica run: %s at step %ld, t* = %.6g, E* = %.9g: %ld steps, %ld iterations, "
             "%.1f s; %s %s\n",
-            how, fin.nstep, fin.t, fin.E, L->steps, L->iters, ves_wall_seconds() - L->t0,
+            how, fin.nstep, fin.t, fin.E / r->cfg.k, L->steps, L->iters, ves_wall_seconds() - L->t0,
             stop_signal ? "continue with vesica run --restart" : "wrote", r->out);
   if (r->series_errno) { /* the run is whole, an output is not */
     series_warn(r, "");

@@ -170,7 +170,7 @@ static void initial_row(const run_ctx *r, ves_io_row *row) {
   ves_sim_get_state(r->sim, &s, NULL);
   *row = (ves_io_row){.step = s.nstep,
                       .t = s.t,
-                      .E = s.E,
+                      .E = s.E / r->cfg.k, /* E*, as the rows after it */
                       .A = s.A,
                       .V = s.V,
                       .V_target = s.V0,

@@ -83,9 +83,13 @@ static const key_spec KEYS[] = {
     {"shape", "mode", KEY_INT, OFF(mode), "0", 0, 40, NULL,
      "radial perturbation 1 + delta P_mode(cos t); 0 for none"},
     {"shape", "delta", KEY_DOUBLE, OFF(delta), "0", -0.49, 0.49, NULL, "perturbation amplitude"},
-    {"material", "k", KEY_DOUBLE, OFF(k), "1", 1e-12, 1e12, NULL,
-     "bending stiffness (the energy unit)"},
-    {"material", "mu", KEY_DOUBLE, OFF(mu), "1", 1e-12, 1e12, NULL, "viscosity (the unit)"},
+    /* k and mu are the units: every energy the program reads and writes is
+     * E* = E/k and every time t* = t k/(mu R0^3), so a k or mu other than 1
+     * would only relabel the model's own time (docs/manual.md, "Units") */
+    {"material", "k", KEY_DOUBLE, OFF(k), "1", 1, 1, NULL,
+     "the bending stiffness, the energy unit (E* = E/k)"},
+    {"material", "mu", KEY_DOUBLE, OFF(mu), "1", 1, 1, NULL,
+     "the viscosity, with k and R0 the time unit (t* = t k/(mu R0^3))"},
     {"material", "lambda_ratio", KEY_DOUBLE, OFF(lambda_ratio), "100", 10, 1e8, NULL,
      "compressibility penalty lambda/mu (>= 10)"},
     {"material", "c0", KEY_DOUBLE, OFF(c0), "0", -100, 100, NULL, "spontaneous curvature C0 R0"},
@@ -294,6 +298,9 @@ static ves_status range_msg(char *err, size_t errlen, const char *src, const key
   if (k->type == KEY_STRING)
     ves_error_say(err, errlen, "%s: [%s] %s = '%s': %s (allowed: %s)", src, k->section, k->key, val,
                   why, k->choice);
+  else if (k->min == k->max) /* a unit: one value */
+    ves_error_say(err, errlen, "%s: [%s] %s = '%s': %s: %s, so %g only", src, k->section, k->key,
+                  val, why, k->doc, k->min);
   else
     ves_error_say(err, errlen, "%s: [%s] %s = '%s': %s (allowed: %g to %g)", src, k->section,
                   k->key, val, why, k->min, k->max);
@@ -812,6 +819,8 @@ static void print_key_row(FILE *f, const key_spec *k) {
   char range[96];
   if (k->type == KEY_STRING)
     snprintf(range, sizeof range, "%s", k->choice ? k->choice : "text");
+  else if (k->min == k->max)
+    snprintf(range, sizeof range, "%.10g", k->min);
   else
     snprintf(range, sizeof range, "%.10g to %.10g", k->min, k->max);
   cell(f, k->section), cell(f, k->key);

@@ -338,14 +338,19 @@ static void frontier_data(FILE *f, const ves_study *s, const char *dir, int ad, 
 /* The label of axis key on a figure: the key with its unit (lengths in R0,
  * times in t*, widths in eps, C0 in 1/R0), as the key table gives them. */
 static void axis_label(const char *key, char *buf, size_t len) {
-  static const char *const unit[][2] = {
-      {"time.t_end", "t*"},          {"time.dt_initial", "t*"},
-      {"time.dt_max", "t*"},         {"time.dt_min", "t*"},
-      {"geometry.epsilon", "R0"},    {"geometry.box_r", "R0"},
-      {"geometry.box_z", "R0"},      {"geometry.h_far", "R0"},
-      {"geometry.band", "eps"},      {"geometry.h_band", "eps"},
-      {"shape.radius", "R0"},        {"material.c0", "1/R0"},
-      {"material.k", "energy unit"}, {"shape.reduced_volume", "dimensionless"}};
+  static const char *const unit[][2] = {{"time.t_end", "t*"},
+                                        {"time.dt_initial", "t*"},
+                                        {"time.dt_max", "t*"},
+                                        {"time.dt_min", "t*"},
+                                        {"geometry.epsilon", "R0"},
+                                        {"geometry.box_r", "R0"},
+                                        {"geometry.box_z", "R0"},
+                                        {"geometry.h_far", "R0"},
+                                        {"geometry.band", "eps"},
+                                        {"geometry.h_band", "eps"},
+                                        {"shape.radius", "R0"},
+                                        {"material.c0", "1/R0"},
+                                        {"shape.reduced_volume", "dimensionless"}};
   char e[128];
   ves_plot_gp_escape(e, sizeof e, key);
   for (size_t i = 0; i < sizeof unit / sizeof unit[0]; i++)
