@@ -419,6 +419,27 @@ static void test_restart_set(void **state) {
   if (r.code) fail_msg("restart to 0.04: exit %d: %s", r.code, r.err);
   run(&r, "info", out, NULL);
   assert_non_null(strstr(r.out, "t_final = 0.04\n"));
+  /* time.dt_max: a lower cap holds from the first step after the restart,
+   * though the stored dt is above it (the rows before show it was) */
+  ves_io *f = open_ro(out);
+  const long R0 = ves_io_rows(f);
+  double dt0[64];
+  assert_true(R0 <= 64);
+  assert_int_equal(ves_io_read_series(f, "dt", dt0), VES_OK);
+  ves_io_close(&f);
+  assert_true(dt0[R0 - 1] > 5e-3 * (1 + 1e-9)); /* the controller grew it past the new cap */
+  run(&r, "run", "--restart", out, "--quiet", "--set", "time.dt_max=5e-3", "--set",
+      "time.t_end=0.06", NULL);
+  if (r.code) fail_msg("restart with dt_max: exit %d: %s", r.code, r.err);
+  f = open_ro(out);
+  const long R1 = ves_io_rows(f);
+  double dt1[64];
+  assert_true(R1 > R0 && R1 <= 64);
+  assert_int_equal(ves_io_read_series(f, "dt", dt1), VES_OK);
+  ves_io_close(&f);
+  for (long i = R0; i < R1; i++) assert_true(dt1[i] <= 5e-3); /* the cap itself, not rounded */
+  run(&r, "run", "--restart", out, "--set", "time.dt_max=1e-3", NULL); /* below dt_initial */
+  assert_int_equal(r.code, 2);
   unlink(ini), rm_run(out);
 }
 

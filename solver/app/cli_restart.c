@@ -17,7 +17,8 @@
 
 /* The keys a restart may change: how each step is solved, the controller's
  * halving after a hard step (time.factor_shrink), its largest growth
- * between steps (time.growth_max) and its rules that hold dt after a step
+ * between steps (time.growth_max), its largest step (time.dt_max, at
+ * least the file's dt_initial) and its rules that hold dt after a step
  * of many iterations or factorizations (time.iter_target,
  * time.factor_target), its cut after a reset or a remeshing
  * (time.event_cut) — cost knobs for the bud phase of a long run
@@ -33,6 +34,7 @@ static const char *const RESTART_KEYS[] = {"solver.tol",
                                            "solver.factor_precision",
                                            "time.factor_shrink",
                                            "time.growth_max",
+                                           "time.dt_max",
                                            "time.iter_target",
                                            "time.factor_target",
                                            "time.event_cut",

@@ -549,7 +549,8 @@ static ves_status c0_event(ves_sim *s, double tiny) {
  * the volume ramp, where V/V0 reaches volume_final: there the forced
  * deflation stops, E* peaks, and a step across it would smear both). */
 static double event_dt(const ves_sim *s, double tiny) {
-  double dt = fmin(s->dt, s->ip.t_end - s->t);
+  /* s->dt is at most dt_max, unless a restart lowered dt_max */
+  double dt = fmin(fmin(s->dt, s->ip.dt_max), s->ip.t_end - s->t);
   if (s->ip.volume_rate != 0) {
     const double tv = (s->ip.volume_final - 1.0) / s->ip.volume_rate;
     if (tv > s->t + tiny) dt = fmin(dt, tv - s->t);
