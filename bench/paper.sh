@@ -9,8 +9,10 @@
 #               results/paper_epsE; not in git)
 #   PAPER_JOBS  runs at a time (default 2: two lanes of one thread each, on
 #               the two cores; 1: one after the other). Lane 1: fig6, fig34,
-#               fig34_eps001, fig5left, table1; lane 2: fig5right, fig7 (balanced by their
-#               measured times at the default scale); each lane's output in
+#               fig34_eps001, fig5left, table1, fig7_fast; lane 2: fig5right,
+#               fig7_medium, fig7_slow (balanced by their measured times at the
+#               default scale; Fig. 7's three rates in both lanes, so that
+#               PAPER_ONLY=fig7 uses both cores); each lane's output in
 #               OUT/laneN.log, then one sequential pass (every run done)
 #               draws the figures and writes the table (below)
 #   VESICA, TABLE1  the programs (make paper passes build/vesica and
@@ -64,7 +66,7 @@ if [ -z "$LANE" ] && [ "$PAPER_JOBS" -gt 1 ]; then
   AFTER_LANES=1 # the final pass runs nothing: what a lane did not finish stays so
 fi
 
-lane_of() { case "$1" in fig6|fig34|fig34_eps001|fig5left|table1) echo 1;; *) echo 2;; esac; }
+lane_of() { case "$1" in fig6|fig34|fig34_eps001|fig5left|table1|fig7_fast) echo 1;; *) echo 2;; esac; }
 want() {
   case "$1" in *"$PAPER_ONLY"*) ;; *) return 1;; esac
   [ -z "$LANE" ] || [ "$(lane_of "$1")" = "$LANE" ]
@@ -240,8 +242,8 @@ lane_wall() { # the sum of the wall seconds of lane $1's finished runs
   echo "The Fig. 3-4 figure is ours in the README's layout, not the paper's panels at its"
   echo "times."
   echo
-  echo "Run time: lane 1 (fig34, fig34_eps001, fig6, fig5left, table1) $(lane_wall 1) s, lane 2"
-  echo "(fig5right, fig7) $(lane_wall 2) s: the sums of the runs' own wall seconds"
+  echo "Run time: lane 1 (fig34, fig34_eps001, fig6, fig5left, table1, fig7_fast) $(lane_wall 1) s,"
+  echo "lane 2 (fig5right, fig7_medium, fig7_slow) $(lane_wall 2) s: the sums of the runs' own wall seconds"
   echo "(\`vesica info\` wall_seconds, over restarts; table1 timed by bench/paper.sh). With"
   echo "PAPER_JOBS=2 (the default) the lanes run side by side, one thread each; this call"
   echo "took $wall s ($(date -u '+%Y-%m-%d %H:%M UTC'), $(getconf _NPROCESSORS_ONLN) cores; a call that finds"
