@@ -16,7 +16,9 @@
 #include "ves/sparse.h"
 #include "ves/status.h"
 
-/* Physical parameters (units: lengths R0, energy k, time mu R0^3 / k). */
+/* Physical parameters. Lengths in R0; k and mu in any one system of units,
+ * in which times come out (the reduced time is t* = t k / (mu R0^3), so t
+ * is t* for k = mu = 1, as the program sets them). */
 typedef struct {
   double eps;    /* interface width eps / R0 */
   double c0;     /* spontaneous curvature C0 R0 */
