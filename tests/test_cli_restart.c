@@ -420,7 +420,7 @@ static void test_restart_set(void **state) {
   run(&r, "info", out, NULL);
   assert_non_null(strstr(r.out, "t_final = 0.04\n"));
   /* time.dt_max: a lower cap holds from the first step after the restart,
-   * though the stored dt is above it (the rows before show it was) */
+   * though the stored dt is above it (checked on the last row first) */
   ves_io *f = open_ro(out);
   const long R0 = ves_io_rows(f);
   double dt0[64];
