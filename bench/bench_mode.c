@@ -178,7 +178,8 @@ static ves_status power_step(const ves_setup *s, ves_sim *sim, const double *yn,
     st = ves_model_dissipation_ref(m, yn, qn);
   }
   if (st == VES_OK)
-    st = ves_model_eval_step(m, y1, VES_F_E, qn, 1.0, &Ek, NULL, NULL, &Dv, d + n2, NULL, NULL);
+    st = ves_model_eval_step(m, y1, VES_F_E, qn, NULL, 1.0, &Ek, NULL, NULL, &Dv, d + n2, NULL,
+                             NULL);
   if (st == VES_OK) {
     if (mp.drift > 0) printf("# --power: the drift damping's share is not in the table\n");
     power_table(s, &mp, ves_model_get_k(m), pdn, yn, d, dt, tn, rep->E - En, 2 * Dv / (dt * dt));

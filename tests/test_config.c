@@ -93,6 +93,12 @@ static void test_errors(void **state) {
   expect_error("[geometry]\nepsilon =\n", 0, NULL, VES_ERR_CONFIG, "epsilon");
   expect_error("[shape]\ntype = curve\n", 0, NULL, VES_ERR_CONFIG, "needs a points file");
   expect_error("[time]\ndt_initial = 1\ndt_max = 0.1\n", 0, NULL, VES_ERR_CONFIG, "dt_initial");
+  /* BDF2 (time.order = 2): zero-stable only for step ratios below 1 + sqrt 2,
+   * and an implicit scheme */
+  expect_error("[time]\norder = 2\ngrowth_max = 3\n", 0, NULL, VES_ERR_CONFIG,
+               "order = 2 needs at most 2.4");
+  expect_error("[time]\norder = 2\n[solver]\nbackend = euler\n", 0, NULL, VES_ERR_CONFIG,
+               "explicit steps");
   expect_error("[solver]\nbackend = cg\n", 0, NULL, VES_ERR_CONFIG, "ipopt|nlopt|newton|euler");
   expect_error("[constraints]\narea = 2\n", 0, NULL, VES_ERR_CONFIG, "out of range");
   expect_error("[geometry]\nepsilon = 0.3\n", 0, NULL, VES_ERR_CONFIG, "too large for the box");

@@ -37,6 +37,12 @@ typedef struct {
                            states (and multipliers scaled by dt); 0: from y^n. y^{n-1} is
                            part of the restart state (ves_sim_y_prev, ves_sim_set_prev),
                            so a restart continues bit for bit either way */
+  int order;            /* 1: backward Euler steps (paper Eq. 11); 2: BDF2 steps
+                           (ves_step_set_history) wherever y^{n-1} is held and
+                           dt / dt_prev <= VES_BDF2_RATIO_MAX, else backward Euler (the
+                           first step, after a change of C0, after a step cut to land on
+                           an event, or where the extrapolation leaves the domain);
+                           growth_max must then be <= VES_BDF2_RATIO_MAX */
   int retry_memory;     /* adaptive: after a rejected attempt at dt_r, this many accepted
                            steps keep dt <= retry_cap dt_r (0: only the next step is held) */
   double retry_cap;     /* adaptive: that cap's factor, in (0, 1] */

@@ -116,9 +116,15 @@ ves_status ves_model_dissipation(ves_model *m, const double *y, double *blk);
  * ves_model_dissipation_ref stores the velocity variables of y^n, VES_NQD = 5
  * doubles a quadrature point (qn[5 nq]; VES_ERR_DOMAIN if y^n is not
  * admissible). ves_model_eval_step is ves_model_eval (E selected) with
- *   gF = cE grad E + K(y^n) (y - y^n),  *Dv = (1/2) (y - y^n)^T K(y^n) (y - y^n)
+ *   gF = cE grad E + K(y^n) (y - y^a),  *Dv = (1/2) (y - y^a)^T K(y^n) (y - y^a)
  * in place of gE (each point's K term added before the scatter: no matrix),
- * K here without the drift damping S (ves_model_drift_blocks; constant).
+ * where qa holds the velocity variables of the anchor y^a, as
+ * ves_model_dissipation_ref gives them (a BDF2 step's combination of y^n and
+ * y^{n-1}: step.h), or is NULL for y^a = y^n; the matrix is K at the
+ * configuration whose variables are qn, which need not be y^n (a BDF2 step
+ * takes it at the extrapolated state). Those variables are linear in y, so
+ * a combination of two states' qn is the combined state's. K here is
+ * without the drift damping S (ves_model_drift_blocks; constant).
  * ves_model_hessian_step is ves_model_hessian + cK K(y^n) (with S), the two
  * summed per point before the one assembly. Agree with the assembled
  * ves_model_dissipation to rounding. single != 0: each triangle's block
@@ -130,8 +136,8 @@ ves_status ves_model_dissipation(ves_model *m, const double *y, double *blk);
 ves_status ves_model_dissipation_ref(ves_model *m, const double *y, double *qn);
 size_t ves_model_dissipation_ref_size(const ves_model *m); /* doubles in qn: 5 nq */
 ves_status ves_model_eval_step(ves_model *m, const double *y, int which, const double *qn,
-                               double cE, double *E, double *A, double *V, double *Dv, double *gF,
-                               double *gA, double *gV);
+                               const double *qa, double cE, double *E, double *A, double *V,
+                               double *Dv, double *gF, double *gA, double *gV);
 ves_status ves_model_hessian_step(ves_model *m, const double *y, const double *qn, double cE,
                                   double cA, double cV, double cK, int single, double *blk);
 

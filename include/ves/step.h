@@ -37,6 +37,27 @@ void ves_step_destroy(ves_step **s);
  * stores the targets. */
 ves_status ves_step_set(ves_step *s, const double *yn, const ves_step_params *par);
 
+/* The largest step ratio dt / dt_prev of a BDF2 step: variable-step BDF2 is
+ * zero-stable for ratios below 1 + sqrt 2. */
+#define VES_BDF2_RATIO_MAX 2.4
+/* Make the set step a BDF2 step (second order in dt) from the positions
+ * y^{n-1} (2n, on the same reference) before the last accepted step and the
+ * ratio w = dt / dt_prev of this step to that one, in (0, 2.4]:
+ *   f(x) = (1/2)(y - y^a)^T K(y~) (y - y^a) + (dt / alpha) E(y),
+ *   alpha = (1 + 2w)/(1 + w),  y^a = c y^n + (1 - c) y^{n-1},
+ *   c = (1 + w)^2/(1 + 2w),    y~ = (1 + w) y^n - w y^{n-1},
+ * whose stationarity is K(y~) (alpha/dt)(y - y^a) = -grad E - J^T lambda,
+ * the variable-step BDF2 formula (docs/design.md, "The incremental
+ * potential"). The start ves_step_x0 stays y^n; ves_step_get_params()->dt
+ * becomes dt / alpha, the weight of E in f (the constraints' multipliers
+ * scale with it). Called once after ves_step_set (VES_ERR_ARG otherwise),
+ * before any evaluation; the next ves_step_set makes a backward Euler step
+ * again. VES_ERR_DOMAIN when y~ or y^{n-1} is not admissible (det F <= 0 or
+ * r <= 0 at a point): the step then stays as ves_step_set made it.
+ * VES_ERR_ARG for a ratio outside (0, 2.4]. */
+ves_status ves_step_set_history(ves_step *s, const double *yprev, double w);
+/* 1 when the set step is a BDF2 step (ves_step_set_history). */
+int ves_step_is_bdf2(const ves_step *s);
 /* The same step with another dt in the objective f = (1/2) d^T K d + dt E:
  * y^n, K(y^n), the drift damping and the constraint targets are kept, the
  * cached evaluation is dropped. For a continuation in dt inside a backend

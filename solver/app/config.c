@@ -3,6 +3,8 @@
  * (the keys: docs/manual.md; docs/design.md, "The program"). */
 #include "app/config.h"
 
+#include "ves/step.h"
+
 #include <ctype.h>
 #include <errno.h>
 #include <limits.h>
@@ -117,6 +119,9 @@ static const key_spec KEYS[] = {
     {"time", "predictor", KEY_INT, OFF(predictor), "1", 0, 1, NULL,
      "1: a step starts from the linear extrapolation of the last two states (y^{n-1} is kept in "
      "the snapshots: restarts stay bit-exact); 0: from y^n"},
+    {"time", "order", KEY_INT, OFF(order), "1", 1, 2, NULL,
+     "1: backward Euler steps (the paper's); 2: BDF2 steps, second order in dt where y^{n-1} "
+     "is held (not with solver.backend = euler; needs growth_max <= 2.4)"},
     {"time", "retry_memory", KEY_INT, OFF(retry_memory), "10", 0, 1000000, NULL,
      "after a rejected attempt at dt_r, this many accepted steps keep dt <= retry_cap dt_r"},
     {"time", "retry_cap", KEY_DOUBLE, OFF(retry_cap), "0.7", 0.01, 1, NULL,
@@ -624,6 +629,20 @@ static ves_status validate_setup(const ves_config *cfg, const char *src, char *e
     ves_error_say(err, errlen,
                   "%s: [time] dt_initial = %g: must lie in [dt_min, dt_max] = [%g, %g]", src,
                   cfg->dt_initial, cfg->dt_min, cfg->dt_max);
+    return VES_ERR_CONFIG;
+  }
+  if (cfg->order == 2 && cfg->growth_max > VES_BDF2_RATIO_MAX) {
+    ves_error_say(err, errlen,
+                  "%s: [time] growth_max = %g: order = 2 needs at most %g (BDF2 is zero-stable "
+                  "for step ratios below 1 + sqrt 2)",
+                  src, cfg->growth_max, VES_BDF2_RATIO_MAX);
+    return VES_ERR_CONFIG;
+  }
+  if (cfg->order == 2 && !strcasecmp(cfg->backend, "euler")) {
+    ves_error_say(err, errlen,
+                  "%s: [time] order = 2: an implicit scheme; solver.backend = euler takes "
+                  "explicit steps (order = 1)",
+                  src);
     return VES_ERR_CONFIG;
   }
   if (cfg->epsilon * 10 > fmin(cfg->box_r, cfg->box_z)) {

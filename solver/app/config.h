@@ -57,6 +57,7 @@ typedef struct {
   int factor_target;                        /* ... or factorizations (0: off) */
   int factor_shrink;                        /* above this many factorizations: dt/2 (0: off) */
   int predictor;                            /* 1: steps start from the extrapolation */
+  int order;                                /* 1: backward Euler, 2: BDF2 */
   int retry_memory;                         /* accepted steps a rejected dt is remembered */
   double retry_cap;                         /* dt <= retry_cap x that dt meanwhile */
   double event_cut;                         /* next dt x this after a reset or remeshing */

@@ -18,6 +18,7 @@ static void integrate_params(const ves_config *c, ves_integrate_params *ip) {
   ip->factor_target = c->factor_target;
   ip->factor_shrink = c->factor_shrink;
   ip->predictor = c->predictor;
+  ip->order = c->order;
   ip->retry_memory = c->retry_memory, ip->retry_cap = c->retry_cap;
   ip->event_cut = c->event_cut;
   ip->hold_area = c->area, ip->hold_volume = c->volume;

@@ -178,10 +178,10 @@ ves_status ves_model_eval(ves_model *m, const double *y, int which, double *E, d
 }
 
 ves_status ves_model_eval_step(ves_model *m, const double *y, int which, const double *qn,
-                               double cE, double *E, double *A, double *V, double *Dv, double *gF,
-                               double *gA, double *gV) {
+                               const double *qa, double cE, double *E, double *A, double *V,
+                               double *Dv, double *gF, double *gA, double *gV) {
   VES_CHECK(qn && (which & VES_F_E) && isfinite(cE), VES_ERR_ARG);
-  const step_ref sr = {qn, 1.0};
+  const step_ref sr = {qn, 1.0, qa};
   return model_eval_points(m, y, which, &sr, cE, E, A, V, Dv, gF, gA, gV);
 }
 
@@ -232,7 +232,7 @@ ves_status ves_model_hessian_step(ves_model *m, const double *y, const double *q
   VES_CHECK(m && y && qn && blk && isfinite(cK), VES_ERR_ARG);
   double fac[3];
   model_functional_factors(m, cE, cA, cV, fac);
-  const step_ref sr = {qn, cK};
+  const step_ref sr = {qn, cK, NULL};
   VES_CALL(model_assemble(m, ASM_HESS, fac, &sr, single, y, blk));
   if (m->sblk && cE != 0) add_rz(m, cE, m->sblk, 2, blk); /* + cE Hess E_s */
   if (m->dblk && cK != 0) add_rz(m, cK, m->dblk, 4, blk); /* + cK S: the drift damping */

@@ -364,7 +364,8 @@ static ves_status triangle_eval(ves_model *m, model_ws *w, int which, const step
     if (sr) { /* the step's dissipation: gk = 2 pi w D dq */
       double D[VES_NQD * VES_NQD], dq[VES_NQD], dv = 0;
       VES_CALL(step_ref_dissip(m, sr, al, D));
-      for (int i = 0; i < VES_NQD; i++) dq[i] = q[i] - sr->qn[VES_NQD * (size_t)al + i];
+      const double *qa = (sr->qa ? sr->qa : sr->qn) + VES_NQD * (size_t)al;
+      for (int i = 0; i < VES_NQD; i++) dq[i] = q[i] - qa[i];
       for (int i = 0; i < VES_NQD; i++) {
         double s = 0;
         for (int j = 0; j < VES_NQD; j++) s += D[i * VES_NQD + j] * dq[j];

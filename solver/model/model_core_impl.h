@@ -90,12 +90,15 @@ struct ves_model {
   double *sblk; /* 2 ptr[n]: the rr and zz entries of Hess E_s's blocks (constant) */
 };
 
-/* The step's dissipation at its start y^n (ves_model_dissipation_ref): the
- * velocity variables qn (VES_NQD a point) of y^n, and the coefficient cK of
- * K(y^n) in what is assembled or evaluated. */
+/* The step's dissipation (ves_model_dissipation_ref): the velocity
+ * variables qn (VES_NQD a point) of the configuration K is taken at (y^n, or
+ * the extrapolated state of a BDF2 step), the coefficient cK of K in what is
+ * assembled or evaluated, and the anchor qa of the displacement d = q - qa
+ * (NULL: qn). */
 typedef struct {
   const double *qn;
   double cK;
+  const double *qa;
 } step_ref;
 
 /* What a triangle pass assembles. */

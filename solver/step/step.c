@@ -1,6 +1,8 @@
 /* vesica — one time step as a constrained NLP over the free dofs (paper Eq. 11;
  * docs/design.md, "The time step"): f(x) = (1/2) d^T K(y^n) d + dt E(y), d = x - x0,
- * c = (A(y) - A0, V(y) - V_target) for the held constraints.
+ * c = (A(y) - A0, V(y) - V_target) for the held constraints. A BDF2 step
+ * (ves_step_set_history) has the same form with another anchor, matrix
+ * configuration and weight of E.
  *
  * The model is evaluated once per point x: the last x, its status, E, A, V and
  * (when asked for) their gradients are cached, so f, grad f, c and the
@@ -27,8 +29,15 @@ struct ves_step {
   ves_step_params par;    /* copied at set */
   double *yn;             /* 2n positions y^n */
   double *x0;             /* nvar free dofs of y^n */
+  double *xa;             /* nvar anchor of d = x - xa: x0, or a BDF2 step's combination */
+  double *yk;             /* 2n configuration of K: y^n, or a BDF2 step's extrapolation */
+  double *qa;             /* the anchor's velocity variables (BDF2), else NULL: qn's */
+  double *qp;             /* velocity variables of y^{n-1} (BDF2 scratch) */
+  double *xb;             /* nvar BDF2 anchor storage */
+  double dt;              /* the step's dt (par.dt is dt / alpha in a BDF2 step) */
   double *K;              /* nnz triplet values of K(y^n), assembled on demand (K_ok) */
-  int K_ok;               /* 1 when K holds K(y^n) */
+  int K_ok;               /* 1 when K holds K(yk) */
+  int bdf2;               /* 1 after ves_step_set_history */
   double *qn;             /* the model's reference of K(y^n) (ves_model_dissipation_ref) */
   double *S;              /* nnz triplets of the drift damping S, or NULL (off) */
   double *blk;            /* 4 ptr[n] block values (K and Hessian assembly) */
@@ -50,7 +59,8 @@ void ves_step_destroy(ves_step **s) {
   if (!s || !*s) return;
   ves_step *p = *s;
   free(p->yn), free(p->x0), free(p->K), free(p->blk), free(p->y), free(p->d), free(p->Sd);
-  free(p->gfull), free(p->xc), free(p->qn), free(p->S);
+  free(p->gfull), free(p->xc), free(p->qn), free(p->S), free(p->xb), free(p->yk);
+  free(p->qa), free(p->qp);
   free(p);
   *s = NULL;
 }
@@ -74,12 +84,17 @@ ves_status ves_step_create(ves_model *m, ves_step **out) {
   s->Sd = malloc(nv * sizeof *s->Sd);
   s->gfull = malloc(3 * n2 * sizeof *s->gfull);
   s->xc = malloc(nv * sizeof *s->xc);
-  s->qn = malloc((ves_model_dissipation_ref_size(m) + 1) * sizeof *s->qn);
+  s->xb = malloc(nv * sizeof *s->xb);
+  s->yk = malloc(n2 * sizeof *s->yk);
+  const size_t nqd = ves_model_dissipation_ref_size(m) + 1;
+  s->qn = malloc(nqd * sizeof *s->qn);
+  s->qp = malloc(nqd * sizeof *s->qp);
+  s->qa = NULL; /* allocated at the first BDF2 step */
   const double *S = ves_model_drift_blocks(m);
   if (S && (s->S = ves_big_alloc(((size_t)pat->nnz + 1) * sizeof *s->S)))
     ves_pattern_extract(pat, S, s->S);
   if (!s->yn || !s->x0 || !s->K || !s->blk || !s->y || !s->d || !s->Sd || !s->gfull || !s->xc ||
-      !s->qn || (S && !s->S)) {
+      !s->qn || !s->xb || !s->yk || !s->qp || (S && !s->S)) {
     ves_step_destroy(&s);
     return VES_ERR_ALLOC;
   }
@@ -100,13 +115,55 @@ ves_status ves_step_set(ves_step *s, const double *yn, const ves_step_params *pa
   s->ncon = (par->hold_area != 0) + (par->hold_volume != 0);
   s->which = VES_F_E | (par->hold_area ? VES_F_A : 0) | (par->hold_volume ? VES_F_V : 0);
   memcpy(s->yn, yn, 2 * (size_t)s->n * sizeof *yn);
+  memcpy(s->yk, yn, 2 * (size_t)s->n * sizeof *yn);
   for (int i = 0; i < 2 * s->n; i++)
     if (s->pat->dof[i] >= 0) s->x0[s->pat->dof[i]] = yn[i];
+  s->xa = s->x0, s->bdf2 = 0, s->dt = par->dt;
   s->K_ok = 0;
   VES_CALL(ves_model_dissipation_ref(s->m, yn, s->qn));
   s->is_set = 1;
   return VES_OK;
 }
+
+/* BDF2 on K(y) ydot = -grad E - J^T lambda with the step ratio w = dt /
+ * dt_prev: ydot^{n+1} ~ (alpha / dt) (y - y^a), alpha = (1 + 2w)/(1 + w),
+ * y^a = c y^n + (1 - c) y^{n-1}, c = (1 + w)^2 / (1 + 2w), so the step is
+ * the minimization of (1/2)(y - y^a)^T K (y - y^a) + (dt / alpha) E(y), K
+ * taken at the linear extrapolation y~ = (1 + w) y^n - w y^{n-1}: an O(dt^2)
+ * approximation of y^{n+1}, which keeps the scheme second order where K(y^n)
+ * would leave an O(dt) error in the force balance (docs/design.md, "The
+ * incremental potential"). */
+ves_status ves_step_set_history(ves_step *s, const double *yprev, double w) {
+  VES_CHECK(s && s->is_set && !s->bdf2 && yprev, VES_ERR_ARG); /* once after each set */
+  VES_CHECK(isfinite(w) && w > 0 && w <= VES_BDF2_RATIO_MAX, VES_ERR_ARG);
+  const size_t n2 = 2 * (size_t)s->n, nqd = ves_model_dissipation_ref_size(s->m);
+  if (!s->qa && !(s->qa = malloc((nqd + 1) * sizeof *s->qa))) return VES_ERR_ALLOC;
+  const double alpha = (1 + 2 * w) / (1 + w), c = (1 + w) * (1 + w) / (1 + 2 * w);
+  for (size_t i = 0; i < n2; i++) s->yk[i] = (1 + w) * s->yn[i] - w * yprev[i];
+  /* y~ must be admissible (det F > 0, r > 0) for K to exist there */
+  ves_status st = ves_model_dissipation_ref(s->m, yprev, s->qp);
+  if (st == VES_OK) st = ves_model_dissipation_ref(s->m, s->yk, s->qa);
+  if (st != VES_OK) { /* the step stays BDF1 */
+    memcpy(s->yk, s->yn, n2 * sizeof *s->yk);
+    return st;
+  }
+  /* qa holds y~'s variables, qn y^n's: anchor into qa, y~ into qn */
+  for (size_t i = 0; i < nqd; i++) {
+    const double qk = s->qa[i];
+    s->qa[i] = c * s->qn[i] + (1 - c) * s->qp[i];
+    s->qn[i] = qk;
+  }
+  for (int i = 0; i < 2 * s->n; i++) {
+    const int k = s->pat->dof[i];
+    if (k >= 0) s->xb[k] = c * s->x0[k] + (1 - c) * yprev[i];
+  }
+  s->xa = s->xb, s->bdf2 = 1;
+  s->par.dt = s->dt / alpha;
+  s->K_ok = 0, s->cache = 0;
+  return VES_OK;
+}
+
+int ves_step_is_bdf2(const ves_step *s) { return s && s->is_set && s->bdf2; }
 
 int ves_step_nvar(const ves_step *s) { return s ? s->nvar : 0; }
 int ves_step_ncon(const ves_step *s) { return s && s->is_set ? s->ncon : 0; }
@@ -137,7 +194,7 @@ static ves_status ensure(ves_step *s, const double *x, int level) {
   } else {
     s->cache = 0;
     memcpy(s->xc, x, nv * sizeof *x);
-    for (size_t i = 0; i < nv; i++) s->d[i] = x[i] - s->x0[i]; /* d = x - x0 */
+    for (size_t i = 0; i < nv; i++) s->d[i] = x[i] - s->xa[i]; /* d = x - xa */
     double q = 0;
     if (s->S) { /* S d, d^T S d: the drift damping */
       ves_pattern_symv(s->pat, s->S, s->d, s->Sd);
@@ -152,8 +209,8 @@ static ves_status ensure(ves_step *s, const double *x, int level) {
   double *gA = level >= 2 ? s->gfull + n2 : NULL;
   double *gV = level >= 2 ? s->gfull + 2 * n2 : NULL;
   /* gE: dt grad E + K d */
-  ves_status st = ves_model_eval_step(s->m, s->y, s->which, s->qn, s->par.dt, &s->E, &s->A, &s->V,
-                                      &s->Dv, gE, gA, gV);
+  ves_status st = ves_model_eval_step(s->m, s->y, s->which, s->qn, s->bdf2 ? s->qa : NULL,
+                                      s->par.dt, &s->E, &s->A, &s->V, &s->Dv, gE, gA, gV);
   s->cst = st;
   s->cache = st == VES_OK ? level : 1; /* an error is remembered for this x */
   return st;
@@ -293,10 +350,10 @@ double ves_step_hess_floor(const ves_step *s, const double *x, const double *val
   return DBL_EPSILON * amax;
 }
 
-/* s->K = K(y^n) + S, assembled at the first request of the step. */
+/* s->K = K(yk) + S, assembled at the first request of the step. */
 static ves_status step_K(ves_step *s) {
   if (!s->K_ok) {
-    VES_CALL(ves_model_dissipation(s->m, s->yn, s->blk));
+    VES_CALL(ves_model_dissipation(s->m, s->yk, s->blk));
     ves_pattern_extract(s->pat, s->blk, s->K);
     s->K_ok = 1;
   }
