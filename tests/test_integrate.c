@@ -2,7 +2,7 @@
  * accepted step, adaptive dt growth, the C0 and volume protocols, the
  * failure path (no step down to dt_min keeps the last good state), and the
  * resets of the reference configuration (periodic, by threshold, failed,
- * off by default). */
+ * off by default), and the BDF2 steps (their order in dt, a restart). */
 #include <stdarg.h>
 #include <stddef.h>
 #include <stdint.h>
