@@ -79,6 +79,9 @@ ves_status ves_step_eval_f(ves_step *s, const double *x, double *f);
 ves_status ves_step_eval_grad(ves_step *s, const double *x, double *g); /* g[nvar] */
 ves_status ves_step_eval_c(ves_step *s, const double *x, double *c);    /* c[ncon] */
 ves_status ves_step_eval_jac(ves_step *s, const double *x, double *J); /* J[ncon*nvar], row-major */
+/* f at the step's start x0 (y^n): dt E(y^n) for a backward Euler step; a
+ * BDF2 step's f there also holds the dissipation from its anchor. */
+ves_status ves_step_eval_f_start(ves_step *s, double *f);
 
 /* E, A and V of the model at x (nvar), as ves_model_eval gives them (the same
  * sums, bit for bit): from the cache when the last evaluation was at x and

@@ -30,7 +30,8 @@ struct ves_step {
   double *yn;             /* 2n positions y^n */
   double *x0;             /* nvar free dofs of y^n */
   double *xa;             /* nvar anchor of d = x - xa: x0, or a BDF2 step's combination */
-  double *yk;             /* 2n configuration of K: y^n, or a BDF2 step's extrapolation */
+  const double *yk;       /* 2n configuration of K: yn, or yb in a BDF2 step */
+  double *yb;             /* 2n BDF2 extrapolation storage */
   double *qa;             /* the anchor's velocity variables (BDF2), else NULL: qn's */
   double *qp;             /* velocity variables of y^{n-1} (BDF2 scratch) */
   double *xb;             /* nvar BDF2 anchor storage */
@@ -59,7 +60,7 @@ void ves_step_destroy(ves_step **s) {
   if (!s || !*s) return;
   ves_step *p = *s;
   free(p->yn), free(p->x0), free(p->K), free(p->blk), free(p->y), free(p->d), free(p->Sd);
-  free(p->gfull), free(p->xc), free(p->qn), free(p->S), free(p->xb), free(p->yk);
+  free(p->gfull), free(p->xc), free(p->qn), free(p->S), free(p->xb), free(p->yb);
   free(p->qa), free(p->qp);
   free(p);
   *s = NULL;
@@ -85,7 +86,7 @@ ves_status ves_step_create(ves_model *m, ves_step **out) {
   s->gfull = malloc(3 * n2 * sizeof *s->gfull);
   s->xc = malloc(nv * sizeof *s->xc);
   s->xb = malloc(nv * sizeof *s->xb);
-  s->yk = malloc(n2 * sizeof *s->yk);
+  s->yb = malloc(n2 * sizeof *s->yb);
   const size_t nqd = ves_model_dissipation_ref_size(m) + 1;
   s->qn = malloc(nqd * sizeof *s->qn);
   s->qp = malloc(nqd * sizeof *s->qp);
@@ -94,7 +95,7 @@ ves_status ves_step_create(ves_model *m, ves_step **out) {
   if (S && (s->S = ves_big_alloc(((size_t)pat->nnz + 1) * sizeof *s->S)))
     ves_pattern_extract(pat, S, s->S);
   if (!s->yn || !s->x0 || !s->K || !s->blk || !s->y || !s->d || !s->Sd || !s->gfull || !s->xc ||
-      !s->qn || !s->xb || !s->yk || !s->qp || (S && !s->S)) {
+      !s->qn || !s->xb || !s->yb || !s->qp || (S && !s->S)) {
     ves_step_destroy(&s);
     return VES_ERR_ALLOC;
   }
@@ -115,10 +116,9 @@ ves_status ves_step_set(ves_step *s, const double *yn, const ves_step_params *pa
   s->ncon = (par->hold_area != 0) + (par->hold_volume != 0);
   s->which = VES_F_E | (par->hold_area ? VES_F_A : 0) | (par->hold_volume ? VES_F_V : 0);
   memcpy(s->yn, yn, 2 * (size_t)s->n * sizeof *yn);
-  memcpy(s->yk, yn, 2 * (size_t)s->n * sizeof *yn);
   for (int i = 0; i < 2 * s->n; i++)
     if (s->pat->dof[i] >= 0) s->x0[s->pat->dof[i]] = yn[i];
-  s->xa = s->x0, s->bdf2 = 0, s->dt = par->dt;
+  s->xa = s->x0, s->yk = s->yn, s->bdf2 = 0, s->dt = par->dt;
   s->K_ok = 0;
   VES_CALL(ves_model_dissipation_ref(s->m, yn, s->qn));
   s->is_set = 1;
@@ -139,14 +139,11 @@ ves_status ves_step_set_history(ves_step *s, const double *yprev, double w) {
   const size_t n2 = 2 * (size_t)s->n, nqd = ves_model_dissipation_ref_size(s->m);
   if (!s->qa && !(s->qa = malloc((nqd + 1) * sizeof *s->qa))) return VES_ERR_ALLOC;
   const double alpha = (1 + 2 * w) / (1 + w), c = (1 + w) * (1 + w) / (1 + 2 * w);
-  for (size_t i = 0; i < n2; i++) s->yk[i] = (1 + w) * s->yn[i] - w * yprev[i];
+  for (size_t i = 0; i < n2; i++) s->yb[i] = (1 + w) * s->yn[i] - w * yprev[i];
   /* y~ must be admissible (det F > 0, r > 0) for K to exist there */
   ves_status st = ves_model_dissipation_ref(s->m, yprev, s->qp);
-  if (st == VES_OK) st = ves_model_dissipation_ref(s->m, s->yk, s->qa);
-  if (st != VES_OK) { /* the step stays BDF1 */
-    memcpy(s->yk, s->yn, n2 * sizeof *s->yk);
-    return st;
-  }
+  if (st == VES_OK) st = ves_model_dissipation_ref(s->m, s->yb, s->qa);
+  if (st != VES_OK) return st; /* the step stays BDF1 */
   /* qa holds y~'s variables, qn y^n's: anchor into qa, y~ into qn */
   for (size_t i = 0; i < nqd; i++) {
     const double qk = s->qa[i];
@@ -157,7 +154,7 @@ ves_status ves_step_set_history(ves_step *s, const double *yprev, double w) {
     const int k = s->pat->dof[i];
     if (k >= 0) s->xb[k] = c * s->x0[k] + (1 - c) * yprev[i];
   }
-  s->xa = s->xb, s->bdf2 = 1;
+  s->xa = s->xb, s->yk = s->yb, s->bdf2 = 1;
   s->par.dt = s->dt / alpha;
   s->K_ok = 0, s->cache = 0;
   return VES_OK;
@@ -229,6 +226,11 @@ ves_status ves_step_eval_f(ves_step *s, const double *x, double *f) {
   VES_CALL(ensure(s, x, 1));
   *f = s->Dv + 0.5 * s->dSd + s->par.dt * s->E;
   return VES_OK;
+}
+
+ves_status ves_step_eval_f_start(ves_step *s, double *f) {
+  STEP_READY(s, s->x0);
+  return ves_step_eval_f(s, s->x0, f);
 }
 
 ves_status ves_step_values(ves_step *s, const double *x, double *E, double *A, double *V) {

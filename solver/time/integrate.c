@@ -717,12 +717,7 @@ static void reject(ves_sim *s, double dt, ves_status st, int retries, ves_step_r
 static ves_status descent_from_start(ves_sim *s) {
   double fx, f0;
   VES_CALL(ves_step_eval_f(s->step, s->x, &fx));
-  double *x0 = malloc((size_t)ves_step_nvar(s->step) * sizeof *x0);
-  if (!x0) return VES_ERR_ALLOC;
-  ves_step_x0(s->step, x0);
-  ves_status st = ves_step_eval_f(s->step, x0, &f0);
-  free(x0);
-  if (st != VES_OK) return st;
+  VES_CALL(ves_step_eval_f_start(s->step, &f0));
   return fx > f0 + 1e-10 * fabs(f0) ? VES_STEP_REJECTED : VES_OK;
 }
 
