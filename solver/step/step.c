@@ -33,7 +33,7 @@ struct ves_step {
   const double *yk;       /* 2n configuration of K: yn, or yb in a BDF2 step */
   double *yb;             /* 2n BDF2 extrapolation storage */
   double *qa;             /* the anchor's velocity variables (BDF2), else NULL: qn's */
-  double *qp;             /* velocity variables of y^{n-1} (BDF2 scratch) */
+  double *qp;             /* velocity variables of y^{n-1} (BDF2 scratch), else NULL */
   double *xb;             /* nvar BDF2 anchor storage */
   double dt;              /* the step's dt (par.dt is dt / alpha in a BDF2 step) */
   double *K;              /* nnz triplet values of K(y^n), assembled on demand (K_ok) */
@@ -89,13 +89,12 @@ ves_status ves_step_create(ves_model *m, ves_step **out) {
   s->yb = malloc(n2 * sizeof *s->yb);
   const size_t nqd = ves_model_dissipation_ref_size(m) + 1;
   s->qn = malloc(nqd * sizeof *s->qn);
-  s->qp = malloc(nqd * sizeof *s->qp);
-  s->qa = NULL; /* allocated at the first BDF2 step */
+  s->qa = s->qp = NULL; /* allocated at the first BDF2 step (5 doubles a point each) */
   const double *S = ves_model_drift_blocks(m);
   if (S && (s->S = ves_big_alloc(((size_t)pat->nnz + 1) * sizeof *s->S)))
     ves_pattern_extract(pat, S, s->S);
   if (!s->yn || !s->x0 || !s->K || !s->blk || !s->y || !s->d || !s->Sd || !s->gfull || !s->xc ||
-      !s->qn || !s->xb || !s->yb || !s->qp || (S && !s->S)) {
+      !s->qn || !s->xb || !s->yb || (S && !s->S)) {
     ves_step_destroy(&s);
     return VES_ERR_ALLOC;
   }
@@ -138,6 +137,7 @@ ves_status ves_step_set_history(ves_step *s, const double *yprev, double w) {
   VES_CHECK(isfinite(w) && w > 0 && w <= VES_BDF2_RATIO_MAX, VES_ERR_ARG);
   const size_t n2 = 2 * (size_t)s->n, nqd = ves_model_dissipation_ref_size(s->m);
   if (!s->qa && !(s->qa = malloc((nqd + 1) * sizeof *s->qa))) return VES_ERR_ALLOC;
+  if (!s->qp && !(s->qp = malloc((nqd + 1) * sizeof *s->qp))) return VES_ERR_ALLOC;
   const double alpha = (1 + 2 * w) / (1 + w), c = (1 + w) * (1 + w) / (1 + 2 * w);
   for (size_t i = 0; i < n2; i++) s->yb[i] = (1 + w) * s->yn[i] - w * yprev[i];
   /* y~ must be admissible (det F > 0, r > 0) for K to exist there */
