@@ -641,7 +641,7 @@ static ves_status validate_setup(const ves_config *cfg, const char *src, char *e
   if (cfg->order == 2 && !strcasecmp(cfg->backend, "euler")) {
     ves_error_say(err, errlen,
                   "%s: [time] order = 2: an implicit scheme; solver.backend = euler takes "
-                  "explicit steps (order = 1)",
+                  "explicit steps (order = 1: --set time.order=1)",
                   src);
     return VES_ERR_CONFIG;
   }
