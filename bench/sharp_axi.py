@@ -1,11 +1,16 @@
 #!/usr/bin/python3
 """
-vesica bench: sharp-interface Helfrich (C0 = 0, no ADE) axisymmetric equilibria at fixed
-reduced volume, an independent check of the phase-field energies (docs/results.md, "Accuracy against the sharp-interface references").
-Usage: /usr/bin/python3 bench/sharp_axi.py [V] [K]   (V = 0.9, K = 16: converged to ~13 digits)
-Prints E* of the oblate and the prolate equilibria (sphere E* = 2 pi) and their R_eq and half-height
-at A = 4 pi. numpy only (Debian python3-numpy).
-Normalization: E* = (1/8) * int (c1+c2)^2 dA   (sphere -> 2*pi).
+vesica bench: sharp-interface Helfrich (spontaneous curvature C0, no ADE) axisymmetric equilibria
+at fixed reduced volume, an independent check of the phase-field energies (docs/results.md,
+"Accuracy against the sharp-interface references").
+Usage: /usr/bin/python3 bench/sharp_axi.py [V] [K] [C0]   (V = 0.9, K = 16: converged to ~13 digits;
+C0 in 1/R0, default 0)
+Prints E* of the oblate and the prolate equilibria (sphere E* = 2 pi at C0 = 0) and their R_eq and
+half-height at A = 4 pi. numpy only (Debian python3-numpy).
+Normalization: E* = (1/2) int (H - C0)^2 dA, H = (c1+c2)/2 (sphere at C0 = 0 -> 2*pi), the sharp
+limit of vesica's phase-field energy (docs/design.md); H > 0 on a sphere.
+C0 breaks the scale invariance: the shape is computed at arc length L and scaled by s = sqrt(4 pi/A)
+to A = 4 pi, where (1/2) int H^2 dA is unchanged, int H dA is s times its value and the area 4 pi.
 
 Generating curve in arc length s = L t, t in [0,1] (pole -> pole), L fixed (scale-free problem):
     psi(t) = pi t + sum_{k} a_k sin(k pi t)
@@ -22,8 +27,9 @@ L = np.pi
 
 
 class Disc:
-    def __init__(self, K, M=None, Q=None, sym=True):
+    def __init__(self, K, M=None, Q=None, sym=True, C0=0.0):
         self.sym = sym
+        self.C0 = C0
         self.ks = np.arange(2, K + 1, 2) if sym else np.arange(1, K + 1)
         self.K = K
         self.M = M if M else max(256, 16 * K)       # FFT points on full period [0,2)
@@ -55,6 +61,9 @@ class Disc:
         H2 = (psis + sp / r) ** 2
         E = 0.25 * np.pi * L * np.sum(self.wq * r * H2)
         A = 2 * np.pi * L * np.sum(self.wq * r)
+        if self.C0 != 0:  # at A = 4 pi: - C0 s int H dA + (C0^2 / 2) 4 pi
+            IH = np.pi * L * np.sum(self.wq * r * (psis + sp / r))
+            E = E - self.C0 * np.sqrt(4 * np.pi / A) * IH + 2 * np.pi * self.C0 ** 2
         V = np.pi * L * np.sum(self.wq * r * r * sp)
         v = V / (4 * np.pi / 3 * (A / (4 * np.pi)) ** 1.5)
         return E, v, c0, A, V
@@ -194,7 +203,7 @@ def spheroid_energy_exact(a, c):
 if __name__ == "__main__":
     v0 = float(sys.argv[1]) if len(sys.argv) > 1 else 0.9
     K = int(sys.argv[2]) if len(sys.argv) > 2 else 16
-    d = Disc(K)
+    d = Disc(K, C0=float(sys.argv[3]) if len(sys.argv) > 3 else 0.0)
     # start: the v = 0.9 spheroids (Newton reaches v0 from them for v0 near 0.9)
     for name, (aeq, cpol) in (("oblate", (1.182923, 0.643176)), ("prolate", (0.643176, 1.182923))):
         a, lam, info = solve(d, spheroid_coeffs(aeq, cpol, K), v0)
