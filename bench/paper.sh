@@ -120,7 +120,7 @@ fig7set="--set time.dE_target=1 --set output.snapshot_every=1"
 e7=${PAPER_EPS:-0.08}
 awk -v e="$e7" 'BEGIN { exit !(e >= 0.08) }' && fig7set="$fig7set --set geometry.band=4"
 run fig34 problems/oblate.ini 0.08
-# and once at the paper's eps 0.01 (19,391 nodes, the file's band; ~15 min
+# and once at the paper's eps 0.01 (19,391 nodes, the file's band; ~8 min
 # on one thread): the relaxation at its scale, beside the default one. Not
 # with a PAPER_EPS, where fig34 itself runs at that eps.
 [ -z "$PAPER_EPS" ] && run fig34_eps001 problems/oblate.ini 0.01
