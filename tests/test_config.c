@@ -99,6 +99,9 @@ static void test_errors(void **state) {
                "order = 2 needs at most 2.4");
   expect_error("[time]\norder = 2\n[solver]\nbackend = euler\n", 0, NULL, VES_ERR_CONFIG,
                "explicit steps");
+  /* ... and the message names the override that runs such a file with euler */
+  expect_error("[time]\norder = 2\n[solver]\nbackend = euler\n", 0, NULL, VES_ERR_CONFIG,
+               "--set time.order=1");
   expect_error("[solver]\nbackend = cg\n", 0, NULL, VES_ERR_CONFIG, "ipopt|nlopt|newton|euler");
   expect_error("[constraints]\narea = 2\n", 0, NULL, VES_ERR_CONFIG, "out of range");
   expect_error("[geometry]\nepsilon = 0.3\n", 0, NULL, VES_ERR_CONFIG, "too large for the box");
